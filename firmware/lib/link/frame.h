@@ -1,0 +1,103 @@
+// Frames on the wire (the one description is protocol/README.md):
+//
+//   frame = COBS(body) 0x00
+//   body  = version:u8 | msg_id:u8 | seq:u8 | payload (0..kMaxPayload) | crc:u16le
+//   crc   = CRC-16/CCITT-FALSE over version..payload
+//
+// FrameDecoder takes one byte at a time, decodes COBS as it goes into a single buffer,
+// allocates nothing, resynchronises at the next 0x00 after garbage, and counts what it
+// drops, in this order of checks (the host's decoder counts identically):
+//   overlong    more than kMaxEncodedBody bytes before a delimiter
+//   malformed   broken COBS, shorter than header + CRC, wrong version, wrong payload length
+//   bad_crc     CRC mismatch
+//   unknown_id  well-formed, but no message has that id
+// An empty frame (two delimiters in a row) is not counted.
+#pragma once
+#include <stdint.h>
+
+#include "messages_gen.h"
+
+namespace rovernav {
+
+enum : uint8_t {
+  kFrameHeader = 3,
+  kFrameCrc = 2,
+  /// Longest COBS body of a valid frame: one code byte per 254 data bytes.
+  kMaxEncodedBody = kMaxRawFrame + (kMaxRawFrame + 253) / 254,
+  /// Longest frame on the wire, delimiter included.
+  kMaxEncodedFrame = kMaxEncodedBody + 1,
+};
+static_assert(static_cast<int>(kMaxRawFrame) == kFrameHeader + static_cast<int>(kMaxPayload) + kFrameCrc,
+              "raw frame size");
+static_assert(kMaxEncodedFrame <= 64, "a frame must fit the Uno's 64-byte serial buffers");
+
+struct Frame {
+  uint8_t version;
+  uint8_t msg_id;
+  uint8_t seq;
+  uint8_t payload_len;
+  const uint8_t* payload;  ///< points into the decoder's buffer; valid until the next push()
+};
+
+/// Why the last completed frame was dropped (None if it was accepted).
+enum class FrameError : uint8_t { None, Overlong, Malformed, BadCrc, UnknownId };
+
+struct FrameCounters {
+  uint16_t frames_ok;
+  uint16_t bad_crc;
+  uint16_t overlong;
+  uint16_t unknown_id;
+  uint16_t malformed;
+};
+
+class FrameDecoder {
+ public:
+  FrameDecoder() { reset(); }
+
+  /// Feeds one byte. Returns true when it completes a valid frame, then readable by frame().
+  bool push(uint8_t byte);
+
+  const Frame& frame() const { return frame_; }
+  const FrameCounters& counters() const { return counters_; }
+  FrameError last_error() const { return last_error_; }
+  /// Forgets a partial frame (counters are kept).
+  void reset();
+
+ private:
+  bool finish();
+
+  uint8_t raw_[kMaxRawFrame];
+  uint8_t raw_len_;
+  uint8_t encoded_len_;      // COBS bytes seen in this frame
+  uint8_t block_left_;       // data bytes still due in the current COBS block
+  bool zero_after_block_;    // the current block stands for data followed by a 0x00
+  bool cobs_ok_;
+  bool overlong_;
+  Frame frame_ = {};
+  FrameCounters counters_ = {};
+  FrameError last_error_ = FrameError::None;
+};
+
+/// Writes the frame for (msg_id, seq, payload) to out, which must hold kMaxEncodedFrame bytes.
+/// Returns the bytes written, delimiter included, or 0 if payload_len > kMaxPayload.
+uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_t payload_len,
+                     uint8_t* out);
+
+/// Encodes a generated message: encode_message(msg::Fix{...}, seq, out).
+template <typename Msg>
+uint8_t encode_message(const Msg& m, uint8_t seq, uint8_t* out) {
+  static_assert(static_cast<int>(Msg::kPayloadSize) <= static_cast<int>(kMaxPayload), "message larger than a frame");
+  uint8_t payload[Msg::kPayloadSize > 0 ? Msg::kPayloadSize : 1];
+  m.encode(payload);
+  return encode_frame(Msg::kId, seq, payload, Msg::kPayloadSize, out);
+}
+
+/// Decodes frame f as Msg if it is one; returns false otherwise.
+template <typename Msg>
+bool decode_message(const Frame& f, Msg& m) {
+  if (f.msg_id != Msg::kId || f.payload_len != static_cast<uint8_t>(Msg::kPayloadSize)) return false;
+  m.decode(f.payload);
+  return true;
+}
+
+}  // namespace rovernav

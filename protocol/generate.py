@@ -1,0 +1,442 @@
+#!/usr/bin/env python3
+"""Generate the link protocol code from protocol/messages.toml.
+
+Writes, with a banner naming this file and the definition:
+  firmware/lib/link/messages_gen.h       C++ structs, enums, parameter limits
+  host/rovernav/link/messages_gen.py     Python dataclasses and enums
+  firmware/test/test_link/vectors_gen.h  the golden vectors as C++ test cases
+
+    python3 protocol/generate.py                 write the outputs
+    python3 protocol/generate.py --check         exit 1 if a committed output drifted
+    python3 protocol/generate.py --update-vectors  recompute frame_hex in vectors.json
+
+Standard library only: it runs before anything is installed.
+"""
+from __future__ import annotations
+
+import argparse
+import binascii
+import json
+import re
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFINITION = ROOT / "protocol" / "messages.toml"
+VECTORS = ROOT / "protocol" / "vectors.json"
+OUT_CPP = ROOT / "firmware" / "lib" / "link" / "messages_gen.h"
+OUT_PY = ROOT / "host" / "rovernav" / "link" / "messages_gen.py"
+OUT_VECTORS_H = ROOT / "firmware" / "test" / "test_link" / "vectors_gen.h"
+
+# type -> (bytes, struct code, C++ type, min, max)
+TYPES = {
+    "u8": (1, "B", "uint8_t", 0, 0xFF),
+    "i8": (1, "b", "int8_t", -0x80, 0x7F),
+    "u16": (2, "H", "uint16_t", 0, 0xFFFF),
+    "i16": (2, "h", "int16_t", -0x8000, 0x7FFF),
+    "u32": (4, "I", "uint32_t", 0, 0xFFFFFFFF),
+    "i32": (4, "i", "int32_t", -0x80000000, 0x7FFFFFFF),
+}
+HEADER_BYTES = 3  # version, msg_id, seq
+CRC_BYTES = 2
+IDENT = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+class DefinitionError(ValueError):
+    """The definition breaks a rule; the message names the place."""
+
+
+def camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+def payload_size(message: dict) -> int:
+    return sum(TYPES[f["type"]][0] * f.get("count", 1) for f in message["fields"])
+
+
+def load(path: Path = DEFINITION) -> dict:
+    """Read and validate the definition; raise DefinitionError naming the bad entry."""
+    with open(path, "rb") as fh:
+        d = tomllib.load(fh)
+    proto = d.get("protocol", {})
+    for key in ("version", "max_payload", "max_waypoints", "waypoints_per_chunk"):
+        if not isinstance(proto.get(key), int):
+            raise DefinitionError(f"[protocol].{key} must be an integer")
+    seen_ids: dict[int, str] = {}
+    seen_names: set[str] = set()
+    for m in d.get("messages", []):
+        name = m.get("name", "?")
+        if not IDENT.match(name) or name in seen_names:
+            raise DefinitionError(f"message {name!r}: bad or repeated name")
+        seen_names.add(name)
+        mid = m.get("id")
+        if not isinstance(mid, int) or not 0 < mid < 256 or mid in seen_ids:
+            raise DefinitionError(f"message {name}: id {mid!r} is not a free byte (1..255)")
+        seen_ids[mid] = name
+        if m.get("direction") not in ("host_to_rover", "rover_to_host", "both"):
+            raise DefinitionError(f"message {name}: direction must be host_to_rover, rover_to_host or both")
+        fnames = set()
+        for f in m.get("fields", []):
+            if f.get("type") not in TYPES:
+                raise DefinitionError(f"message {name}.{f.get('name')}: unknown type {f.get('type')!r}")
+            if not IDENT.match(f.get("name", "")) or f["name"] in fnames:
+                raise DefinitionError(f"message {name}: bad or repeated field {f.get('name')!r}")
+            fnames.add(f["name"])
+            if "count" in f and (not isinstance(f["count"], int) or f["count"] < 2):
+                raise DefinitionError(f"message {name}.{f['name']}: count must be an integer >= 2")
+        if payload_size(m) > proto["max_payload"]:
+            raise DefinitionError(f"message {name}: payload {payload_size(m)} bytes > max_payload {proto['max_payload']}")
+    enum_names = set()
+    for e in d.get("enums", []):
+        if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
+            raise DefinitionError(f"enum {e.get('name')!r}: bad or repeated name")
+        enum_names.add(e["name"])
+        values = [v["value"] for v in e["values"]]
+        if len(set(values)) != len(values):
+            raise DefinitionError(f"enum {e['name']}: repeated value")
+    pids = set()
+    for p in d.get("params", []):
+        if p["id"] in pids or not 0 < p["id"] < 256:
+            raise DefinitionError(f"param {p['name']}: id {p['id']} repeated or not 1..255")
+        pids.add(p["id"])
+        if not p["min"] <= p["default"] <= p["max"]:
+            raise DefinitionError(f"param {p['name']}: default {p['default']} outside [{p['min']}, {p['max']}]")
+    d["schema_hash"] = schema_hash(d)
+    return d
+
+
+def schema_hash(d: dict) -> int:
+    """CRC-32 (the zlib polynomial) of everything that changes the meaning of bytes on the wire.
+
+    Documentation is left out, so a reworded `doc` does not split a fleet; names, ids,
+    types, units, enum values and parameter ids and limits are in.
+    """
+    canon = {
+        "protocol": d["protocol"],
+        "messages": [
+            {"name": m["name"], "id": m["id"], "direction": m["direction"],
+             "fields": [[f["name"], f["type"], f.get("count", 1), f.get("unit", "")] for f in m["fields"]]}
+            for m in d["messages"]
+        ],
+        "enums": [{"name": e["name"], "values": [[v["name"], v["value"]] for v in e["values"]]}
+                  for e in d.get("enums", [])],
+        "params": [[p["id"], p["name"], p["unit"], p["min"], p["max"]] for p in d.get("params", [])],
+    }
+    text = json.dumps(canon, sort_keys=True, separators=(",", ":"))
+    return binascii.crc32(text.encode()) & 0xFFFFFFFF
+
+
+def banner(comment: str) -> str:
+    return (f"{comment} GENERATED by protocol/generate.py from protocol/messages.toml. Do not edit:\n"
+            f"{comment} change the definition and run `python3 protocol/generate.py`.\n")
+
+
+# ---------------------------------------------------------------- reference encoder
+# Written apart from the host runtime on purpose: the golden vectors it produces are
+# checked against both the C++ and the Python implementation.
+
+def _crc16_ccitt_false(data: bytes) -> int:
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def _cobs(data: bytes) -> bytes:
+    out, block, after_full_block = bytearray(), bytearray(), False
+    for byte in data:
+        after_full_block = False
+        if byte == 0:
+            out += bytes([len(block) + 1]) + block
+            block = bytearray()
+        else:
+            block.append(byte)
+            if len(block) == 254:
+                out += b"\xff" + block
+                block, after_full_block = bytearray(), True
+    if not after_full_block:  # data ending on a full block needs no final code byte
+        out += bytes([len(block) + 1]) + block
+    return bytes(out)
+
+
+def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
+    body = bytearray([d["protocol"]["version"], message["id"], seq])
+    for f in message["fields"]:
+        size, _, _, lo, hi = TYPES[f["type"]]
+        values = fields[f["name"]] if "count" in f else [fields[f["name"]]]
+        if len(values) != f.get("count", 1):
+            raise DefinitionError(f"vector for {message['name']}.{f['name']}: wrong element count")
+        for v in values:
+            if not lo <= v <= hi:
+                raise DefinitionError(f"vector for {message['name']}.{f['name']}: {v} out of range")
+            body += int(v).to_bytes(size, "little", signed=lo < 0)
+    body += _crc16_ccitt_false(bytes(body)).to_bytes(2, "little")
+    return _cobs(bytes(body)) + b"\x00"
+
+
+# ---------------------------------------------------------------- C++
+
+def render_cpp(d: dict) -> str:
+    p = d["protocol"]
+    max_raw = HEADER_BYTES + p["max_payload"] + CRC_BYTES
+    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "le_bytes.h"\n\n',
+           "namespace rovernav {\n\n",
+           f"enum : uint8_t {{ kProtocolVersion = {p['version']} }};\n",
+           f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
+           f"enum : uint8_t {{\n  kMaxPayload = {p['max_payload']},\n  kMaxRawFrame = {max_raw},  // header + payload + CRC\n"
+           f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']}\n}};\n\n"]
+    for e in d.get("enums", []):
+        out.append(f"/// {e.get('doc', '')}\n")
+        if e.get("bitmask"):
+            out.append(f"struct {camel(e['name'])} {{\n  enum : uint16_t {{\n")
+        else:
+            out.append(f"enum class {camel(e['name'])} : uint8_t {{\n")
+        for v in e["values"]:
+            doc = f"  ///< {v['doc']}" if v.get("doc") else ""
+            indent = "    " if e.get("bitmask") else "  "
+            out.append(f"{indent}{camel(v['name'])} = {v['value']},{doc}\n")
+        out.append("  };\n};\n\n" if e.get("bitmask") else "};\n\n")
+    out.append("/// Parameters set by CONFIG.\nenum class Param : uint8_t {\n")
+    for prm in d.get("params", []):
+        out.append(f"  {camel(prm['name'])} = {prm['id']},  ///< [{prm['unit']}] {prm['doc']}\n")
+    out.append("};\n")
+    out.append(f"enum : uint8_t {{ kParamMaxId = {max(x['id'] for x in d['params'])} }};\n\n")
+    out.append("/// Default and limits of parameter `id`; false if there is no such parameter.\n"
+               "/// A switch, not a table, so that it lives in flash on the AVR.\n"
+               "inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {\n"
+               "  switch (id) {\n")
+    for prm in d.get("params", []):
+        out.append(f"    case {prm['id']}: def = {prm['default']}L; lo = {prm['min']}L; hi = {prm['max']}L; return true;\n")
+    out.append("    default: return false;\n  }\n}\n\n")
+    out.append("namespace msg {\n\n")
+    for m in d["messages"]:
+        out.append(f"/// {m['doc']} ({m['direction'].replace('_', ' ')})\n")
+        out.append(f"struct {camel(m['name'])} {{\n")
+        out.append(f"  enum : uint8_t {{ kId = 0x{m['id']:02X}, kPayloadSize = {payload_size(m)} }};\n")
+        for f in m["fields"]:
+            ctype = TYPES[f["type"]][2]
+            arr = f"[{f['count']}]" if "count" in f else ""
+            unit = f" [{f['unit']}]" if f.get("unit") else ""
+            out.append(f"  {ctype} {f['name']}{arr};  ///<{unit} {f.get('doc', '')}\n".replace(" \n", "\n"))
+        enc, dec, off = [], [], 0
+        for f in m["fields"]:
+            size = TYPES[f["type"]][0]
+            t = f["type"]
+            if "count" in f:
+                enc.append(f"    for (uint8_t i = 0; i < {f['count']}; ++i) le::put_{t}(p + {off} + i * {size}, {f['name']}[i]);\n")
+                dec.append(f"    for (uint8_t i = 0; i < {f['count']}; ++i) {f['name']}[i] = le::get_{t}(p + {off} + i * {size});\n")
+                off += size * f["count"]
+            else:
+                enc.append(f"    le::put_{t}(p + {off}, {f['name']});\n")
+                dec.append(f"    {f['name']} = le::get_{t}(p + {off});\n")
+                off += size
+        out.append("  /// Writes kPayloadSize bytes to p.\n  void encode(uint8_t* p) const {\n")
+        out.extend(enc or ["    (void)p;\n"])
+        out.append("  }\n  /// Reads kPayloadSize bytes from p.\n  void decode(const uint8_t* p) {\n")
+        out.extend(dec or ["    (void)p;\n"])
+        out.append("  }\n};\n\n")
+    out.append("}  // namespace msg\n\n")
+    out.append("/// Payload size of message `id`, or -1 if no message has that id.\n"
+               "inline int16_t payload_size(uint8_t id) {\n  switch (id) {\n")
+    for m in d["messages"]:
+        out.append(f"    case 0x{m['id']:02X}: return {payload_size(m)};\n")
+    out.append("    default: return -1;\n  }\n}\n\n}  // namespace rovernav\n")
+    return "".join(out)
+
+
+# ---------------------------------------------------------------- Python
+
+def render_py(d: dict) -> str:
+    p = d["protocol"]
+    out = [banner("#"), '"""The link protocol\'s messages, enums and parameters (generated)."""\n',
+           "from __future__ import annotations\n\n",
+           "import dataclasses\nimport enum\nimport struct\nfrom typing import ClassVar\n\n",
+           "from .schema import FieldSpec, Message, ParamSpec\n\n",
+           f"PROTOCOL_VERSION = {p['version']}\n",
+           f"SCHEMA_HASH = 0x{d['schema_hash']:08X}\n",
+           f"MAX_PAYLOAD = {p['max_payload']}\n",
+           f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",
+           f"MAX_WAYPOINTS = {p['max_waypoints']}\n",
+           f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n\n"]
+    for e in d.get("enums", []):
+        base = "enum.IntFlag" if e.get("bitmask") else "enum.IntEnum"
+        out.append(f"\nclass {camel(e['name'])}({base}):\n    \"\"\"{e.get('doc', '')}\"\"\"\n\n")
+        for v in e["values"]:
+            out.append(f"    {v['name'].upper()} = {v['value']}\n")
+            if v.get("doc"):
+                out.append(f"    \"\"\"{v['doc']}\"\"\"\n")
+    out.append("\n\nclass Param(enum.IntEnum):\n    \"\"\"Parameters set by CONFIG.\"\"\"\n\n")
+    for prm in d.get("params", []):
+        out.append(f"    {prm['name'].upper()} = {prm['id']}\n")
+    out.append("\n\nPARAMS: dict[Param, ParamSpec] = {\n")
+    for prm in d.get("params", []):
+        out.append(f"    Param.{prm['name'].upper()}: ParamSpec({prm['id']}, {prm['name']!r}, {prm['unit']!r}, "
+                   f"{prm['default']}, {prm['min']}, {prm['max']}, {prm['doc']!r}),\n")
+    out.append("}\n")
+    for m in d["messages"]:
+        fmt = "<" + "".join(TYPES[f["type"]][1] * f.get("count", 1) for f in m["fields"])
+        out.append(f"\n\n@dataclasses.dataclass\nclass {camel(m['name'])}(Message):\n    \"\"\"{m['doc']}\"\"\"\n\n")
+        out.append(f"    ID: ClassVar[int] = 0x{m['id']:02X}\n    NAME: ClassVar[str] = {m['name']!r}\n"
+                   f"    DIRECTION: ClassVar[str] = {m['direction']!r}\n"
+                   f"    STRUCT: ClassVar[struct.Struct] = struct.Struct({fmt!r})\n"
+                   "    FIELDS: ClassVar[tuple[FieldSpec, ...]] = (\n")
+        for f in m["fields"]:
+            out.append(f"        FieldSpec({f['name']!r}, {f['type']!r}, {f.get('count', 0)}, "
+                       f"{f.get('unit', '')!r}, {f.get('doc', '')!r}),\n")
+        out.append("    )\n\n")
+        for f in m["fields"]:
+            if "count" in f:
+                out.append(f"    {f['name']}: tuple[int, ...] = {tuple([0] * f['count'])!r}\n")
+            else:
+                out.append(f"    {f['name']}: int = 0\n")
+    out.append("\n\nMESSAGES: dict[int, type[Message]] = {\n")
+    for m in d["messages"]:
+        out.append(f"    0x{m['id']:02X}: {camel(m['name'])},\n")
+    out.append("}\nMESSAGES_BY_NAME: dict[str, type[Message]] = {cls.NAME: cls for cls in MESSAGES.values()}\n")
+    return "".join(out)
+
+
+# ---------------------------------------------------------------- golden vectors for C++
+
+def _hex_bytes(data: bytes) -> str:
+    return ", ".join(f"0x{b:02X}" for b in data)
+
+
+def render_vectors_h(d: dict, vectors: dict) -> str:
+    by_name = {m["name"]: m for m in d["messages"]}
+    out = [banner("//").replace("protocol/messages.toml", "protocol/messages.toml and protocol/vectors.json"),
+           "// The tables (kGoldenFrames, kBadFrames) are always defined. With ROVERNAV_GOLDEN_TEST_CASES\n"
+           "// defined, one TEST_CASE per golden frame follows; the includer then provides\n"
+           "// check_golden_encode(msg, seq, frame, len) and decode_golden<Msg>(frame, len, seq).\n",
+           "#pragma once\n#include <stdint.h>\n\n"]
+    tables_at = len(out)
+    out.append("#ifdef ROVERNAV_GOLDEN_TEST_CASES\n")
+    for i, v in enumerate(vectors["frames"]):
+        m = by_name[v["message"]]
+        cls = f"rovernav::msg::{camel(m['name'])}"
+        frame = bytes.fromhex(v["frame_hex"])
+        out.append(f'TEST_CASE("golden frame {v["name"]} ({m["name"]}) encodes and decodes byte for byte") {{\n')
+        out.append(f"  static const uint8_t frame[] = {{{_hex_bytes(frame)}}};\n  {cls} m{{}};\n")
+        for f in m["fields"]:
+            if "count" in f:
+                for j, x in enumerate(v["fields"][f["name"]]):
+                    out.append(f"  m.{f['name']}[{j}] = {x};\n")
+            else:
+                out.append(f"  m.{f['name']} = {v['fields'][f['name']]}{'UL' if f['type'] == 'u32' else ''};\n")
+        out.append(f"  check_golden_encode(m, {v['seq']}, frame, sizeof frame);\n")
+        out.append(f"  const {cls} d = decode_golden<{cls}>(frame, sizeof frame, {v['seq']});\n")
+        for f in m["fields"]:
+            if "count" in f:
+                for j in range(f["count"]):
+                    out.append(f"  CHECK(d.{f['name']}[{j}] == m.{f['name']}[{j}]);\n")
+            else:
+                out.append(f"  CHECK(d.{f['name']} == m.{f['name']});\n")
+        out.append("}\n\n")
+    out.append("#endif  // ROVERNAV_GOLDEN_TEST_CASES\n")
+    tables = []
+    tables.append("struct BadFrame { const char* name; const char* counter; const uint8_t* bytes; uint8_t len; };\n")
+    for i, b in enumerate(vectors["bad_frames"]):
+        tables.append(f"static const uint8_t kBad{i}[] = {{{_hex_bytes(bytes.fromhex(b['hex']))}}};\n")
+    tables.append("static const BadFrame kBadFrames[] = {\n")
+    for i, b in enumerate(vectors["bad_frames"]):
+        tables.append(f'  {{"{b["name"]}", "{b["counter"]}", kBad{i}, sizeof kBad{i}}},\n')
+    tables.append("};\n\n")
+    tables.append("struct GoldenFrame { const char* name; const uint8_t* bytes; uint8_t len; };\n")
+    for i, v in enumerate(vectors["frames"]):
+        tables.append(f"static const uint8_t kGolden{i}[] = {{{_hex_bytes(bytes.fromhex(v['frame_hex']))}}};\n")
+    tables.append("static const GoldenFrame kGoldenFrames[] = {\n")
+    for i, v in enumerate(vectors["frames"]):
+        tables.append(f'  {{"{v["name"]}", kGolden{i}, sizeof kGolden{i}}},\n')
+    tables.append("};\n")
+    out[tables_at:tables_at] = tables + ["\n"]
+    return "".join(out)
+
+
+# ---------------------------------------------------------------- vectors.json
+
+def update_vectors(d: dict, vectors: dict) -> dict:
+    """Recompute every frame_hex from its fields, and the bad frames from the good ones."""
+    by_name = {m["name"]: m for m in d["messages"]}
+    for v in vectors["frames"]:
+        v["frame_hex"] = reference_frame(d, by_name[v["message"]], v["seq"], v["fields"]).hex()
+    first = bytes.fromhex(vectors["frames"][0]["frame_hex"])
+    raw = bytearray(_uncobs(first[:-1]))
+    bad = []
+    flipped = bytearray(raw)
+    flipped[4] ^= 0x01
+    bad.append({"name": "payload byte changed", "counter": "bad_crc", "hex": (_cobs(bytes(flipped)) + b"\0").hex()})
+
+    def reframe(body: bytes) -> bytes:
+        body = bytes(body)
+        return _cobs(body + _crc16_ccitt_false(body).to_bytes(2, "little")) + b"\0"
+
+    unknown = bytearray(raw[:-2])
+    unknown[1] = 0xEE
+    bad.append({"name": "unknown message id", "counter": "unknown_id", "hex": reframe(unknown).hex()})
+    short = bytearray(raw[:-3])
+    bad.append({"name": "payload one byte short", "counter": "malformed", "hex": reframe(short).hex()})
+    version = bytearray(raw[:-2])
+    version[0] = 0x7F
+    bad.append({"name": "wrong protocol version", "counter": "malformed", "hex": reframe(version).hex()})
+    bad.append({"name": "too short for a header", "counter": "malformed", "hex": (_cobs(b"\x01\x02") + b"\0").hex()})
+    bad.append({"name": "COBS block runs past the delimiter", "counter": "malformed", "hex": "05112233" + "00"})
+    bad.append({"name": "longer than any frame", "counter": "overlong", "hex": ("41" * 70) + "00"})
+    vectors["bad_frames"] = bad
+    return vectors
+
+
+def _uncobs(data: bytes) -> bytes:
+    out, i = bytearray(), 0
+    while i < len(data):
+        code = data[i]
+        out += data[i + 1:i + code]
+        i += code
+        if code < 0xFF and i < len(data):
+            out.append(0)
+    return bytes(out)
+
+
+def outputs(d: dict) -> dict[Path, str]:
+    vectors = json.loads(VECTORS.read_text())
+    return {OUT_CPP: render_cpp(d), OUT_PY: render_py(d), OUT_VECTORS_H: render_vectors_h(d, vectors)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--check", action="store_true", help="exit 1 if a committed output differs from what the definition gives")
+    ap.add_argument("--update-vectors", action="store_true", help="recompute frame_hex and bad frames in protocol/vectors.json")
+    args = ap.parse_args(argv)
+    try:
+        d = load()
+    except DefinitionError as exc:
+        print(f"protocol/messages.toml: {exc}", file=sys.stderr)
+        return 2
+    if args.update_vectors:
+        vectors = update_vectors(d, json.loads(VECTORS.read_text()))
+        VECTORS.write_text(json.dumps(vectors, indent=1) + "\n")
+        print(f"updated {VECTORS.relative_to(ROOT)}")
+    drifted = []
+    for path, text in outputs(d).items():
+        current = path.read_text() if path.exists() else None
+        if current != text:
+            if args.check:
+                drifted.append(str(path.relative_to(ROOT)))
+            else:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_text(text)
+                print(f"wrote {path.relative_to(ROOT)}")
+    if args.check:
+        if drifted:
+            print("generated files drifted from protocol/messages.toml: " + ", ".join(drifted)
+                  + "\nrun: python3 protocol/generate.py", file=sys.stderr)
+            return 1
+        print(f"generated files match the definition (schema hash 0x{d['schema_hash']:08X})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
