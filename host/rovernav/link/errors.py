@@ -1,0 +1,46 @@
+"""The link's exceptions: catch LinkError for anything the radio or the rover did wrong."""
+from __future__ import annotations
+
+
+class LinkError(Exception):
+    """Base of every link failure."""
+
+
+class LinkTimeout(LinkError):
+    """Nothing (or not the awaited answer) arrived within the timeout."""
+
+
+class LinkClosed(LinkError):
+    """The transport was closed, by us or by the other end."""
+
+
+class PortError(LinkError):
+    """A port could not be opened: missing, busy, or not a serial device."""
+
+
+class ProtocolError(LinkError):
+    """The other end spoke, but not as the protocol says."""
+
+
+class SchemaMismatch(ProtocolError):
+    """The two ends were built from different protocol definitions."""
+
+    def __init__(self, ours: int, theirs: int, who: str = "rover"):
+        self.ours, self.theirs = ours, theirs
+        super().__init__(
+            f"the {who} was built from another protocol definition: its schema hash is 0x{theirs:08X}, "
+            f"ours is 0x{ours:08X}. Rebuild and flash the firmware from this checkout "
+            f"(pio run -e uno -t upload), or run the host version that matches it.")
+
+
+class Nacked(ProtocolError):
+    """The rover refused a command; `reason` is a NackReason."""
+
+    def __init__(self, message_name: str, reason: int, detail: int):
+        from .messages_gen import NackReason
+        self.reason, self.detail = reason, detail
+        try:
+            rname = NackReason(reason).name.lower()
+        except ValueError:
+            rname = f"reason {reason}"
+        super().__init__(f"rover refused {message_name}: {rname} (detail {detail})")

@@ -1,0 +1,192 @@
+"""Frames on the wire: COBS, a 0x00 delimiter, and a CRC-16/CCITT-FALSE.
+
+    frame   = COBS(body) 0x00
+    body    = version:u8 | msg_id:u8 | seq:u8 | payload | crc:u16le
+    crc     = CRC-16/CCITT-FALSE(version .. payload)
+              (poly 0x1021, init 0xFFFF, no reflection, xorout 0; check("123456789") = 0x29B1)
+
+The decoder takes bytes as they come, allocates nothing per byte that it keeps, resynchronises
+at the next 0x00 after garbage, and counts what it drops exactly as the rover's C++ decoder
+(firmware/lib/link/frame.h) does, so the two ends' counters mean the same thing:
+
+    overlong    more than MAX_ENCODED_BODY bytes before a delimiter
+    malformed   broken COBS, shorter than a header and CRC, wrong version, wrong payload length
+    bad_crc     CRC mismatch
+    unknown_id  a well-formed frame whose message id we do not know
+
+Checks run in that order; an empty frame (two delimiters in a row) is not counted.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from .messages_gen import MAX_RAW_FRAME, MESSAGES, PROTOCOL_VERSION
+from .schema import Message
+
+HEADER_BYTES = 3
+CRC_BYTES = 2
+#: Longest COBS-encoded body (without the delimiter) a valid frame can have.
+MAX_ENCODED_BODY = MAX_RAW_FRAME + (MAX_RAW_FRAME + 253) // 254
+#: Longest frame on the wire, delimiter included. The rover's buffers are sized for it.
+MAX_FRAME = MAX_ENCODED_BODY + 1
+assert MAX_FRAME <= 64, "a frame must fit the Uno's 64-byte serial buffer"
+
+
+def _crc_table() -> list[int]:
+    table = []
+    for byte in range(256):
+        crc = byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+        table.append(crc & 0xFFFF)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc16(data: bytes, crc: int = 0xFFFF) -> int:
+    """CRC-16/CCITT-FALSE of data. crc16(b"123456789") == 0x29B1."""
+    for byte in data:
+        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]
+    return crc
+
+
+def cobs_encode(data: bytes) -> bytes:
+    """Consistent Overhead Byte Stuffing: the result has no 0x00 byte (delimiter not added)."""
+    out = bytearray()
+    start = 0
+    n = len(data)
+    while True:
+        # a block is up to 254 non-zero bytes, ended by a zero or by the data's end
+        end = start
+        while end < n and data[end] != 0 and end - start < 254:
+            end += 1
+        block = data[start:end]
+        if len(block) == 254:
+            out.append(0xFF)
+            out += block
+            start = end
+            if start == n:  # data ends on a full block: no final code byte
+                break
+            continue
+        out.append(len(block) + 1)
+        out += block
+        if end >= n:
+            break
+        start = end + 1  # skip the zero this block stands for
+    return bytes(out)
+
+
+def cobs_decode(data: bytes) -> bytes | None:
+    """Inverse of cobs_encode; None if data is not valid COBS (a block runs past the end, or a 0x00)."""
+    out = bytearray()
+    i, n = 0, len(data)
+    while i < n:
+        code = data[i]
+        if code == 0 or i + code > n:
+            return None
+        block = data[i + 1:i + code]
+        if 0 in block:
+            return None
+        out += block
+        i += code
+        if code < 0xFF and i < n:
+            out.append(0)
+    return bytes(out)
+
+
+def encode_frame(message: Message, seq: int) -> bytes:
+    """The bytes to send for message with sequence number seq (0..255), delimiter included."""
+    if not 0 <= seq <= 0xFF:
+        raise ValueError(f"sequence number {seq} is not a byte")
+    body = bytes((PROTOCOL_VERSION, message.ID, seq)) + message.pack()
+    body += crc16(body).to_bytes(2, "little")
+    return cobs_encode(body) + b"\x00"
+
+
+@dataclasses.dataclass
+class DecoderCounters:
+    """What the decoder kept and what it dropped, by reason (same names as the rover's)."""
+
+    frames_ok: int = 0
+    bad_crc: int = 0
+    overlong: int = 0
+    unknown_id: int = 0
+    malformed: int = 0
+
+    @property
+    def dropped(self) -> int:
+        return self.bad_crc + self.overlong + self.unknown_id + self.malformed
+
+
+@dataclasses.dataclass(frozen=True)
+class Frame:
+    """A frame that passed every check, with its decoded message."""
+
+    msg_id: int
+    seq: int
+    payload: bytes
+    message: Message
+
+
+class FrameDecoder:
+    """Turns a byte stream into frames; counts and drops everything else.
+
+    feed() may be given any slice of the stream: a byte, a partial frame, several frames.
+    """
+
+    def __init__(self) -> None:
+        self.counters = DecoderCounters()
+        self._buf = bytearray()
+        self._overlong = False
+
+    def feed(self, data: bytes) -> list[Frame]:
+        frames: list[Frame] = []
+        pos = 0
+        while pos < len(data):
+            end = data.find(0, pos)
+            chunk = data[pos:] if end < 0 else data[pos:end]
+            if not self._overlong:
+                self._buf += chunk
+                if len(self._buf) > MAX_ENCODED_BODY:
+                    self._overlong = True
+                    self._buf.clear()
+            if end < 0:
+                break
+            frame = self._finish()
+            if frame is not None:
+                frames.append(frame)
+            pos = end + 1
+        return frames
+
+    def _finish(self) -> Frame | None:
+        body, overlong = bytes(self._buf), self._overlong
+        self._buf.clear()
+        self._overlong = False
+        if overlong:
+            self.counters.overlong += 1
+            return None
+        if not body:
+            return None
+        raw = cobs_decode(body)
+        if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES:
+            self.counters.malformed += 1
+            return None
+        if crc16(raw[:-2]) != int.from_bytes(raw[-2:], "little"):
+            self.counters.bad_crc += 1
+            return None
+        version, msg_id, seq = raw[0], raw[1], raw[2]
+        payload = raw[HEADER_BYTES:-CRC_BYTES]
+        if version != PROTOCOL_VERSION:
+            self.counters.malformed += 1
+            return None
+        cls = MESSAGES.get(msg_id)
+        if cls is None:
+            self.counters.unknown_id += 1
+            return None
+        if len(payload) != cls.STRUCT.size:
+            self.counters.malformed += 1
+            return None
+        self.counters.frames_ok += 1
+        return Frame(msg_id, seq, payload, cls.unpack(payload))
