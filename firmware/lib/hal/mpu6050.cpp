@@ -1,0 +1,158 @@
+#include "mpu6050.h"
+
+#include <Arduino.h>
+#include <Wire.h>
+
+namespace rovernav {
+namespace hal {
+
+namespace {
+
+constexpr uint8_t kRegSmplrtDiv = 0x19;
+constexpr uint8_t kRegConfig = 0x1A;
+constexpr uint8_t kRegGyroConfig = 0x1B;
+constexpr uint8_t kRegGyroZoutH = 0x47;
+constexpr uint8_t kRegPwrMgmt1 = 0x6B;
+constexpr uint8_t kRegWhoAmI = 0x75;
+
+constexpr uint8_t kPwrReset = 0x80;
+constexpr uint8_t kPwrClockPllGyroX = 0x01;
+constexpr uint8_t kDlpf42Hz = 0x03;
+constexpr uint8_t kSmplrtDiv100Hz = 9;
+constexpr uint8_t kGyroFs500Dps = 0x08;
+constexpr uint8_t kWhoAmIMpu6050 = 0x68;
+constexpr uint16_t kResetSettleMs = 100;
+
+bool is_clone_id(uint8_t id) { return id == 0x70 || id == 0x72 || id == 0x98; }
+
+// Maps Wire.endTransmission()'s codes (avr core 1.8.7) onto results.
+MpuResult from_end_transmission(uint8_t code) {
+  switch (code) {
+    case 0: return MpuResult::Ok;
+    case 2: return MpuResult::NotFound;  // address NACK
+    case 5:
+      Wire.clearWireTimeoutFlag();
+      return MpuResult::Timeout;
+    default: return MpuResult::BusError;  // 1 too long, 3 data NACK, 4 other
+  }
+}
+
+MpuResult timeout_or(MpuResult otherwise) {
+  if (Wire.getWireTimeoutFlag()) {
+    Wire.clearWireTimeoutFlag();
+    return MpuResult::Timeout;
+  }
+  return otherwise;
+}
+
+}  // namespace
+
+MpuResult Mpu6050::write_reg(uint8_t reg, uint8_t value) {
+  Wire.beginTransmission(board::kMpuAddress);
+  Wire.write(reg);
+  Wire.write(value);
+  return from_end_transmission(Wire.endTransmission());
+}
+
+MpuResult Mpu6050::read_regs(uint8_t reg, uint8_t* out, uint8_t count) {
+  Wire.beginTransmission(board::kMpuAddress);
+  Wire.write(reg);
+  const MpuResult r = from_end_transmission(Wire.endTransmission(false));  // repeated start
+  if (r != MpuResult::Ok) return r;
+  const uint8_t got = Wire.requestFrom(board::kMpuAddress, count);
+  if (got != count) return timeout_or(MpuResult::BusError);  // next request resets Wire's buffer
+  for (uint8_t i = 0; i < count; ++i) out[i] = static_cast<uint8_t>(Wire.read());
+  return MpuResult::Ok;
+}
+
+MpuResult Mpu6050::begin() {
+  started_ = false;
+  Wire.begin();
+  Wire.setClock(board::kI2cClockHz);
+  Wire.setWireTimeout(board::kI2cTimeoutUs, true);
+  Wire.clearWireTimeoutFlag();
+
+  MpuResult r = read_regs(kRegWhoAmI, &who_am_i_, 1);
+  if (r != MpuResult::Ok) return r;
+  MpuResult identity = MpuResult::Ok;
+  if (who_am_i_ != kWhoAmIMpu6050) {
+    if (!is_clone_id(who_am_i_)) return MpuResult::WrongId;
+    identity = MpuResult::CloneId;
+  }
+
+  r = write_reg(kRegPwrMgmt1, kPwrReset);
+  if (r != MpuResult::Ok) return r;
+  delay(kResetSettleMs);
+
+  const uint8_t config[][2] = {
+      {kRegPwrMgmt1, kPwrClockPllGyroX},
+      {kRegConfig, kDlpf42Hz},
+      {kRegSmplrtDiv, kSmplrtDiv100Hz},
+      {kRegGyroConfig, kGyroFs500Dps},
+  };
+  for (const auto& reg_value : config) {
+    r = write_reg(reg_value[0], reg_value[1]);
+    if (r != MpuResult::Ok) return r;
+  }
+  started_ = true;
+  return identity;
+}
+
+MpuResult Mpu6050::read_chip_rate_mdps(int32_t& rate_mdps) {
+  if (!started_) return MpuResult::NotStarted;
+  uint8_t bytes[2];
+  const MpuResult r = read_regs(kRegGyroZoutH, bytes, 2);
+  if (r != MpuResult::Ok) return r;
+  const int16_t counts = static_cast<int16_t>(static_cast<uint16_t>(bytes[0]) << 8 | bytes[1]);
+  // mdps = counts * 1000 / 65.5 = counts * 2000 / 131, rounded half away from zero.
+  const int32_t scaled = static_cast<int32_t>(counts) * 2000;
+  rate_mdps = (scaled >= 0 ? scaled + kCountsPer2Dps / 2 : scaled - kCountsPer2Dps / 2) /
+              kCountsPer2Dps;
+  return MpuResult::Ok;
+}
+
+MpuResult Mpu6050::read_rate_mdps(int32_t& rate_mdps) {
+  int32_t chip_mdps = 0;
+  const MpuResult r = read_chip_rate_mdps(chip_mdps);
+  if (r != MpuResult::Ok) return r;
+  rate_mdps = board::kGyroZToClockwiseSign * (chip_mdps - bias_mdps_);
+  return MpuResult::Ok;
+}
+
+MpuResult Mpu6050::calibrate(uint16_t samples, uint16_t max_ms, void (*idle)()) {
+  if (!started_) return MpuResult::NotStarted;
+  if (samples == 0) return MpuResult::Ok;
+  const uint32_t start_ms = millis();
+  uint32_t last_sample_ms = start_ms - kSamplePeriodMs;
+  // Sums offsets from the first sample: each is within kGyroCalMaxSpreadMdps, so 65,535 of
+  // them fit an int32_t.
+  int32_t first_mdps = 0;
+  int32_t min_mdps = 0;
+  int32_t max_mdps = 0;
+  int32_t sum_offset_mdps = 0;
+  uint16_t taken = 0;
+  while (taken < samples) {
+    const uint32_t now_ms = millis();
+    if (now_ms - start_ms > max_ms) return MpuResult::CalTimeout;
+    if (now_ms - last_sample_ms < kSamplePeriodMs) {
+      if (idle != nullptr) idle();
+      continue;
+    }
+    last_sample_ms = now_ms;
+    int32_t mdps = 0;
+    const MpuResult r = read_chip_rate_mdps(mdps);
+    if (r != MpuResult::Ok) return r;
+    if (taken == 0) first_mdps = mdps;
+    const int32_t offset_mdps = mdps - first_mdps;
+    if (offset_mdps < min_mdps) min_mdps = offset_mdps;
+    if (offset_mdps > max_mdps) max_mdps = offset_mdps;
+    if (max_mdps - min_mdps > board::kGyroCalMaxSpreadMdps) return MpuResult::Moving;
+    sum_offset_mdps += offset_mdps;
+    ++taken;
+  }
+  bias_mdps_ = first_mdps + sum_offset_mdps / static_cast<int32_t>(samples);
+  return MpuResult::Ok;
+}
+
+}  // namespace hal
+}  // namespace rovernav

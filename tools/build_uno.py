@@ -1,0 +1,600 @@
+#!/usr/bin/env python3
+"""Build the Arduino Uno firmware image with Debian's AVR toolchain.
+
+PlatformIO's `pio run -e uno` is the reference build. Where PlatformIO cannot download its
+atmelavr platform, this script builds the same image from the same sources with Debian's
+packages (gcc-avr, binutils-avr, avr-libc, arduino-core-avr):
+
+    python3 tools/build_uno.py                 build into build/uno, print flash and RAM
+    python3 tools/build_uno.py --json size.json   also write the figures as JSON
+    python3 tools/build_uno.py --check-tools   list the Debian packages that are missing
+
+Flags have one source: build_flags and build_unflags of [env:uno] in platformio.ini are read
+from there and combined with the flags PlatformIO's atmelavr/arduino builder adds itself
+(PIO_* below). Libraries are found the way PlatformIO's dependency finder does: follow the
+#include lines from firmware/src through firmware/lib and the core's own libraries (Wire,
+EEPROM, ...), compile every library reached, skip the env's lib_ignore. firmware/test is
+never compiled.
+
+Exit status: 0 built and within budget; 1 over budget or a compile/link error; 2 the
+toolchain or the Arduino core is missing, or platformio.ini cannot be used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import configparser
+import fnmatch
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PLATFORMIO_INI = ROOT / "platformio.ini"
+ENV_NAME = "uno"
+ARDUINO_AVR = Path("/usr/share/arduino/hardware/arduino/avr")
+AVR_LIBC_HEADER = Path("/usr/lib/avr/include/avr/io.h")
+
+FLASH_MAX_BYTES = 32_256   # 32 KiB less the 512-byte optiboot bootloader
+RAM_MAX_BYTES = 2_048
+RAM_BUDGET_BYTES = 1_400   # static RAM; the rest is stack (DESIGN.md)
+
+MCU = "atmega328p"
+# --- Added by PlatformIO itself (platform-atmelavr builder/frameworks/arduino.py and the
+# board manifest uno.json), not by platformio.ini. Keep in step with PlatformIO.
+PIO_CCFLAGS = ["-Os", "-Wall", "-ffunction-sections", "-fdata-sections", "-flto",
+               f"-mmcu={MCU}"]
+PIO_CFLAGS = ["-std=gnu11", "-fno-fat-lto-objects"]
+PIO_CXXFLAGS = ["-fno-exceptions", "-fno-threadsafe-statics", "-fpermissive", "-std=gnu++11"]
+PIO_ASFLAGS = ["-x", "assembler-with-cpp"]
+PIO_DEFINES = ["-DF_CPU=16000000L", "-DARDUINO_ARCH_AVR", "-DARDUINO=10808",
+               "-DARDUINO_AVR_UNO"]
+PIO_LINKFLAGS = ["-Os", f"-mmcu={MCU}", "-Wl,--gc-sections", "-flto", "-fuse-linker-plugin"]
+PIO_LIBS = ["-lm"]
+# --- Added here, not by PlatformIO: dependency files for incremental builds.
+DEPFLAGS = ["-MMD"]
+
+SOURCE_SUFFIXES = {".c": "c", ".cpp": "cxx", ".cc": "cxx", ".S": "asm"}
+HEADER_SUFFIXES = {".h", ".hpp", ".hh", ""}
+# PlatformIO's default library source filter leaves these folders out.
+SKIPPED_LIB_DIRS = {"example", "examples", "test", "tests", ".git", ".svn"}
+INCLUDE_RE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', re.MULTILINE)
+
+TOOLS = {
+    "avr-gcc": "gcc-avr",
+    "avr-g++": "gcc-avr",
+    "avr-gcc-ar": "gcc-avr",
+    "avr-objcopy": "binutils-avr",
+    "avr-size": "binutils-avr",
+}
+
+
+class BuildError(Exception):
+    """A compile, archive or link step failed; the message says which."""
+
+
+class SetupError(Exception):
+    """The toolchain, the Arduino core or platformio.ini is not usable."""
+
+
+# ----------------------------------------------------------------------------- environment
+
+def missing_packages() -> dict[str, list[str]]:
+    """Debian package -> what of it is missing."""
+    missing: dict[str, list[str]] = {}
+    for tool, package in TOOLS.items():
+        if shutil.which(tool) is None:
+            missing.setdefault(package, []).append(tool)
+    if not AVR_LIBC_HEADER.is_file():
+        missing.setdefault("avr-libc", []).append(str(AVR_LIBC_HEADER))
+    core_header = ARDUINO_AVR / "cores" / "arduino" / "Arduino.h"
+    if not core_header.is_file():
+        missing.setdefault("arduino-core-avr", []).append(str(core_header))
+    return missing
+
+
+def require_tools() -> None:
+    missing = missing_packages()
+    if missing:
+        lines = [f"  {pkg}: missing {', '.join(what)}" for pkg, what in sorted(missing.items())]
+        raise SetupError("the AVR toolchain is incomplete:\n" + "\n".join(lines) +
+                         f"\ninstall with: sudo apt-get install {' '.join(sorted(missing))}")
+
+
+# ----------------------------------------------------------------------------- platformio.ini
+
+class PioConfig:
+    """The subset of PlatformIO's configuration rules this build needs.
+
+    Options of [env:NAME] fall back to `extends` sections and then to [env]; `${section.option}`
+    is replaced by that option's value. Multi-line values are split on whitespace.
+    """
+
+    _REF = re.compile(r"\$\{([^.}]+)\.([^}]+)\}")
+
+    def __init__(self, path: Path) -> None:
+        if not path.is_file():
+            raise SetupError(f"{path} not found")
+        self._parser = configparser.ConfigParser(interpolation=None, strict=False)
+        self._parser.optionxform = str  # keep option names as written
+        try:
+            self._parser.read(path, encoding="utf-8")
+        except configparser.Error as exc:
+            raise SetupError(f"{path}: {exc}") from exc
+        self._path = path
+
+    def _sections_for(self, env: str) -> list[str]:
+        chain, todo = [], [f"env:{env}"]
+        while todo:
+            section = todo.pop(0)
+            if section in chain or not self._parser.has_section(section):
+                continue
+            chain.append(section)
+            extends = self._parser.get(section, "extends", fallback="")
+            todo.extend(s.strip() for s in extends.replace(",", " ").split())
+        if "env" not in chain and self._parser.has_section("env"):
+            chain.append("env")
+        return chain
+
+    def has_env(self, env: str) -> bool:
+        return self._parser.has_section(f"env:{env}")
+
+    def raw(self, section: str, option: str, depth: int = 0) -> str | None:
+        if section.startswith("env:"):
+            sections = self._sections_for(section[4:])
+        else:
+            sections = [section]
+        for sec in sections:
+            if self._parser.has_option(sec, option):
+                return self._expand(self._parser.get(sec, option), depth)
+        return None
+
+    def _expand(self, value: str, depth: int) -> str:
+        if depth > 10:
+            raise SetupError(f"{self._path}: ${{...}} references nest too deep")
+
+        def replace(match: re.Match[str]) -> str:
+            section, option = match.group(1), match.group(2)
+            if section == "sysenv":
+                return os.environ.get(option, "")
+            found = self.raw(section, option, depth + 1)
+            if found is None:
+                raise SetupError(f"{self._path}: ${{{section}.{option}}} is not defined")
+            return found
+
+        return self._REF.sub(replace, value)
+
+    def words(self, env: str, option: str) -> list[str]:
+        value = self.raw(f"env:{env}", option) or ""
+        return shlex.split(value, comments=False)
+
+    def items(self, env: str, option: str) -> list[str]:
+        """A comma- or newline-separated list (lib_ignore, lib_deps)."""
+        value = self.raw(f"env:{env}", option) or ""
+        return [item.strip() for item in re.split(r"[,\n]", value) if item.strip()]
+
+    def directory(self, option: str, default: str) -> Path:
+        value = self._parser.get("platformio", option, fallback=default).strip()
+        return (ROOT / value).resolve()
+
+
+@dataclass
+class Flags:
+    """Compiler flags by the kind of source they apply to, as PlatformIO sorts build_flags."""
+    common: list[str] = field(default_factory=list)   # CCFLAGS: C, C++ and assembler
+    c: list[str] = field(default_factory=list)        # CFLAGS
+    cxx: list[str] = field(default_factory=list)      # CXXFLAGS
+    asm: list[str] = field(default_factory=list)      # ASFLAGS
+    defines: list[str] = field(default_factory=list)  # -D / -U / -I
+    link: list[str] = field(default_factory=list)     # LINKFLAGS
+
+    def add_build_flags(self, words: list[str]) -> None:
+        """Sorts build_flags the way PlatformIO's ParseFlags does."""
+        it = iter(words)
+        for word in it:
+            if word in ("-D", "-U", "-I", "-include"):
+                self.defines += [word, next(it, "")]
+            elif word.startswith(("-D", "-U", "-I")):
+                self.defines.append(word)
+            elif word.startswith("-std="):
+                (self.cxx if "++" in word else self.c).append(word)
+            elif word.startswith("-Wl,"):
+                self.link.append(word)
+            else:
+                self.common.append(word)
+
+    def remove(self, unflags: list[str]) -> None:
+        for name in ("common", "c", "cxx", "asm", "defines", "link"):
+            setattr(self, name, [f for f in getattr(self, name) if f not in unflags])
+
+    def for_kind(self, kind: str) -> list[str]:
+        if kind == "c":
+            return self.common + self.c + self.defines
+        if kind == "cxx":
+            return self.common + self.cxx + self.defines
+        return self.asm + self.common + self.defines
+
+
+def uno_flags(config: PioConfig) -> Flags:
+    flags = Flags(common=list(PIO_CCFLAGS), c=list(PIO_CFLAGS), cxx=list(PIO_CXXFLAGS),
+                  asm=list(PIO_ASFLAGS), defines=list(PIO_DEFINES), link=list(PIO_LINKFLAGS))
+    flags.add_build_flags(config.words(ENV_NAME, "build_flags"))
+    flags.remove(config.words(ENV_NAME, "build_unflags"))
+    return flags
+
+
+# ----------------------------------------------------------------------------- libraries
+
+@dataclass
+class Library:
+    name: str
+    root: Path              # the library folder
+    include_dir: Path       # src/ when present, else the folder itself
+    project: bool           # under firmware/lib (warnings shown) or part of the core
+    src_filter: list[str] = field(default_factory=list)
+
+    def headers(self) -> set[str]:
+        found = set()
+        for path in self.include_dir.rglob("*"):
+            if path.suffix in HEADER_SUFFIXES and path.is_file() and not self._skipped(path):
+                found.add(path.relative_to(self.include_dir).as_posix())
+        return found
+
+    def sources(self) -> list[Path]:
+        files = [p for p in sorted(self.include_dir.rglob("*"))
+                 if p.suffix in SOURCE_SUFFIXES and p.is_file() and not self._skipped(p)]
+        return [p for p in files if self._selected(p.relative_to(self.include_dir).as_posix())]
+
+    def _skipped(self, path: Path) -> bool:
+        parts = path.relative_to(self.include_dir).parts[:-1]
+        return any(part in SKIPPED_LIB_DIRS for part in parts)
+
+    def _selected(self, rel: str) -> bool:
+        """library.json build.srcFilter: `+<glob>` and `-<glob>`, the last match wins."""
+        if not self.src_filter:
+            return True
+        selected = False
+        for sign, pattern in re.findall(r"([+-])<([^>]*)>", " ".join(self.src_filter)):
+            pattern = pattern.rstrip("/")
+            if fnmatch.fnmatch(rel, pattern) or fnmatch.fnmatch(rel, pattern + "/*") or \
+                    pattern in ("*", "**"):
+                selected = sign == "+"
+        return selected
+
+
+def load_library(folder: Path, project: bool) -> Library | None:
+    """None when library.json says the library is not for atmelavr/arduino."""
+    src = folder / "src"
+    lib = Library(folder.name, folder, src if src.is_dir() else folder, project)
+    manifest = folder / "library.json"
+    if manifest.is_file():
+        try:
+            data = json.loads(manifest.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as exc:
+            raise SetupError(f"{manifest}: {exc}") from exc
+        lib.name = data.get("name", lib.name)
+        for key, wanted in (("platforms", "atmelavr"), ("frameworks", "arduino")):
+            allowed = data.get(key, "*")
+            allowed = [allowed] if isinstance(allowed, str) else allowed
+            if "*" not in allowed and wanted not in allowed:
+                return None
+        build = data.get("build", {})
+        src_filter = build.get("srcFilter", build.get("srcfilter", []))
+        lib.src_filter = [src_filter] if isinstance(src_filter, str) else list(src_filter)
+        if "includeDir" in build:
+            lib.include_dir = folder / build["includeDir"]
+    return lib
+
+
+def includes_of(path: Path) -> list[str]:
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return []
+    return INCLUDE_RE.findall(text)
+
+
+def find_libraries(src_dir: Path, include_dir: Path, lib_dir: Path,
+                   ignored: set[str]) -> list[Library]:
+    """Follows #include from the sources in src_dir; returns the libraries reached, in the
+    order they were reached. Project libraries win over the core's of the same header."""
+    candidates: list[Library] = []
+    for base, project in ((lib_dir, True), (ARDUINO_AVR / "libraries", False)):
+        if base.is_dir():
+            for folder in sorted(p for p in base.iterdir() if p.is_dir()):
+                lib = load_library(folder, project)
+                if lib is not None and lib.name not in ignored and folder.name not in ignored:
+                    candidates.append(lib)
+    providers: dict[str, Library] = {}
+    for lib in reversed(candidates):  # earlier (project) libraries overwrite later ones
+        for header in lib.headers():
+            providers[header] = lib
+
+    used: list[Library] = []
+    seen: set[Path] = set()
+    todo = [p for p in sorted(src_dir.rglob("*")) if p.suffix in SOURCE_SUFFIXES]
+    while todo:
+        path = todo.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        for name in includes_of(path):
+            local = [path.parent / name, src_dir / name, include_dir / name]
+            hit = next((p for p in local if p.is_file()), None)
+            if hit is not None:
+                todo.append(hit.resolve())
+                continue
+            lib = providers.get(name)
+            if lib is None or lib in used:
+                continue
+            used.append(lib)
+            todo.extend(lib.sources())
+            todo.extend(lib.include_dir / h for h in lib.headers())
+    return used
+
+
+# ----------------------------------------------------------------------------- compiling
+
+@dataclass
+class Unit:
+    source: Path
+    obj: Path
+    kind: str           # c, cxx, asm
+    project: bool       # our code: show its warnings
+
+
+def compiler_for(kind: str) -> str:
+    return "avr-g++" if kind == "cxx" else "avr-gcc"
+
+
+def command_for(unit: Unit, flags: Flags, include_flags: list[str],
+                extra: list[str]) -> list[str]:
+    return ([compiler_for(unit.kind)] + flags.for_kind(unit.kind) +
+            (extra if unit.project else []) + DEPFLAGS + include_flags +
+            ["-c", str(unit.source), "-o", str(unit.obj)])
+
+
+def up_to_date(unit: Unit, command: list[str]) -> bool:
+    stamp = unit.obj.with_suffix(unit.obj.suffix + ".cmd")
+    dep = unit.obj.with_suffix(".d")
+    if not (unit.obj.is_file() and stamp.is_file() and dep.is_file()):
+        return False
+    if stamp.read_text(encoding="utf-8") != " ".join(command):
+        return False
+    obj_mtime = unit.obj.stat().st_mtime
+    text = dep.read_text(encoding="utf-8").replace("\\\n", " ")
+    deps = text.split(":", 1)[1].split() if ":" in text else []
+    for name in deps:
+        try:
+            if (ROOT / name).stat().st_mtime > obj_mtime:  # ROOT / an absolute path = it
+                return False
+        except OSError:
+            return False
+    return True
+
+
+def compile_unit(unit: Unit, command: list[str], verbose: bool) -> tuple[Unit, int, str]:
+    unit.obj.parent.mkdir(parents=True, exist_ok=True)
+    if verbose:
+        print(" ".join(shlex.quote(c) for c in command), flush=True)
+    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode == 0:
+        unit.obj.with_suffix(unit.obj.suffix + ".cmd").write_text(" ".join(command),
+                                                                   encoding="utf-8")
+    return unit, proc.returncode, proc.stderr
+
+
+def relative(path: Path) -> str:
+    try:
+        return path.relative_to(ROOT).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def run(command: list[str], what: str, verbose: bool) -> str:
+    if verbose:
+        print(" ".join(shlex.quote(c) for c in command), flush=True)
+    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode != 0:
+        raise BuildError(f"{what} failed:\n{proc.stdout}{proc.stderr}")
+    return proc.stdout
+
+
+# ----------------------------------------------------------------------------- the build
+
+@dataclass
+class Sizes:
+    flash_bytes: int
+    ram_bytes: int
+
+    def report(self) -> str:
+        return (f"flash {self.flash_bytes:,} / {FLASH_MAX_BYTES:,} bytes "
+                f"({100.0 * self.flash_bytes / FLASH_MAX_BYTES:.1f}%)   "
+                f"static RAM {self.ram_bytes:,} / {RAM_MAX_BYTES:,} bytes "
+                f"({100.0 * self.ram_bytes / RAM_MAX_BYTES:.1f}%, "
+                f"budget {RAM_BUDGET_BYTES:,})")
+
+    def problems(self) -> list[str]:
+        found = []
+        if self.flash_bytes > FLASH_MAX_BYTES:
+            found.append(f"flash {self.flash_bytes:,} bytes exceeds the Uno's "
+                         f"{FLASH_MAX_BYTES:,}")
+        if self.ram_bytes > RAM_BUDGET_BYTES:
+            found.append(f"static RAM {self.ram_bytes:,} bytes exceeds the budget of "
+                         f"{RAM_BUDGET_BYTES:,} (the stack needs the rest of "
+                         f"{RAM_MAX_BYTES:,})")
+        return found
+
+
+def section_sizes(elf: Path, verbose: bool) -> Sizes:
+    """Flash = .text + .data (+ .bootloader); RAM = .data + .bss + .noinit, from avr-size -A."""
+    out = run(["avr-size", "-A", str(elf)], "avr-size", verbose)
+    sections = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0].startswith(".") and parts[1].isdigit():
+            sections[parts[0]] = int(parts[1])
+    flash = sum(sections.get(s, 0) for s in (".text", ".data", ".bootloader"))
+    ram = sum(sections.get(s, 0) for s in (".data", ".bss", ".noinit"))
+    return Sizes(flash, ram)
+
+
+def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
+    require_tools()
+    config = PioConfig(PLATFORMIO_INI)
+    if not config.has_env(ENV_NAME):
+        raise SetupError(f"{PLATFORMIO_INI} has no [env:{ENV_NAME}]")
+    if config.items(ENV_NAME, "lib_deps"):
+        raise SetupError(f"[env:{ENV_NAME}] has lib_deps; this build only knows the "
+                         "project's libraries and the core's")
+    flags = uno_flags(config)
+    src_dir = config.directory("src_dir", "src")
+    include_dir = config.directory("include_dir", "include")
+    lib_dir = config.directory("lib_dir", "lib")
+    test_dir = config.directory("test_dir", "test")
+    core_dir = ARDUINO_AVR / "cores" / "arduino"
+    variant_dir = ARDUINO_AVR / "variants" / "standard"
+
+    libs = find_libraries(src_dir, include_dir, lib_dir,
+                          set(config.items(ENV_NAME, "lib_ignore")))
+    include_flags = [f"-I{p}" for p in [include_dir, src_dir] if p.is_dir()]
+    include_flags += [f"-I{lib.include_dir}" for lib in libs]
+    include_flags += [f"-I{core_dir}", f"-I{variant_dir}"]
+    extra = ["-Werror"] if strict else []
+
+    def units_in(files: list[Path], base: Path, out: Path, project: bool) -> list[Unit]:
+        return [Unit(f, out / (f.relative_to(base).as_posix() + ".o"),
+                     SOURCE_SUFFIXES[f.suffix], project)
+                for f in files if test_dir not in f.parents]
+
+    src_units = units_in([p for p in sorted(src_dir.rglob("*"))
+                          if p.suffix in SOURCE_SUFFIXES], src_dir, build_dir / "src", True)
+    core_units = units_in([p for p in sorted(core_dir.iterdir())
+                           if p.suffix in SOURCE_SUFFIXES], core_dir,
+                          build_dir / "FrameworkArduino", False)
+    lib_units = {lib.name: units_in(lib.sources(), lib.include_dir,
+                                    build_dir / "lib" / lib.name, lib.project)
+                 for lib in libs}
+    all_units = src_units + core_units + [u for us in lib_units.values() for u in us]
+    if not src_units:
+        raise SetupError(f"no sources in {relative(src_dir)}")
+
+    commands = {u.source: command_for(u, flags, include_flags, extra) for u in all_units}
+    stale = [u for u in all_units if not up_to_date(u, commands[u.source])]
+    failures, hidden_warnings = [], 0
+    with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(compile_unit, u, commands[u.source], verbose) for u in stale]
+        for future in concurrent.futures.as_completed(futures):
+            unit, code, stderr = future.result()
+            if code != 0:
+                failures.append(f"{relative(unit.source)}:\n{stderr}")
+            elif stderr.strip():
+                if unit.project:
+                    print(stderr, end="", file=sys.stderr)
+                else:
+                    hidden_warnings += stderr.count("warning:")
+    if failures:
+        raise BuildError("compilation failed:\n" + "\n".join(failures))
+    print(f"compiled {len(stale)} of {len(all_units)} files "
+          f"(libraries: {', '.join(lib.name for lib in libs) or 'none'})")
+    if hidden_warnings:
+        print(f"({hidden_warnings} warnings in the Arduino core and its libraries not shown)")
+
+    # Archives like PlatformIO's libFrameworkArduino.a: an ISR in an unused core file
+    # (Tone.cpp's Timer2 interrupt, say) stays out of the image. Rebuilt every time (it takes
+    # milliseconds), so an object whose source was deleted never lingers in one.
+    archives = []
+    for name, units in [("FrameworkArduino", core_units)] + list(lib_units.items()):
+        if not units:
+            continue
+        archive = build_dir / f"lib{name}.a"
+        archive.unlink(missing_ok=True)
+        run(["avr-gcc-ar", "rcs", str(archive)] + [str(u.obj) for u in units],
+            f"archiving {archive.name}", verbose)
+        archives.append(archive)
+
+    elf = build_dir / "firmware.elf"
+    hex_file = build_dir / "firmware.hex"
+    run(["avr-gcc"] + flags.link + ["-o", str(elf)] + [str(u.obj) for u in src_units] +
+        ["-Wl,--start-group"] + [str(a) for a in archives] + PIO_LIBS + ["-Wl,--end-group"],
+        "linking firmware.elf", verbose)
+    run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(elf), str(hex_file)],
+        "avr-objcopy", verbose)
+    print(f"wrote {relative(hex_file)}")
+    return section_sizes(elf, verbose)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--build-dir", type=Path, default=ROOT / "build" / ENV_NAME,
+                        help="where objects and firmware.elf/.hex go (default build/uno)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="write the figures here")
+    parser.add_argument("--check-tools", action="store_true",
+                        help="list missing Debian packages and exit")
+    parser.add_argument("--clean", action="store_true", help="delete the build dir first")
+    parser.add_argument("--strict", action="store_true",
+                        help="add -Werror to the project's own sources (not the core's)")
+    parser.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("-v", "--verbose", action="store_true", help="print every command")
+    parser.add_argument("--print-flags", metavar="ENV",
+                        help="print build_flags of [env:ENV] in platformio.ini (less -std=) and exit; "
+                             "the native CMake build takes its warning flags from here")
+    args = parser.parse_args(argv)
+
+    if args.print_flags:
+        words = PioConfig(ROOT / "platformio.ini").words(args.print_flags, "build_flags")
+        print(" ".join(w for w in words if not w.startswith("-std=")))
+        return 0
+
+    if args.check_tools:
+        missing = missing_packages()
+        for package, what in sorted(missing.items()):
+            print(f"missing {package} ({', '.join(what)})")
+        if missing:
+            print(f"install with: sudo apt-get install {' '.join(sorted(missing))}")
+            return 2
+        print("all tools present: gcc-avr, binutils-avr, avr-libc, arduino-core-avr")
+        return 0
+
+    build_dir = args.build_dir.resolve()
+    if args.clean and build_dir.is_dir():
+        shutil.rmtree(build_dir)
+    started = time.monotonic()
+    try:
+        sizes = build(build_dir, max(1, args.jobs), args.strict, args.verbose)
+    except SetupError as exc:
+        print(f"build_uno: {exc}", file=sys.stderr)
+        return 2
+    except BuildError as exc:
+        print(f"build_uno: {exc}", file=sys.stderr)
+        return 1
+    problems = sizes.problems()
+    print(sizes.report())
+    print(f"({time.monotonic() - started:.1f} s)")
+    if args.json:
+        args.json.write_text(json.dumps({
+            "env": ENV_NAME,
+            "flash_bytes": sizes.flash_bytes,
+            "flash_max_bytes": FLASH_MAX_BYTES,
+            "ram_bytes": sizes.ram_bytes,
+            "ram_max_bytes": RAM_MAX_BYTES,
+            "ram_budget_bytes": RAM_BUDGET_BYTES,
+            "within_budget": not problems,
+            "elf": relative(build_dir / "firmware.elf"),
+            "hex": relative(build_dir / "firmware.hex"),
+        }, indent=2) + "\n", encoding="utf-8")
+    for problem in problems:
+        print(f"build_uno: OVER BUDGET: {problem}", file=sys.stderr)
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
