@@ -7,7 +7,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x02E3830AUL;
+static const uint32_t kSchemaHash = 0x85BEBFA4UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -78,7 +78,7 @@ enum class FaultCode : uint8_t {
 enum class NackReason : uint8_t {
   TooManyWaypoints = 1,  ///< PATH.total exceeds the rover's capacity; detail = capacity
   OutOfOrder = 2,  ///< PATH chunk not the next expected; detail = expected first_index
-  BadValue = 3,  ///< a field out of its range; detail = field number, from 1
+  BadValue = 3,  ///< a field out of its range; detail = field number from 1 (PATH: index of the bad waypoint)
   UnknownParam = 4,  ///< CONFIG.param is not a parameter; detail = param
   ParamOutOfRange = 5,  ///< CONFIG.value outside [min, max]; detail = param
   NoPath = 6,  ///< START without a complete path
@@ -102,12 +102,6 @@ enum class StopReason : uint8_t {
   Replanning = 3,  ///< the host is about to send a new path
 };
 
-/// How the rover moves between waypoints (parameter drive_mode).
-enum class DriveMode : uint8_t {
-  RotateDrive = 0,  ///< the seed's: rotate on the spot, then drive inside the tolerance cone
-  PoseLaw = 1,  ///< the moving-to-a-pose law (rho, alpha, beta)
-};
-
 /// Parameters set by CONFIG.
 enum class Param : uint8_t {
   PidKpX100 = 1,  ///< [PWM per degree, x100] proportional gain of the heading PID (seed: 30)
@@ -126,18 +120,14 @@ enum class Param : uint8_t {
   DrMaxDistanceMm = 14,  ///< [mm] hold after driving this far without a fix
   ClearanceMarginMm = 15,  ///< [mm] hold when the 2-sigma position uncertainty exceeds this
   StatusPeriodMs = 16,  ///< [ms] STATUS is sent this often
-  DriveMode = 17,  ///< [enum drive_mode] rotate_drive (the seed's) or pose_law
   RotateDoneCdeg = 18,  ///< [cdeg] rotation is done within this heading error (seed: 1 degree)
   GyroTimeoutMs = 19,  ///< [ms] no gyro sample for this long is a fault
   GyroMaxRateCdegS = 20,  ///< [cdeg/s] a gyro rate beyond this is implausible for the rover: a fault
   SpeedMmSPerPwmX1000 = 21,  ///< [mm/s per PWM above the dead band, x1000] speed model for dead reckoning without encoders; corrected online by fixes
   MotorDeadbandPwm = 22,  ///< [PWM] commands below this do not move a wheel
   WheelMmPerTickX1000 = 23,  ///< [mm per encoder tick, x1000] 0 = no wheel encoders fitted
-  PoseKRhoX1000 = 24,  ///< [1/s, x1000] moving-to-a-pose gain K_rho
-  PoseKAlphaX1000 = 25,  ///< [1/s, x1000] moving-to-a-pose gain K_alpha
-  PoseKBetaX1000 = 26,  ///< [1/s, x1000] moving-to-a-pose gain K_beta (negative)
 };
-enum : uint8_t { kParamMaxId = 26 };
+enum : uint8_t { kParamMaxId = 23 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.
 /// A switch, not a table, so that it lives in flash on the AVR.
@@ -159,16 +149,12 @@ inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {
     case 14: def = 1500L; lo = 0L; hi = 100000L; return true;
     case 15: def = 50L; lo = 5L; hi = 1000L; return true;
     case 16: def = 200L; lo = 20L; hi = 10000L; return true;
-    case 17: def = 0L; lo = 0L; hi = 1L; return true;
     case 18: def = 100L; lo = 10L; hi = 3000L; return true;
     case 19: def = 50L; lo = 5L; hi = 1000L; return true;
     case 20: def = 50000L; lo = 1000L; hi = 200000L; return true;
     case 21: def = 2000L; lo = 0L; hi = 100000L; return true;
     case 22: def = 30L; lo = 0L; hi = 255L; return true;
     case 23: def = 0L; lo = 0L; hi = 100000L; return true;
-    case 24: def = 600L; lo = 1L; hi = 100000L; return true;
-    case 25: def = 1500L; lo = 1L; hi = 100000L; return true;
-    case 26: def = -300L; lo = -100000L; hi = -1L; return true;
     default: return false;
   }
 }
@@ -323,7 +309,7 @@ struct Config {
 
 /// The rover's state, sent every status_period_ms. (rover to host)
 struct Status {
-  enum : uint8_t { kId = 0x10, kPayloadSize = 43 };
+  enum : uint8_t { kId = 0x10, kPayloadSize = 45 };
   uint32_t time_ms;  ///< [ms] rover clock
   uint8_t state;  ///< [enum rover_state]
   uint16_t flags;  ///< [bits status_flag]
@@ -346,6 +332,7 @@ struct Status {
   uint16_t rx_overlong;  ///< [frames] frames dropped for exceeding the maximum length
   uint16_t rx_unknown_id;  ///< [frames] frames dropped for an unknown message id
   uint16_t rx_malformed;  ///< [frames] frames dropped for bad COBS, version or length
+  uint16_t tx_dropped;  ///< [frames] frames the rover could not queue for sending
   /// Writes kPayloadSize bytes to p.
   void encode(uint8_t* p) const {
     le::put_u32(p + 0, time_ms);
@@ -370,6 +357,7 @@ struct Status {
     le::put_u16(p + 37, rx_overlong);
     le::put_u16(p + 39, rx_unknown_id);
     le::put_u16(p + 41, rx_malformed);
+    le::put_u16(p + 43, tx_dropped);
   }
   /// Reads kPayloadSize bytes from p.
   void decode(const uint8_t* p) {
@@ -395,6 +383,7 @@ struct Status {
     rx_overlong = le::get_u16(p + 37);
     rx_unknown_id = le::get_u16(p + 39);
     rx_malformed = le::get_u16(p + 41);
+    tx_dropped = le::get_u16(p + 43);
   }
 };
 
@@ -508,7 +497,7 @@ inline int16_t payload_size(uint8_t id) {
     case 0x05: return 2;
     case 0x06: return 1;
     case 0x07: return 5;
-    case 0x10: return 43;
+    case 0x10: return 45;
     case 0x11: return 14;
     case 0x12: return 2;
     case 0x13: return 5;

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x02E3830A
+SCHEMA_HASH = 0x85BEBFA4
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -117,7 +117,7 @@ class NackReason(enum.IntEnum):
     OUT_OF_ORDER = 2
     """PATH chunk not the next expected; detail = expected first_index"""
     BAD_VALUE = 3
-    """a field out of its range; detail = field number, from 1"""
+    """a field out of its range; detail = field number from 1 (PATH: index of the bad waypoint)"""
     UNKNOWN_PARAM = 4
     """CONFIG.param is not a parameter; detail = param"""
     PARAM_OUT_OF_RANGE = 5
@@ -150,14 +150,6 @@ class StopReason(enum.IntEnum):
     REPLANNING = 3
     """the host is about to send a new path"""
 
-class DriveMode(enum.IntEnum):
-    """How the rover moves between waypoints (parameter drive_mode)."""
-
-    ROTATE_DRIVE = 0
-    """the seed's: rotate on the spot, then drive inside the tolerance cone"""
-    POSE_LAW = 1
-    """the moving-to-a-pose law (rho, alpha, beta)"""
-
 
 class Param(enum.IntEnum):
     """Parameters set by CONFIG."""
@@ -178,16 +170,12 @@ class Param(enum.IntEnum):
     DR_MAX_DISTANCE_MM = 14
     CLEARANCE_MARGIN_MM = 15
     STATUS_PERIOD_MS = 16
-    DRIVE_MODE = 17
     ROTATE_DONE_CDEG = 18
     GYRO_TIMEOUT_MS = 19
     GYRO_MAX_RATE_CDEG_S = 20
     SPEED_MM_S_PER_PWM_X1000 = 21
     MOTOR_DEADBAND_PWM = 22
     WHEEL_MM_PER_TICK_X1000 = 23
-    POSE_K_RHO_X1000 = 24
-    POSE_K_ALPHA_X1000 = 25
-    POSE_K_BETA_X1000 = 26
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -207,16 +195,12 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.DR_MAX_DISTANCE_MM: ParamSpec(14, 'dr_max_distance_mm', 'mm', 1500, 0, 100000, 'hold after driving this far without a fix'),
     Param.CLEARANCE_MARGIN_MM: ParamSpec(15, 'clearance_margin_mm', 'mm', 50, 5, 1000, 'hold when the 2-sigma position uncertainty exceeds this'),
     Param.STATUS_PERIOD_MS: ParamSpec(16, 'status_period_ms', 'ms', 200, 20, 10000, 'STATUS is sent this often'),
-    Param.DRIVE_MODE: ParamSpec(17, 'drive_mode', 'enum drive_mode', 0, 0, 1, "rotate_drive (the seed's) or pose_law"),
     Param.ROTATE_DONE_CDEG: ParamSpec(18, 'rotate_done_cdeg', 'cdeg', 100, 10, 3000, 'rotation is done within this heading error (seed: 1 degree)'),
     Param.GYRO_TIMEOUT_MS: ParamSpec(19, 'gyro_timeout_ms', 'ms', 50, 5, 1000, 'no gyro sample for this long is a fault'),
     Param.GYRO_MAX_RATE_CDEG_S: ParamSpec(20, 'gyro_max_rate_cdeg_s', 'cdeg/s', 50000, 1000, 200000, 'a gyro rate beyond this is implausible for the rover: a fault'),
     Param.SPEED_MM_S_PER_PWM_X1000: ParamSpec(21, 'speed_mm_s_per_pwm_x1000', 'mm/s per PWM above the dead band, x1000', 2000, 0, 100000, 'speed model for dead reckoning without encoders; corrected online by fixes'),
     Param.MOTOR_DEADBAND_PWM: ParamSpec(22, 'motor_deadband_pwm', 'PWM', 30, 0, 255, 'commands below this do not move a wheel'),
     Param.WHEEL_MM_PER_TICK_X1000: ParamSpec(23, 'wheel_mm_per_tick_x1000', 'mm per encoder tick, x1000', 0, 0, 100000, '0 = no wheel encoders fitted'),
-    Param.POSE_K_RHO_X1000: ParamSpec(24, 'pose_k_rho_x1000', '1/s, x1000', 600, 1, 100000, 'moving-to-a-pose gain K_rho'),
-    Param.POSE_K_ALPHA_X1000: ParamSpec(25, 'pose_k_alpha_x1000', '1/s, x1000', 1500, 1, 100000, 'moving-to-a-pose gain K_alpha'),
-    Param.POSE_K_BETA_X1000: ParamSpec(26, 'pose_k_beta_x1000', '1/s, x1000', -300, -100000, -1, 'moving-to-a-pose gain K_beta (negative)'),
 }
 
 
@@ -364,7 +348,7 @@ class Status(Message):
     ID: ClassVar[int] = 0x10
     NAME: ClassVar[str] = 'status'
     DIRECTION: ClassVar[str] = 'rover_to_host'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IBHBHBhhhHHhHHHhhHHHHH')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IBHBHBhhhHHhHHHhhHHHHHH')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('time_ms', 'u32', 0, 'ms', 'rover clock'),
         FieldSpec('state', 'u8', 0, 'enum rover_state', ''),
@@ -388,6 +372,7 @@ class Status(Message):
         FieldSpec('rx_overlong', 'u16', 0, 'frames', 'frames dropped for exceeding the maximum length'),
         FieldSpec('rx_unknown_id', 'u16', 0, 'frames', 'frames dropped for an unknown message id'),
         FieldSpec('rx_malformed', 'u16', 0, 'frames', 'frames dropped for bad COBS, version or length'),
+        FieldSpec('tx_dropped', 'u16', 0, 'frames', 'frames the rover could not queue for sending'),
     )
 
     time_ms: int = 0
@@ -412,6 +397,7 @@ class Status(Message):
     rx_overlong: int = 0
     rx_unknown_id: int = 0
     rx_malformed: int = 0
+    tx_dropped: int = 0
 
 
 @dataclasses.dataclass
