@@ -7,7 +7,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x85BEBFA4UL;
+static const uint32_t kSchemaHash = 0x4099A89CUL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -55,7 +55,7 @@ enum class EventKind : uint8_t {
   LinkLost = 4,  ///< no frame from the host for radio_timeout_ms; carrying on by dead reckoning
   LinkBack = 5,  ///< frames from the host again; arg = outage in 100 ms units
   CameraLost = 6,  ///< host alive but no fix for fix_timeout_ms
-  CameraBack = 7,  ///< fixes again; arg = dead-reckoning correction in mm
+  CameraBack = 7,  ///< fixes again, after a camera or radio outage; arg = dead-reckoning error the fix revealed, in mm
   Fault = 8,  ///< arg = fault code
   FaultCleared = 9,  ///< arg = fault code
   Replanned = 10,  ///< the rover planned a local detour; arg = detour waypoints
@@ -85,6 +85,7 @@ enum class NackReason : uint8_t {
   PathIdMismatch = 7,  ///< START or PATH for another path id; detail = held path id
   SchemaMismatch = 8,  ///< START before a HELLO with our schema hash
   Faulted = 9,  ///< START while in the fault state; detail = fault code
+  NoFix = 10,  ///< START before the rover has had a camera fix: it does not know where it is
 };
 
 /// What the host's camera sees, sent in HEARTBEAT.

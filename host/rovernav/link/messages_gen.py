@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x85BEBFA4
+SCHEMA_HASH = 0x4099A89C
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -80,7 +80,7 @@ class EventKind(enum.IntEnum):
     CAMERA_LOST = 6
     """host alive but no fix for fix_timeout_ms"""
     CAMERA_BACK = 7
-    """fixes again; arg = dead-reckoning correction in mm"""
+    """fixes again, after a camera or radio outage; arg = dead-reckoning error the fix revealed, in mm"""
     FAULT = 8
     """arg = fault code"""
     FAULT_CLEARED = 9
@@ -130,6 +130,8 @@ class NackReason(enum.IntEnum):
     """START before a HELLO with our schema hash"""
     FAULTED = 9
     """START while in the fault state; detail = fault code"""
+    NO_FIX = 10
+    """START before the rover has had a camera fix: it does not know where it is"""
 
 class CameraState(enum.IntEnum):
     """What the host's camera sees, sent in HEARTBEAT."""

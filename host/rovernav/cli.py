@@ -1,0 +1,143 @@
+"""The `rovernav` command.
+
+    rovernav protocol [--json]            the link protocol's messages and parameters
+    rovernav link-check --port PORT       say HELLO to a rover and watch what it sends
+    rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
+
+Errors a user can cause (a missing port, a rover built from another protocol, no answer)
+end with a one-line message and exit status 2, not a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+import time
+
+from . import __version__
+
+log = logging.getLogger("rovernav")
+
+
+def _cmd_protocol(args: argparse.Namespace) -> int:
+    from .link import framing
+    from .link import messages_gen as mg
+
+    if args.json:
+        out = {
+            "schema_hash": f"0x{mg.SCHEMA_HASH:08X}",
+            "protocol_version": mg.PROTOCOL_VERSION,
+            "max_frame_bytes": framing.MAX_FRAME,
+            "messages": [
+                {"name": cls.NAME, "id": cls.ID, "direction": cls.DIRECTION, "payload_bytes": cls.STRUCT.size,
+                 "fields": [{"name": f.name, "type": f.type, "count": f.count, "unit": f.unit} for f in cls.FIELDS]}
+                for cls in mg.MESSAGES.values()],
+            "params": [{"id": p.id, "name": p.name, "unit": p.unit, "default": p.default, "min": p.min, "max": p.max}
+                       for p in mg.PARAMS.values()],
+        }
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"rovernav link protocol v{mg.PROTOCOL_VERSION}, schema hash 0x{mg.SCHEMA_HASH:08X}, "
+          f"frames up to {framing.MAX_FRAME} bytes on the wire (COBS, CRC-16/CCITT-FALSE)\n")
+    print(f"{'id':>4}  {'message':<10} {'direction':<14} {'bytes':>5}  fields")
+    for cls in mg.MESSAGES.values():
+        fields = ", ".join(f"{f.name}[{f.count}]" if f.count else f.name for f in cls.FIELDS)
+        print(f"0x{cls.ID:02X}  {cls.NAME:<10} {cls.DIRECTION:<14} {len(framing.encode_frame(cls(), 0)):>5}  {fields}")
+    print(f"\n{'id':>4}  {'parameter (CONFIG)':<26} {'default':>8}  {'range':<18} unit")
+    for p in mg.PARAMS.values():
+        print(f"{p.id:>4}  {p.name:<26} {p.default:>8}  [{p.min}, {p.max}]".ljust(62) + f" {p.unit}")
+    return 0
+
+
+def _describe(message) -> str:
+    fields = " ".join(f"{k}={v}" for k, v in message.to_dict().items())
+    return f"{message.NAME.upper()} {fields}"
+
+
+def _cmd_link_check(args: argparse.Namespace) -> int:
+    from .link.link import Link
+    from .link.transport import open_transport
+
+    with open_transport(args.port) as transport:
+        link = Link(transport)
+        hello = link.handshake(boot_id=int.from_bytes(os.urandom(4), "little"), timeout_s=args.timeout)
+        print(f"rover says HELLO: firmware {hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, "
+              f"boot id {hello.boot_id}, holds {hello.max_waypoints} waypoints, "
+              f"schema hash 0x{hello.schema_hash:08X} (matches ours)")
+        end = time.monotonic() + args.seconds
+        while time.monotonic() < end:
+            frame = link.recv(timeout_s=min(0.2, max(0.0, end - time.monotonic())))
+            if frame is not None:
+                print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
+        c = link.counters
+        print(f"link: {c.frames_ok} frames received, dropped {c.bad_crc} bad CRC, {c.overlong} overlong, "
+              f"{c.unknown_id} unknown id, {c.malformed} malformed")
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+
+    return run_demo(seconds=args.seconds)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rovernav",
+        description="Guide a small rover through a partially unknown arena from an overhead camera. "
+                    "The rover (Arduino Uno firmware) follows waypoints on its own; this host sends it "
+                    "camera fixes and global paths over a framed, CRC-checked serial link.",
+        epilog="Run `rovernav COMMAND --help` for a command's options.")
+    parser.add_argument("--version", action="version", version=f"rovernav {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log what the link does")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("protocol", help="list the link protocol's messages and parameters",
+                       description="Print every message (id, direction, size on the wire, fields) and every "
+                                   "CONFIG parameter (default, range, unit) of protocol/messages.toml.")
+    p.add_argument("--json", action="store_true", help="print a JSON object instead of tables")
+    p.set_defaults(func=_cmd_protocol)
+
+    p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends",
+                       description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "
+                                   "were built from the same protocol definition), then print every message "
+                                   "the rover sends for a few seconds, and the link's error counters.")
+    p.add_argument("--port", required=True,
+                   help="serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@57600")
+    p.add_argument("--seconds", type=float, default=3.0, help="how long to listen after the HELLO (default 3)")
+    p.add_argument("--timeout", type=float, default=3.0, help="how long to wait for the rover's HELLO (default 3 s)")
+    p.set_defaults(func=_cmd_link_check)
+
+    p = sub.add_parser("demo", help="run the Uno firmware in an AVR simulator and talk to it",
+                       description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "
+                                   "port on a pseudo-terminal, and run link-check against it: the host and the "
+                                   "very firmware the Uno runs, with no hardware.")
+    p.add_argument("--seconds", type=float, default=3.0, help="how long to listen after the HELLO (default 3)")
+    p.set_defaults(func=_cmd_demo)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    from .link.errors import LinkError
+
+    try:
+        return args.func(args)
+    except LinkError as exc:
+        print(f"rovernav {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"rovernav {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
