@@ -183,7 +183,7 @@ def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
 def render_cpp(d: dict) -> str:
     p = d["protocol"]
     max_raw = HEADER_BYTES + p["max_payload"] + CRC_BYTES
-    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "le_bytes.h"\n\n',
+    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "le_bytes.h"\n', '#include "progmem.h"\n\n',
            "namespace rovernav {\n\n",
            f"enum : uint8_t {{ kProtocolVersion = {p['version']} }};\n",
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
@@ -205,13 +205,27 @@ def render_cpp(d: dict) -> str:
         out.append(f"  {camel(prm['name'])} = {prm['id']},  ///< [{prm['unit']}] {prm['doc']}\n")
     out.append("};\n")
     out.append(f"enum : uint8_t {{ kParamMaxId = {max(x['id'] for x in d['params'])} }};\n\n")
+    max_id = max(x["id"] for x in d["params"])
+    by_id = {x["id"]: x for x in d["params"]}
+    out.append("/// Default, min and max of every parameter, by id - 1; an unused id has min > max.\n"
+               "/// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).\n"
+               f"static const int32_t kParamTable[{max_id}][3] ROVERNAV_PROGMEM = {{\n")
+    for pid in range(1, max_id + 1):
+        prm = by_id.get(pid)
+        if prm:
+            out.append(f"  {{{prm['default']}L, {prm['min']}L, {prm['max']}L}},  // {pid} {prm['name']}\n")
+        else:
+            out.append(f"  {{0L, 1L, 0L}},  // {pid} unused\n")
+    out.append("};\n\n")
     out.append("/// Default and limits of parameter `id`; false if there is no such parameter.\n"
-               "/// A switch, not a table, so that it lives in flash on the AVR.\n"
                "inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {\n"
-               "  switch (id) {\n")
-    for prm in d.get("params", []):
-        out.append(f"    case {prm['id']}: def = {prm['default']}L; lo = {prm['min']}L; hi = {prm['max']}L; return true;\n")
-    out.append("    default: return false;\n  }\n}\n\n")
+               "  if (id == 0 || id > kParamMaxId) return false;\n"
+               "  const int32_t* row = kParamTable[id - 1];\n"
+               "  def = flash_read_i32(row);\n"
+               "  lo = flash_read_i32(row + 1);\n"
+               "  hi = flash_read_i32(row + 2);\n"
+               "  return lo <= hi;\n"
+               "}\n\n")
     out.append("namespace msg {\n\n")
     for m in d["messages"]:
         out.append(f"/// {m['doc']} ({m['direction'].replace('_', ' ')})\n")

@@ -3,6 +3,7 @@
 #pragma once
 #include <stdint.h>
 #include "le_bytes.h"
+#include "progmem.h"
 
 namespace rovernav {
 
@@ -130,34 +131,42 @@ enum class Param : uint8_t {
 };
 enum : uint8_t { kParamMaxId = 23 };
 
+/// Default, min and max of every parameter, by id - 1; an unused id has min > max.
+/// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
+static const int32_t kParamTable[23][3] ROVERNAV_PROGMEM = {
+  {3000L, 0L, 100000L},  // 1 pid_kp_x100
+  {300L, 0L, 100000L},  // 2 pid_ki_x100
+  {500L, 0L, 100000L},  // 3 pid_kd_x100
+  {130L, 0L, 255L},  // 4 pid_out_max_pwm
+  {800L, 500L, 1500L},  // 5 right_bias_permille
+  {70L, 0L, 255L},  // 6 drive_pwm
+  {18L, 1L, 1000L},  // 7 cone_tol_mm
+  {36L, 5L, 1000L},  // 8 arrival_radius_mm
+  {300L, 0L, 10000L},  // 9 sweep_interval_mm
+  {90L, 20L, 5000L},  // 10 sweep_step_ms
+  {400L, 50L, 4000L},  // 11 sonar_report_mm
+  {500L, 50L, 60000L},  // 12 fix_timeout_ms
+  {1000L, 100L, 60000L},  // 13 radio_timeout_ms
+  {1500L, 0L, 100000L},  // 14 dr_max_distance_mm
+  {50L, 5L, 1000L},  // 15 clearance_margin_mm
+  {200L, 20L, 10000L},  // 16 status_period_ms
+  {0L, 1L, 0L},  // 17 unused
+  {100L, 10L, 3000L},  // 18 rotate_done_cdeg
+  {50L, 5L, 1000L},  // 19 gyro_timeout_ms
+  {50000L, 1000L, 200000L},  // 20 gyro_max_rate_cdeg_s
+  {2000L, 0L, 100000L},  // 21 speed_mm_s_per_pwm_x1000
+  {30L, 0L, 255L},  // 22 motor_deadband_pwm
+  {0L, 0L, 100000L},  // 23 wheel_mm_per_tick_x1000
+};
+
 /// Default and limits of parameter `id`; false if there is no such parameter.
-/// A switch, not a table, so that it lives in flash on the AVR.
 inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {
-  switch (id) {
-    case 1: def = 3000L; lo = 0L; hi = 100000L; return true;
-    case 2: def = 300L; lo = 0L; hi = 100000L; return true;
-    case 3: def = 500L; lo = 0L; hi = 100000L; return true;
-    case 4: def = 130L; lo = 0L; hi = 255L; return true;
-    case 5: def = 800L; lo = 500L; hi = 1500L; return true;
-    case 6: def = 70L; lo = 0L; hi = 255L; return true;
-    case 7: def = 18L; lo = 1L; hi = 1000L; return true;
-    case 8: def = 36L; lo = 5L; hi = 1000L; return true;
-    case 9: def = 300L; lo = 0L; hi = 10000L; return true;
-    case 10: def = 90L; lo = 20L; hi = 5000L; return true;
-    case 11: def = 400L; lo = 50L; hi = 4000L; return true;
-    case 12: def = 500L; lo = 50L; hi = 60000L; return true;
-    case 13: def = 1000L; lo = 100L; hi = 60000L; return true;
-    case 14: def = 1500L; lo = 0L; hi = 100000L; return true;
-    case 15: def = 50L; lo = 5L; hi = 1000L; return true;
-    case 16: def = 200L; lo = 20L; hi = 10000L; return true;
-    case 18: def = 100L; lo = 10L; hi = 3000L; return true;
-    case 19: def = 50L; lo = 5L; hi = 1000L; return true;
-    case 20: def = 50000L; lo = 1000L; hi = 200000L; return true;
-    case 21: def = 2000L; lo = 0L; hi = 100000L; return true;
-    case 22: def = 30L; lo = 0L; hi = 255L; return true;
-    case 23: def = 0L; lo = 0L; hi = 100000L; return true;
-    default: return false;
-  }
+  if (id == 0 || id > kParamMaxId) return false;
+  const int32_t* row = kParamTable[id - 1];
+  def = flash_read_i32(row);
+  lo = flash_read_i32(row + 1);
+  hi = flash_read_i32(row + 2);
+  return lo <= hi;
 }
 
 namespace msg {

@@ -1,0 +1,63 @@
+#include "rover_abi.h"
+
+#include "rover.h"
+
+using rovernav::core::Inputs;
+using rovernav::core::Outputs;
+using rovernav::core::Rover;
+
+static_assert(ROVER_TX_PER_STEP == rovernav::core::kTxPerStep, "ABI and core agree on the TX chunk");
+
+extern "C" {
+
+uint32_t rover_abi_version(void) { return ROVER_ABI_VERSION; }
+
+uint32_t rover_schema_hash(void) { return rovernav::kSchemaHash; }
+
+void* rover_new(uint32_t boot_id, uint16_t reset_cause) {
+  Rover* r = new Rover();
+  r->begin(boot_id, reset_cause);
+  return r;
+}
+
+void rover_step(void* rover, const rover_inputs* in, rover_outputs* out) {
+  Inputs i;
+  i.now_ms = in->now_ms;
+  i.gyro_valid = in->gyro_valid != 0;
+  i.gyro_rate_mdps = in->gyro_rate_mdps;
+  i.sonar_valid = in->sonar_valid != 0;
+  i.sonar_range_mm = in->sonar_range_mm;
+  i.wheels_valid = in->wheels_valid != 0;
+  i.left_ticks = in->left_ticks;
+  i.right_ticks = in->right_ticks;
+  i.rx = in->rx;
+  i.rx_len = in->rx_len;
+  i.tx_room = in->tx_room;
+  Outputs o;
+  static_cast<Rover*>(rover)->step(i, o);
+  out->left_pwm = o.left_pwm;
+  out->right_pwm = o.right_pwm;
+  out->servo_cdeg = o.servo_cdeg;
+  out->fire_sonar = o.fire_sonar ? 1 : 0;
+  out->tx_len = o.tx_len;
+  for (uint8_t k = 0; k < o.tx_len; ++k) out->tx[k] = o.tx[k];
+}
+
+void rover_probe_state(const void* rover, rover_probe* probe) {
+  const Rover* r = static_cast<const Rover*>(rover);
+  probe->state = static_cast<uint8_t>(r->state());
+  probe->fault = static_cast<uint8_t>(r->fault());
+  probe->flags = r->flags();
+  probe->waypoint_index = r->waypoint_index();
+  probe->waypoint_count = r->waypoint_count();
+  probe->x_mm = r->estimator().x_mm();
+  probe->y_mm = r->estimator().y_mm();
+  probe->heading_rad = r->estimator().heading_rad();
+  probe->position_sd_mm = r->estimator().position_sd_mm();
+  probe->speed_scale = r->speed_scale();
+  probe->dr_distance_mm = r->dr_distance_mm();
+}
+
+void rover_free(void* rover) { delete static_cast<Rover*>(rover); }
+
+}  // extern "C"

@@ -1,0 +1,33 @@
+// Angle helpers. Headings are clockwise from +y (up the camera image), the seed's gyro
+// convention; the internal unit is the radian, the wire unit the centidegree.
+#pragma once
+#include <math.h>
+#include <stdint.h>
+
+namespace rovernav {
+namespace core {
+
+static const float kPi = 3.14159265f;
+static const float kRadPerDeg = kPi / 180.0f;
+static const float kDegPerRad = 180.0f / kPi;
+
+/// Wraps to (-pi, pi]. Closed form, no loop: a NaN or a huge value cannot stall the rover.
+inline float wrap_rad(float a) {
+  a -= 2.0f * kPi * floorf((a + kPi) / (2.0f * kPi));
+  return a <= -kPi ? a + 2.0f * kPi : (a > kPi ? a - 2.0f * kPi : a);
+}
+
+inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }
+
+/// To centidegrees in (-18000, 18000].
+inline int16_t rad_to_cdeg(float rad) {
+  const float c = wrap_rad(rad) * kDegPerRad * 100.0f;
+  const int32_t r = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
+  return static_cast<int16_t>(r <= -18000 ? 18000 : r);
+}
+
+/// Bearing from (x0, y0) to (x1, y1), clockwise from +y.
+inline float bearing_rad(float x0, float y0, float x1, float y1) { return atan2f(x1 - x0, y1 - y0); }
+
+}  // namespace core
+}  // namespace rovernav

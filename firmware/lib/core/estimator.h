@@ -1,0 +1,85 @@
+// Pose estimator: dead reckoning from the gyro and the wheels (or a speed model of the motor
+// commands), and an extended Kalman filter that takes the overhead camera's fixes.
+//
+// State q = (x, y, theta): millimetres in the arena frame, theta clockwise from +y. Motion over
+// one step with travelled distance d and heading change dtheta (Russo 2024, eq. 4.1, in our
+// heading convention, evaluated at the mid-step heading):
+//     x' = x + d sin(theta),  y' = y + d cos(theta),  theta' = theta + dtheta
+// Covariance (eq. 4.2-4.4):  P' = Fq P Fq^T + Fv V Fv^T with
+//     Fq = [[1, 0, d cos(theta)], [0, 1, -d sin(theta)], [0, 0, 1]]
+//     Fv = [[sin(theta), 0], [cos(theta), 0], [0, 1]],  V = diag(var_d, var_theta)
+// A camera fix measures the whole pose, H = I; it is compared with the pose the rover had when
+// the frame was taken, and the correction is carried to now. That past pose is the current
+// estimate less the odometry travelled since: a short history of the raw (never corrected)
+// odometry gives it, interpolated between samples.
+#pragma once
+#include <stdint.h>
+
+namespace rovernav {
+namespace core {
+
+struct PoseFix {
+  int16_t x_mm;
+  int16_t y_mm;
+  int16_t heading_cdeg;
+  uint8_t sd_mm;
+  uint32_t taken_ms;  ///< when the frame was captured, on the rover's clock
+};
+
+enum class FixResult : uint8_t { Initialised, Accepted, Rejected };
+
+class Estimator {
+ public:
+  /// Forgets everything: no pose until the first fix.
+  void reset();
+  bool initialised() const { return initialised_; }
+
+  /// Dead reckoning over one step. d_mm: distance travelled (signed), dtheta_rad: heading change,
+  /// var_d_mm2 / var_theta_rad2: the step's noise, now_ms: the step's time (for the history).
+  void predict(float d_mm, float dtheta_rad, float var_d_mm2, float var_theta_rad2, uint32_t now_ms);
+
+  /// A camera fix. Rejected (and counted) when it is implausibly far from the estimate;
+  /// after kMaxRejects rejections in a row the estimate is reset to the fix.
+  FixResult update(const PoseFix& fix, uint32_t now_ms);
+
+  float x_mm() const { return x_; }
+  float y_mm() const { return y_; }
+  float heading_rad() const { return th_; }
+  /// Covariance entries: xx, xy, xt, yy, yt, tt (mm^2, mm*rad, rad^2).
+  float p(uint8_t i) const { return p_[i]; }
+  /// Standard deviation along the worst direction of the position error (mm).
+  float position_sd_mm() const;
+  /// Size of the last accepted fix's correction to the position (mm).
+  float last_correction_mm() const { return last_correction_mm_; }
+  /// Distance between the last fix and the pose it was compared with (mm): after an outage,
+  /// the dead-reckoning error the fix revealed.
+  float last_innovation_mm() const { return last_innovation_mm_; }
+  uint16_t rejected_fixes() const { return rejected_total_; }
+
+  enum : uint8_t { kHistory = 8, kMaxRejects = 10 };
+  enum : uint16_t { kHistoryPeriodMs = 40 };
+
+ private:
+  struct Past {
+    int16_t x_mm, y_mm, heading_cdeg;  // raw odometry
+    uint16_t t_ms;                     // low 16 bits of the time
+  };
+  /// Odometry travelled since t_ms: (dx, dy, dtheta). Zero if t_ms is now or later.
+  void odometry_since(uint32_t t_ms, uint32_t now_ms, float& dx, float& dy, float& dth) const;
+
+  bool initialised_ = false;
+  float x_ = 0, y_ = 0, th_ = 0;
+  float odo_x_ = 0, odo_y_ = 0, odo_th_ = 0;  // dead reckoning alone, never corrected
+  float p_[6] = {};  // xx xy xt yy yt tt
+  float last_correction_mm_ = 0;
+  float last_innovation_mm_ = 0;
+  uint8_t rejects_in_row_ = 0;
+  uint16_t rejected_total_ = 0;
+  Past history_[kHistory] = {};
+  uint8_t history_next_ = 0;
+  uint8_t history_count_ = 0;
+  uint32_t history_last_ms_ = 0;
+};
+
+}  // namespace core
+}  // namespace rovernav

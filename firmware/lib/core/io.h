@@ -1,0 +1,36 @@
+// The core's boundary: what the shell reads each tick (Inputs) and what it must do (Outputs).
+// Plain structs, no pointers into hardware; the Uno shell, the native tests and the simulator
+// (through rover_abi) all fill and read the same fields.
+#pragma once
+#include <stdint.h>
+
+namespace rovernav {
+namespace core {
+
+enum : uint8_t { kTxPerStep = 64 };  // at most this many bytes leave per step
+
+struct Inputs {
+  uint32_t now_ms;            ///< monotonic time; wraps after 49 days
+  bool gyro_valid;            ///< a fresh gyro sample this step
+  int32_t gyro_rate_mdps;     ///< yaw rate in millidegrees/s, clockwise seen from above
+  bool sonar_valid;           ///< the result of the last fire_sonar is here
+  uint16_t sonar_range_mm;    ///< 0 = no echo
+  bool wheels_valid;          ///< wheel encoders fitted and read
+  int16_t left_ticks;         ///< ticks since the previous step, forward positive
+  int16_t right_ticks;
+  const uint8_t* rx;          ///< bytes received from the link since the previous step
+  uint8_t rx_len;
+  uint8_t tx_room;            ///< bytes the link can take now (at most kTxPerStep are given)
+};
+
+struct Outputs {
+  int16_t left_pwm;           ///< -255..255, forward positive
+  int16_t right_pwm;
+  int16_t servo_cdeg;         ///< sonar servo angle wanted, relative to ahead, clockwise positive
+  bool fire_sonar;            ///< ping now; report the result in a later Inputs.sonar_valid
+  uint8_t tx_len;
+  uint8_t tx[kTxPerStep];     ///< bytes to send now
+};
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,52 @@
+// The rover's tunable parameters, set by CONFIG. Defaults and limits come from the protocol
+// definition (param_limits() in messages_gen.h), so there is one list of them. Values are kept
+// as the wire's integers (one int32 each) and turned into working units where they are read:
+// one small array instead of a field and a conversion per parameter keeps the Uno's flash free.
+#pragma once
+#include <stdint.h>
+
+#include "messages_gen.h"
+
+namespace rovernav {
+namespace core {
+
+enum class SetResult : uint8_t { Ok, UnknownParam, OutOfRange };
+
+class Params {
+ public:
+  /// All parameters at their defaults.
+  void reset();
+  /// Sets parameter `id` to `value` after checking it against the definition's limits.
+  SetResult set(uint8_t id, int32_t value);
+  int32_t raw(Param p) const { return raw_[static_cast<uint8_t>(p) - 1]; }
+
+  float kp() const { return scaled(Param::PidKpX100, 0.01f); }         // PWM per degree
+  float ki() const { return scaled(Param::PidKiX100, 0.01f); }         // PWM per degree-second
+  float kd() const { return scaled(Param::PidKdX100, 0.01f); }         // PWM per degree/second
+  float pid_out_max_pwm() const { return scaled(Param::PidOutMaxPwm, 1.0f); }
+  float right_bias() const { return scaled(Param::RightBiasPermille, 0.001f); }
+  float drive_pwm() const { return scaled(Param::DrivePwm, 1.0f); }
+  float cone_tol_mm() const { return scaled(Param::ConeTolMm, 1.0f); }
+  float arrival_radius_mm() const { return scaled(Param::ArrivalRadiusMm, 1.0f); }
+  float sweep_interval_mm() const { return scaled(Param::SweepIntervalMm, 1.0f); }
+  uint16_t sweep_step_ms() const { return static_cast<uint16_t>(raw(Param::SweepStepMs)); }
+  uint16_t sonar_report_mm() const { return static_cast<uint16_t>(raw(Param::SonarReportMm)); }
+  uint32_t fix_timeout_ms() const { return static_cast<uint32_t>(raw(Param::FixTimeoutMs)); }
+  uint32_t radio_timeout_ms() const { return static_cast<uint32_t>(raw(Param::RadioTimeoutMs)); }
+  float dr_max_distance_mm() const { return scaled(Param::DrMaxDistanceMm, 1.0f); }
+  float clearance_margin_mm() const { return scaled(Param::ClearanceMarginMm, 1.0f); }
+  uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
+  float rotate_done_deg() const { return scaled(Param::RotateDoneCdeg, 0.01f); }
+  uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
+  int32_t gyro_max_rate_cdeg_s() const { return raw(Param::GyroMaxRateCdegS); }
+  float speed_mm_s_per_pwm() const { return scaled(Param::SpeedMmSPerPwmX1000, 0.001f); }
+  int16_t motor_deadband_pwm() const { return static_cast<int16_t>(raw(Param::MotorDeadbandPwm)); }
+  float wheel_mm_per_tick() const { return scaled(Param::WheelMmPerTickX1000, 0.001f); }
+
+ private:
+  float scaled(Param p, float scale) const { return static_cast<float>(raw(p)) * scale; }
+  int32_t raw_[kParamMaxId];
+};
+
+}  // namespace core
+}  // namespace rovernav

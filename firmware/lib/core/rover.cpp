@@ -1,0 +1,602 @@
+#include "rover.h"
+
+#include <math.h>
+
+#include "angles.h"
+
+namespace rovernav {
+namespace core {
+
+namespace {
+
+// Dead-reckoning noise. The speed model's error is systematic, so its variance grows with the
+// distance driven (a 3 % scale error is 30 mm after a metre: 1 mm^2 per mm); encoders are
+// better. The gyro's variance grows with time (bias left after calibration, about 0.05 deg/s
+// over 10 s) and with the angle turned (scale error, 1 %).
+const float kModelVarPerMm = 1.0f;
+const float kEncoderVarPerMm = 0.1f;
+const float kGyroVarPerS = (0.16f * kRadPerDeg) * (0.16f * kRadPerDeg);
+const float kGyroScaleSd = 0.01f;
+// Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
+const float kMaxStepS = 0.25f;
+// Rotation counts as done when also this slow (deg/s), so the rover does not coast past it.
+const float kRotateSettledDps = 10.0f;
+
+int16_t clamp_pwm(float v) {
+  if (v > 255.0f) return 255;
+  if (v < -255.0f) return -255;
+  return static_cast<int16_t>(lroundf(v));
+}
+
+// PWM above the motor's dead band, signed: what actually moves a wheel.
+float effective_pwm(int16_t pwm, int16_t deadband) {
+  const int16_t mag = static_cast<int16_t>(pwm < 0 ? -pwm : pwm);
+  if (mag <= deadband) return 0.0f;
+  const float e = static_cast<float>(mag - deadband);
+  return pwm < 0 ? -e : e;
+}
+
+uint16_t saturate_u16(float v) {
+  if (!(v > 0.0f)) return 0;
+  if (v > 65535.0f) return 65535;
+  return static_cast<uint16_t>(lroundf(v));
+}
+
+int16_t saturate_i16(float v) {
+  if (v > 32767.0f) return 32767;
+  if (v < -32768.0f) return -32768;
+  return static_cast<int16_t>(lroundf(v));
+}
+
+}  // namespace
+
+void Rover::begin(uint32_t boot_id, uint16_t reset_cause) {
+  // A Rover starts in its default state (it is a global on the Uno: no copy of ~800 bytes on
+  // a 2 KB stack); begin() only sets what the default cannot know.
+  params_.reset();
+  boot_id_ = boot_id;
+  reset_cause_ = reset_cause;
+}
+
+uint16_t Rover::flags() const {
+  uint16_t f = 0;
+  if (path_len_ > 0) f |= StatusFlag::PathLoaded;
+  if (mission_) f |= StatusFlag::MissionActive;
+  if (dead_reckoning_ || !had_fix_) f |= StatusFlag::DeadReckoning;
+  if (radio_lost_) f |= StatusFlag::RadioLost;
+  if (!radio_lost_ && (dead_reckoning_ || camera_ != static_cast<uint8_t>(CameraState::Ok))) f |= StatusFlag::CameraLost;
+  if (fault_ == FaultCode::GyroSilent || fault_ == FaultCode::GyroImplausible) f |= StatusFlag::GyroFault;
+  if (schema_ok_) f |= StatusFlag::SchemaOk;
+  return f;
+}
+
+// ---------------------------------------------------------------- the step
+
+void Rover::step(const Inputs& in, Outputs& out) {
+  const uint32_t now = in.now_ms;
+  float dt_s = 0.0f;
+  if (have_time_) {
+    dt_s = static_cast<float>(now - last_ms_) / 1000.0f;
+    if (dt_s > kMaxStepS) dt_s = kMaxStepS;
+  }
+  last_ms_ = now;
+  if (!booted_) {
+    booted_ = have_time_ = true;
+    last_rx_ms_ = gyro_last_ms_ = last_status_ms_ = now;
+    send_hello();
+    send_event(EventKind::Boot, reset_cause_);
+  }
+
+  for (uint8_t i = 0; i < in.rx_len; ++i) {
+    if (decoder_.push(in.rx[i])) {
+      last_rx_ms_ = now;
+      handle_frame(decoder_.frame(), now);
+    }
+  }
+  update_gyro(in, now);
+  dead_reckon(in, dt_s, now);
+  watch_link(now);
+
+  out.fire_sonar = false;
+  run_state(in, dt_s, now, out);
+  left_cmd_ = out.left_pwm;
+  right_cmd_ = out.right_pwm;
+  out.servo_cdeg = servo_cdeg_;
+
+  if (now - last_status_ms_ >= params_.status_period_ms()) {
+    last_status_ms_ = now;
+    send_status();
+  }
+  const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
+  out.tx_len = tx_.take(out.tx, room);
+}
+
+// ---------------------------------------------------------------- sensing
+
+void Rover::update_gyro(const Inputs& in, uint32_t now) {
+  if (in.gyro_valid) {
+    const int32_t rate_cdeg_s = in.gyro_rate_mdps / 10;
+    const int32_t mag = rate_cdeg_s < 0 ? -rate_cdeg_s : rate_cdeg_s;
+    if (mag > params_.gyro_max_rate_cdeg_s()) {
+      gyro_good_run_ = false;
+      if (fault_ == FaultCode::None) raise_fault(FaultCode::GyroImplausible);
+      return;
+    }
+    gyro_last_ms_ = now;
+    rate_dps_ = static_cast<float>(in.gyro_rate_mdps) / 1000.0f;
+    if (!gyro_good_run_) {
+      gyro_good_run_ = true;
+      gyro_good_since_ms_ = now;
+    }
+    if (fault_ != FaultCode::None && now - gyro_good_since_ms_ >= kGyroRecoverMs) {
+      const FaultCode cleared = fault_;
+      fault_ = FaultCode::None;
+      send_event(EventKind::FaultCleared, static_cast<uint16_t>(cleared));
+      enter(RoverState::Idle);
+    }
+    return;
+  }
+  if (now - gyro_last_ms_ > params_.gyro_timeout_ms()) {
+    gyro_good_run_ = false;
+    rate_dps_ = 0.0f;
+    if (fault_ == FaultCode::None) raise_fault(FaultCode::GyroSilent);
+  }
+}
+
+void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
+  if (dt_s <= 0.0f) return;
+  float d_mm = 0.0f;
+  float var_d = 0.0f;
+  if (in.wheels_valid && params_.wheel_mm_per_tick() > 0.0f) {
+    d_mm = 0.5f * static_cast<float>(in.left_ticks + in.right_ticks) * params_.wheel_mm_per_tick();
+    var_d = kEncoderVarPerMm * fabsf(d_mm);
+  } else {
+    const float pwm = 0.5f * (effective_pwm(left_cmd_, params_.motor_deadband_pwm()) +
+                              effective_pwm(right_cmd_, params_.motor_deadband_pwm()));
+    d_mm = speed_scale_ * params_.speed_mm_s_per_pwm() * pwm * dt_s;
+    var_d = kModelVarPerMm * fabsf(d_mm);
+  }
+  const float dth = fault_ == FaultCode::None ? rate_dps_ * kRadPerDeg * dt_s : 0.0f;
+  const float var_th = kGyroVarPerS * dt_s + (kGyroScaleSd * dth) * (kGyroScaleSd * dth);
+  est_.predict(d_mm, dth, var_d, var_th, now);
+  const float ad = fabsf(d_mm);
+  if (dead_reckoning_) dr_distance_mm_ += ad;
+  if (state_ == RoverState::Drive) {
+    sweep_distance_mm_ += ad;
+    calib_model_mm_ += d_mm;
+  }
+}
+
+// ---------------------------------------------------------------- link watchdog
+
+void Rover::watch_link(uint32_t now) {
+  const bool radio_now_lost = now - last_rx_ms_ > params_.radio_timeout_ms();
+  if (radio_now_lost && !radio_lost_) {
+    radio_lost_ = true;
+    radio_lost_since_ms_ = now;
+    send_event(EventKind::LinkLost, 0);
+  } else if (!radio_now_lost && radio_lost_) {
+    radio_lost_ = false;
+    send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - radio_lost_since_ms_) / 100.0f));
+  }
+  if (had_fix_ && !dead_reckoning_ && now - last_fix_ms_ > params_.fix_timeout_ms()) {
+    dead_reckoning_ = true;
+    dr_distance_mm_ = 0.0f;
+    if (!radio_lost_) send_event(EventKind::CameraLost, camera_);
+  }
+  // Safe stop: never drive on past what the estimate can vouch for.
+  const bool moving = state_ == RoverState::Rotate || state_ == RoverState::Drive || state_ == RoverState::Scan;
+  if (mission_ && moving && dead_reckoning_) {
+    const float u = uncertainty_2sd_mm();
+    if (u >= 0.9f * params_.clearance_margin_mm() ||
+        dr_distance_mm_ >= params_.dr_max_distance_mm()) {
+      sweep_ = Sweep();
+      servo_cdeg_ = 0;
+      enter(RoverState::Hold);
+      send_event(EventKind::Hold, saturate_u16(u));
+    }
+  }
+  if (state_ == RoverState::Hold && !dead_reckoning_ &&
+      uncertainty_2sd_mm() < 0.5f * params_.clearance_margin_mm()) {
+    wp_ = closest_target();
+    enter(RoverState::Rotate);
+    send_event(EventKind::Resumed, wp_);
+  }
+}
+
+// ---------------------------------------------------------------- motion
+
+void Rover::enter(RoverState s) {
+  if (s != state_) pid_.reset();
+  if (s == RoverState::Drive && state_ != RoverState::Drive) {
+    calib_anchor_ = false;
+    drive_since_ms_ = last_ms_;
+    min_distance_mm_ = wp_ < path_len_ ? distance_to(wp_) : 0.0f;
+  }
+  state_ = s;
+  if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_ = false;
+}
+
+void Rover::raise_fault(FaultCode code) {
+  fault_ = code;
+  sweep_ = Sweep();
+  servo_cdeg_ = 0;
+  enter(RoverState::Fault);
+  send_event(EventKind::Fault, static_cast<uint16_t>(code));
+}
+
+float Rover::distance_to(uint8_t i) const {
+  const float dx = static_cast<float>(path_[i].x_mm) - est_.x_mm();
+  const float dy = static_cast<float>(path_[i].y_mm) - est_.y_mm();
+  return sqrtf(dx * dx + dy * dy);
+}
+
+float Rover::error_to_deg(uint8_t i) const {
+  const float b = bearing_rad(est_.x_mm(), est_.y_mm(), path_[i].x_mm, path_[i].y_mm);
+  return wrap_rad(b - est_.heading_rad()) * kDegPerRad;
+}
+
+float Rover::cone_deg(float distance_mm) const {
+  return atan2f(params_.cone_tol_mm(), distance_mm) * kDegPerRad;
+}
+
+uint8_t Rover::closest_target() const {
+  // The end of the path segment nearest the rover, so that a path planned from where the
+  // rover was a moment ago does not send it back; the start if the rover is before it.
+  if (path_len_ <= 1) return 0;
+  const float px = est_.x_mm(), py = est_.y_mm();
+  float best = 1e30f;
+  uint8_t target = 0;
+  for (uint8_t i = 0; i + 1 < path_len_; ++i) {
+    const float ax = path_[i].x_mm, ay = path_[i].y_mm;
+    const float bx = path_[i + 1].x_mm, by = path_[i + 1].y_mm;
+    const float vx = bx - ax, vy = by - ay;
+    const float len2 = vx * vx + vy * vy;
+    float t = len2 > 0.0f ? ((px - ax) * vx + (py - ay) * vy) / len2 : 0.0f;
+    const bool before_start = t <= 0.0f;
+    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    const float cx = ax + t * vx - px, cy = ay + t * vy - py;
+    const float d2 = cx * cx + cy * cy;
+    if (d2 < best) {
+      best = d2;
+      target = (i == 0 && before_start) ? 0 : static_cast<uint8_t>(i + 1);
+    }
+  }
+  return target;
+}
+
+void Rover::reached_waypoint() {
+  send_event(EventKind::WaypointReached, wp_);
+  if (wp_ + 1 >= path_len_) {
+    enter(RoverState::Arrived);
+    send_event(EventKind::Arrived, wp_);
+    return;
+  }
+  ++wp_;
+  // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
+  const float l = distance_to(wp_);
+  if (state_ == RoverState::Drive && fabsf(error_to_deg(wp_)) <= cone_deg(l)) {
+    min_distance_mm_ = l;
+  } else {
+    enter(RoverState::Rotate);
+    pid_.reset();
+  }
+}
+
+void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) {
+  out.left_pwm = out.right_pwm = 0;
+  if (!mission_ || wp_ >= path_len_) return;
+  const Params& p = params_;
+  const float out_max = p.pid_out_max_pwm();
+
+  if (state_ == RoverState::Scan) {
+    int16_t servo = servo_cdeg_;
+    bool fire = false;
+    const Sweep::Echo echo = sweep_.step(now, in.sonar_valid, in.sonar_range_mm, servo, fire);
+    servo_cdeg_ = servo;
+    out.fire_sonar = fire;
+    if (echo.valid && echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
+      msg::Obstacle o;
+      o.scan_id = scan_id_;
+      o.bearing_cdeg = echo.bearing_cdeg;
+      o.range_mm = echo.range_mm;
+      o.x_mm = saturate_i16(est_.x_mm());
+      o.y_mm = saturate_i16(est_.y_mm());
+      o.heading_cdeg = rad_to_cdeg(est_.heading_rad());
+      o.sd_mm = saturate_u16(est_.position_sd_mm());
+      tx_.send(o);
+      ++scan_echoes_;
+    }
+    if (!sweep_.running()) {
+      send_event(EventKind::ScanDone, scan_echoes_);
+      sweep_distance_mm_ = 0.0f;
+      enter(RoverState::Rotate);
+    }
+    return;
+  }
+
+  if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
+  if (distance_to(wp_) <= p.arrival_radius_mm()) {
+    reached_waypoint();
+    if (!mission_) return;
+  }
+  const float l = distance_to(wp_);
+  const float err = error_to_deg(wp_);
+
+  if (state_ == RoverState::Rotate) {
+    if (fabsf(err) <= p.rotate_done_deg() && fabsf(rate_dps_) < kRotateSettledDps) {
+      enter(RoverState::Drive);
+    } else {
+      float u = pid_.update(err, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), out_max);
+      // Lift the command over the motors' dead band, or small errors never close.
+      if (fabsf(u) > 0.5f) {
+        const float lifted = fabsf(u) + static_cast<float>(p.motor_deadband_pwm());
+        u = u > 0.0f ? (lifted < out_max ? lifted : out_max) : -(lifted < out_max ? lifted : out_max);
+      }
+      out.left_pwm = clamp_pwm(u);
+      out.right_pwm = clamp_pwm(-u);
+      return;
+    }
+  }
+
+  // Drive: stop and re-rotate outside the cone, or once we are moving away from the waypoint.
+  if (fabsf(err) > cone_deg(l) || l > min_distance_mm_ + static_cast<float>(kGrowMarginMm)) {
+    enter(RoverState::Rotate);
+    return;
+  }
+  if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+    ++scan_id_;
+    scan_echoes_ = 0;
+    sweep_.start(now, servo_cdeg_, p.sweep_step_ms());
+    enter(RoverState::Scan);
+    return;
+  }
+  if (l < min_distance_mm_) min_distance_mm_ = l;
+  const float u = pid_.update(err, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), out_max);
+  const float base = p.drive_pwm();
+  out.left_pwm = clamp_pwm(base + u);
+  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+}
+
+// ---------------------------------------------------------------- messages in
+
+void Rover::handle_frame(const Frame& f, uint32_t now) {
+  switch (f.msg_id) {
+    case msg::Hello::kId: {
+      msg::Hello m;
+      decode_message(f, m);
+      if (m.role == static_cast<uint8_t>(Role::Host)) {
+        schema_ok_ = m.schema_hash == kSchemaHash;
+        send_hello();
+      }
+      break;
+    }
+    case msg::Heartbeat::kId: {
+      msg::Heartbeat m;
+      decode_message(f, m);
+      camera_ = m.camera;
+      break;
+    }
+    case msg::Fix::kId: {
+      msg::Fix m;
+      decode_message(f, m);
+      on_fix(m, now);
+      break;
+    }
+    case msg::Path::kId: {
+      msg::Path m;
+      decode_message(f, m);
+      on_path(m, f.seq);
+      break;
+    }
+    case msg::Start::kId: {
+      msg::Start m;
+      decode_message(f, m);
+      on_start(m, f.seq);
+      break;
+    }
+    case msg::Stop::kId: {
+      msg::Stop m;
+      decode_message(f, m);
+      on_stop(m, f.seq);
+      break;
+    }
+    case msg::Config::kId: {
+      msg::Config m;
+      decode_message(f, m);
+      on_config(m, f.seq);
+      break;
+    }
+    default:
+      break;  // a rover-to-host message echoed back: valid, not for us
+  }
+}
+
+void Rover::on_fix(const msg::Fix& m, uint32_t now) {
+  PoseFix fix;
+  fix.x_mm = m.x_mm;
+  fix.y_mm = m.y_mm;
+  fix.heading_cdeg = m.heading_cdeg;
+  fix.sd_mm = m.sd_mm;
+  fix.taken_ms = now - m.age_ms - kLinkDelayMs;
+  const FixResult r = est_.update(fix, now);
+  if (r == FixResult::Rejected) return;
+  last_fix_ms_ = now;
+  had_fix_ = true;
+  if (dead_reckoning_) {
+    dead_reckoning_ = false;
+    send_event(EventKind::CameraBack, saturate_u16(est_.last_innovation_mm()));
+  }
+  dr_distance_mm_ = 0.0f;
+  // Calibrate the speed model on straight drives: fix-to-fix distance against the model's.
+  if (state_ != RoverState::Drive || now - drive_since_ms_ < kCalibrateAfterMs || r != FixResult::Accepted) {
+    calib_anchor_ = false;
+    return;
+  }
+  if (!calib_anchor_) {
+    calib_anchor_ = true;
+    calib_x_ = m.x_mm;
+    calib_y_ = m.y_mm;
+    calib_model_mm_ = 0.0f;
+    return;
+  }
+  if (calib_model_mm_ >= static_cast<float>(kCalibrateMinMm)) {
+    const float dx = static_cast<float>(m.x_mm) - calib_x_, dy = static_cast<float>(m.y_mm) - calib_y_;
+    const float ratio = sqrtf(dx * dx + dy * dy) / calib_model_mm_;
+    float s = speed_scale_ * (1.0f + 0.3f * (ratio - 1.0f));
+    s = s < 0.3f ? 0.3f : (s > 3.0f ? 3.0f : s);
+    speed_scale_ = s;
+    calib_x_ = m.x_mm;
+    calib_y_ = m.y_mm;
+    calib_model_mm_ = 0.0f;
+  }
+}
+
+void Rover::on_path(const msg::Path& m, uint8_t seq) {
+  const uint8_t id = msg::Path::kId;
+  // A repeat of the chunk just taken (its ACK was lost and the host sent it again): ACK again.
+  if (m.path_id == stage_id_ && m.first_index == last_chunk_first_ &&
+      (staging_ || (path_id_ == m.path_id && path_len_ == m.total))) {
+    ack(id, seq);
+    return;
+  }
+  if (m.total > kMaxWaypoints) return nack(id, seq, NackReason::TooManyWaypoints, kMaxWaypoints);
+  if (m.total == 0) return nack(id, seq, NackReason::BadValue, 2);
+  if (m.count == 0 || m.count > kWaypointsPerChunk || m.first_index + m.count > m.total)
+    return nack(id, seq, NackReason::BadValue, 4);
+  for (uint8_t i = 0; i < m.count; ++i) {
+    if (m.x_mm[i] < 0 || m.y_mm[i] < 0) return nack(id, seq, NackReason::BadValue, static_cast<uint16_t>(m.first_index + i));
+  }
+  const bool continues = staging_ && m.path_id == stage_id_ && m.total == stage_total_;
+  if (m.first_index == 0 && !continues) {
+    staging_ = true;
+    stage_id_ = m.path_id;
+    stage_total_ = m.total;
+    stage_count_ = 0;
+  } else if (!continues || m.first_index != stage_count_) {
+    return nack(id, seq, NackReason::OutOfOrder, continues ? stage_count_ : 0);
+  }
+  for (uint8_t i = 0; i < m.count; ++i) {
+    stage_[m.first_index + i].x_mm = m.x_mm[i];
+    stage_[m.first_index + i].y_mm = m.y_mm[i];
+  }
+  stage_count_ = static_cast<uint8_t>(stage_count_ + m.count);
+  last_chunk_first_ = m.first_index;
+  ack(id, seq);
+  if (stage_count_ < stage_total_) return;
+
+  // Complete: it replaces the path held, and a running mission follows it at once.
+  staging_ = false;
+  for (uint8_t i = 0; i < stage_total_; ++i) path_[i] = stage_[i];
+  path_len_ = stage_total_;
+  path_id_ = stage_id_;
+  send_event(EventKind::PathAccepted, path_id_);
+  if (mission_ && est_.initialised()) {
+    wp_ = closest_target();
+    if (state_ == RoverState::Drive || state_ == RoverState::Rotate) enter(RoverState::Rotate);
+  }
+}
+
+void Rover::on_start(const msg::Start& m, uint8_t seq) {
+  const uint8_t id = msg::Start::kId;
+  if (!schema_ok_) return nack(id, seq, NackReason::SchemaMismatch, 0);
+  if (fault_ != FaultCode::None) return nack(id, seq, NackReason::Faulted, static_cast<uint16_t>(fault_));
+  if (path_len_ == 0) return nack(id, seq, NackReason::NoPath, 0);
+  if (m.path_id != path_id_) return nack(id, seq, NackReason::PathIdMismatch, path_id_);
+  if (!est_.initialised()) return nack(id, seq, NackReason::NoFix, 0);
+  ack(id, seq);
+  if (mission_) return;  // already running this path
+  mission_ = true;
+  wp_ = closest_target();
+  sweep_distance_mm_ = 0.0f;
+  enter(RoverState::Rotate);
+}
+
+void Rover::on_stop(const msg::Stop& m, uint8_t seq) {
+  ack(msg::Stop::kId, seq);
+  sweep_ = Sweep();
+  servo_cdeg_ = 0;
+  if (state_ != RoverState::Fault) enter(RoverState::Idle);
+  mission_ = false;
+  send_event(EventKind::Stopped, m.reason);
+}
+
+void Rover::on_config(const msg::Config& m, uint8_t seq) {
+  switch (params_.set(m.param, m.value)) {
+    case SetResult::Ok: return ack(msg::Config::kId, seq);
+    case SetResult::UnknownParam: return nack(msg::Config::kId, seq, NackReason::UnknownParam, m.param);
+    case SetResult::OutOfRange: return nack(msg::Config::kId, seq, NackReason::ParamOutOfRange, m.param);
+  }
+}
+
+// ---------------------------------------------------------------- messages out
+
+void Rover::ack(uint8_t msg_id, uint8_t seq) {
+  msg::Ack a;
+  a.msg_id = msg_id;
+  a.seq = seq;
+  tx_.send(a);
+}
+
+void Rover::nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail) {
+  msg::Nack n;
+  n.msg_id = msg_id;
+  n.seq = seq;
+  n.reason = static_cast<uint8_t>(reason);
+  n.detail = detail;
+  tx_.send(n);
+}
+
+void Rover::send_hello() {
+  msg::Hello h;
+  h.schema_hash = kSchemaHash;
+  h.boot_id = boot_id_;
+  h.firmware_version = kFirmwareVersion;
+  h.role = static_cast<uint8_t>(Role::Rover);
+  h.max_waypoints = kMaxWaypoints;
+  tx_.send(h);
+}
+
+void Rover::send_event(EventKind kind, uint16_t arg) {
+  msg::Event e;
+  e.kind = static_cast<uint8_t>(kind);
+  e.arg = arg;
+  e.time_ms = last_ms_;
+  e.x_mm = saturate_i16(est_.x_mm());
+  e.y_mm = saturate_i16(est_.y_mm());
+  tx_.send(e);
+}
+
+void Rover::send_status() {
+  msg::Status s;
+  s.time_ms = last_ms_;
+  s.state = static_cast<uint8_t>(state_);
+  s.flags = flags();
+  s.fault = static_cast<uint8_t>(fault_);
+  s.path_id = path_id_;
+  s.waypoint_index = wp_;
+  s.x_mm = saturate_i16(est_.x_mm());
+  s.y_mm = saturate_i16(est_.y_mm());
+  s.heading_cdeg = rad_to_cdeg(est_.heading_rad());
+  const float sxx = est_.p(0), syy = est_.p(3);
+  s.sd_x_mm = saturate_u16(sqrtf(sxx > 0.0f ? sxx : 0.0f));
+  s.sd_y_mm = saturate_u16(sqrtf(syy > 0.0f ? syy : 0.0f));
+  const float denom = sqrtf(sxx * syy);
+  s.corr_xy_permille = denom > 0.0f ? saturate_i16(1000.0f * est_.p(1) / denom) : 0;
+  s.sd_heading_cdeg = saturate_u16(sqrtf(est_.p(5) > 0.0f ? est_.p(5) : 0.0f) * kDegPerRad * 100.0f);
+  s.dr_distance_mm = saturate_u16(dr_distance_mm_);
+  s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;
+  s.left_pwm = left_cmd_;
+  s.right_pwm = right_cmd_;
+  const FrameCounters& c = decoder_.counters();
+  s.rx_ok = c.frames_ok;
+  s.rx_bad_crc = c.bad_crc;
+  s.rx_overlong = c.overlong;
+  s.rx_unknown_id = c.unknown_id;
+  s.rx_malformed = c.malformed;
+  s.tx_dropped = tx_.dropped();
+  tx_.send(s);
+}
+
+}  // namespace core
+}  // namespace rovernav

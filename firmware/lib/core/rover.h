@@ -1,0 +1,143 @@
+// The rover's autonomy, hardware-free: one step function from Inputs to Outputs.
+//
+// It holds the waypoint list the host sent, rotates towards the next waypoint with the gyro
+// PID, drives holding the heading inside the tolerance cone atan(cone_tol_mm / L), sweeps the
+// sonar every sweep_interval_mm and reports close echoes, estimates its pose from the gyro,
+// the wheels (or a speed model) and the camera fixes, carries on by dead reckoning when fixes
+// or the whole radio stop, holds still when its position gets too uncertain, and stops on a
+// silent or implausible gyro. No heap, no STL, no exceptions, no waiting: time is an input.
+#pragma once
+#include <stdint.h>
+
+#include "estimator.h"
+#include "frame.h"
+#include "heading_pid.h"
+#include "io.h"
+#include "messages_gen.h"
+#include "params.h"
+#include "sweep.h"
+#include "tx_queue.h"
+
+namespace rovernav {
+namespace core {
+
+struct Waypoint {
+  int16_t x_mm;
+  int16_t y_mm;
+};
+
+class Rover {
+ public:
+  enum : uint16_t {
+    kFirmwareVersion = 0x0100,  // 1.0
+    kLinkDelayMs = 5,           // assumed radio and serial delay of a FIX, on top of its age_ms
+    kGrowMarginMm = 10,         // the distance to the waypoint may grow this much before we turn
+    kGyroRecoverMs = 500,       // a faulted gyro must be good this long before the fault clears
+    kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
+    kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
+  };
+
+  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
+  void begin(uint32_t boot_id, uint16_t reset_cause);
+  void step(const Inputs& in, Outputs& out);
+
+  // Read-only views for tests, the simulator and the shell.
+  RoverState state() const { return state_; }
+  uint16_t flags() const;
+  FaultCode fault() const { return fault_; }
+  const Estimator& estimator() const { return est_; }
+  const Params& params() const { return params_; }
+  uint8_t waypoint_index() const { return wp_; }
+  uint8_t waypoint_count() const { return path_len_; }
+  Waypoint waypoint(uint8_t i) const { return path_[i]; }
+  const FrameCounters& rx_counters() const { return decoder_.counters(); }
+  uint16_t tx_dropped() const { return tx_.dropped(); }
+  float speed_scale() const { return speed_scale_; }
+  float dr_distance_mm() const { return dr_distance_mm_; }
+
+ private:
+  // link
+  void handle_frame(const Frame& f, uint32_t now);
+  void on_fix(const msg::Fix& m, uint32_t now);
+  void on_path(const msg::Path& m, uint8_t seq);
+  void on_start(const msg::Start& m, uint8_t seq);
+  void on_stop(const msg::Stop& m, uint8_t seq);
+  void on_config(const msg::Config& m, uint8_t seq);
+  void send_hello();
+  void send_event(EventKind kind, uint16_t arg);
+  void send_status();
+  void ack(uint8_t msg_id, uint8_t seq);
+  void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
+  // motion
+  void update_gyro(const Inputs& in, uint32_t now);
+  void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
+  void watch_link(uint32_t now);
+  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
+  void enter(RoverState s);
+  void raise_fault(FaultCode code);
+  void reached_waypoint();
+  uint8_t closest_target() const;
+  float distance_to(uint8_t i) const;
+  float error_to_deg(uint8_t i) const;
+  float cone_deg(float distance_mm) const;
+  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
+
+  Params params_ = {};
+  FrameDecoder decoder_;
+  TxQueue tx_;
+  Estimator est_;
+  HeadingPid pid_;
+  Sweep sweep_;
+
+  uint32_t boot_id_ = 0;
+  uint16_t reset_cause_ = 0;
+  bool booted_ = false;
+  bool have_time_ = false;
+  uint32_t last_ms_ = 0;
+
+  Waypoint path_[kMaxWaypoints] = {};
+  uint8_t path_len_ = 0;
+  uint16_t path_id_ = 0;
+  Waypoint stage_[kMaxWaypoints] = {};
+  uint8_t stage_total_ = 0;
+  uint8_t stage_count_ = 0;
+  uint16_t stage_id_ = 0;
+  bool staging_ = false;
+  uint8_t last_chunk_first_ = 0xFF;
+  uint8_t wp_ = 0;
+
+  RoverState state_ = RoverState::Idle;
+  bool mission_ = false;
+  FaultCode fault_ = FaultCode::None;
+  uint32_t gyro_last_ms_ = 0;
+  uint32_t gyro_good_since_ms_ = 0;
+  bool gyro_good_run_ = false;
+  float rate_dps_ = 0.0f;
+
+  uint32_t last_rx_ms_ = 0;
+  uint32_t last_fix_ms_ = 0;
+  uint32_t radio_lost_since_ms_ = 0;
+  bool radio_lost_ = false;
+  bool dead_reckoning_ = false;
+  bool had_fix_ = false;
+  bool schema_ok_ = false;
+  uint8_t camera_ = 0;  // CameraState from HEARTBEAT
+
+  float dr_distance_mm_ = 0.0f;
+  float sweep_distance_mm_ = 0.0f;
+  float min_distance_mm_ = 0.0f;
+  int16_t left_cmd_ = 0;
+  int16_t right_cmd_ = 0;
+  int16_t servo_cdeg_ = 0;
+  uint32_t last_status_ms_ = 0;
+  uint16_t scan_id_ = 0;
+  uint8_t scan_echoes_ = 0;
+
+  float speed_scale_ = 1.0f;
+  bool calib_anchor_ = false;
+  uint32_t drive_since_ms_ = 0;
+  float calib_x_ = 0.0f, calib_y_ = 0.0f, calib_model_mm_ = 0.0f;
+};
+
+}  // namespace core
+}  // namespace rovernav

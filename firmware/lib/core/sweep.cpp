@@ -1,0 +1,58 @@
+#include "sweep.h"
+
+namespace rovernav {
+namespace core {
+
+void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to) {
+  const int32_t moved = to > from ? to - from : from - to;
+  const int32_t steps = (moved + kStepCdeg - 1) / kStepCdeg;
+  angle_cdeg_ = to;
+  phase_start_ms_ = now_ms;
+  const int32_t wait_ms = (steps > 0 ? steps : 1) * static_cast<int32_t>(step_ms_);
+  // The HC-SR04 needs about 60 ms between pings for the last echo to die away.
+  phase_ms_ = static_cast<uint16_t>(wait_ms < kPingTimeoutMs ? kPingTimeoutMs : wait_ms);
+  waiting_echo_ = false;
+}
+
+void Sweep::start(uint32_t now_ms, int16_t servo_cdeg, uint16_t step_ms) {
+  running_ = true;
+  pings_ = 0;
+  step_ms_ = step_ms;
+  move_to(now_ms, servo_cdeg, kFirstCdeg);
+}
+
+Sweep::Echo Sweep::step(uint32_t now_ms, bool sonar_valid, uint16_t sonar_range_mm, int16_t& servo_cdeg, bool& fire) {
+  Echo echo = {false, 0, 0};
+  fire = false;
+  if (!running_) return echo;
+  servo_cdeg = angle_cdeg_;
+  const uint32_t elapsed = now_ms - phase_start_ms_;
+  if (!waiting_echo_) {
+    if (elapsed >= phase_ms_) {
+      fire = true;
+      waiting_echo_ = true;
+      phase_start_ms_ = now_ms;
+      ++pings_;
+    }
+    return echo;
+  }
+  const bool timed_out = elapsed >= kPingTimeoutMs;
+  if (!sonar_valid && !timed_out) return echo;
+  if (sonar_valid) {
+    echo.valid = true;
+    echo.bearing_cdeg = angle_cdeg_;
+    echo.range_mm = sonar_range_mm;
+  }
+  if (angle_cdeg_ >= kLastCdeg) {
+    running_ = false;
+    waiting_echo_ = false;
+    angle_cdeg_ = 0;
+    servo_cdeg = 0;
+  } else {
+    move_to(now_ms, angle_cdeg_, static_cast<int16_t>(angle_cdeg_ + kStepCdeg));
+  }
+  return echo;
+}
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,45 @@
+// The sonar sweep: stopped, the servo steps from -60 to +60 degrees in 15-degree steps, one
+// ping a step. Each step waits for the servo (sweep_step_ms per 15 degrees moved), fires the
+// sonar, and waits for its result (at most kPingTimeoutMs). Nothing waits without a bound:
+// a sonar that never answers costs kPingTimeoutMs a step, not the rover.
+#pragma once
+#include <stdint.h>
+
+namespace rovernav {
+namespace core {
+
+class Sweep {
+ public:
+  enum : int16_t { kFirstCdeg = -6000, kLastCdeg = 6000, kStepCdeg = 1500 };
+  enum : uint16_t { kPingTimeoutMs = 60 };
+
+  struct Echo {
+    bool valid;
+    int16_t bearing_cdeg;
+    uint16_t range_mm;
+  };
+
+  /// Begins a sweep with the servo at servo_cdeg.
+  void start(uint32_t now_ms, int16_t servo_cdeg, uint16_t step_ms);
+  bool running() const { return running_; }
+
+  /// Advances the sweep. Sets servo_cdeg and fire; returns an echo when a ping's result came.
+  /// When the last step is done, running() turns false and the servo is sent back ahead.
+  Echo step(uint32_t now_ms, bool sonar_valid, uint16_t sonar_range_mm, int16_t& servo_cdeg, bool& fire);
+
+  uint8_t pings() const { return pings_; }
+
+ private:
+  void move_to(uint32_t now_ms, int16_t from, int16_t to);
+
+  bool running_ = false;
+  bool waiting_echo_ = false;
+  int16_t angle_cdeg_ = 0;
+  uint32_t phase_start_ms_ = 0;
+  uint16_t phase_ms_ = 0;
+  uint16_t step_ms_ = 0;
+  uint8_t pings_ = 0;
+};
+
+}  // namespace core
+}  // namespace rovernav

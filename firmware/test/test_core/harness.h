@@ -1,0 +1,258 @@
+// A test bench for the rover core: an injected clock, a little differential-drive plant that
+// closes the loop (gyro rate and position from the motor commands), a host that sends frames,
+// and a decoder that collects everything the rover says. No sleeps: time is a number.
+#pragma once
+#include <math.h>
+#include <string.h>
+
+#include "frame.h"
+#include "rover.h"
+
+namespace rovernav {
+namespace test {
+
+struct Said {
+  uint8_t msg_id;
+  uint8_t seq;
+  uint8_t len;
+  uint8_t payload[kMaxPayload];
+};
+
+/// A differential drive: speed from the mean PWM above the dead band, yaw rate from the
+/// difference, each wheel following its command with a first-order lag (motor and inertia);
+/// a right motor `right_gain` as strong as the left (the seed's was stronger).
+struct Plant {
+  float lag_s = 0.08f;
+  float left_eff = 0, right_eff = 0;
+  float x_mm = 300, y_mm = 300, heading_rad = 0;
+  float mm_s_per_pwm = 2.0f;       // matches the core's default speed model
+  float deg_s_per_pwm = 1.2f;      // yaw rate per PWM of wheel difference
+  float right_gain = 1.0f;
+  int16_t deadband = 30;
+  float rate_dps = 0;
+  void advance(int16_t left, int16_t right, float dt_s) {
+    const float k = dt_s / (lag_s + dt_s);
+    left_eff += k * (eff(left) - left_eff);
+    right_eff += k * (eff(right) * right_gain - right_eff);
+    const float l = left_eff, r = right_eff;
+    const float v = mm_s_per_pwm * 0.5f * (l + r);
+    rate_dps = deg_s_per_pwm * 0.5f * (l - r);
+    const float mid = heading_rad + 0.5f * rate_dps * 0.0174533f * dt_s;
+    x_mm += v * dt_s * sinf(mid);
+    y_mm += v * dt_s * cosf(mid);
+    heading_rad += rate_dps * 0.0174533f * dt_s;
+  }
+  float eff(int16_t pwm) const {
+    const int m = pwm < 0 ? -pwm : pwm;
+    if (m <= deadband) return 0;
+    return static_cast<float>(pwm < 0 ? -(m - deadband) : (m - deadband));
+  }
+  int16_t heading_cdeg() const {
+    float d = heading_rad * 57.29578f;
+    while (d > 180) d -= 360;
+    while (d <= -180) d += 360;
+    return static_cast<int16_t>(lroundf(d * 100));
+  }
+};
+
+class Bench {
+ public:
+  enum : uint16_t { kRxPerStep = 57 };
+  core::Rover rover;
+  Plant plant;
+  uint32_t now_ms = 1000;
+  uint16_t step_ms = 10;
+  bool gyro_alive = true;
+  int32_t gyro_override_mdps = 0;
+  bool gyro_override = false;
+  bool radio = true;            // bytes reach the rover
+  bool camera = true;           // fixes are sent (when stream_fixes)
+  bool stream_fixes = false;    // a FIX every fix_period_ms from the plant's true pose
+  uint16_t fix_period_ms = 33;
+  bool heartbeats = false;
+  uint16_t sonar_range_mm = 0;  // what the next ping returns (0 = nothing)
+  uint32_t pings = 0;
+  core::Outputs out{};
+  Said said[512];
+  int said_count = 0;
+
+  Bench() { rover.begin(0xB007, 1); }
+
+  /// Sends a command; last_host_seq() then names it (streamed fixes and heartbeats do not).
+  template <typename Msg>
+  void send(const Msg& m) {
+    last_cmd_seq_ = host_seq_;
+    send_auto(m);
+  }
+  void queue(const uint8_t* bytes, uint16_t n) {
+    for (uint16_t i = 0; i < n && rx_len_ < sizeof rx_; ++i) rx_[rx_len_++] = bytes[i];
+  }
+  uint8_t last_host_seq() const { return last_cmd_seq_; }
+
+  void hello() {
+    msg::Hello h{};
+    h.schema_hash = kSchemaHash;
+    h.role = static_cast<uint8_t>(Role::Host);
+    send(h);
+  }
+  void fix_now(int16_t sd_mm = 2) { send(fix_msg(sd_mm)); }
+  msg::Fix fix_msg(int16_t sd_mm = 2) const {
+    msg::Fix f{};
+    f.x_mm = static_cast<int16_t>(lroundf(plant.x_mm));
+    f.y_mm = static_cast<int16_t>(lroundf(plant.y_mm));
+    f.heading_cdeg = plant.heading_cdeg();
+    f.sd_mm = static_cast<uint8_t>(sd_mm);
+    return f;
+  }
+  /// Sends a path (in chunks of 8) and runs until every chunk is answered.
+  void load_path(uint16_t path_id, const core::Waypoint* wps, uint8_t n) {
+    for (uint8_t first = 0; first < n; first = static_cast<uint8_t>(first + kWaypointsPerChunk)) {
+      msg::Path p{};
+      p.path_id = path_id;
+      p.total = n;
+      p.first_index = first;
+      p.count = static_cast<uint8_t>(n - first < kWaypointsPerChunk ? n - first : kWaypointsPerChunk);
+      for (uint8_t i = 0; i < p.count; ++i) {
+        p.x_mm[i] = wps[first + i].x_mm;
+        p.y_mm[i] = wps[first + i].y_mm;
+      }
+      send(p);
+      run_ms(20);
+    }
+  }
+  /// HELLO, a fix, the path, START: a mission under way.
+  void start_mission(const core::Waypoint* wps, uint8_t n, uint16_t path_id = 1) {
+    hello();
+    fix_now();
+    run_ms(20);
+    load_path(path_id, wps, n);
+    msg::Start s{};
+    s.path_id = path_id;
+    send(s);
+    run_ms(20);
+  }
+
+  void step() {
+    core::Inputs in{};
+    in.now_ms = now_ms;
+    in.gyro_valid = gyro_alive;
+    in.gyro_rate_mdps = gyro_override ? gyro_override_mdps : static_cast<int32_t>(lroundf(plant.rate_dps * 1000.0f));
+    in.sonar_valid = pending_ping_;
+    in.sonar_range_mm = sonar_range_mm;
+    pending_ping_ = false;
+    if (stream_fixes && camera && now_ms - last_fix_ms_ >= fix_period_ms) {
+      last_fix_ms_ = now_ms;
+      send_auto(fix_msg());
+    }
+    if (heartbeats && now_ms - last_hb_ms_ >= 200) {
+      last_hb_ms_ = now_ms;
+      msg::Heartbeat h{};
+      h.host_time_ms = now_ms;
+      h.camera = static_cast<uint8_t>(camera ? CameraState::Ok : CameraState::NoRover);
+      send_auto(h);
+    }
+    // 57,600 baud brings about 57 bytes in a 10 ms step; the rest waits for the next one.
+    const uint16_t chunk = rx_len_ < kRxPerStep ? rx_len_ : static_cast<uint16_t>(kRxPerStep);
+    in.rx = rx_;
+    in.rx_len = radio ? static_cast<uint8_t>(chunk) : 0;
+    in.tx_room = 64;
+    rover.step(in, out);
+    memmove(rx_, rx_ + chunk, rx_len_ - chunk);
+    rx_len_ = static_cast<uint16_t>(rx_len_ - chunk);
+    if (out.fire_sonar) {
+      pending_ping_ = true;
+      ++pings;
+    }
+    for (uint8_t i = 0; i < out.tx_len; ++i) {
+      if (radio && decoder_.push(out.tx[i]) && said_count < 512) {
+        Said& s = said[said_count++];
+        s.msg_id = decoder_.frame().msg_id;
+        s.seq = decoder_.frame().seq;
+        s.len = decoder_.frame().payload_len;
+        memcpy(s.payload, decoder_.frame().payload, s.len);
+      }
+    }
+    plant.advance(out.left_pwm, out.right_pwm, static_cast<float>(step_ms) / 1000.0f);
+    now_ms += step_ms;
+  }
+  void run_ms(uint32_t ms) {
+    const uint32_t end = now_ms + ms;
+    while (static_cast<int32_t>(end - now_ms) > 0) step();
+  }
+  /// Runs until pred() or the time limit; returns whether pred() came true.
+  template <typename Pred>
+  bool run_until(Pred pred, uint32_t limit_ms) {
+    const uint32_t end = now_ms + limit_ms;
+    while (static_cast<int32_t>(end - now_ms) > 0) {
+      step();
+      if (pred()) return true;
+    }
+    return false;
+  }
+
+  /// How many messages of type Msg the rover has said; `last` gets the latest.
+  template <typename Msg>
+  int count(Msg* last = nullptr) const {
+    int n = 0;
+    for (int i = 0; i < said_count; ++i) {
+      if (said[i].msg_id == Msg::kId) {
+        ++n;
+        if (last) last->decode(said[i].payload);
+      }
+    }
+    return n;
+  }
+  int events(EventKind kind, msg::Event* last = nullptr) const {
+    int n = 0;
+    for (int i = 0; i < said_count; ++i) {
+      if (said[i].msg_id != msg::Event::kId) continue;
+      msg::Event e;
+      e.decode(said[i].payload);
+      if (e.kind == static_cast<uint8_t>(kind)) {
+        ++n;
+        if (last) *last = e;
+      }
+    }
+    return n;
+  }
+  /// The NACK answering host frame `seq`, if any.
+  bool nack_for(uint8_t seq, msg::Nack& n) const {
+    for (int i = 0; i < said_count; ++i) {
+      if (said[i].msg_id != msg::Nack::kId) continue;
+      n.decode(said[i].payload);
+      if (n.seq == seq) return true;
+    }
+    return false;
+  }
+  bool ack_for(uint8_t seq) const {
+    for (int i = 0; i < said_count; ++i) {
+      if (said[i].msg_id != msg::Ack::kId) continue;
+      msg::Ack a;
+      a.decode(said[i].payload);
+      if (a.seq == seq) return true;
+    }
+    return false;
+  }
+  void forget_said() { said_count = 0; }
+  float true_distance_to(float x, float y) const { return hypotf(plant.x_mm - x, plant.y_mm - y); }
+
+ private:
+  template <typename Msg>
+  void send_auto(const Msg& m) {
+    uint8_t buf[kMaxEncodedFrame];
+    const uint8_t n = encode_message(m, host_seq_++, buf);
+    queue(buf, n);
+  }
+
+  uint8_t last_cmd_seq_ = 0;
+  uint8_t rx_[4096];
+  uint16_t rx_len_ = 0;
+  uint8_t host_seq_ = 0;
+  bool pending_ping_ = false;
+  uint32_t last_fix_ms_ = 0;
+  uint32_t last_hb_ms_ = 0;
+  FrameDecoder decoder_;
+};
+
+}  // namespace test
+}  // namespace rovernav

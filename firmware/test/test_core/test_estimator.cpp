@@ -1,0 +1,111 @@
+// The estimator: dead reckoning with the covariance of Russo's Fq/Fv, camera fixes as an EKF
+// update, latency compensation, and the outlier gate.
+#include <doctest.h>
+#include <math.h>
+
+#include "angles.h"
+#include "estimator.h"
+
+using rovernav::core::Estimator;
+using rovernav::core::FixResult;
+using rovernav::core::PoseFix;
+using rovernav::core::kRadPerDeg;
+
+namespace {
+PoseFix fix(int16_t x, int16_t y, int16_t cdeg, uint32_t taken, uint8_t sd = 2) {
+  PoseFix f;
+  f.x_mm = x;
+  f.y_mm = y;
+  f.heading_cdeg = cdeg;
+  f.sd_mm = sd;
+  f.taken_ms = taken;
+  return f;
+}
+}  // namespace
+
+TEST_CASE("no pose until the first fix; the first fix initialises it") {
+  Estimator e;
+  e.reset();
+  CHECK_FALSE(e.initialised());
+  e.predict(10, 0, 1, 0, 0);
+  CHECK(e.update(fix(500, 600, 9000, 0), 0) == FixResult::Initialised);
+  CHECK(e.x_mm() == doctest::Approx(500));
+  CHECK(e.y_mm() == doctest::Approx(600));
+  CHECK(e.heading_rad() == doctest::Approx(90 * kRadPerDeg));
+}
+
+TEST_CASE("dead reckoning: heading 0 is +y, 90 degrees is +x (clockwise)") {
+  Estimator e;
+  e.update(fix(0, 0, 0, 0), 0);
+  e.predict(100, 0, 0, 0, 10);
+  CHECK(e.x_mm() == doctest::Approx(0).epsilon(1e-3));
+  CHECK(e.y_mm() == doctest::Approx(100));
+  e.predict(0, 90 * kRadPerDeg, 0, 0, 20);
+  e.predict(50, 0, 0, 0, 30);
+  CHECK(e.x_mm() == doctest::Approx(50));
+  CHECK(e.y_mm() == doctest::Approx(100));
+}
+
+TEST_CASE("covariance follows P' = Fq P Fq^T + Fv V Fv^T: heading doubt becomes cross-track doubt") {
+  Estimator e;
+  e.update(fix(0, 0, 0, 0, 1), 0);
+  const float xx0 = e.p(0), yy0 = e.p(3), tt0 = e.p(5);
+  // Drive 1 m north with no distance noise: only the heading's variance spreads x (cross-track).
+  for (int i = 0; i < 100; ++i) e.predict(10, 0, 0, 0, static_cast<uint32_t>(i));
+  const float expected_xx = xx0 + tt0 * 1000.0f * 1000.0f;  // var(x) grows by L^2 var(theta)
+  CHECK(e.p(0) == doctest::Approx(expected_xx).epsilon(0.02));
+  CHECK(e.p(3) == doctest::Approx(yy0).epsilon(1e-3));     // along-track unchanged
+  CHECK(e.p(2) == doctest::Approx(1000.0f * tt0).epsilon(0.02));  // x-theta correlation
+  // Distance noise goes along the track only.
+  Estimator f;
+  f.update(fix(0, 0, 9000, 0, 1), 0);
+  const float f_xx0 = f.p(0);
+  f.predict(100, 0, 50, 0, 1);
+  CHECK(f.p(0) == doctest::Approx(f_xx0 + 50).epsilon(1e-3));  // heading east: along-track is x
+}
+
+TEST_CASE("a fix pulls the estimate to it in proportion to the uncertainties") {
+  Estimator e;
+  e.update(fix(0, 0, 0, 0, 2), 0);
+  for (int i = 0; i < 100; ++i) e.predict(10, 0, 10, 0, static_cast<uint32_t>(i * 10));  // var grows to ~1000 mm^2
+  const float before = e.y_mm();
+  CHECK(e.update(fix(0, 1030, 0, 1000, 2), 1000) == FixResult::Accepted);
+  CHECK(e.y_mm() > before + 25.0f);  // mostly believes the fix (4 mm^2 against ~1000)
+  CHECK(e.y_mm() < 1030.5f);
+  CHECK(e.position_sd_mm() < 3.0f);
+}
+
+TEST_CASE("a fix is applied to the pose at the time its frame was taken, not the pose now") {
+  Estimator lagging, compensated;
+  lagging.update(fix(0, 0, 0, 0, 2), 0);
+  compensated.update(fix(0, 0, 0, 0, 2), 0);
+  // Moving north at 100 mm/s for 1 s, in 10 ms steps, with a model 10 % short.
+  for (uint32_t t = 10; t <= 1000; t += 10) {
+    lagging.predict(0.9f, 0, 0.5f, 0, t);
+    compensated.predict(0.9f, 0, 0.5f, 0, t);
+  }
+  // The camera saw y = 80 mm at t = 800 ms (its frame is 200 ms old when it arrives).
+  lagging.update(fix(0, 80, 0, 1000, 2), 1000);      // pretends the frame is from now
+  compensated.update(fix(0, 80, 0, 800, 2), 1000);   // knows when it was taken
+  // Truth now: 100 mm. Applied as if current, the fix drags the estimate back towards 80.
+  CHECK(fabsf(compensated.y_mm() - 100.0f) < fabsf(lagging.y_mm() - 100.0f));
+  CHECK(fabsf(compensated.y_mm() - 100.0f) < 4.0f);
+}
+
+TEST_CASE("an implausible fix is rejected; a camera that insists resets the estimate") {
+  Estimator e;
+  e.update(fix(0, 0, 0, 0, 2), 0);
+  CHECK(e.update(fix(900, 900, 0, 10, 2), 10) == FixResult::Rejected);
+  CHECK(e.x_mm() == doctest::Approx(0));
+  for (int i = 1; i < Estimator::kMaxRejects - 1; ++i) CHECK(e.update(fix(900, 900, 0, 10, 2), 10) == FixResult::Rejected);
+  CHECK(e.update(fix(900, 900, 0, 10, 2), 10) == FixResult::Initialised);
+  CHECK(e.x_mm() == doctest::Approx(900));
+  CHECK(e.rejected_fixes() == Estimator::kMaxRejects);
+}
+
+TEST_CASE("headings wrap: a fix at 179 degrees and an estimate at -179 are 2 degrees apart") {
+  Estimator e;
+  e.update(fix(0, 0, -17900, 0, 2), 0);
+  CHECK(e.update(fix(0, 0, 17900, 10, 2), 10) == FixResult::Accepted);
+  CHECK(fabsf(fabsf(e.heading_rad()) - 180.0f * kRadPerDeg) < 1.5f * kRadPerDeg);
+}

@@ -1,0 +1,157 @@
+// Rotate and drive: the heading PID, the tolerance cone, waypoint advance and arrival.
+#include <doctest.h>
+#include <math.h>
+
+#include "angles.h"
+#include "harness.h"
+#include "heading_pid.h"
+
+using namespace rovernav;
+using rovernav::test::Bench;
+
+TEST_CASE("heading PID: proportional to the error, damped by the gyro rate, clamped to +-130") {
+  core::HeadingPid pid;
+  CHECK(pid.update(2.0f, 0.0f, 0.0f, 30, 3, 5, 130) == doctest::Approx(60.0f));
+  pid.reset();
+  CHECK(pid.update(2.0f, 4.0f, 0.0f, 30, 3, 5, 130) == doctest::Approx(40.0f));  // 60 - 5 * 4
+  pid.reset();
+  CHECK(pid.update(90.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(130.0f));
+  CHECK(pid.update(-90.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(-130.0f));
+}
+
+TEST_CASE("heading PID: the integral removes a steady error and cannot wind up past the output") {
+  core::HeadingPid pid;
+  float u = 0;
+  for (int i = 0; i < 100; ++i) u = pid.update(1.0f, 0.0f, 0.01f, 0, 3, 0, 130);  // 1 s of 1 degree
+  CHECK(u == doctest::Approx(3.0f).epsilon(0.01));
+  for (int i = 0; i < 100000; ++i) pid.update(4.0f, 0.0f, 0.01f, 0, 3, 0, 130);
+  CHECK(pid.update(4.0f, 0.0f, 0.01f, 0, 3, 0, 130) == doctest::Approx(130.0f));
+  // Wound to the limit, it comes back within one limit's worth of opposite error, not 1000 s.
+  int steps = 0;
+  while (pid.update(-4.0f, 0.0f, 0.01f, 0, 3, 0, 130) > 0.0f && steps < 100000) ++steps;
+  CHECK(steps < 1200);  // 43 degree-seconds at 4 degrees: about 11 s
+}
+
+TEST_CASE("heading PID: a large turn does not wind the integral up (it integrates small errors only)") {
+  core::HeadingPid pid;
+  for (int i = 0; i < 200; ++i) pid.update(60.0f, 0.0f, 0.01f, 30, 3, 5, 130);  // 2 s saturated
+  CHECK(pid.update(0.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(0.0f));
+}
+
+TEST_CASE("the tolerance cone is atan(cone_tol_mm / L): 1 degree at a metre, 45 at 18 mm") {
+  // Checked through the rover: outside the cone at L = 1 m it rotates, inside it drives.
+  const float at_1m = atan2f(18.0f, 1000.0f) * core::kDegPerRad;
+  CHECK(at_1m == doctest::Approx(1.031f).epsilon(0.01));
+  CHECK(atan2f(18.0f, 18.0f) * core::kDegPerRad == doctest::Approx(45.0f));
+}
+
+TEST_CASE("the rover rotates on the spot towards a waypoint, then drives to it and arrives") {
+  Bench b;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {900, 300}};  // due east: a 90 degree turn first
+  b.start_mission(wps, 2);
+  REQUIRE(b.rover.state() == RoverState::Rotate);
+  b.step();
+  CHECK(b.out.left_pwm > 0);   // clockwise: left forward, right back
+  CHECK(b.out.right_pwm < 0);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
+  CHECK(fabsf(b.plant.heading_rad * core::kDegPerRad - 90.0f) < 3.0f);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 20000));
+  CHECK(b.true_distance_to(900, 300) < 46.0f);
+  CHECK(b.events(EventKind::Arrived) == 1);
+  b.step();
+  CHECK(b.out.left_pwm == 0);
+  CHECK(b.out.right_pwm == 0);
+}
+
+TEST_CASE("a straight run of waypoints is driven through without stopping at each") {
+  Bench b;
+  b.stream_fixes = true;
+  b.rover.begin(1, 0);
+  core::Waypoint wps[8];
+  for (int16_t i = 0; i < 8; ++i) wps[i] = {300, static_cast<int16_t>(300 + 100 * i)};
+  b.start_mission(wps, 8);
+  msg::Config c{};
+  c.param = static_cast<uint8_t>(Param::SweepIntervalMm);
+  c.value = 0;  // no sweeps: this test is about waypoints
+  b.send(c);
+  int rotations_after_drive = 0;
+  bool driving = false;
+  RoverState last = b.rover.state();
+  for (int i = 0; i < 3000 && b.rover.state() != RoverState::Arrived; ++i) {
+    b.step();
+    if (b.rover.state() == RoverState::Drive) driving = true;
+    if (driving && last == RoverState::Drive && b.rover.state() == RoverState::Rotate) ++rotations_after_drive;
+    last = b.rover.state();
+  }
+  CHECK(b.rover.state() == RoverState::Arrived);
+  CHECK(b.events(EventKind::WaypointReached) == 8);
+  CHECK(rotations_after_drive == 0);
+}
+
+TEST_CASE("waypoints are reached one by one, each announced, round a corner") {
+  Bench b;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 800}, {800, 800}, {800, 400}};
+  b.start_mission(wps, 4);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 60000));
+  msg::Event e;
+  CHECK(b.events(EventKind::WaypointReached, &e) == 4);
+  CHECK(e.arg == 3);
+  CHECK(b.true_distance_to(800, 400) < 46.0f);
+}
+
+TEST_CASE("pushed off its heading while driving, the rover stops and re-rotates") {
+  Bench b;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 1500}};
+  b.start_mission(wps, 2);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
+  b.run_ms(300);
+  b.plant.heading_rad += 15.0f * core::kRadPerDeg;  // a bump: the camera sees it
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Rotate; }, 500));
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 30000));
+  CHECK(b.true_distance_to(300, 1500) < 46.0f);
+}
+
+TEST_CASE("when the distance to the waypoint starts growing, the rover stops and turns back") {
+  Bench b;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 700}};
+  b.start_mission(wps, 2);
+  msg::Config c{};
+  c.param = static_cast<uint8_t>(Param::ArrivalRadiusMm);
+  c.value = 5;  // a tiny radius the rover can drive past
+  b.send(c);
+  c.param = static_cast<uint8_t>(Param::ConeTolMm);
+  c.value = 1000;  // and a cone so wide that only the distance test can stop it
+  b.send(c);
+  c.param = static_cast<uint8_t>(Param::SweepIntervalMm);
+  c.value = 0;
+  b.send(c);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
+  const Param gains[] = {Param::PidKpX100, Param::PidKiX100, Param::PidKdX100};
+  for (Param gain : gains) {
+    c.param = static_cast<uint8_t>(gain);  // no steering: it drives straight on
+    c.value = 0;
+    b.send(c);
+  }
+  b.plant.x_mm += 30;  // knocked sideways: it will pass the waypoint at 30 mm
+  b.run_until([&] { return b.plant.y_mm > 720 || b.rover.state() == RoverState::Rotate; }, 20000);
+  CHECK(b.rover.state() == RoverState::Rotate);
+}
+
+TEST_CASE("a stronger right motor is held straight by the heading PID") {
+  Bench b;
+  b.plant.right_gain = 1.25f;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 1300}};
+  b.start_mission(wps, 2);
+  float worst_mm = 0;
+  while (b.rover.state() != RoverState::Arrived && b.now_ms < 60000) {
+    b.step();
+    worst_mm = fmaxf(worst_mm, fabsf(b.plant.x_mm - 300.0f));
+  }
+  CHECK(b.rover.state() == RoverState::Arrived);
+  CHECK(worst_mm < 25.0f);
+}

@@ -1,0 +1,104 @@
+// The sonar sweep: when it runs, where it points, how long it takes, what it reports.
+#include <doctest.h>
+
+#include "harness.h"
+
+using namespace rovernav;
+using rovernav::test::Bench;
+
+namespace {
+const core::Waypoint kNorth[] = {{300, 300}, {300, 1400}};
+}
+
+TEST_CASE("a sweep runs every 300 mm driven, stopped, from -60 to +60 degrees in 15-degree steps") {
+  Bench b;
+  b.stream_fixes = true;
+  b.start_mission(kNorth, 2);
+  int16_t fired_at[64];
+  int fires = 0;
+  float y_at_scan[8];
+  int scans = 0;
+  RoverState last = b.rover.state();
+  while (b.rover.state() != RoverState::Arrived && b.now_ms < 120000) {
+    b.step();
+    if (b.out.fire_sonar && fires < 64) fired_at[fires++] = b.out.servo_cdeg;
+    if (b.rover.state() == RoverState::Scan) {
+      CHECK(b.out.left_pwm == 0);
+      CHECK(b.out.right_pwm == 0);
+      if (last != RoverState::Scan && scans < 8) y_at_scan[scans++] = b.plant.y_mm;
+    }
+    last = b.rover.state();
+  }
+  REQUIRE(b.rover.state() == RoverState::Arrived);
+  CHECK(scans == 3);  // at 0.3, 0.6 and 0.9 m of the 1.1 m
+  for (int i = 0; i < scans; ++i) CHECK(y_at_scan[i] - 300.0f == doctest::Approx(300.0f * static_cast<float>(i + 1)).epsilon(0.1));
+  REQUIRE(fires == 27);
+  for (int i = 0; i < 9; ++i) CHECK(fired_at[i] == -6000 + 1500 * i);
+  CHECK(b.events(EventKind::ScanDone) == 3);
+}
+
+TEST_CASE("a sweep takes well under 2.5 s with the default timing (the seed's took 9 s)") {
+  Bench b;
+  b.stream_fixes = true;
+  b.start_mission(kNorth, 2);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Scan; }, 20000));
+  const uint32_t started = b.now_ms;
+  REQUIRE(b.run_until([&] { return b.rover.state() != RoverState::Scan; }, 10000));
+  const uint32_t took = b.now_ms - started;
+  MESSAGE("sweep took " << took << " ms");
+  CHECK(took < 2500);
+  CHECK(took > 9 * 60);  // never faster than the HC-SR04 allows
+}
+
+TEST_CASE("echoes within 400 mm are reported as OBSTACLE with bearing, range and the rover's pose") {
+  Bench b;
+  b.stream_fixes = true;
+  b.sonar_range_mm = 250;
+  b.start_mission(kNorth, 2);
+  REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) == 1; }, 20000));
+  msg::Obstacle o;
+  REQUIRE(b.count(&o) == 9);
+  CHECK(o.range_mm == 250);
+  CHECK(o.bearing_cdeg == 6000);
+  CHECK(o.scan_id == 1);
+  CHECK(o.x_mm == doctest::Approx(b.plant.x_mm).epsilon(0.02));
+  CHECK(o.y_mm == doctest::Approx(b.plant.y_mm).epsilon(0.02));
+  CHECK(o.sd_mm <= 5);
+  msg::Event e;
+  b.events(EventKind::ScanDone, &e);
+  CHECK(e.arg == 9);
+}
+
+TEST_CASE("echoes beyond the report range, and no echo at all, are not reported") {
+  const uint16_t ranges[] = {0, 401, 650};
+  for (uint16_t range : ranges) {
+    CAPTURE(range);
+    Bench b;
+    b.stream_fixes = true;
+    b.sonar_range_mm = range;
+    b.start_mission(kNorth, 2);
+    REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) == 1; }, 20000));
+    CHECK(b.count<msg::Obstacle>() == 0);
+  }
+}
+
+TEST_CASE("a sonar that never answers costs a timeout per step, and the rover goes on") {
+  Bench b;
+  b.stream_fixes = true;
+  b.start_mission(kNorth, 2);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Scan; }, 20000));
+  // Step the rest by hand, never setting sonar_valid.
+  core::Outputs out{};
+  core::Inputs in{};
+  uint32_t t = b.now_ms;
+  for (int i = 0; i < 500 && b.rover.state() == RoverState::Scan; ++i) {
+    in.now_ms = t;
+    in.gyro_valid = true;
+    in.tx_room = 64;
+    b.rover.step(in, out);
+    t += 10;
+  }
+  CHECK(b.rover.state() != RoverState::Scan);
+  CHECK(t - b.now_ms < 3000);
+  CHECK(b.rover.rx_counters().frames_ok > 0);
+}
