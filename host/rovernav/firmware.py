@@ -1,0 +1,203 @@
+"""The rover's firmware core, loaded from its C ABI (firmware/abi/rover_abi.h) with ctypes.
+
+The simulator and the tests step the very code the Uno runs: `RoverCore.step()` passes one
+tick of sensor readings and received bytes in, and returns the motor commands, the servo
+angle, whether to ping, and the bytes the rover sends. `build_library()` compiles the shared
+library from the checkout's firmware sources with CMake when it is missing or stale.
+"""
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import logging
+import shutil
+import subprocess
+from pathlib import Path
+
+log = logging.getLogger("rovernav.firmware")
+
+ROOT = Path(__file__).resolve().parents[2]
+FIRMWARE = ROOT / "firmware"
+BUILD_DIR = ROOT / "build" / "native"
+LIBRARY = BUILD_DIR / "librovernav_rover.so"
+ABI_VERSION = 1
+TX_PER_STEP = 64
+
+
+class FirmwareBuildError(RuntimeError):
+    """The firmware core could not be built or loaded."""
+
+
+class _Inputs(ctypes.Structure):
+    _fields_ = [
+        ("now_ms", ctypes.c_uint32),
+        ("gyro_valid", ctypes.c_uint8),
+        ("gyro_rate_mdps", ctypes.c_int32),
+        ("sonar_valid", ctypes.c_uint8),
+        ("sonar_range_mm", ctypes.c_uint16),
+        ("wheels_valid", ctypes.c_uint8),
+        ("left_ticks", ctypes.c_int16),
+        ("right_ticks", ctypes.c_int16),
+        ("rx", ctypes.POINTER(ctypes.c_uint8)),
+        ("rx_len", ctypes.c_uint8),
+        ("tx_room", ctypes.c_uint8),
+    ]
+
+
+class _Outputs(ctypes.Structure):
+    _fields_ = [
+        ("left_pwm", ctypes.c_int16),
+        ("right_pwm", ctypes.c_int16),
+        ("servo_cdeg", ctypes.c_int16),
+        ("fire_sonar", ctypes.c_uint8),
+        ("tx_len", ctypes.c_uint8),
+        ("tx", ctypes.c_uint8 * TX_PER_STEP),
+    ]
+
+
+class _Probe(ctypes.Structure):
+    _fields_ = [
+        ("state", ctypes.c_uint8),
+        ("fault", ctypes.c_uint8),
+        ("flags", ctypes.c_uint16),
+        ("waypoint_index", ctypes.c_uint8),
+        ("waypoint_count", ctypes.c_uint8),
+        ("x_mm", ctypes.c_float),
+        ("y_mm", ctypes.c_float),
+        ("heading_rad", ctypes.c_float),
+        ("position_sd_mm", ctypes.c_float),
+        ("speed_scale", ctypes.c_float),
+        ("dr_distance_mm", ctypes.c_float),
+    ]
+
+
+@dataclasses.dataclass(frozen=True)
+class StepOut:
+    """What the rover asked for in one step."""
+
+    left_pwm: int
+    right_pwm: int
+    servo_cdeg: int
+    fire_sonar: bool
+    tx: bytes
+
+
+@dataclasses.dataclass(frozen=True)
+class Probe:
+    """The core's internal state, for reports and pictures only: never fed back to the host."""
+
+    state: int
+    fault: int
+    flags: int
+    waypoint_index: int
+    waypoint_count: int
+    x_mm: float
+    y_mm: float
+    heading_rad: float
+    position_sd_mm: float
+    speed_scale: float
+    dr_distance_mm: float
+
+
+def _sources() -> list[Path]:
+    return [p for d in ("lib/core", "lib/link", "abi") for p in (FIRMWARE / d).glob("*") if p.suffix in (".cpp", ".h")]
+
+
+def build_library(force: bool = False) -> Path:
+    """Build librovernav_rover.so with CMake if it is missing or older than a source; return its path."""
+    if not FIRMWARE.is_dir():
+        raise FirmwareBuildError(f"no firmware sources under {ROOT}: the core is built from a checkout")
+    newest = max(p.stat().st_mtime for p in _sources())
+    if not force and LIBRARY.exists() and LIBRARY.stat().st_mtime >= newest:
+        return LIBRARY
+    if shutil.which("cmake") is None:
+        raise FirmwareBuildError("cmake is not installed (apt-get install cmake g++)")
+    log.info("building the firmware core library in %s", BUILD_DIR)
+    commands = [["cmake", "--build", str(BUILD_DIR), "--target", "rovernav_rover", "-j2"]]
+    if not (BUILD_DIR / "CMakeCache.txt").exists():  # else keep the configuration scripts/test made
+        commands.insert(0, ["cmake", "-S", str(FIRMWARE), "-B", str(BUILD_DIR), "-DCMAKE_BUILD_TYPE=Release"])
+    for cmd in commands:
+        result = subprocess.run(cmd, capture_output=True, text=True)
+        if result.returncode != 0:
+            raise FirmwareBuildError(f"{' '.join(cmd[:2])} failed:\n{(result.stdout + result.stderr)[-2000:]}")
+    return LIBRARY
+
+
+_lib: ctypes.CDLL | None = None
+
+
+def load_library() -> ctypes.CDLL:
+    """The loaded ABI library (built first if needed); checks its ABI version and schema hash."""
+    global _lib
+    if _lib is not None:
+        return _lib
+    lib = ctypes.CDLL(str(build_library()))
+    lib.rover_abi_version.restype = ctypes.c_uint32
+    lib.rover_schema_hash.restype = ctypes.c_uint32
+    lib.rover_new.restype = ctypes.c_void_p
+    lib.rover_new.argtypes = [ctypes.c_uint32, ctypes.c_uint16]
+    lib.rover_step.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Inputs), ctypes.POINTER(_Outputs)]
+    lib.rover_step.restype = None
+    lib.rover_probe_state.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Probe)]
+    lib.rover_probe_state.restype = None
+    lib.rover_free.argtypes = [ctypes.c_void_p]
+    lib.rover_free.restype = None
+    if lib.rover_abi_version() != ABI_VERSION:
+        raise FirmwareBuildError(f"{LIBRARY} has ABI version {lib.rover_abi_version()}, expected {ABI_VERSION}")
+    from .link.messages_gen import SCHEMA_HASH
+    if lib.rover_schema_hash() != SCHEMA_HASH:
+        raise FirmwareBuildError(f"{LIBRARY} was built from another protocol definition "
+                                 f"(0x{lib.rover_schema_hash():08X}, ours 0x{SCHEMA_HASH:08X}): rebuild it")
+    _lib = lib
+    return lib
+
+
+class RoverCore:
+    """One rover: the firmware core behind its C ABI. Not thread-safe; step it from one thread."""
+
+    def __init__(self, boot_id: int = 1, reset_cause: int = 0):
+        self._lib = load_library()
+        self._handle = self._lib.rover_new(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF)
+        self._in = _Inputs()
+        self._out = _Outputs()
+        self._rx = (ctypes.c_uint8 * 255)()
+
+    def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
+             rx: bytes = b"", tx_room: int = TX_PER_STEP,
+             wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+        """One tick. gyro_rate_mdps None = no gyro sample; sonar_range_mm None = no ping result
+        this tick (0 = a ping with no echo); rx at most 255 bytes; returns what the rover asked."""
+        if len(rx) > 255:
+            raise ValueError(f"at most 255 received bytes a step, got {len(rx)}")
+        i = self._in
+        i.now_ms = now_ms & 0xFFFFFFFF
+        i.gyro_valid = gyro_rate_mdps is not None
+        i.gyro_rate_mdps = int(gyro_rate_mdps or 0)
+        i.sonar_valid = sonar_range_mm is not None
+        i.sonar_range_mm = int(sonar_range_mm or 0)
+        i.wheels_valid = wheel_ticks is not None
+        i.left_ticks, i.right_ticks = wheel_ticks or (0, 0)
+        ctypes.memmove(self._rx, rx, len(rx))
+        i.rx = self._rx
+        i.rx_len = len(rx)
+        i.tx_room = max(0, min(255, tx_room))
+        self._lib.rover_step(self._handle, ctypes.byref(i), ctypes.byref(self._out))
+        o = self._out
+        return StepOut(o.left_pwm, o.right_pwm, o.servo_cdeg, bool(o.fire_sonar), bytes(o.tx[:o.tx_len]))
+
+    def probe(self) -> Probe:
+        p = _Probe()
+        self._lib.rover_probe_state(self._handle, ctypes.byref(p))
+        return Probe(p.state, p.fault, p.flags, p.waypoint_index, p.waypoint_count, p.x_mm, p.y_mm,
+                     p.heading_rad, p.position_sd_mm, p.speed_scale, p.dr_distance_mm)
+
+    def close(self) -> None:
+        if self._handle:
+            self._lib.rover_free(self._handle)
+            self._handle = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # interpreter shutdown
+            pass
