@@ -1,138 +1,100 @@
-// The Arduino shell of the rover: owns the drivers, moves bytes between the serial port and
-// the link codec, and kicks the watchdog. Everything that touches a pin is here or in lib/hal;
-// the autonomy core (lib/core) will be called from loop() once it exists.
+// The Arduino shell of the rover: reads the sensors, steps the autonomy core every 10 ms, and
+// applies what it asks for to the pins. Everything that touches hardware is here or in lib/hal;
+// every decision is in lib/core, which the native tests and the simulator run unchanged.
+//
+// Nothing here waits without a bound: the gyro read and the sonar ping have time limits in
+// their drivers, serial writes never exceed the room in the TX buffer, and the watchdog resets
+// the board if a loop ever takes longer than 250 ms.
 #include <Arduino.h>
 
 #include "board.h"
 #include "boot_counter.h"
-#include "frame.h"
 #include "hw_watchdog.h"
 #include "link_serial.h"
-#include "messages_gen.h"
 #include "motors.h"
 #include "mpu6050.h"
+#include "rover.h"
 #include "servo_timer1.h"
 #include "sonar_hcsr04.h"
+#include "status_led.h"
 
 namespace {
 
 using namespace rovernav;
 
-// Start-up problems, one bit each; the LED stays lit while any is set.
-enum StartFault : uint8_t {
-  kStartFaultGyro = 1,      // gyro did not answer or is not an MPU-6050
-  kStartFaultGyroCal = 2,   // gyro bias not calibrated (rover moved or bus failed)
-};
+constexpr uint8_t kStepMs = 10;  // the core runs at 100 Hz
+constexpr uint8_t kRxChunk = 64;
 
-constexpr uint8_t kRxChunk = 32;
-
+core::Rover rover;
 hal::Motors motors;
 hal::ServoTimer1 servo;
 hal::SonarHcsr04 sonar;
 hal::Mpu6050 gyro;
 hal::LinkSerial serial_link;
-FrameDecoder decoder;
 
-uint8_t start_faults = 0;
-uint32_t boot_id = 0;
-uint8_t tx_seq = 0;
-bool host_schema_ok = false;
+hal::MpuResult gyro_state = hal::MpuResult::NotStarted;
+uint32_t last_step_ms = 0;
 
-hal::MpuResult gyro_result = hal::MpuResult::NotStarted;
-uint32_t last_gyro_ms = 0;
-int32_t yaw_rate_mdps = 0;
+// The sonar's result goes to the core one step after it asked for the ping.
+bool sonar_pending = false;
+uint16_t sonar_range_mm = 0;
 
-// One encoded frame at a time leaves through the serial TX buffer, in pieces if need be.
-uint8_t tx_frame[kMaxEncodedFrame];
-uint8_t tx_len = 0;
-uint8_t tx_sent = 0;
-uint16_t tx_dropped = 0;
-
-void drain_tx() {
-  if (tx_len == 0) return;
-  const uint8_t left = static_cast<uint8_t>(tx_len - tx_sent);
-  tx_sent = static_cast<uint8_t>(tx_sent + serial_link.write_some(tx_frame + tx_sent, left));
-  if (tx_sent == tx_len) tx_len = tx_sent = 0;
-}
-
-// Drops (and counts) the message when the previous frame has not left yet.
-template <typename Msg>
-void send(const Msg& message) {
-  drain_tx();
-  if (tx_len != 0) {
-    ++tx_dropped;
-    return;
-  }
-  tx_len = encode_message(message, tx_seq++, tx_frame);
-  tx_sent = 0;
-  drain_tx();
-}
-
-void send_hello() {
-  msg::Hello hello;
-  hello.schema_hash = kSchemaHash;
-  hello.boot_id = boot_id;
-  hello.firmware_version = board::kFirmwareVersion;
-  hello.role = static_cast<uint8_t>(Role::Rover);
-  hello.max_waypoints = kMaxWaypoints;
-  send(hello);
-}
-
-void on_frame(const Frame& frame) {
-  msg::Hello hello;
-  if (decode_message(frame, hello)) {
-    host_schema_ok = hello.schema_hash == kSchemaHash;
-    send_hello();
-  }
-}
-
-void receive() {
-  uint8_t rx[kRxChunk];
-  const uint8_t n = serial_link.read_some(rx, sizeof rx);
-  for (uint8_t i = 0; i < n; ++i) {
-    if (decoder.push(rx[i])) on_frame(decoder.frame());
-  }
-}
-
-void read_gyro(uint32_t now_ms) {
-  if (!hal::mpu_usable(gyro_result)) return;
-  if (now_ms - last_gyro_ms < hal::Mpu6050::kSamplePeriodMs) return;
-  last_gyro_ms = now_ms;
-  int32_t rate_mdps = 0;
-  if (gyro.read_rate_mdps(rate_mdps) == hal::MpuResult::Ok) yaw_rate_mdps = rate_mdps;
-}
+core::Inputs in;
+core::Outputs out;
+uint8_t rx[kRxChunk];
 
 }  // namespace
 
 void setup() {
   hal::HwWatchdog::enable();
-  pinMode(board::kPinLed, OUTPUT);
-  digitalWrite(board::kPinLed, HIGH);
-
+  hal::StatusLed::begin(true);
   motors.begin();
   servo.begin(0);
   sonar.begin();
   serial_link.begin(board::kSerialBaud);
-  boot_id = hal::BootCounter::increment();
+  const uint16_t boot_id = hal::BootCounter::increment();
 
+  // A gyro that does not answer is not waited for: the core sees no samples and reports
+  // a gyro fault within gyro_timeout_ms, and the rover stays still and talks.
   hal::HwWatchdog::kick();
-  gyro_result = gyro.begin();
+  gyro_state = gyro.begin();
   hal::HwWatchdog::kick();
-  if (!hal::mpu_usable(gyro_result)) {
-    start_faults |= kStartFaultGyro | kStartFaultGyroCal;
-  } else if (gyro.calibrate(board::kGyroCalSamples, board::kGyroCalMaxMs,
-                            hal::HwWatchdog::kick) != hal::MpuResult::Ok) {
-    start_faults |= kStartFaultGyroCal;
+  if (hal::mpu_usable(gyro_state)) {
+    gyro.calibrate(board::kGyroCalSamples, board::kGyroCalMaxMs, hal::HwWatchdog::kick);
   }
-
-  digitalWrite(board::kPinLed, start_faults != 0 ? HIGH : LOW);
-  send_hello();
+  hal::StatusLed::set(!hal::mpu_usable(gyro_state));
+  rover.begin(boot_id, hal::HwWatchdog::reset_flags());
+  last_step_ms = millis();
 }
 
 void loop() {
   hal::HwWatchdog::kick();
   const uint32_t now_ms = millis();
-  receive();
-  read_gyro(now_ms);
-  drain_tx();
+  if (now_ms - last_step_ms < kStepMs) return;
+  last_step_ms = now_ms;
+
+  in.now_ms = now_ms;
+  int32_t rate_mdps = 0;
+  in.gyro_valid = hal::mpu_usable(gyro_state) && gyro.read_rate_mdps(rate_mdps) == hal::MpuResult::Ok;
+  in.gyro_rate_mdps = rate_mdps;
+  in.sonar_valid = sonar_pending;
+  in.sonar_range_mm = sonar_range_mm;
+  sonar_pending = false;
+  in.wheels_valid = false;  // the seed's rover has no encoders
+  in.rx_len = serial_link.read_some(rx, sizeof rx);
+  in.rx = rx;
+  in.tx_room = serial_link.tx_free();
+
+  rover.step(in, out);
+
+  motors.set(out.left_pwm, out.right_pwm);
+  servo.write_cdeg(out.servo_cdeg);
+  serial_link.write_some(out.tx, out.tx_len);
+  if (out.fire_sonar) {
+    uint16_t range_mm = 0;
+    const hal::SonarResult r = sonar.ping(now_ms, range_mm);
+    sonar_pending = true;
+    sonar_range_mm = r == hal::SonarResult::Ok ? range_mm : 0;
+  }
+  hal::StatusLed::set(rover.fault() != FaultCode::None);
 }

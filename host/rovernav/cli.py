@@ -52,8 +52,23 @@ def _cmd_protocol(args: argparse.Namespace) -> int:
 
 
 def _describe(message) -> str:
-    fields = " ".join(f"{k}={v}" for k, v in message.to_dict().items())
-    return f"{message.NAME.upper()} {fields}"
+    """One line for a message, with enum fields named (EVENT fault arg=gyro_silent ...)."""
+    from .link import messages_gen as mg
+
+    m = message
+    if isinstance(m, mg.Event):
+        kind = mg.EventKind(m.kind).name.lower() if m.kind in mg.EventKind._value2member_map_ else m.kind
+        arg = mg.FaultCode(m.arg).name.lower() if kind in ("fault", "fault_cleared") and m.arg in mg.FaultCode._value2member_map_ else m.arg
+        return f"EVENT {kind} arg={arg} at {m.time_ms / 1000:.2f} s, ({m.x_mm}, {m.y_mm}) mm"
+    if isinstance(m, mg.Status):
+        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else m.state
+        flags = "|".join(f.name.lower() for f in mg.StatusFlag if m.flags & f) or "-"
+        fault = mg.FaultCode(m.fault).name.lower() if m.fault in mg.FaultCode._value2member_map_ else m.fault
+        return (f"STATUS {state} fault={fault} flags={flags} pose=({m.x_mm}, {m.y_mm}) mm {m.heading_cdeg / 100:.1f} deg "
+                f"sd=({m.sd_x_mm}, {m.sd_y_mm}) mm wp={m.waypoint_index} motors=({m.left_pwm}, {m.right_pwm}) "
+                f"rx ok={m.rx_ok} bad_crc={m.rx_bad_crc}")
+    fields = " ".join(f"{k}={v}" for k, v in m.to_dict().items())
+    return f"{m.NAME.upper()} {fields}"
 
 
 def _cmd_link_check(args: argparse.Namespace) -> int:

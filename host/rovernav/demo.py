@@ -72,9 +72,16 @@ def run_demo(seconds: float = 3.0) -> int:
                   f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, boot id {hello.boot_id}, "
                   f"holds {hello.max_waypoints} waypoints, schema hash 0x{hello.schema_hash:08X} (matches ours)")
             print(f"listening for {seconds:g} s (no gyro is simulated: the rover must say so, not hang):")
+            from .link import messages_gen as mg
+
             end = time.monotonic() + seconds
+            next_heartbeat = 0.0
             while time.monotonic() < end:
-                frame = link.recv(timeout_s=min(0.2, max(0.0, end - time.monotonic())))
+                if time.monotonic() >= next_heartbeat:  # the host is alive; it has no camera here
+                    link.send(mg.Heartbeat(host_time_ms=int(time.monotonic() * 1000) & 0xFFFFFFFF,
+                                           camera=mg.CameraState.NO_FRAMES))
+                    next_heartbeat = time.monotonic() + 0.2
+                frame = link.recv(timeout_s=min(0.05, max(0.0, end - time.monotonic())))
                 if frame is not None:
                     print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
             c = link.counters

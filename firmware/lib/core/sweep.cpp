@@ -10,7 +10,8 @@ void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to) {
   phase_start_ms_ = now_ms;
   const int32_t wait_ms = (steps > 0 ? steps : 1) * static_cast<int32_t>(step_ms_);
   // The HC-SR04 needs about 60 ms between pings for the last echo to die away.
-  phase_ms_ = static_cast<uint16_t>(wait_ms < kPingTimeoutMs ? kPingTimeoutMs : wait_ms);
+  const int32_t min_gap_ms = kPingTimeoutMs;
+  phase_ms_ = static_cast<uint16_t>(wait_ms < min_gap_ms ? min_gap_ms : wait_ms);
   waiting_echo_ = false;
 }
 

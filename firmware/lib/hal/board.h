@@ -42,7 +42,6 @@ constexpr uint16_t kSpeedOfSoundMmPerMs = 343;  // dry air at 20 C
 constexpr uint8_t kPinGyroInt = 2;
 constexpr uint8_t kMpuAddress = 0x68;           // AD0 low
 constexpr uint32_t kI2cClockHz = 400000;
-constexpr uint32_t kI2cTimeoutUs = 3000;        // one transaction; the bus is reset after it
 // Rover heading is clockwise-positive seen from above (seed convention, DESIGN.md).
 // The MPU-6050 is mounted with its Z axis up, so its Z rate is counter-clockwise-positive:
 // heading rate = kGyroZToClockwiseSign * gyro Z rate. This is the only place the sign lives.

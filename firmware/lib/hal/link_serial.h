@@ -6,15 +6,28 @@
 namespace rovernav {
 namespace hal {
 
-// Hardware USART0 through the core's HardwareSerial, 8N1:
+// USART0 (pins 0 and 1), 8N1, driven directly: the RX-complete interrupt fills one ring
+// buffer and the data-register-empty interrupt drains the other. No Arduino HardwareSerial.
 //
-//   buffer  size      at 57,600 baud (5.76 bytes/ms)
-//   RX      64 bytes  full after 11 ms: read every loop, and keep loops shorter than that
-//   TX      64 bytes  63 usable; a longer write is split across loops by the caller
+//   buffer  size (macro, as the Arduino core names it)   at 57,600 baud (5.76 bytes/ms)
+//   RX      SERIAL_RX_BUFFER_SIZE, 64 unless set          128: full after 22 ms; read every loop
+//   TX      SERIAL_TX_BUFFER_SIZE, 64 unless set          all of it usable; a longer write is
+//                                                         split across loops by the caller
 //
-// Serial.write() blocks when its buffer is full; write_some() writes only what fits now.
+// platformio.ini sets the sizes; each must be a power of two from 2 to 128. A byte that
+// arrives while RX is full is dropped, as HardwareSerial drops it.
+//
+//   register  value                     meaning
+//   UCSR0A    U2X0 per begin()          double speed, except 57,600 baud at 16 MHz
+//   UCSR0B    RXCIE0 | RXEN0 | TXEN0    receive with interrupt, transmit;
+//             + UDRIE0                  only while TX bytes wait
+//   UCSR0C    UCSZ01 | UCSZ00           8 data bits, no parity, 1 stop bit
+//   UBRR0     begin()                   57,600 baud: 16 at normal speed (58,824 baud, +2.1 %)
 class LinkSerial {
  public:
+  // The divisor is the Arduino core's: double speed (U2X0) rounds to the nearer rate, but at
+  // 57,600 baud on a 16 MHz board it uses normal speed, which the Uno's USB-serial chip
+  // expects.
   void begin(uint32_t baud);
 
   // Copies up to max_len received bytes into out; returns how many (0 when none waited).

@@ -14,8 +14,16 @@ namespace hal {
 //   stop         LOW            LOW        (the L298N lets the motor coast)
 //
 // The pin that goes LOW is always written before the pin that gets PWM, so a side never has
-// both inputs high. PWM is analogWrite on Timer0 (pins 5, 6) and Timer2 (pins 3, 11), about
-// 980 Hz and 490 Hz; the timers are left as the Arduino core sets them.
+// both inputs high. PWM comes from the timers' output-compare channels, written directly:
+//
+//   pin  port  channel  timer mode (as the Arduino core's init() leaves it)
+//   3    PD3   OC2B     Timer2 phase-correct PWM, clk/64: 490 Hz
+//   5    PD5   OC0B     Timer0 fast PWM, clk/64: 977 Hz (Timer0 also counts millis())
+//   6    PD6   OC0A     Timer0 fast PWM, clk/64: 977 Hz
+//   11   PB3   OC2A     Timer2 phase-correct PWM, clk/64: 490 Hz
+//
+// Duty 0 and 255 hold the pin LOW and HIGH with the timer disconnected, as analogWrite does;
+// anything between sets OCRxx and connects the channel (COMxx1, non-inverting).
 class Motors {
  public:
   void begin();
@@ -28,8 +36,6 @@ class Motors {
   int16_t right_pwm() const { return right_pwm_; }
 
  private:
-  static void drive_side(uint8_t back_pin, uint8_t fwd_pin, int16_t pwm);
-
   int16_t left_pwm_ = 0;
   int16_t right_pwm_ = 0;
 };

@@ -1,7 +1,8 @@
 #include "mpu6050.h"
 
 #include <Arduino.h>
-#include <Wire.h>
+
+#include "twi_master.h"
 
 namespace rovernav {
 namespace hal {
@@ -25,52 +26,27 @@ constexpr uint16_t kResetSettleMs = 100;
 
 bool is_clone_id(uint8_t id) { return id == 0x70 || id == 0x72 || id == 0x98; }
 
-// Maps Wire.endTransmission()'s codes (avr core 1.8.7) onto results.
-MpuResult from_end_transmission(uint8_t code) {
-  switch (code) {
-    case 0: return MpuResult::Ok;
-    case 2: return MpuResult::NotFound;  // address NACK
-    case 5:
-      Wire.clearWireTimeoutFlag();
-      return MpuResult::Timeout;
-    default: return MpuResult::BusError;  // 1 too long, 3 data NACK, 4 other
-  }
-}
-
-MpuResult timeout_or(MpuResult otherwise) {
-  if (Wire.getWireTimeoutFlag()) {
-    Wire.clearWireTimeoutFlag();
-    return MpuResult::Timeout;
-  }
-  return otherwise;
+// An if-chain, not a switch: GCC turns that switch into a lookup table in RAM.
+MpuResult from_twi(TwiResult r) {
+  if (r == TwiResult::Ok) return MpuResult::Ok;
+  if (r == TwiResult::NoAck) return MpuResult::NotFound;
+  if (r == TwiResult::Timeout) return MpuResult::Timeout;
+  return MpuResult::BusError;
 }
 
 }  // namespace
 
 MpuResult Mpu6050::write_reg(uint8_t reg, uint8_t value) {
-  Wire.beginTransmission(board::kMpuAddress);
-  Wire.write(reg);
-  Wire.write(value);
-  return from_end_transmission(Wire.endTransmission());
+  return from_twi(TwiMaster::write_reg(board::kMpuAddress, reg, value));
 }
 
 MpuResult Mpu6050::read_regs(uint8_t reg, uint8_t* out, uint8_t count) {
-  Wire.beginTransmission(board::kMpuAddress);
-  Wire.write(reg);
-  const MpuResult r = from_end_transmission(Wire.endTransmission(false));  // repeated start
-  if (r != MpuResult::Ok) return r;
-  const uint8_t got = Wire.requestFrom(board::kMpuAddress, count);
-  if (got != count) return timeout_or(MpuResult::BusError);  // next request resets Wire's buffer
-  for (uint8_t i = 0; i < count; ++i) out[i] = static_cast<uint8_t>(Wire.read());
-  return MpuResult::Ok;
+  return from_twi(TwiMaster::read_regs(board::kMpuAddress, reg, out, count));
 }
 
 MpuResult Mpu6050::begin() {
   started_ = false;
-  Wire.begin();
-  Wire.setClock(board::kI2cClockHz);
-  Wire.setWireTimeout(board::kI2cTimeoutUs, true);
-  Wire.clearWireTimeoutFlag();
+  TwiMaster::begin(board::kI2cClockHz);
 
   MpuResult r = read_regs(kRegWhoAmI, &who_am_i_, 1);
   if (r != MpuResult::Ok) return r;

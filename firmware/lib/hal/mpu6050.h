@@ -1,4 +1,4 @@
-// MPU-6050 gyro Z rate over I2C (Wire), polled, every bus wait bounded.
+// MPU-6050 gyro Z rate over I2C (TwiMaster), polled, every bus wait bounded.
 #pragma once
 
 #include <stdint.h>
@@ -19,8 +19,8 @@ namespace hal {
 //   0x75  WHO_AM_I      (read)    0x68 on a genuine MPU-6050
 //   0x47  GYRO_ZOUT_H   (read)    Z rate, int16 big-endian: 0x47 high byte, 0x48 low byte
 //
-// Bus: 400 kHz, Wire.setWireTimeout(board::kI2cTimeoutUs, reset = true), so a stuck bus costs
-// one timeout and a TWI reset, never a hang. Every call returns what happened.
+// Bus: TwiMaster at 400 kHz, every bus step bounded by TwiMaster::kStepTimeoutUs, so a stuck
+// bus costs one timeout and a TWI reset, never a hang. Every call returns what happened.
 //
 // Sign: the chip's Z points up, so its rate is counter-clockwise-positive. read_rate_mdps()
 // returns the rover's yaw rate clockwise-positive seen from above, multiplying by
@@ -31,8 +31,8 @@ enum class MpuResult : uint8_t {
   CloneId,    // WHO_AM_I is a known MPU-6500-family clone id (0x70, 0x72, 0x98); configured
   NotFound,   // no ACK at the address: not wired, not powered, or AD0 high
   WrongId,    // something answered with an unknown WHO_AM_I; left alone
-  BusError,   // NACK on data, lost arbitration, or a short read
-  Timeout,    // the bus stalled past kI2cTimeoutUs; the TWI was reset
+  BusError,   // NACK on data, lost arbitration, or an illegal START/STOP on the bus
+  Timeout,    // a bus step stalled past TwiMaster::kStepTimeoutUs; the TWI was reset
   NotStarted, // begin() has not succeeded
   Moving,     // calibration saw a spread wider than kGyroCalMaxSpreadMdps; bias unchanged
   CalTimeout, // calibration ran out of time before it had its samples; bias unchanged
@@ -47,7 +47,7 @@ class Mpu6050 {
   static constexpr int32_t kCountsPer2Dps = 131;
   static constexpr uint16_t kSamplePeriodMs = 10;
 
-  // Starts Wire (400 kHz, bounded), resets and configures the chip. Blocks about 110 ms.
+  // Starts the TWI (400 kHz, bounded), resets and configures the chip. Blocks about 110 ms.
   MpuResult begin();
 
   // Yaw rate in millidegrees per second, clockwise-positive, bias removed.

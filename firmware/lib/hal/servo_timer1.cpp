@@ -1,6 +1,5 @@
 #include "servo_timer1.h"
 
-#include <Arduino.h>
 #include <avr/io.h>
 #include <util/atomic.h>
 
@@ -14,6 +13,8 @@ constexpr uint16_t kPeriodUs = 20000;
 constexpr int32_t kServoTravelCdeg = 18000;
 constexpr int32_t kServoMidCdeg = 9000;
 
+static_assert(board::kPinServo == 9, "the servo is OC1A on PB1 below");
+
 static_assert(static_cast<uint32_t>(kPeriodUs) * kTicksPerUs - 1 <= 0xFFFF,
               "20 ms period must fit ICR1");
 
@@ -25,8 +26,8 @@ void load_ocr1a(uint16_t ticks) {
 }  // namespace
 
 void ServoTimer1::begin(int16_t angle_cdeg) {
-  digitalWrite(board::kPinServo, LOW);
-  pinMode(board::kPinServo, OUTPUT);
+  PORTB = static_cast<uint8_t>(PORTB & ~_BV(PORTB1));  // low until the timer takes the pin
+  DDRB = static_cast<uint8_t>(DDRB | _BV(DDB1));
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
     TCCR1B = 0;  // stop the timer while it is set up
     TCCR1A = 0;
@@ -61,7 +62,7 @@ void ServoTimer1::set_trim_cdeg(int16_t centre_trim_cdeg) {
 
 void ServoTimer1::off() {
   TCCR1A = static_cast<uint8_t>(TCCR1A & ~(_BV(COM1A1) | _BV(COM1A0)));
-  digitalWrite(board::kPinServo, LOW);
+  PORTB = static_cast<uint8_t>(PORTB & ~_BV(PORTB1));
 }
 
 }  // namespace hal

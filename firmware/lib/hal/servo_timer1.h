@@ -23,7 +23,7 @@ namespace hal {
 // Owning Timer1 means analogWrite on pins 9 and 10 no longer works.
 class ServoTimer1 {
  public:
-  explicit ServoTimer1(int16_t centre_trim_cdeg = board::kServoCentreTrimCdeg)
+  explicit constexpr ServoTimer1(int16_t centre_trim_cdeg = board::kServoCentreTrimCdeg)
       : trim_cdeg_(centre_trim_cdeg) {}
 
   // Takes over Timer1 and starts pulses at angle_cdeg.

@@ -20,8 +20,10 @@ namespace hal {
 // ping() blocks, but for at most kRiseTimeoutUs (echo never started: sensor missing) plus
 // the echo time of max_range_mm (no target that close): about 10.8 ms at 1 m. It returns as
 // soon as the echo passes the range limit and does not wait for the sensor's own timeout.
-// Timing uses micros() (4 us, 0.7 mm resolution) with interrupts left on, so serial and
-// I2C interrupts delay it by microseconds, not by lost bytes.
+// Timing uses micros() (4 us, 0.7 mm resolution) with interrupts left on, so the serial and
+// millis() interrupts delay it by microseconds, not by lost bytes.
+//
+// Pins by register (board.h names them): trigger A1 = PC1, echo A0 = PC0.
 
 enum class SonarResult : uint8_t {
   Ok,        // range_mm holds a new range
@@ -35,11 +37,14 @@ class SonarHcsr04 {
  public:
   static constexpr uint32_t kRiseTimeoutUs = 5000;
 
-  explicit SonarHcsr04(uint16_t max_range_mm = board::kSonarMaxRangeMm);
+  explicit constexpr SonarHcsr04(uint16_t max_range_mm = board::kSonarMaxRangeMm)
+      : max_range_mm_(max_range_mm) {}
 
+  // Trigger (A1) an output held low, echo (A0) an input without pull-up.
   void begin();
 
   // now_ms: millis() of the caller's tick. range_mm is written only when Ok is returned.
+  // NoSensor also when begin() has not been called.
   SonarResult ping(uint32_t now_ms, uint16_t& range_mm);
 
   // True when ping() would send a trigger at now_ms (interval elapsed; ECHO is not checked).
@@ -48,14 +53,9 @@ class SonarHcsr04 {
   uint16_t max_range_mm() const { return max_range_mm_; }
 
  private:
-  bool echo_high() const { return (*echo_in_ & echo_mask_) != 0; }
-
   uint16_t max_range_mm_;
-  uint32_t max_echo_us_;
   uint32_t last_ping_ms_ = 0;
   bool pinged_ = false;
-  volatile uint8_t* echo_in_ = nullptr;
-  uint8_t echo_mask_ = 0;
 };
 
 }  // namespace hal
