@@ -115,6 +115,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON object instead of tables")
     p.set_defaults(func=_cmd_protocol)
 
+    from .planning.cli import add_plan_parser
+
+    add_plan_parser(sub)
+
     p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends",
                        description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "
                                    "were built from the same protocol definition), then print every message "

@@ -1,0 +1,294 @@
+"""The arena as an occupancy grid: a raw obstacle layer and the inflated layer the planner avoids.
+
+Cells and coordinates
+    Metres, origin at the arena's bottom-left corner, x right, y up. Cell (ix, iy) covers
+    [ix·res, (ix+1)·res) × [iy·res, (iy+1)·res); its centre, where a path's waypoints sit, is
+    ((ix + 0.5)·res, (iy + 0.5)·res). Arrays are indexed [iy, ix], row 0 at the bottom (flip
+    them to draw an image). The last column and row may reach past the arena's edge.
+
+Obstacles and layers
+    Obstacles are kept as geometry: axis-aligned boxes (centre, size) and small disks (the
+    points a sonar echo's arc is sampled at, each with a radius covering the arc between
+    samples). From them:
+    `raw`: the cells a box overlaps or a disk's centre lies in (what an obstacle occupies).
+    `inflated`: the cells the rover's centre must not enter: those whose centre lies within
+    `config.inflation_m` (robot radius + sonar margin) of an obstacle, or of the arena's
+    wall. The distance is exact (the seed's rule: a cell centre within the robot radius of
+    an obstacle), computed per obstacle in a window around it, so a gap the rover fits
+    through is not closed by rounding to cells, and a new obstacle re-inflates only its window.
+    (A disk dilation of the raw cells rounds each obstacle out by up to a cell, 0.03 m, and
+    measured no faster: 0.06 to 0.1 ms for the seed's arena, 0.8 ms for 40 boxes on 400 × 400.)
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from .config import PlannerConfig
+from .segment import polyline_clear, segment_clear
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..scenario import Scenario
+
+
+@dataclasses.dataclass(frozen=True)
+class SonarUpdate:
+    """What one sonar echo changed in the grid."""
+
+    arc_xy: np.ndarray          # (m, 2) points [m] sampled along the echo's arc, inside the arena
+    new_cells: np.ndarray       # (k, 2) cells (ix, iy) that became raw obstacles
+    newly_inflated: int         # how many cells the rover may no longer enter because of the echo
+    blocks_path: bool | None    # whether the given path now crosses an inflated cell (None: no path given)
+
+
+class OccupancyGrid:
+    """An arena of `width_m` × `height_m` metres, cut into square cells of `config.resolution_m`."""
+
+    def __init__(self, width_m: float, height_m: float, config: PlannerConfig | None = None):
+        if not (width_m > 0 and height_m > 0 and math.isfinite(width_m) and math.isfinite(height_m)):
+            raise ValueError(f"arena size must be positive, got {width_m!r} × {height_m!r} m")
+        self.config = config or PlannerConfig()
+        self.width_m = float(width_m)
+        self.height_m = float(height_m)
+        self.resolution_m = self.config.resolution_m
+        res = self.resolution_m
+        self.nx = max(1, int(math.ceil(self.width_m / res - 1e-9)))
+        self.ny = max(1, int(math.ceil(self.height_m / res - 1e-9)))
+        self.xs = (np.arange(self.nx) + 0.5) * res   # cell-centre x [m] of each column
+        self.ys = (np.arange(self.ny) + 0.5) * res   # cell-centre y [m] of each row
+        self.boxes: list[tuple[float, float, float, float]] = []   # (x, y, w, h) [m]
+        self.disks: list[np.ndarray] = []   # groups of disks, each an (n, 3) array of (x, y, radius) [m]
+        self.raw = np.zeros((self.ny, self.nx), dtype=np.bool_)
+        self.inflated = self.wall_band(self.config.inflation_m)
+        self.geometric = True  # the layers follow from boxes and disks (False: given by from_layers)
+        self.version = 0  # bumped whenever a layer changes
+
+    # --- construction --------------------------------------------------------------------
+
+    @classmethod
+    def from_scenario(cls, scenario: "Scenario", config: PlannerConfig | None = None,
+                      all_obstacles: bool = False) -> "OccupancyGrid":
+        """The scenario's arena with its known obstacles (all of them when `all_obstacles`)."""
+        grid = cls(scenario.arena.width_m, scenario.arena.height_m, config)
+        for o in scenario.obstacles:
+            if all_obstacles or o.known:
+                grid.add_box(o.x_m, o.y_m, o.w_m, o.h_m)
+        return grid
+
+    @classmethod
+    def from_layers(cls, inflated: np.ndarray, resolution_m: float = 1.0,
+                    raw: np.ndarray | None = None) -> "OccupancyGrid":
+        """A grid whose inflated layer is given as is (no geometry, no wall band): for tests and tools."""
+        inflated = np.ascontiguousarray(inflated, dtype=np.bool_)
+        ny, nx = inflated.shape
+        grid = cls(nx * resolution_m, ny * resolution_m,
+                   PlannerConfig(resolution_m=resolution_m, robot_radius_m=0.0, sonar_margin_m=0.0))
+        grid.inflated = inflated.copy()
+        grid.geometric = False
+        grid.raw = inflated.copy() if raw is None else np.ascontiguousarray(raw, dtype=np.bool_).copy()
+        return grid
+
+    def copy(self) -> "OccupancyGrid":
+        other = object.__new__(OccupancyGrid)
+        other.__dict__.update(self.__dict__)
+        other.raw = self.raw.copy()
+        other.inflated = self.inflated.copy()
+        other.boxes = list(self.boxes)
+        other.disks = list(self.disks)
+        return other
+
+    # --- coordinates ---------------------------------------------------------------------
+
+    def contains(self, x_m: float, y_m: float) -> bool:
+        """Whether (x, y) [m] lies on the arena (its edges included)."""
+        return 0.0 <= x_m <= self.width_m and 0.0 <= y_m <= self.height_m
+
+    def world_to_cell(self, x_m: float, y_m: float) -> tuple[int, int]:
+        """The cell (ix, iy) holding the point (x, y) [m]; a point on the far edges maps to the last cell."""
+        res = self.resolution_m
+        return (min(int(math.floor(x_m / res)), self.nx - 1), min(int(math.floor(y_m / res)), self.ny - 1))
+
+    def cell_to_world(self, ix: int, iy: int) -> tuple[float, float]:
+        """The centre [m] of cell (ix, iy)."""
+        res = self.resolution_m
+        return ((ix + 0.5) * res, (iy + 0.5) * res)
+
+    def cells_to_world(self, cells: np.ndarray) -> np.ndarray:
+        """Centres [m] of an (n, 2) array of cells (ix, iy)."""
+        return (np.asarray(cells, dtype=np.float64).reshape(-1, 2) + 0.5) * self.resolution_m
+
+    def to_cell_units(self, points_m: np.ndarray | Sequence[Sequence[float]]) -> np.ndarray:
+        """Points [m] → the continuous cell coordinates of the segment check (cell (i, j) is [i, i+1) × [j, j+1))."""
+        pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2) / self.resolution_m
+        # A point on the arena's far edge belongs to the last cell, as in world_to_cell.
+        np.minimum(pts[:, 0], np.nextafter(self.nx, 0), out=pts[:, 0])
+        np.minimum(pts[:, 1], np.nextafter(self.ny, 0), out=pts[:, 1])
+        return pts
+
+    def is_free(self, x_m: float, y_m: float) -> bool:
+        """Whether the rover's centre may stand at (x, y) [m]."""
+        if not self.contains(x_m, y_m):
+            return False
+        ix, iy = self.world_to_cell(x_m, y_m)
+        return not self.inflated[iy, ix]
+
+    # --- distances -----------------------------------------------------------------------
+
+    def _window(self, x0: float, y0: float, x1: float, y1: float, margin: float) -> tuple[slice, slice]:
+        """The cells whose centre lies in [x0 − margin, x1 + margin] × [y0 − margin, y1 + margin]."""
+        res = self.resolution_m
+        c0 = max(int(math.floor((x0 - margin) / res - 0.5)), 0)
+        c1 = min(int(math.ceil((x1 + margin) / res - 0.5)) + 1, self.nx)
+        r0 = max(int(math.floor((y0 - margin) / res - 0.5)), 0)
+        r1 = min(int(math.ceil((y1 + margin) / res - 0.5)) + 1, self.ny)
+        return slice(r0, max(r1, r0)), slice(c0, max(c1, c0))
+
+    def _box_distance(self, box: tuple[float, float, float, float], reach: float
+                      ) -> tuple[tuple[slice, slice], np.ndarray]:
+        x, y, w, h = box
+        rows, cols = self._window(x - w / 2, y - h / 2, x + w / 2, y + h / 2, reach)
+        dx = np.maximum(np.abs(self.xs[cols] - x) - w / 2, 0.0)
+        dy = np.maximum(np.abs(self.ys[rows] - y) - h / 2, 0.0)
+        return (rows, cols), np.sqrt(dx[None, :] ** 2 + dy[:, None] ** 2)
+
+    def _disk_distance(self, disks: np.ndarray, reach: float) -> tuple[tuple[slice, slice], np.ndarray]:
+        lo = disks[:, :2].min(axis=0)
+        hi = disks[:, :2].max(axis=0)
+        rows, cols = self._window(lo[0], lo[1], hi[0], hi[1], reach + float(disks[:, 2].max()))
+        dx = self.xs[cols][None, None, :] - disks[:, 0, None, None]
+        dy = self.ys[rows][None, :, None] - disks[:, 1, None, None]
+        d = np.sqrt(dx ** 2 + dy ** 2) - disks[:, 2, None, None]
+        return (rows, cols), np.maximum(d.min(axis=0), 0.0)
+
+    def obstacle_distance(self, reach_m: float) -> np.ndarray:
+        """Distance [m] from each cell centre to the nearest obstacle (0 inside one), inf beyond `reach_m`."""
+        out = np.full((self.ny, self.nx), np.inf)
+        parts = [self._box_distance(b, reach_m) for b in self.boxes]
+        parts += [self._disk_distance(d, reach_m) for d in self.disks]
+        for (rows, cols), d in parts:
+            np.minimum(out[rows, cols], d, out=out[rows, cols])
+        out[out > reach_m] = np.inf
+        return out
+
+    def wall_distance(self) -> np.ndarray:
+        """Distance [m] from each cell centre to the arena's wall (0 for centres past the edge)."""
+        dx = np.maximum(np.minimum(self.xs, self.width_m - self.xs), 0.0)
+        dy = np.maximum(np.minimum(self.ys, self.height_m - self.ys), 0.0)
+        return np.minimum(dx[None, :], dy[:, None])
+
+    def wall_band(self, radius_m: float) -> np.ndarray:
+        """Cells whose centre lies within `radius_m` of the wall (or past it)."""
+        return self.wall_distance() <= radius_m + 1e-12
+
+    def blocked_within(self, radius_m: float) -> np.ndarray:
+        """Cells whose centre lies within `radius_m` of an obstacle or the wall: the inflated layer for that radius."""
+        return (self.obstacle_distance(radius_m) <= radius_m + 1e-12) | self.wall_band(radius_m)
+
+    # --- obstacles -----------------------------------------------------------------------
+
+    def _grow(self, part: tuple[tuple[slice, slice], np.ndarray]) -> int:
+        (rows, cols), d = part
+        window = self.inflated[rows, cols]
+        grown = d <= self.config.inflation_m + 1e-12
+        newly = int(np.count_nonzero(grown & ~window))
+        window |= grown
+        return newly
+
+    def add_box(self, x_m: float, y_m: float, w_m: float, h_m: float) -> int:
+        """Add an obstacle box (centre, size [m]); returns how many cells it newly inflated."""
+        if not (w_m > 0 and h_m > 0):
+            raise ValueError(f"obstacle box size must be positive, got {w_m!r} × {h_m!r} m")
+        box = (float(x_m), float(y_m), float(w_m), float(h_m))
+        res = self.resolution_m
+        c0, c1 = max(int(math.floor((x_m - w_m / 2) / res)), 0), min(int(math.ceil((x_m + w_m / 2) / res)), self.nx)
+        r0, r1 = max(int(math.floor((y_m - h_m / 2) / res)), 0), min(int(math.ceil((y_m + h_m / 2) / res)), self.ny)
+        self.raw[r0:max(r1, r0), c0:max(c1, c0)] = True
+        self.boxes.append(box)
+        self.version += 1
+        return self._grow(self._box_distance(box, self.config.inflation_m))
+
+    def add_disks(self, centres_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, int]:
+        """Add small round obstacles (centres [m], one radius [m]); returns (new raw cells, newly inflated count).
+
+        Centres off the arena are dropped. The raw layer gets the cells holding the centres.
+        """
+        pts = np.asarray(centres_m, dtype=np.float64).reshape(-1, 2)
+        pts = pts[(pts[:, 0] >= 0) & (pts[:, 0] <= self.width_m) & (pts[:, 1] >= 0) & (pts[:, 1] <= self.height_m)]
+        if not len(pts):
+            return np.empty((0, 2), dtype=np.int64), 0
+        res = self.resolution_m
+        cells = np.stack([np.minimum(np.floor(pts[:, 0] / res).astype(np.int64), self.nx - 1),
+                          np.minimum(np.floor(pts[:, 1] / res).astype(np.int64), self.ny - 1)], axis=1)
+        cells = np.unique(cells, axis=0)
+        new = cells[~self.raw[cells[:, 1], cells[:, 0]]]
+        self.raw[cells[:, 1], cells[:, 0]] = True
+        disks = np.column_stack([pts, np.full(len(pts), float(radius_m))])
+        self.disks.append(disks)
+        self.version += 1
+        return new, self._grow(self._disk_distance(disks, self.config.inflation_m))
+
+    # --- the sonar -----------------------------------------------------------------------
+
+    def sonar_arc(self, x_m: float, y_m: float, heading_deg: float, bearing_deg: float,
+                  range_m: float) -> np.ndarray:
+        """Points [m] along the arc an echo could have come from, spaced at most a quarter cell apart.
+
+        The rover stands at (x, y) with `heading_deg` (0° = +y, clockwise positive, the seed's
+        gyro convention); the sonar sits `config.sonar_offset_m` ahead of its centre and points
+        `bearing_deg` (clockwise positive) off the heading. An echo at `range_m` may come from
+        anywhere on the arc of that radius across the beam's cone (`config.sonar_cone_deg`).
+        Points off the arena are kept: the caller decides.
+        """
+        cfg = self.config
+        if not math.isfinite(range_m) or not 0.0 < range_m <= cfg.sonar_max_range_m:
+            raise ValueError(f"sonar range must be in (0, {cfg.sonar_max_range_m}] m, got {range_m!r}")
+        h = math.radians(heading_deg)
+        sx = x_m + cfg.sonar_offset_m * math.sin(h)
+        sy = y_m + cfg.sonar_offset_m * math.cos(h)
+        half = math.radians(cfg.sonar_cone_deg) / 2
+        n = max(3, int(math.ceil(range_m * 2 * half / (self.resolution_m / 4))) + 1)
+        theta = h + math.radians(bearing_deg) + np.linspace(-half, half, n)
+        return np.stack([sx + range_m * np.sin(theta), sy + range_m * np.cos(theta)], axis=1)
+
+    def add_sonar_echo(self, x_m: float, y_m: float, heading_deg: float, bearing_deg: float,
+                       range_m: float, path: Sequence[Sequence[float]] | None = None) -> SonarUpdate:
+        """Mark the echo's whole arc (see `sonar_arc`) as obstacle and re-inflate around it.
+
+        The seed marked only the point on the beam's axis and widened every obstacle by the
+        0.05 m margin instead; marking the arc keeps the obstacle wherever in the cone it stood.
+        The arc is stored as disks on its sample points, with a radius of half their spacing
+        so that the arc between samples is covered. When `path` (waypoints [m]) is given,
+        `blocks_path` says whether it now crosses an inflated cell, by the planner's own
+        segment check.
+        """
+        arc = self.sonar_arc(x_m, y_m, heading_deg, bearing_deg, range_m)
+        spacing = float(np.hypot(*(arc[1] - arc[0])))
+        inside = (arc[:, 0] >= 0) & (arc[:, 0] <= self.width_m) & (arc[:, 1] >= 0) & (arc[:, 1] <= self.height_m)
+        new, newly = self.add_disks(arc[inside], spacing / 2)
+        blocks = None if path is None else self.path_blocked(path)
+        return SonarUpdate(arc_xy=arc[inside], new_cells=new, newly_inflated=newly, blocks_path=blocks)
+
+    # --- checks --------------------------------------------------------------------------
+
+    def segment_clear(self, a: Sequence[float], b: Sequence[float]) -> bool:
+        """Whether the rover's centre may drive straight from a to b [m] (see `segment`)."""
+        if not (self.contains(*a) and self.contains(*b)):
+            return False
+        p = self.to_cell_units([a, b])
+        return bool(segment_clear(self.inflated, p[0, 0], p[0, 1], p[1, 0], p[1, 1]))
+
+    def path_blocked(self, path: Sequence[Sequence[float]]) -> bool:
+        """Whether any segment of the path (waypoints [m]) leaves the arena or touches an inflated cell."""
+        pts = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+        if not len(pts):
+            return False
+        if not all(self.contains(x, y) for x, y in pts):
+            return True
+        return not bool(polyline_clear(self.inflated, self.to_cell_units(pts)))
+
+    def __repr__(self) -> str:
+        return (f"OccupancyGrid({self.width_m} × {self.height_m} m, {self.nx} × {self.ny} cells of "
+                f"{self.resolution_m} m, {int(self.raw.sum())} raw / {int(self.inflated.sum())} inflated)")

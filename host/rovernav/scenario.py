@@ -1,0 +1,260 @@
+"""Scenario files: the arena, the start, the target, the mission and the obstacles (TOML, version 1).
+
+    name = "seed-small-obstacles"     # optional; defaults to the file's stem
+    version = 1                       # required; only 1 is understood
+    description = "..."               # optional
+    [arena]     width_m, height_m                     (> 0)
+    [start]     x_m, y_m, heading_deg = 0             (on the arena; 0° = +y, clockwise positive)
+    [target]    x_m, y_m                              (on the arena)
+    [mission]   kind = "reach" | "out-and-back", trips = 1   (optional table; trips ≥ 1)
+    [[obstacles]]  x_m, y_m (centre), w_m, h_m (size > 0), known = true
+
+Metres and degrees; origin at the arena's bottom-left corner, x right, y up. `known = false`
+obstacles exist only in the world: the planner learns them through the sonar. Every problem
+raises `ScenarioError` (a ValueError) naming the file and the key, e.g.
+"seed.toml: obstacles[2].w_m must be a number > 0, got -0.1". Unknown keys are refused, so
+a misspelt key cannot be silently ignored.
+
+The shared scenarios live in `../shared/scenarios/` beside the repository (override with the
+environment variable ROVERNAV_SCENARIO_DIR); `load_scenario` takes their name or any path.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Any
+
+FORMAT_VERSION = 1
+MISSION_KINDS = ("reach", "out-and-back")
+DEFAULT_SCENARIO = "out-and-back"
+
+
+class ScenarioError(ValueError):
+    """A scenario file is missing, unreadable or invalid; the message names the file and the key."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Arena:
+    width_m: float
+    height_m: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Pose:
+    x_m: float
+    y_m: float
+    heading_deg: float = 0.0
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        return (self.x_m, self.y_m)
+
+
+@dataclasses.dataclass(frozen=True)
+class Target:
+    x_m: float
+    y_m: float
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        return (self.x_m, self.y_m)
+
+
+@dataclasses.dataclass(frozen=True)
+class Mission:
+    kind: str = "reach"
+    trips: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class Obstacle:
+    """An axis-aligned box: centre (x_m, y_m), size (w_m, h_m)."""
+
+    x_m: float
+    y_m: float
+    w_m: float
+    h_m: float
+    known: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    name: str
+    arena: Arena
+    start: Pose
+    target: Target
+    mission: Mission
+    obstacles: tuple[Obstacle, ...]
+    description: str = ""
+    version: int = FORMAT_VERSION
+    path: Path | None = None
+
+    @property
+    def known_obstacles(self) -> tuple[Obstacle, ...]:
+        return tuple(o for o in self.obstacles if o.known)
+
+    @property
+    def unknown_obstacles(self) -> tuple[Obstacle, ...]:
+        return tuple(o for o in self.obstacles if not o.known)
+
+
+# --- finding scenarios -----------------------------------------------------------------------
+
+def scenario_dir() -> Path:
+    """The shared scenarios: $ROVERNAV_SCENARIO_DIR, else ../shared/scenarios beside the repository."""
+    env = os.environ.get("ROVERNAV_SCENARIO_DIR")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[3] / "shared" / "scenarios"
+
+
+def scenario_names() -> list[str]:
+    """Names of the shared scenarios (their file stems), sorted."""
+    d = scenario_dir()
+    return sorted(p.stem for p in d.glob("*.toml")) if d.is_dir() else []
+
+
+def resolve_scenario(name_or_path: str | os.PathLike[str]) -> Path:
+    """The file for a shared scenario's name, or the given path when it names a file."""
+    candidate = Path(name_or_path)
+    if candidate.is_file():
+        return candidate
+    text = str(name_or_path)
+    if candidate.suffix != ".toml" and "/" not in text and os.sep not in text:
+        shared = scenario_dir() / f"{text}.toml"
+        if shared.is_file():
+            return shared
+        names = ", ".join(scenario_names()) or f"none found in {scenario_dir()}"
+        raise ScenarioError(f"no scenario named {text!r} (shared scenarios: {names})")
+    raise ScenarioError(f"{text}: no such scenario file")
+
+
+def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
+    """Load and validate a scenario by shared name or path."""
+    path = resolve_scenario(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from exc
+    return parse_scenario(text, source=path)
+
+
+def default_scenario() -> Scenario:
+    """The research aim's scenario: out to the target and back to base, twice."""
+    return load_scenario(DEFAULT_SCENARIO)
+
+
+# --- parsing -------------------------------------------------------------------------------
+
+class _Reader:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, problem: str) -> ScenarioError:
+        return ScenarioError(f"{self.source}: {key} {problem}")
+
+    def table(self, doc: dict[str, Any], key: str, required: bool = True) -> dict[str, Any]:
+        if key not in doc:
+            if required:
+                raise self.fail(key, "is missing (a [" + key + "] table)")
+            return {}
+        value = doc[key]
+        if not isinstance(value, dict):
+            raise self.fail(key, f"must be a table, got {value!r}")
+        return value
+
+    def only(self, table: dict[str, Any], prefix: str, allowed: tuple[str, ...]) -> None:
+        for key in table:
+            if key not in allowed:
+                raise self.fail(f"{prefix}{key}", f"is not a known key (known here: {', '.join(allowed)})")
+
+    def number(self, table: dict[str, Any], prefix: str, key: str, default: float | None = None,
+               positive: bool = False) -> float:
+        name = f"{prefix}{key}"
+        if key not in table:
+            if default is None:
+                raise self.fail(name, "is missing")
+            return default
+        value = table[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(name, f"must be a number, got {value!r}")
+        if positive and value <= 0:
+            raise self.fail(name, f"must be a number > 0, got {value!r}")
+        return float(value)
+
+
+def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> Scenario:
+    """Parse scenario TOML text; `source` (a path or label) starts every error message."""
+    r = _Reader(str(source))
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: not valid TOML: {exc}") from exc
+    r.only(doc, "", ("name", "version", "description", "arena", "start", "target", "mission", "obstacles"))
+
+    if "version" not in doc:
+        raise r.fail("version", f"is missing (this reader understands version {FORMAT_VERSION})")
+    version = doc["version"]
+    if isinstance(version, bool) or version != FORMAT_VERSION:
+        raise r.fail("version", f"is {version!r}; this reader understands version {FORMAT_VERSION}")
+    name = doc.get("name", Path(str(source)).stem)
+    if not isinstance(name, str) or not name:
+        raise r.fail("name", f"must be a non-empty string, got {name!r}")
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        raise r.fail("description", f"must be a string, got {description!r}")
+
+    arena_t = r.table(doc, "arena")
+    r.only(arena_t, "arena.", ("width_m", "height_m"))
+    arena = Arena(r.number(arena_t, "arena.", "width_m", positive=True),
+                  r.number(arena_t, "arena.", "height_m", positive=True))
+
+    def on_arena(table: dict[str, Any], prefix: str) -> tuple[float, float]:
+        x = r.number(table, prefix, "x_m")
+        y = r.number(table, prefix, "y_m")
+        if not 0.0 <= x <= arena.width_m:
+            raise r.fail(f"{prefix}x_m", f"= {x} is outside the arena (0 to {arena.width_m} m)")
+        if not 0.0 <= y <= arena.height_m:
+            raise r.fail(f"{prefix}y_m", f"= {y} is outside the arena (0 to {arena.height_m} m)")
+        return x, y
+
+    start_t = r.table(doc, "start")
+    r.only(start_t, "start.", ("x_m", "y_m", "heading_deg"))
+    start = Pose(*on_arena(start_t, "start."), r.number(start_t, "start.", "heading_deg", default=0.0))
+
+    target_t = r.table(doc, "target")
+    r.only(target_t, "target.", ("x_m", "y_m"))
+    target = Target(*on_arena(target_t, "target."))
+
+    mission_t = r.table(doc, "mission", required=False)
+    r.only(mission_t, "mission.", ("kind", "trips"))
+    kind = mission_t.get("kind", "reach")
+    if kind not in MISSION_KINDS:
+        raise r.fail("mission.kind", f"must be one of {', '.join(MISSION_KINDS)}, got {kind!r}")
+    trips = mission_t.get("trips", 1)
+    if isinstance(trips, bool) or not isinstance(trips, int) or trips < 1:
+        raise r.fail("mission.trips", f"must be a whole number ≥ 1, got {trips!r}")
+    mission = Mission(kind, trips)
+
+    obstacles_v = doc.get("obstacles", [])
+    if not isinstance(obstacles_v, list):
+        raise r.fail("obstacles", "must be an array of tables ([[obstacles]])")
+    obstacles = []
+    for i, o in enumerate(obstacles_v):
+        prefix = f"obstacles[{i}]."
+        if not isinstance(o, dict):
+            raise r.fail(f"obstacles[{i}]", f"must be a table, got {o!r}")
+        r.only(o, prefix, ("x_m", "y_m", "w_m", "h_m", "known"))
+        known = o.get("known", True)
+        if not isinstance(known, bool):
+            raise r.fail(f"{prefix}known", f"must be true or false, got {known!r}")
+        obstacles.append(Obstacle(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
+                                  r.number(o, prefix, "w_m", positive=True),
+                                  r.number(o, prefix, "h_m", positive=True), known))
+
+    path = Path(source) if not str(source).startswith("<") else None
+    return Scenario(name=name, arena=arena, start=start, target=target, mission=mission,
+                    obstacles=tuple(obstacles), description=description, version=version, path=path)

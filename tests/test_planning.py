@@ -1,0 +1,552 @@
+"""Planning: the occupancy grid, A*, simplification, the potential field, sonar echoes and `rovernav plan`.
+
+A*'s optimality is checked against a Dijkstra written plainly here, over the same 16 moves,
+with the cells each move touches found independently (by sampling the segment), and against
+scipy's csgraph on a larger grid.
+"""
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rovernav.planning import (
+    GoalBlocked, LocalMinimum, NoPathError, OccupancyGrid, OutsideArena, PlannerConfig, StartBlocked, Unreachable,
+    plan,
+)
+from rovernav.planning.astar import astar_cells, path_cost
+from rovernav.planning.cli import add_plan_parser
+from rovernav.planning.moves import MOVE_DX, MOVE_DY, N_MOVES, free_space_distance, move_allowed
+from rovernav.planning.potential import body_layer
+from rovernav.planning.segment import segment_clear
+from rovernav.planning.simplify import simplify_points
+from rovernav.scenario import load_scenario
+
+# --- an independent model of the 16 moves -----------------------------------------------------
+
+# 8 neighbours and 8 knight moves: every (dx, dy) whose squared length is 1, 2 or 5.
+MOVES = [(dx, dy) for dx in range(-2, 3) for dy in range(-2, 3) if dx * dx + dy * dy in (1, 2, 5)]
+
+
+def touched_cells(dx: int, dy: int) -> set[tuple[int, int]]:
+    """Cells (relative to the start cell) the closed segment between the two centres touches, by sampling.
+
+    Each sample is also nudged a hair in x and y, so a segment through a grid corner touches
+    the four cells around it.
+    """
+    cells = set()
+    for i in range(401):
+        x, y = 0.5 + dx * i / 400, 0.5 + dy * i / 400
+        for ex in (-1e-7, 0.0, 1e-7):
+            for ey in (-1e-7, 0.0, 1e-7):
+                cells.add((math.floor(x + ex), math.floor(y + ey)))
+    return cells
+
+
+TOUCHED = {m: touched_cells(*m) for m in MOVES}
+
+
+def edge_ok(blocked: np.ndarray, x: int, y: int, move: tuple[int, int]) -> bool:
+    ny, nx = blocked.shape
+    return all(0 <= x + cx < nx and 0 <= y + cy < ny and not blocked[y + cy, x + cx] for cx, cy in TOUCHED[move])
+
+
+def dijkstra_cost(blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> float | None:
+    best = {start: 0.0}
+    heap = [(0.0, start)]
+    done = set()
+    while heap:
+        d, cell = heapq.heappop(heap)
+        if cell in done:
+            continue
+        done.add(cell)
+        if cell == goal:
+            return d
+        x, y = cell
+        for move in MOVES:
+            if edge_ok(blocked, x, y, move):
+                nxt = (x + move[0], y + move[1])
+                nd = d + math.hypot(*move)
+                if nd < best.get(nxt, math.inf):
+                    best[nxt] = nd
+                    heapq.heappush(heap, (nd, nxt))
+    return None
+
+
+def random_grid(seed: int, nx: int, ny: int, density: float):
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((ny, nx)) < density
+    free = np.argwhere(~blocked)
+    if len(free) == 0:
+        blocked[0, 0] = False
+        free = np.argwhere(~blocked)
+    (sy, sx), (gy, gx) = free[rng.integers(len(free))], free[rng.integers(len(free))]
+    return blocked, (int(sx), int(sy)), (int(gx), int(gy))
+
+
+def sampled_cells_free(blocked: np.ndarray, res: float, waypoints) -> bool:
+    """Walk each segment in steps of a twentieth of a cell: does every sample fall in a free cell?"""
+    ny, nx = blocked.shape
+    pts = np.asarray(waypoints, dtype=float)
+    for a, b in zip(pts[:-1], pts[1:]):
+        n = int(np.hypot(*(b - a)) / (res / 20)) + 2
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        p = a + t * (b - a)
+        ix = np.minimum(np.floor(p[:, 0] / res).astype(int), nx - 1)
+        iy = np.minimum(np.floor(p[:, 1] / res).astype(int), ny - 1)
+        if blocked[iy, ix].any():
+            return False
+    return True
+
+
+SEED_SCENARIOS = ("seed-large-obstacles", "seed-small-obstacles", "out-and-back", "seed-fig4-8-unknown-obstacle")
+
+
+def scenario_grid(name: str, config: PlannerConfig | None = None):
+    scenario = load_scenario(name)
+    return scenario, OccupancyGrid.from_scenario(scenario, config, all_obstacles=True)
+
+
+# --- the motion model and the segment check ---------------------------------------------------
+
+def test_the_motion_model_is_the_seeds_16_directions():
+    ours = sorted(zip(MOVE_DX.tolist(), MOVE_DY.tolist()))
+    assert ours == sorted(MOVES) and N_MOVES == 16
+
+
+def test_a_knight_move_crosses_two_cells_besides_its_ends():
+    assert TOUCHED[(2, 1)] == {(0, 0), (1, 0), (1, 1), (2, 1)}
+    assert TOUCHED[(1, 1)] == {(0, 0), (1, 0), (0, 1), (1, 1)}
+    for mid in ((1, 0), (1, 1)):
+        blocked = np.zeros((2, 3), dtype=bool)
+        blocked[mid[1], mid[0]] = True
+        assert not move_allowed(blocked, 0, 0, list(zip(MOVE_DX, MOVE_DY)).index((2, 1)))
+
+
+def test_a_diagonal_does_not_cut_the_corner_of_a_blocked_cell():
+    blocked = np.array([[False, True], [False, False]])  # [iy, ix]: cell (1, 0) is blocked
+    path, cost, _ = astar_cells(blocked, 0, 0, 1, 1)
+    assert cost == pytest.approx(2.0)
+    assert path.tolist() == [[0, 0], [0, 1], [1, 1]]
+    assert not segment_clear(blocked, 0.5, 0.5, 1.5, 1.5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.floats(0.0, 0.5))
+def test_every_move_is_allowed_exactly_when_its_segment_is_clear(seed, density):
+    blocked, _, _ = random_grid(seed, 7, 6, density)
+    for y in range(6):
+        for x in range(7):
+            if blocked[y, x]:
+                continue
+            for k in range(N_MOVES):
+                dx, dy = int(MOVE_DX[k]), int(MOVE_DY[k])
+                expected = edge_ok(blocked, x, y, (dx, dy))
+                assert move_allowed(blocked, x, y, k) == expected
+                if 0 <= x + dx < 7 and 0 <= y + dy < 6:
+                    assert segment_clear(blocked, x + 0.5, y + 0.5, x + dx + 0.5, y + dy + 0.5) == expected
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.floats(0.0, 0.45))
+def test_segment_clear_agrees_with_fine_sampling_for_arbitrary_segments(seed, density):
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((8, 8)) < density
+    a, b = rng.uniform(0, 8, 2), rng.uniform(0, 8, 2)
+    clear = segment_clear(blocked, a[0], a[1], b[0], b[1])
+    samples_free = sampled_cells_free(blocked, 1.0, [a, b])
+    # The check is conservative: it never passes a segment that sampling finds blocked.
+    if clear:
+        assert samples_free
+
+
+def test_the_heuristic_is_the_exact_distance_on_an_empty_grid():
+    empty = np.zeros((9, 9), dtype=bool)
+    for gx in range(9):
+        for gy in range(9):
+            _, cost, _ = astar_cells(empty, 0, 0, gx, gy)
+            assert free_space_distance(gx, gy) == pytest.approx(cost)
+            assert free_space_distance(gx, gy) >= math.hypot(gx, gy) - 1e-12
+
+
+# --- A* is optimal on its grid -------------------------------------------------------------------
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), nx=st.integers(1, 11), ny=st.integers(1, 11),
+       density=st.floats(0.0, 0.5))
+def test_astar_finds_the_brute_force_optimum_on_random_grids(seed, nx, ny, density):
+    blocked, start, goal = random_grid(seed, nx, ny, density)
+    expected = dijkstra_cost(blocked, start, goal)
+    path, cost, expansions = astar_cells(blocked, *start, *goal)
+    if expected is None:
+        assert len(path) == 0 and cost == -1.0
+        return
+    assert cost == pytest.approx(expected, abs=1e-6)
+    assert tuple(path[0]) == start and tuple(path[-1]) == goal
+    assert path_cost(path) == pytest.approx(cost, abs=1e-9)
+    for (x0, y0), (x1, y1) in zip(path[:-1].tolist(), path[1:].tolist()):
+        assert (x1 - x0, y1 - y0) in TOUCHED and edge_ok(blocked, x0, y0, (x1 - x0, y1 - y0))
+    assert expansions >= 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.floats(0.0, 0.4))
+def test_the_plain_python_kernel_gives_the_compiled_answer(seed, density):
+    blocked, start, goal = random_grid(seed, 9, 7, density)
+    compiled = astar_cells(blocked, *start, *goal)
+    plain = astar_cells.py_func(blocked, *start, *goal)
+    assert plain[1] == pytest.approx(compiled[1])
+    assert len(plain[0]) == len(compiled[0])
+
+
+def test_astar_matches_scipy_dijkstra_on_a_larger_grid():
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    rng = np.random.default_rng(7)
+    blocked = np.zeros((70, 90), dtype=bool)
+    for _ in range(25):
+        x, y = rng.integers(0, 90), rng.integers(0, 70)
+        blocked[y:y + rng.integers(2, 12), x:x + rng.integers(2, 12)] = True
+    ny, nx = blocked.shape
+    rows, cols, costs = [], [], []
+    for y in range(ny):
+        for x in range(nx):
+            if blocked[y, x]:
+                continue
+            for move in MOVES:
+                if edge_ok(blocked, x, y, move):
+                    rows.append(y * nx + x)
+                    cols.append((y + move[1]) * nx + x + move[0])
+                    costs.append(math.hypot(*move))
+    graph = csr_matrix((costs, (rows, cols)), shape=(nx * ny, nx * ny))
+    free = np.argwhere(~blocked)
+    for _ in range(6):
+        (sy, sx), (gy, gx) = free[rng.integers(len(free))], free[rng.integers(len(free))]
+        expected = dijkstra(graph, indices=sy * nx + sx)[gy * nx + gx]
+        _, cost, _ = astar_cells(blocked, int(sx), int(sy), int(gx), int(gy))
+        if math.isinf(expected):
+            assert cost == -1.0
+        else:
+            assert cost == pytest.approx(expected, abs=1e-6)
+
+
+# --- the occupancy grid -------------------------------------------------------------------------
+
+def test_world_and_cell_coordinates_meet_at_cell_centres():
+    grid = OccupancyGrid(2.36, 1.75)
+    assert (grid.nx, grid.ny) == (79, 59)
+    assert grid.world_to_cell(0.0, 0.0) == (0, 0)
+    assert grid.world_to_cell(0.031, 0.059) == (1, 1)
+    assert grid.world_to_cell(2.36, 1.75) == (78, 58)
+    assert grid.cell_to_world(10, 20) == pytest.approx((0.315, 0.615))
+    assert grid.world_to_cell(*grid.cell_to_world(33, 44)) == (33, 44)
+
+
+def test_obstacles_are_inflated_by_the_robot_radius_plus_the_sonar_margin():
+    grid = OccupancyGrid(2.0, 2.0)
+    grid.add_box(1.0, 1.0, 0.2, 0.2)
+    margin = 0.12 + 0.05
+    for (x, y), blocked in [((1.0, 1.0), True), ((1.1 + margin - 0.02, 1.0), True),
+                            ((1.1 + margin + 0.02, 1.0), False), ((1.0, 0.9 - margin + 0.02), True),
+                            ((1.0, 0.9 - margin - 0.02), False),
+                            # past the corner the margin is round: 0.12 m out on both axes is 0.17 m away
+                            ((1.1 + 0.11, 1.1 + 0.11), True), ((1.1 + 0.13, 1.1 + 0.13), False)]:
+        assert grid.is_free(x, y) is not blocked, (x, y)
+    assert grid.raw[grid.world_to_cell(1.0, 1.0)[::-1]] and not grid.raw[grid.world_to_cell(1.15, 1.0)[::-1]]
+    # The arena's border is a wall, inflated alike.
+    assert not grid.is_free(0.16, 1.0) and grid.is_free(0.19, 1.0)
+    assert not grid.is_free(1.0, 2.0 - 0.16) and grid.is_free(1.0, 2.0 - 0.19)
+
+
+def test_every_cell_within_the_margin_of_an_obstacle_is_inflated():
+    scenario, grid = scenario_grid("seed-small-obstacles")
+    px = grid.xs[None, :]
+    py = grid.ys[:, None]
+    for o in scenario.obstacles:
+        d = np.hypot(np.maximum(abs(px - o.x_m) - o.w_m / 2, 0), np.maximum(abs(py - o.y_m) - o.h_m / 2, 0))
+        assert grid.inflated[d <= 0.17].all()
+
+
+def test_planner_config_refuses_unknown_keys_and_bad_values():
+    assert PlannerConfig.from_dict({"resolution_m": 0.05}).resolution_m == 0.05
+    assert PlannerConfig().inflation_m == pytest.approx(0.17)
+    with pytest.raises(ValueError, match="unknown key 'robot_radius'"):
+        PlannerConfig.from_dict({"robot_radius": 0.1})
+    with pytest.raises(ValueError, match="resolution_m must be > 0"):
+        PlannerConfig.from_dict({"resolution_m": 0})
+    with pytest.raises(ValueError, match="sonar_margin_m must be ≥ 0"):
+        PlannerConfig.from_dict({"sonar_margin_m": -0.01})
+    with pytest.raises(ValueError, match="robot_radius_m must be a finite number"):
+        PlannerConfig.from_dict({"robot_radius_m": "wide"})
+
+
+# --- plans on the shared scenarios ----------------------------------------------------------------
+
+def random_free_points(grid: OccupancyGrid, blocked: np.ndarray, n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    points = []
+    while len(points) < n:
+        x, y = rng.uniform(0, grid.width_m), rng.uniform(0, grid.height_m)
+        ix, iy = grid.world_to_cell(x, y)
+        if not blocked[iy, ix]:
+            points.append((x, y))
+    return points
+
+
+@pytest.mark.parametrize("name", SEED_SCENARIOS)
+def test_no_segment_of_an_astar_path_crosses_an_inflated_cell(name):
+    scenario, grid = scenario_grid(name)
+    ends = [(scenario.start.xy, scenario.target.xy)]
+    points = random_free_points(grid, grid.inflated, 30, seed=len(name))
+    ends += list(zip(points[::2], points[1::2]))
+    found = 0
+    for start, goal in ends:
+        try:
+            result = plan(grid, start, goal)
+        except Unreachable:
+            continue
+        found += 1
+        assert result.waypoints[0] == start and result.waypoints[-1] == goal
+        assert sampled_cells_free(grid.inflated, grid.resolution_m, result.waypoints)
+        assert not grid.path_blocked(result.waypoints)
+        assert result.length_m >= math.dist(start, goal) - 1e-9
+    assert found >= len(ends) // 2
+
+
+def test_paths_stay_clear_on_a_20_m_arena_at_5_cm():
+    rng = np.random.default_rng(3)
+    grid = OccupancyGrid(20.0, 20.0, PlannerConfig(resolution_m=0.05))
+    for _ in range(40):
+        grid.add_box(rng.uniform(1, 19), rng.uniform(1, 19), rng.uniform(0.2, 2.0), rng.uniform(0.2, 2.0))
+    for start, goal in zip(*[iter(random_free_points(grid, grid.inflated, 8, seed=5))] * 2):
+        result = plan(grid, start, goal)
+        assert sampled_cells_free(grid.inflated, 0.05, result.waypoints)
+        assert result.length_m <= result.cost_m + 2 * 0.05 * math.sqrt(2)
+
+
+@pytest.mark.parametrize("name", SEED_SCENARIOS)
+def test_simplification_keeps_the_path_clear_and_drops_waypoints(name):
+    scenario, grid = scenario_grid(name)
+    full = plan(grid, scenario.start.xy, scenario.target.xy, simplify=False)
+    short = plan(grid, scenario.start.xy, scenario.target.xy)
+    assert len(short.waypoints) < len(full.waypoints) / 4
+    assert short.waypoints[0] == scenario.start.xy and short.waypoints[-1] == scenario.target.xy
+    assert short.length_m <= full.length_m + 1e-9
+    assert sampled_cells_free(grid.inflated, grid.resolution_m, short.waypoints)
+    assert short.cost_m == full.cost_m
+
+
+def test_simplification_of_a_straight_run_keeps_only_its_ends():
+    blocked = np.zeros((5, 10), dtype=bool)
+    line = np.array([[x + 0.5, 2.5] for x in range(10)])
+    assert simplify_points(blocked, line).tolist() == [[0.5, 2.5], [9.5, 2.5]]
+    blocked[3, 5] = True  # beside the line, not on it
+    assert len(simplify_points(blocked, line)) == 2
+    blocked[2, 5] = True
+    dogleg = np.array([[0.5, 2.5], [4.5, 2.5], [5.5, 1.5], [6.5, 2.5], [9.5, 2.5]])
+    kept = simplify_points(blocked, dogleg)
+    assert kept[0].tolist() == [0.5, 2.5] and kept[-1].tolist() == [9.5, 2.5] and len(kept) >= 3
+
+
+# --- Table 4.2 -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["seed-large-obstacles", "seed-small-obstacles"])
+def test_table_4_2_astar_reaches_the_target_in_both_environments(name):
+    scenario, grid = scenario_grid(name)
+    result = plan(grid, scenario.start.xy, scenario.target.xy, planner="astar")
+    assert result.waypoints[-1] == scenario.target.xy
+
+
+# Gains across the region the defaults sit in, and starts moved a little: not one lucky setting.
+GAINS = [(k, c0) for k in (0.04, 0.07, 0.1) for c0 in (0.03, 0.1, 0.2)]
+NUDGES = [(0.0, 0.0), (0.03, 0.0), (0.0, 0.03), (-0.03, 0.0), (0.0, -0.03), (0.05, 0.05), (-0.05, -0.05)]
+
+
+@pytest.mark.parametrize("gain, influence", GAINS)
+def test_table_4_2_the_potential_field_is_trapped_by_large_obstacles_only(gain, influence):
+    config = PlannerConfig(potential_repulsive_gain=gain, potential_influence_m=influence)
+    large, large_grid = scenario_grid("seed-large-obstacles", config)
+    small, small_grid = scenario_grid("seed-small-obstacles", config)
+    for dx, dy in NUDGES:
+        with pytest.raises(LocalMinimum, match=r"trapped in a local minimum at \(\d\.\d\d, \d\.\d\d\) m"):
+            plan(large_grid, (large.start.x_m + dx, large.start.y_m + dy), large.target.xy, planner="potential")
+        result = plan(small_grid, (small.start.x_m + dx, small.start.y_m + dy), small.target.xy, planner="potential")
+        assert result.waypoints[-1] == small.target.xy
+        assert sampled_cells_free(body_layer(small_grid), small_grid.resolution_m, result.waypoints)
+
+
+def test_the_potential_fields_trap_is_inside_the_u():
+    scenario, grid = scenario_grid("seed-large-obstacles")
+    with pytest.raises(LocalMinimum) as info:
+        plan(grid, scenario.start.xy, scenario.target.xy, planner="potential")
+    x, y = info.value.xy
+    assert 0.8 < x < 1.2 and 0.65 < y < 1.1  # between the arms, before the back wall
+    assert info.value.partial[0] == grid.cell_to_world(*grid.world_to_cell(*scenario.start.xy))
+    assert isinstance(info.value, NoPathError)
+
+
+def test_the_potential_fields_path_keeps_the_robot_radius_but_not_the_sonar_margin():
+    scenario, grid = scenario_grid("seed-small-obstacles")
+    result = plan(grid, scenario.start.xy, scenario.target.xy, planner="potential")
+    body = body_layer(grid)
+    assert not body[result.cells[:, 1], result.cells[:, 0]].any()
+    assert (body <= grid.inflated).all() and body.sum() < grid.inflated.sum()
+
+
+# --- errors ---------------------------------------------------------------------------------------
+
+def test_a_start_or_target_off_the_arena_is_named():
+    _, grid = scenario_grid("out-and-back")
+    with pytest.raises(OutsideArena, match=r"^target \(2\.40, 1\.10\) m is outside the 2\.36 × 1\.75 m arena$"):
+        plan(grid, (0.3, 0.3), (2.40, 1.10))
+    with pytest.raises(OutsideArena, match=r"^start \(-0\.10, 0\.30\) m is outside"):
+        plan(grid, (-0.1, 0.3), (2.0, 1.4))
+    with pytest.raises(OutsideArena, match="start"):
+        plan(grid, (math.nan, 0.3), (2.0, 1.4), planner="potential")
+
+
+def test_a_blocked_start_or_target_is_named():
+    scenario, grid = scenario_grid("seed-large-obstacles")
+    with pytest.raises(StartBlocked, match=r"^start \(1\.30, 0\.88\) m is blocked: it lies within 0\.17 m"):
+        plan(grid, (1.30, 0.875), scenario.target.xy)
+    with pytest.raises(GoalBlocked, match=r"^target \(0\.10, 0\.88\) m is blocked.*arena wall"):
+        plan(grid, scenario.start.xy, (0.10, 0.875))
+    with pytest.raises(StartBlocked, match=r"within 0\.12 m \(robot radius\)"):
+        plan(grid, (1.30, 0.875), scenario.target.xy, planner="potential")
+
+
+def test_an_enclosed_target_is_unreachable():
+    grid = OccupancyGrid(3.0, 3.0)
+    for x, y, w, h in [(2.0, 1.4, 1.0, 0.1), (2.0, 2.6, 1.0, 0.1), (1.45, 2.0, 0.1, 1.3), (2.55, 2.0, 0.1, 1.3)]:
+        grid.add_box(x, y, w, h)
+    with pytest.raises(Unreachable, match=r"^no path from start \(0\.50, 0\.50\) m to target \(2\.00, 2\.00\) m"):
+        plan(grid, (0.5, 0.5), (2.0, 2.0))
+    with pytest.raises(NoPathError):
+        plan(grid, (0.5, 0.5), (2.0, 2.0), planner="potential")
+    with pytest.raises(ValueError, match="unknown planner 'dstar'"):
+        plan(grid, (0.5, 0.5), (2.0, 2.0), planner="dstar")
+
+
+# --- sonar echoes -----------------------------------------------------------------------------------
+
+def test_an_echo_marks_the_whole_15_degree_arc_at_its_range():
+    grid = OccupancyGrid(2.36, 1.75)
+    # Rover at (1.0, 0.5) facing +y (heading 0°); the sonar sits 0.10 m ahead, at (1.0, 0.6).
+    update = grid.add_sonar_echo(1.0, 0.5, heading_deg=0.0, bearing_deg=0.0, range_m=0.3)
+    half = math.radians(7.5)
+    arc_cells = set()
+    for a in np.linspace(-half, half, 200):
+        arc_cells.add(grid.world_to_cell(1.0 + 0.3 * math.sin(a), 0.6 + 0.3 * math.cos(a)))
+    raw = {(int(x), int(y)) for y, x in np.argwhere(grid.raw)}
+    assert raw == arc_cells
+    assert {tuple(c) for c in update.new_cells.tolist()} == arc_cells
+    edge = grid.world_to_cell(1.0 + 0.3 * math.sin(half) - 0.005, 0.6 + 0.3 * math.cos(half))
+    assert edge in raw and grid.world_to_cell(1.0, 0.895) in raw
+    for outside in [(1.0, 0.85), (1.0, 0.95), (1.0 + 0.3 * math.sin(2 * half), 0.6 + 0.3 * math.cos(2 * half)),
+                    (1.0 - 0.3 * math.sin(2 * half), 0.6 + 0.3 * math.cos(2 * half))]:
+        assert grid.world_to_cell(*outside) not in raw, outside
+    # Inflated around the arc by 0.17 m, no further.
+    assert not grid.is_free(1.0, 0.9 - 0.15) and grid.is_free(1.0, 0.9 - 0.20)
+    assert not grid.is_free(1.0 + 0.039 + 0.15, 0.897) and grid.is_free(1.0 + 0.039 + 0.2, 0.897)
+    assert update.newly_inflated == int(grid.inflated.sum() - OccupancyGrid(2.36, 1.75).inflated.sum())
+
+
+def test_an_echos_bearing_adds_to_the_heading_clockwise():
+    grid = OccupancyGrid(2.36, 1.75)
+    grid.add_sonar_echo(1.0, 0.8, heading_deg=90.0, bearing_deg=0.0, range_m=0.3)  # facing +x
+    assert grid.raw[grid.world_to_cell(1.4, 0.8)[::-1]]
+    grid.add_sonar_echo(1.0, 0.8, heading_deg=90.0, bearing_deg=90.0, range_m=0.2)  # looking -y
+    assert grid.raw[grid.world_to_cell(1.1, 0.6)[::-1]]
+    grid.add_sonar_echo(1.0, 0.8, heading_deg=0.0, bearing_deg=-45.0, range_m=0.3)  # looking up-left
+    s = 0.3 * math.sqrt(0.5)
+    assert grid.raw[grid.world_to_cell(1.0 - s, 0.9 + s)[::-1]]
+    with pytest.raises(ValueError, match="sonar range"):
+        grid.add_sonar_echo(1.0, 0.8, 0.0, 0.0, 0.0)
+
+
+def test_an_echo_says_whether_it_blocks_the_path():
+    _, grid = scenario_grid("seed-fig4-8-unknown-obstacle")
+    empty = OccupancyGrid(grid.width_m, grid.height_m)
+    straight = plan(empty, (0.3, 0.3), (2.0, 1.4)).waypoints
+    elsewhere = [(0.4, 1.4), (1.0, 1.5)]
+    rover = (0.75, 0.56)
+    heading = math.degrees(math.atan2(2.0 - 0.3, 1.4 - 0.3))
+    update = empty.add_sonar_echo(*rover, heading, 0.0, 0.3, path=straight)
+    assert update.blocks_path is True and empty.path_blocked(straight)
+    assert not empty.path_blocked(elsewhere)
+    assert empty.copy().add_sonar_echo(0.4, 1.0, 0.0, 0.0, 0.4).blocks_path is None
+    # Replanning goes round it.
+    detour = plan(empty, (0.3, 0.3), (2.0, 1.4))
+    assert sampled_cells_free(empty.inflated, empty.resolution_m, detour.waypoints)
+
+
+def test_incremental_inflation_equals_inflating_from_scratch():
+    rng = np.random.default_rng(11)
+    grid = OccupancyGrid(3.0, 2.0)
+    for _ in range(5):
+        grid.add_box(rng.uniform(0, 3), rng.uniform(0, 2), rng.uniform(0.05, 0.5), rng.uniform(0.05, 0.5))
+        grid.add_sonar_echo(rng.uniform(0.3, 2.7), rng.uniform(0.3, 1.7), rng.uniform(0, 360),
+                            rng.uniform(-67.5, 67.5), rng.uniform(0.05, 0.4))
+    assert (grid.inflated == grid.blocked_within(grid.config.inflation_m)).all()
+    echoes_off_the_arena = grid.add_sonar_echo(0.2, 0.2, 225.0, 0.0, 0.4)
+    assert len(echoes_off_the_arena.arc_xy) == 0 and len(echoes_off_the_arena.new_cells) == 0
+
+
+# --- the command ------------------------------------------------------------------------------------
+
+def run_cli(argv, capsys):
+    parser = argparse.ArgumentParser(prog="rovernav")
+    add_plan_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(argv)
+    code = args.func(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_plan_prints_json_and_exits_0_when_a_path_is_found(capsys):
+    code, out, err = run_cli(["plan", "seed-small-obstacles", "--json"], capsys)
+    assert code == 0 and err == ""
+    doc = json.loads(out)
+    assert set(doc) == {"found", "waypoints", "length_m", "time_ms", "planner", "reason"}
+    assert doc["found"] is True and doc["planner"] == "astar" and doc["reason"] is None
+    assert doc["waypoints"][0] == [0.3, 0.3] and doc["waypoints"][-1] == [2.0, 1.4]
+    assert doc["length_m"] > math.dist((0.3, 0.3), (2.0, 1.4)) and doc["time_ms"] >= 0
+
+
+def test_plan_exits_2_with_the_reason_when_there_is_no_path(capsys):
+    code, out, err = run_cli(["plan", "seed-large-obstacles", "--planner", "potential", "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 2 and doc["found"] is False and doc["waypoints"] == [] and doc["length_m"] is None
+    assert doc["reason"].startswith("trapped in a local minimum at")
+    assert doc["reason"] in err
+
+
+def test_plan_exits_2_on_a_bad_scenario_file(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("version = 1\n[arena]\nwidth_m = -1\n")
+    code, out, err = run_cli(["plan", str(bad)], capsys)
+    assert code == 2 and out == ""
+    assert f"{bad}: arena.width_m must be a number > 0" in err
+    code, _, err = run_cli(["plan", "no-such-scenario"], capsys)
+    assert code == 2 and "no scenario named 'no-such-scenario'" in err
+    code, _, err = run_cli(["plan", "seed-small-obstacles", "--resolution", "0"], capsys)
+    assert code == 2 and "resolution_m must be > 0" in err
+
+
+def test_plan_prints_waypoints_and_draws_a_picture(tmp_path, capsys):
+    picture = tmp_path / "plan.png"
+    code, out, _ = run_cli(["plan", "out-and-back", "--all-obstacles", "--resolution", "0.05",
+                            "--plot", str(picture)], capsys)
+    assert code == 0
+    assert "A* found a path of" in out and "48 × 35 cells of 0.05 m" in out and "all obstacles" in out
+    assert "x  0.300 m  y  0.300 m" in out and "x  2.000 m  y  1.400 m" in out
+    image = cv2.imread(str(picture))
+    assert image is not None and image.shape[1] >= 700 and image.shape[0] > image.shape[1] / 2

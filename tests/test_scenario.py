@@ -1,0 +1,160 @@
+"""Scenario files: the shared ones load, and every mistake names the file and the key."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rovernav.scenario import (
+    ScenarioError, default_scenario, load_scenario, parse_scenario, resolve_scenario, scenario_dir, scenario_names,
+)
+
+SHARED = ("out-and-back", "seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles")
+
+GOOD = """
+name = "test-arena"
+version = 1
+
+[arena]
+width_m = 2.0
+height_m = 1.5
+
+[start]
+x_m = 0.3
+y_m = 0.3
+heading_deg = 90.0
+
+[target]
+x_m = 1.7
+y_m = 1.2
+
+[mission]
+kind = "out-and-back"
+trips = 3
+
+[[obstacles]]
+x_m = 1.0
+y_m = 0.7
+w_m = 0.2
+h_m = 0.1
+
+[[obstacles]]
+x_m = 0.5
+y_m = 1.0
+w_m = 0.1
+h_m = 0.1
+known = false
+"""
+
+
+def test_the_shared_scenarios_are_found_by_name_and_load():
+    assert set(SHARED) <= set(scenario_names())
+    for name in SHARED:
+        scenario = load_scenario(name)
+        assert scenario.name == name
+        assert scenario.version == 1
+        assert scenario.arena.width_m == 2.36 and scenario.arena.height_m == 1.75
+        assert scenario.path == scenario_dir() / f"{name}.toml"
+
+
+def test_the_seed_scenarios_hold_what_their_files_say():
+    large = load_scenario("seed-large-obstacles")
+    assert large.start.xy == (0.30, 0.875) and large.start.heading_deg == 90.0
+    assert large.target.xy == (2.05, 0.875)
+    assert large.mission.kind == "reach" and large.mission.trips == 1
+    assert len(large.obstacles) == 3 and all(o.known for o in large.obstacles)
+    small = load_scenario("seed-small-obstacles")
+    assert len(small.obstacles) == 6 and {(o.w_m, o.h_m) for o in small.obstacles} == {(0.08, 0.08)}
+    fig48 = load_scenario("seed-fig4-8-unknown-obstacle")
+    assert fig48.known_obstacles == () and len(fig48.unknown_obstacles) == 1
+
+
+def test_the_default_scenario_is_the_out_and_back_mission():
+    scenario = default_scenario()
+    assert scenario.name == "out-and-back"
+    assert scenario.mission.kind == "out-and-back" and scenario.mission.trips == 2
+    assert len(scenario.known_obstacles) == 2 and len(scenario.unknown_obstacles) == 2
+
+
+def test_a_scenario_loads_from_a_path_as_text_or_path(tmp_path):
+    f = tmp_path / "mine.toml"
+    f.write_text(GOOD)
+    for ref in (f, str(f)):
+        scenario = load_scenario(ref)
+        assert scenario.name == "test-arena" and scenario.path == f
+        assert scenario.start.heading_deg == 90.0
+        assert scenario.mission.trips == 3
+        assert scenario.obstacles[0].known is True and scenario.obstacles[1].known is False
+    assert resolve_scenario("seed-large-obstacles") == scenario_dir() / "seed-large-obstacles.toml"
+
+
+def test_the_scenario_directory_can_be_overridden(tmp_path, monkeypatch):
+    (tmp_path / "only-one.toml").write_text(GOOD)
+    monkeypatch.setenv("ROVERNAV_SCENARIO_DIR", str(tmp_path))
+    assert scenario_names() == ["only-one"]
+    assert load_scenario("only-one").name == "test-arena"
+
+
+def test_an_unknown_name_lists_the_shared_scenarios():
+    with pytest.raises(ScenarioError, match="no scenario named 'nowhere'.*seed-large-obstacles"):
+        load_scenario("nowhere")
+    with pytest.raises(ScenarioError, match="no such scenario file"):
+        load_scenario("missing/dir/file.toml")
+
+
+def _replace(text: str, old: str, new: str) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+# (what is wrong, how to break GOOD, the key the message must name, and what it must say)
+MISTAKES = [
+    ("missing table", lambda t: _replace(t, "[arena]\nwidth_m = 2.0\nheight_m = 1.5\n", ""), "arena", "missing"),
+    ("missing key", lambda t: _replace(t, "width_m = 2.0\n", ""), "arena.width_m", "missing"),
+    ("zero arena", lambda t: _replace(t, "height_m = 1.5", "height_m = 0"), "arena.height_m", "> 0"),
+    ("text for a number", lambda t: _replace(t, "x_m = 0.3", 'x_m = "0.3"'), "start.x_m", "number"),
+    ("start off the arena", lambda t: _replace(t, "x_m = 0.3", "x_m = 2.5"), "start.x_m", "outside the arena"),
+    ("target off the arena", lambda t: _replace(t, "y_m = 1.2", "y_m = -0.1"), "target.y_m", "outside the arena"),
+    ("negative size", lambda t: _replace(t, "w_m = 0.1", "w_m = -0.1"), "obstacles[1].w_m", "> 0"),
+    ("bad known", lambda t: _replace(t, "known = false", 'known = "no"'), "obstacles[1].known", "true or false"),
+    ("unknown key", lambda t: _replace(t, "h_m = 0.1\n\n", 'h_m = 0.1\ncolour = "red"\n\n'),
+     "obstacles[0].colour", "not a known key"),
+    ("unknown top key", lambda t: "speed = 3\n" + t, "speed", "not a known key"),
+    ("bad mission", lambda t: _replace(t, '"out-and-back"', '"explore"'), "mission.kind", "reach, out-and-back"),
+    ("zero trips", lambda t: _replace(t, "trips = 3", "trips = 0"), "mission.trips", "≥ 1"),
+    ("other version", lambda t: _replace(t, "version = 1", "version = 2"), "version", "understands version 1"),
+    ("no version", lambda t: _replace(t, "version = 1\n", ""), "version", "missing"),
+]
+
+
+@pytest.mark.parametrize("what, breaks, key, says", MISTAKES, ids=[m[0] for m in MISTAKES])
+def test_a_bad_scenario_file_names_the_file_and_the_key(tmp_path, what, breaks, key, says):
+    f = tmp_path / "broken.toml"
+    f.write_text(breaks(GOOD))
+    with pytest.raises(ValueError) as info:
+        load_scenario(f)
+    message = str(info.value)
+    assert message.startswith(f"{f}: {key} "), message
+    assert says in message
+
+
+def test_invalid_toml_names_the_file(tmp_path):
+    f = tmp_path / "garbled.toml"
+    f.write_text("[arena\nwidth_m = 1")
+    with pytest.raises(ScenarioError, match=r"garbled\.toml: not valid TOML"):
+        load_scenario(f)
+
+
+def test_parse_scenario_labels_errors_with_its_source():
+    with pytest.raises(ScenarioError, match=r"^<memory>: arena\.width_m is missing"):
+        parse_scenario(_replace(GOOD, "width_m = 2.0\n", ""), source="<memory>")
+    assert parse_scenario(GOOD).path is None
+
+
+def test_the_shared_scenarios_directory_sits_beside_the_repository(monkeypatch):
+    import rovernav.scenario
+
+    monkeypatch.delenv("ROVERNAV_SCENARIO_DIR", raising=False)
+    repo_parent = Path(rovernav.scenario.__file__).resolve().parents[3]
+    assert scenario_dir() == repo_parent / "shared" / "scenarios"
+    assert scenario_dir().is_dir()
