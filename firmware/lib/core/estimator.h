@@ -42,9 +42,9 @@ class Estimator {
   /// after kMaxRejects rejections in a row the estimate is reset to the fix.
   FixResult update(const PoseFix& fix, uint32_t now_ms);
 
-  float x_mm() const { return x_; }
-  float y_mm() const { return y_; }
-  float heading_rad() const { return th_; }
+  float x_mm() const { return q_[0]; }
+  float y_mm() const { return q_[1]; }
+  float heading_rad() const { return q_[2]; }
   /// Covariance entries: xx, xy, xt, yy, yt, tt (mm^2, mm*rad, rad^2).
   float p(uint8_t i) const { return p_[i]; }
   /// Standard deviation along the worst direction of the position error (mm).
@@ -64,12 +64,16 @@ class Estimator {
     int16_t x_mm, y_mm, heading_cdeg;  // raw odometry
     uint16_t t_ms;                     // low 16 bits of the time
   };
-  /// Odometry travelled since t_ms: (dx, dy, dtheta). Zero if t_ms is now or later.
-  void odometry_since(uint32_t t_ms, uint32_t now_ms, float& dx, float& dy, float& dth) const;
+  /// Odometry travelled since t_ms: d = (dx, dy, dtheta). Zero if t_ms is now or later.
+  void odometry_since(uint32_t t_ms, uint32_t now_ms, float* d) const;
+  /// Moves a pose (x, y, theta) by a step.
+  static void advance(float* pose, float dx, float dy, float dth);
+  /// Takes the fix z = (x, y, theta) as the pose, with the fix's noise as its covariance.
+  FixResult start_from(const float* z, float r_pos);
 
   bool initialised_ = false;
-  float x_ = 0, y_ = 0, th_ = 0;
-  float odo_x_ = 0, odo_y_ = 0, odo_th_ = 0;  // dead reckoning alone, never corrected
+  float q_[3] = {};    // the pose: x, y (mm), theta (rad)
+  float odo_[3] = {};  // the same by dead reckoning alone, never corrected
   float p_[6] = {};  // xx xy xt yy yt tt
   float last_correction_mm_ = 0;
   float last_innovation_mm_ = 0;

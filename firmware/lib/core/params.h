@@ -6,6 +6,7 @@
 #include <stdint.h>
 
 #include "messages_gen.h"
+#include "noinline.h"
 
 namespace rovernav {
 namespace core {
@@ -23,18 +24,18 @@ class Params {
   float kp() const { return scaled(Param::PidKpX100, 0.01f); }         // PWM per degree
   float ki() const { return scaled(Param::PidKiX100, 0.01f); }         // PWM per degree-second
   float kd() const { return scaled(Param::PidKdX100, 0.01f); }         // PWM per degree/second
-  float pid_out_max_pwm() const { return scaled(Param::PidOutMaxPwm, 1.0f); }
+  float pid_out_max_pwm() const { return as_float(Param::PidOutMaxPwm); }
   float right_bias() const { return scaled(Param::RightBiasPermille, 0.001f); }
-  float drive_pwm() const { return scaled(Param::DrivePwm, 1.0f); }
-  float cone_tol_mm() const { return scaled(Param::ConeTolMm, 1.0f); }
-  float arrival_radius_mm() const { return scaled(Param::ArrivalRadiusMm, 1.0f); }
-  float sweep_interval_mm() const { return scaled(Param::SweepIntervalMm, 1.0f); }
+  float drive_pwm() const { return as_float(Param::DrivePwm); }
+  float cone_tol_mm() const { return as_float(Param::ConeTolMm); }
+  float arrival_radius_mm() const { return as_float(Param::ArrivalRadiusMm); }
+  float sweep_interval_mm() const { return as_float(Param::SweepIntervalMm); }
   uint16_t sweep_step_ms() const { return static_cast<uint16_t>(raw(Param::SweepStepMs)); }
   uint16_t sonar_report_mm() const { return static_cast<uint16_t>(raw(Param::SonarReportMm)); }
   uint32_t fix_timeout_ms() const { return static_cast<uint32_t>(raw(Param::FixTimeoutMs)); }
   uint32_t radio_timeout_ms() const { return static_cast<uint32_t>(raw(Param::RadioTimeoutMs)); }
-  float dr_max_distance_mm() const { return scaled(Param::DrMaxDistanceMm, 1.0f); }
-  float clearance_margin_mm() const { return scaled(Param::ClearanceMarginMm, 1.0f); }
+  float dr_max_distance_mm() const { return as_float(Param::DrMaxDistanceMm); }
+  float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
   uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
   float rotate_done_deg() const { return scaled(Param::RotateDoneCdeg, 0.01f); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
@@ -44,7 +45,10 @@ class Params {
   float wheel_mm_per_tick() const { return scaled(Param::WheelMmPerTickX1000, 0.001f); }
 
  private:
-  float scaled(Param p, float scale) const { return static_cast<float>(raw(p)) * scale; }
+  // Out of line: a conversion (and a multiplication) written out at each of some thirty reads
+  // costs the Uno more flash than the calls.
+  ROVERNAV_NOINLINE float as_float(Param p) const { return static_cast<float>(raw(p)); }
+  ROVERNAV_NOINLINE float scaled(Param p, float scale) const { return as_float(p) * scale; }
   int32_t raw_[kParamMaxId];
 };
 

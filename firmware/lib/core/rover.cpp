@@ -3,6 +3,7 @@
 #include <math.h>
 
 #include "angles.h"
+#include "float_ops.h"
 
 namespace rovernav {
 namespace core {
@@ -18,7 +19,7 @@ const float kEncoderVarPerMm = 0.1f;
 const float kGyroVarPerS = (0.16f * kRadPerDeg) * (0.16f * kRadPerDeg);
 const float kGyroScaleSd = 0.01f;
 // Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
-const float kMaxStepS = 0.25f;
+const uint32_t kMaxStepMs = 250;
 // Rotation counts as done when also this slow (deg/s), so the rover does not coast past it.
 const float kRotateSettledDps = 10.0f;
 
@@ -29,7 +30,7 @@ int16_t clamp_pwm(float v) {
 }
 
 // PWM above the motor's dead band, signed: what actually moves a wheel.
-float effective_pwm(int16_t pwm, int16_t deadband) {
+ROVERNAV_NOINLINE float effective_pwm(int16_t pwm, int16_t deadband) {
   const int16_t mag = static_cast<int16_t>(pwm < 0 ? -pwm : pwm);
   if (mag <= deadband) return 0.0f;
   const float e = static_cast<float>(mag - deadband);
@@ -72,12 +73,12 @@ uint16_t Rover::flags() const {
 
 // ---------------------------------------------------------------- the step
 
-void Rover::step(const Inputs& in, Outputs& out) {
+ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   const uint32_t now = in.now_ms;
   float dt_s = 0.0f;
   if (have_time_) {
-    dt_s = static_cast<float>(now - last_ms_) / 1000.0f;
-    if (dt_s > kMaxStepS) dt_s = kMaxStepS;
+    const uint32_t gap_ms = now - last_ms_;
+    dt_s = static_cast<float>(gap_ms < kMaxStepMs ? gap_ms : kMaxStepMs) / 1000.0f;
   }
   last_ms_ = now;
   if (!booted_) {
@@ -147,12 +148,13 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   if (dt_s <= 0.0f) return;
   float d_mm = 0.0f;
   float var_d = 0.0f;
-  if (in.wheels_valid && params_.wheel_mm_per_tick() > 0.0f) {
-    d_mm = 0.5f * static_cast<float>(in.left_ticks + in.right_ticks) * params_.wheel_mm_per_tick();
+  const float mm_per_tick = params_.wheel_mm_per_tick();
+  if (in.wheels_valid && mm_per_tick > 0.0f) {
+    d_mm = 0.5f * static_cast<float>(in.left_ticks + in.right_ticks) * mm_per_tick;
     var_d = kEncoderVarPerMm * fabsf(d_mm);
   } else {
-    const float pwm = 0.5f * (effective_pwm(left_cmd_, params_.motor_deadband_pwm()) +
-                              effective_pwm(right_cmd_, params_.motor_deadband_pwm()));
+    const int16_t deadband = params_.motor_deadband_pwm();
+    const float pwm = 0.5f * (effective_pwm(left_cmd_, deadband) + effective_pwm(right_cmd_, deadband));
     d_mm = speed_scale_ * params_.speed_mm_s_per_pwm() * pwm * dt_s;
     var_d = kModelVarPerMm * fabsf(d_mm);
   }
@@ -190,8 +192,7 @@ void Rover::watch_link(uint32_t now) {
     const float u = uncertainty_2sd_mm();
     if (u >= 0.9f * params_.clearance_margin_mm() ||
         dr_distance_mm_ >= params_.dr_max_distance_mm()) {
-      sweep_ = Sweep();
-      servo_cdeg_ = 0;
+      stop_sweep();
       enter(RoverState::Hold);
       send_event(EventKind::Hold, saturate_u16(u));
     }
@@ -206,7 +207,7 @@ void Rover::watch_link(uint32_t now) {
 
 // ---------------------------------------------------------------- motion
 
-void Rover::enter(RoverState s) {
+ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s != state_) pid_.reset();
   if (s == RoverState::Drive && state_ != RoverState::Drive) {
     calib_anchor_ = false;
@@ -219,16 +220,18 @@ void Rover::enter(RoverState s) {
 
 void Rover::raise_fault(FaultCode code) {
   fault_ = code;
-  sweep_ = Sweep();
-  servo_cdeg_ = 0;
+  stop_sweep();
   enter(RoverState::Fault);
   send_event(EventKind::Fault, static_cast<uint16_t>(code));
 }
 
+void Rover::stop_sweep() {
+  sweep_ = Sweep();
+  servo_cdeg_ = 0;
+}
+
 float Rover::distance_to(uint8_t i) const {
-  const float dx = static_cast<float>(path_[i].x_mm) - est_.x_mm();
-  const float dy = static_cast<float>(path_[i].y_mm) - est_.y_mm();
-  return sqrtf(dx * dx + dy * dy);
+  return length(static_cast<float>(path_[i].x_mm) - est_.x_mm(), static_cast<float>(path_[i].y_mm) - est_.y_mm());
 }
 
 float Rover::error_to_deg(uint8_t i) const {
@@ -248,13 +251,14 @@ uint8_t Rover::closest_target() const {
   float best = 1e30f;
   uint8_t target = 0;
   for (uint8_t i = 0; i + 1 < path_len_; ++i) {
-    const float ax = path_[i].x_mm, ay = path_[i].y_mm;
-    const float bx = path_[i + 1].x_mm, by = path_[i + 1].y_mm;
-    const float vx = bx - ax, vy = by - ay;
+    const Waypoint a = path_[i], b = path_[i + 1];
+    const float ax = a.x_mm, ay = a.y_mm;
+    // Differences of int16 are exact as floats: one conversion each instead of two and a subtraction.
+    const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
     const float len2 = vx * vx + vy * vy;
     float t = len2 > 0.0f ? ((px - ax) * vx + (py - ay) * vy) / len2 : 0.0f;
     const bool before_start = t <= 0.0f;
-    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    t = clamp(t, 0.0f, 1.0f);
     const float cx = ax + t * vx - px, cy = ay + t * vy - py;
     const float d2 = cx * cx + cy * cy;
     if (d2 < best) {
@@ -281,6 +285,11 @@ void Rover::reached_waypoint() {
     enter(RoverState::Rotate);
     pid_.reset();
   }
+}
+
+float Rover::heading_command(float error_deg, float dt_s) {
+  const Params& p = params_;
+  return pid_.update(error_deg, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), p.pid_out_max_pwm());
 }
 
 void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) {
@@ -316,22 +325,24 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   }
 
   if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
-  if (distance_to(wp_) <= p.arrival_radius_mm()) {
+  float l = distance_to(wp_);
+  if (l <= p.arrival_radius_mm()) {
     reached_waypoint();
     if (!mission_) return;
+    l = distance_to(wp_);
   }
-  const float l = distance_to(wp_);
   const float err = error_to_deg(wp_);
 
   if (state_ == RoverState::Rotate) {
     if (fabsf(err) <= p.rotate_done_deg() && fabsf(rate_dps_) < kRotateSettledDps) {
       enter(RoverState::Drive);
     } else {
-      float u = pid_.update(err, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), out_max);
+      float u = heading_command(err, dt_s);
       // Lift the command over the motors' dead band, or small errors never close.
       if (fabsf(u) > 0.5f) {
-        const float lifted = fabsf(u) + static_cast<float>(p.motor_deadband_pwm());
-        u = u > 0.0f ? (lifted < out_max ? lifted : out_max) : -(lifted < out_max ? lifted : out_max);
+        float lifted = fabsf(u) + static_cast<float>(p.motor_deadband_pwm());
+        if (!(lifted < out_max)) lifted = out_max;
+        u = u > 0.0f ? lifted : -lifted;
       }
       out.left_pwm = clamp_pwm(u);
       out.right_pwm = clamp_pwm(-u);
@@ -352,7 +363,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     return;
   }
   if (l < min_distance_mm_) min_distance_mm_ = l;
-  const float u = pid_.update(err, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), out_max);
+  const float u = heading_command(err, dt_s);
   const float base = p.drive_pwm();
   out.left_pwm = clamp_pwm(base + u);
   out.right_pwm = clamp_pwm(base - u * p.right_bias());
@@ -360,7 +371,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
 
 // ---------------------------------------------------------------- messages in
 
-void Rover::handle_frame(const Frame& f, uint32_t now) {
+ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
   switch (f.msg_id) {
     case msg::Hello::kId: {
       msg::Hello m;
@@ -435,19 +446,17 @@ void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   }
   if (!calib_anchor_) {
     calib_anchor_ = true;
-    calib_x_ = m.x_mm;
-    calib_y_ = m.y_mm;
+    calib_x_mm_ = m.x_mm;
+    calib_y_mm_ = m.y_mm;
     calib_model_mm_ = 0.0f;
     return;
   }
   if (calib_model_mm_ >= static_cast<float>(kCalibrateMinMm)) {
-    const float dx = static_cast<float>(m.x_mm) - calib_x_, dy = static_cast<float>(m.y_mm) - calib_y_;
-    const float ratio = sqrtf(dx * dx + dy * dy) / calib_model_mm_;
-    float s = speed_scale_ * (1.0f + 0.3f * (ratio - 1.0f));
-    s = s < 0.3f ? 0.3f : (s > 3.0f ? 3.0f : s);
-    speed_scale_ = s;
-    calib_x_ = m.x_mm;
-    calib_y_ = m.y_mm;
+    const float fix_mm = length(static_cast<float>(m.x_mm - calib_x_mm_), static_cast<float>(m.y_mm - calib_y_mm_));
+    const float ratio = fix_mm / calib_model_mm_;
+    speed_scale_ = clamp(speed_scale_ * (1.0f + 0.3f * (ratio - 1.0f)), 0.3f, 3.0f);
+    calib_x_mm_ = m.x_mm;
+    calib_y_mm_ = m.y_mm;
     calib_model_mm_ = 0.0f;
   }
 }
@@ -508,14 +517,13 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   if (mission_) return;  // already running this path
   mission_ = true;
   wp_ = closest_target();
-  sweep_distance_mm_ = 0.0f;
+  // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
   enter(RoverState::Rotate);
 }
 
 void Rover::on_stop(const msg::Stop& m, uint8_t seq) {
   ack(msg::Stop::kId, seq);
-  sweep_ = Sweep();
-  servo_cdeg_ = 0;
+  stop_sweep();
   if (state_ != RoverState::Fault) enter(RoverState::Idle);
   mission_ = false;
   send_event(EventKind::Stopped, m.reason);
@@ -567,7 +575,7 @@ void Rover::send_event(EventKind kind, uint16_t arg) {
   tx_.send(e);
 }
 
-void Rover::send_status() {
+ROVERNAV_NOINLINE void Rover::send_status() {
   msg::Status s;
   s.time_ms = last_ms_;
   s.state = static_cast<uint8_t>(state_);
@@ -579,11 +587,11 @@ void Rover::send_status() {
   s.y_mm = saturate_i16(est_.y_mm());
   s.heading_cdeg = rad_to_cdeg(est_.heading_rad());
   const float sxx = est_.p(0), syy = est_.p(3);
-  s.sd_x_mm = saturate_u16(sqrtf(sxx > 0.0f ? sxx : 0.0f));
-  s.sd_y_mm = saturate_u16(sqrtf(syy > 0.0f ? syy : 0.0f));
-  const float denom = sqrtf(sxx * syy);
+  s.sd_x_mm = saturate_u16(sqrt_or_zero(sxx));
+  s.sd_y_mm = saturate_u16(sqrt_or_zero(syy));
+  const float denom = sqrt_or_zero(sxx * syy);
   s.corr_xy_permille = denom > 0.0f ? saturate_i16(1000.0f * est_.p(1) / denom) : 0;
-  s.sd_heading_cdeg = saturate_u16(sqrtf(est_.p(5) > 0.0f ? est_.p(5) : 0.0f) * kDegPerRad * 100.0f);
+  s.sd_heading_cdeg = saturate_u16(sqrt_or_zero(est_.p(5)) * kDegPerRad * 100.0f);
   s.dr_distance_mm = saturate_u16(dr_distance_mm_);
   s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;
   s.left_pwm = left_cmd_;

@@ -26,64 +26,11 @@ struct Waypoint {
   int16_t y_mm;
 };
 
-class Rover {
- public:
-  enum : uint16_t {
-    kFirmwareVersion = 0x0100,  // 1.0
-    kLinkDelayMs = 5,           // assumed radio and serial delay of a FIX, on top of its age_ms
-    kGrowMarginMm = 10,         // the distance to the waypoint may grow this much before we turn
-    kGyroRecoverMs = 500,       // a faulted gyro must be good this long before the fault clears
-    kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
-    kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
-  };
-
-  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
-  void begin(uint32_t boot_id, uint16_t reset_cause);
-  void step(const Inputs& in, Outputs& out);
-
-  // Read-only views for tests, the simulator and the shell.
-  RoverState state() const { return state_; }
-  uint16_t flags() const;
-  FaultCode fault() const { return fault_; }
-  const Estimator& estimator() const { return est_; }
-  const Params& params() const { return params_; }
-  uint8_t waypoint_index() const { return wp_; }
-  uint8_t waypoint_count() const { return path_len_; }
-  Waypoint waypoint(uint8_t i) const { return path_[i]; }
-  const FrameCounters& rx_counters() const { return decoder_.counters(); }
-  uint16_t tx_dropped() const { return tx_.dropped(); }
-  float speed_scale() const { return speed_scale_; }
-  float dr_distance_mm() const { return dr_distance_mm_; }
-
- private:
-  // link
-  void handle_frame(const Frame& f, uint32_t now);
-  void on_fix(const msg::Fix& m, uint32_t now);
-  void on_path(const msg::Path& m, uint8_t seq);
-  void on_start(const msg::Start& m, uint8_t seq);
-  void on_stop(const msg::Stop& m, uint8_t seq);
-  void on_config(const msg::Config& m, uint8_t seq);
-  void send_hello();
-  void send_event(EventKind kind, uint16_t arg);
-  void send_status();
-  void ack(uint8_t msg_id, uint8_t seq);
-  void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
-  // motion
-  void update_gyro(const Inputs& in, uint32_t now);
-  void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
-  void watch_link(uint32_t now);
-  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
-  void enter(RoverState s);
-  void raise_fault(FaultCode code);
-  void reached_waypoint();
-  uint8_t closest_target() const;
-  float distance_to(uint8_t i) const;
-  float error_to_deg(uint8_t i) const;
-  float cone_deg(float distance_mm) const;
-  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
-
-  Params params_ = {};
-  FrameDecoder decoder_;
+/// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
+/// and a base of the Rover's, so that the Rover's constructor sets it as one block
+/// (`RoverFields{}`): on the Uno that is a clearing loop and a few stores, where setting it field
+/// by field took four bytes of flash for every byte of state (some 600 bytes in all).
+struct RoverFields {
   TxQueue tx_;
   Estimator est_;
   HeadingPid pid_;
@@ -136,7 +83,71 @@ class Rover {
   float speed_scale_ = 1.0f;
   bool calib_anchor_ = false;
   uint32_t drive_since_ms_ = 0;
-  float calib_x_ = 0.0f, calib_y_ = 0.0f, calib_model_mm_ = 0.0f;
+  int16_t calib_x_mm_ = 0, calib_y_mm_ = 0;  // the fix calibration measures from
+  float calib_model_mm_ = 0.0f;              // the model's distance since that fix
+};
+
+class Rover : private RoverFields {
+ public:
+  enum : uint16_t {
+    kFirmwareVersion = 0x0100,  // 1.0
+    kLinkDelayMs = 5,           // assumed radio and serial delay of a FIX, on top of its age_ms
+    kGrowMarginMm = 10,         // the distance to the waypoint may grow this much before we turn
+    kGyroRecoverMs = 500,       // a faulted gyro must be good this long before the fault clears
+    kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
+    kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
+  };
+
+  Rover() : RoverFields{} {}
+  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
+  void begin(uint32_t boot_id, uint16_t reset_cause);
+  void step(const Inputs& in, Outputs& out);
+
+  // Read-only views for tests, the simulator and the shell.
+  RoverState state() const { return state_; }
+  uint16_t flags() const;
+  FaultCode fault() const { return fault_; }
+  const Estimator& estimator() const { return est_; }
+  const Params& params() const { return params_; }
+  uint8_t waypoint_index() const { return wp_; }
+  uint8_t waypoint_count() const { return path_len_; }
+  Waypoint waypoint(uint8_t i) const { return path_[i]; }
+  const FrameCounters& rx_counters() const { return decoder_.counters(); }
+  uint16_t tx_dropped() const { return tx_.dropped(); }
+  float speed_scale() const { return speed_scale_; }
+  float dr_distance_mm() const { return dr_distance_mm_; }
+
+ private:
+  // link
+  void handle_frame(const Frame& f, uint32_t now);
+  void on_fix(const msg::Fix& m, uint32_t now);
+  void on_path(const msg::Path& m, uint8_t seq);
+  void on_start(const msg::Start& m, uint8_t seq);
+  void on_stop(const msg::Stop& m, uint8_t seq);
+  void on_config(const msg::Config& m, uint8_t seq);
+  void send_hello();
+  void send_event(EventKind kind, uint16_t arg);
+  void send_status();
+  void ack(uint8_t msg_id, uint8_t seq);
+  void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
+  // motion
+  void update_gyro(const Inputs& in, uint32_t now);
+  void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
+  void watch_link(uint32_t now);
+  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
+  void enter(RoverState s);
+  void raise_fault(FaultCode code);
+  void stop_sweep();  // ends a sweep and points the sonar ahead
+  void reached_waypoint();
+  float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
+  uint8_t closest_target() const;
+  float distance_to(uint8_t i) const;
+  float error_to_deg(uint8_t i) const;
+  float cone_deg(float distance_mm) const;
+  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
+
+  Params params_ = {};
+  FrameDecoder decoder_;
 };
 
 }  // namespace core

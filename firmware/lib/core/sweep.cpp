@@ -1,9 +1,11 @@
 #include "sweep.h"
 
+#include "noinline.h"
+
 namespace rovernav {
 namespace core {
 
-void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to) {
+ROVERNAV_NOINLINE void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to) {
   const int32_t moved = to > from ? to - from : from - to;
   const int32_t steps = (moved + kStepCdeg - 1) / kStepCdeg;
   angle_cdeg_ = to;

@@ -109,3 +109,49 @@ TEST_CASE("headings wrap: a fix at 179 degrees and an estimate at -179 are 2 deg
   CHECK(e.update(fix(0, 0, 17900, 10, 2), 10) == FixResult::Accepted);
   CHECK(fabsf(fabsf(e.heading_rad()) - 180.0f * kRadPerDeg) < 1.5f * kRadPerDeg);
 }
+
+TEST_CASE("a fix's update equals the batch Kalman update, correlations included") {
+  // A turn and a drive give a full covariance (x, y and heading all correlated); the filter's
+  // three scalar updates must land where the textbook K = P (P + R)^-1 does.
+  Estimator e;
+  e.update(fix(100, 200, 3000, 0, 3), 0);
+  for (uint32_t t = 10; t <= 1000; t += 10) e.predict(2.0f, 0.3f * kRadPerDeg, 2.0f, 1e-5f, t);
+  const int idx[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  double P[3][3], S[3][3], Si[3][3], K[3][3];
+  const double r[3] = {16.0, 16.0, double(kRadPerDeg) * double(kRadPerDeg)};  // sd 4 mm, 1 degree
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      P[i][j] = e.p(static_cast<uint8_t>(idx[i][j]));
+      S[i][j] = P[i][j] + (i == j ? r[i] : 0.0);
+    }
+  REQUIRE(P[0][1] != 0.0);
+  REQUIRE(P[0][2] != 0.0);
+  REQUIRE(P[1][2] != 0.0);
+  const double det = S[0][0] * (S[1][1] * S[2][2] - S[1][2] * S[2][1]) -
+                     S[0][1] * (S[1][0] * S[2][2] - S[1][2] * S[2][0]) +
+                     S[0][2] * (S[1][0] * S[2][1] - S[1][1] * S[2][0]);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
+      Si[i][j] = (S[a][c] * S[b][d] - S[a][d] * S[b][c]) / det;  // adjugate: cofactor (j, i)
+    }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) K[i][j] = P[i][0] * Si[0][j] + P[i][1] * Si[1][j] + P[i][2] * Si[2][j];
+  const double q[3] = {e.x_mm(), e.y_mm(), e.heading_rad()};
+  const int16_t zx = static_cast<int16_t>(lround(q[0] + 6.0)), zy = static_cast<int16_t>(lround(q[1] - 5.0));
+  const double rad_per_cdeg = double(kRadPerDeg) / 100.0;
+  const int16_t zt = static_cast<int16_t>(lround(q[2] / rad_per_cdeg + 80.0));
+  const double v[3] = {zx - q[0], zy - q[1], zt * rad_per_cdeg - q[2]};
+  REQUIRE(e.update(fix(zx, zy, zt, 1000, 4), 1000) == FixResult::Accepted);
+  const double x = q[0] + K[0][0] * v[0] + K[0][1] * v[1] + K[0][2] * v[2];
+  const double y = q[1] + K[1][0] * v[0] + K[1][1] * v[1] + K[1][2] * v[2];
+  const double th = q[2] + K[2][0] * v[0] + K[2][1] * v[1] + K[2][2] * v[2];
+  CHECK(e.x_mm() == doctest::Approx(x).epsilon(1e-5));
+  CHECK(e.y_mm() == doctest::Approx(y).epsilon(1e-5));
+  CHECK(e.heading_rad() == doctest::Approx(th).epsilon(1e-4));
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) {
+      const double expected = P[i][j] - (K[i][0] * P[0][j] + K[i][1] * P[1][j] + K[i][2] * P[2][j]);
+      CHECK(e.p(static_cast<uint8_t>(idx[i][j])) == doctest::Approx(expected).epsilon(1e-3).scale(1e-6));
+    }
+}
