@@ -151,10 +151,23 @@ def test_parse_scenario_labels_errors_with_its_source():
     assert parse_scenario(GOOD).path is None
 
 
-def test_the_shared_scenarios_directory_sits_beside_the_repository(monkeypatch):
+def test_the_scenarios_come_with_the_repository(monkeypatch):
     import rovernav.scenario
 
     monkeypatch.delenv("ROVERNAV_SCENARIO_DIR", raising=False)
-    repo_parent = Path(rovernav.scenario.__file__).resolve().parents[3]
-    assert scenario_dir() == repo_parent / "shared" / "scenarios"
-    assert scenario_dir().is_dir()
+    repo = Path(rovernav.scenario.__file__).resolve().parents[2]
+    assert scenario_dir() == repo / "scenarios"
+    assert {"out-and-back", "seed-fig4-8-unknown-obstacle", "seed-large-obstacles",
+            "seed-small-obstacles"} <= set(scenario_names())
+
+
+def test_the_repository_copies_of_the_shared_scenarios_have_not_drifted():
+    from rovernav.scenario import REPO_SCENARIOS, SHARED_SCENARIOS
+
+    if not SHARED_SCENARIOS.is_dir():
+        pytest.skip(f"no shared scenarios at {SHARED_SCENARIOS} to compare with")
+    shared = {p.name: p.read_bytes() for p in SHARED_SCENARIOS.glob("*.toml")}
+    ours = {p.name: p.read_bytes() for p in REPO_SCENARIOS.glob("*.toml")}
+    assert shared, "the shared scenario folder is empty"
+    for name, data in shared.items():
+        assert ours.get(name) == data, f"scenarios/{name} differs from {SHARED_SCENARIOS / name}: copy it again"

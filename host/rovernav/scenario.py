@@ -103,12 +103,20 @@ class Scenario:
 
 # --- finding scenarios -----------------------------------------------------------------------
 
+REPO_SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SHARED_SCENARIOS = Path(__file__).resolve().parents[3] / "shared" / "scenarios"
+
+
 def scenario_dir() -> Path:
-    """The shared scenarios: $ROVERNAV_SCENARIO_DIR, else ../shared/scenarios beside the repository."""
+    """The scenarios: $ROVERNAV_SCENARIO_DIR, else the repository's scenarios/ folder.
+
+    scenarios/ holds copies of the team's shared arenas (../shared/scenarios), so that a fresh
+    clone has them; tests/test_scenario.py fails if the copies drift from the shared originals.
+    """
     env = os.environ.get("ROVERNAV_SCENARIO_DIR")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[3] / "shared" / "scenarios"
+    return REPO_SCENARIOS
 
 
 def scenario_names() -> list[str]:
