@@ -1,5 +1,9 @@
 """The `rovernav` command.
 
+    rovernav sim [SCENARIO]               a whole mission in the simulator (the main job)
+    rovernav run --port P --camera C      a mission with a real rover and webcam
+    rovernav plan SCENARIO                plan a path on a scenario's arena
+    rovernav locate IMAGE                 find the rover and the target in a camera image
     rovernav protocol [--json]            the link protocol's messages and parameters
     rovernav link-check --port PORT       say HELLO to a rover and watch what it sends
     rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
@@ -98,6 +102,25 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(seconds=args.seconds)
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .hardware import run_hardware
+
+    return run_hardware(args.port, args.camera, args.config, args.scenario, args.map)
+
+
+def add_run_parser(sub) -> None:
+    p = sub.add_parser("run", help="run a mission with a real rover and webcam",
+                       description="Run a mission against a real rover on PORT and an overhead camera SOURCE: "
+                                   "the same host code as the simulator. Without --scenario the target is the "
+                                   "yellow marker in view and the map starts empty. Ctrl-C stops the rover.")
+    p.add_argument("--port", default="", help="serial port of the radio, e.g. /dev/ttyUSB0 or COM4 (or [link] port)")
+    p.add_argument("--camera", default="", help="camera index (0) or a video file (or [camera] source)")
+    p.add_argument("--config", help="rovernav TOML configuration")
+    p.add_argument("--scenario", help="scenario file: arena, start, target, known obstacles")
+    p.add_argument("--map", help="learned map (JSON) to load at the start and save at the end")
+    p.set_defaults(func=_cmd_run)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rovernav",
@@ -116,8 +139,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_protocol)
 
     from .planning.cli import add_plan_parser
+    from .sim.cli import add_sim_parser
+    from .vision.cli import add_locate_parser
 
+    add_sim_parser(sub)
     add_plan_parser(sub)
+    add_locate_parser(sub)
+    add_run_parser(sub)
 
     p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends",
                        description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "
@@ -146,11 +174,13 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    from .config import ConfigError
     from .link.errors import LinkError
+    from .scenario import ScenarioError
 
     try:
         return args.func(args)
-    except LinkError as exc:
+    except (LinkError, ConfigError, ScenarioError) as exc:
         print(f"rovernav {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

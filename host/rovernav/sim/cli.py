@@ -1,0 +1,142 @@
+"""`rovernav sim`: run a mission in the simulator and write its report, video and picture."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+
+def _window(text: str) -> tuple[float, float]:
+    try:
+        start, duration = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected START:DURATION in seconds, e.g. 20:10") from None
+    if start < 0 or duration <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: START must be >= 0 and DURATION > 0")
+    return start, duration
+
+
+def _time(text: str) -> float:
+    try:
+        t = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a time in seconds") from None
+    if t < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a time must be >= 0")
+    return t
+
+
+def add_sim_parser(sub) -> None:
+    p = sub.add_parser(
+        "sim", help="run a mission in the simulator (the main job without hardware)",
+        description="Simulate a mission: the firmware core the Uno runs (through its C ABI), a rover plant "
+                    "with motor lag and dead band, a drifting gyro, an HC-SR04 on a servo, an overhead camera "
+                    "rendering 640x480 frames that the host's vision code reads, and a 57,600-baud radio; the "
+                    "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4 and "
+                    "summary.png into the output folder.",
+        epilog="Strategies: rovernav (the autonomy on the rover, simplified paths, fast sweeps) and seed (the "
+               "2019 system's behaviour: a stop at every grid waypoint, 9-second sweeps); both runs them in the "
+               "same world and prints them side by side.")
+    p.add_argument("scenario", nargs="?", default="out-and-back",
+                   help="a scenario name (see scenarios/) or a scenario file (default: out-and-back)")
+    p.add_argument("--out", type=Path, default=Path("out/sim"), help="output folder (default out/sim)")
+    p.add_argument("--seed", type=int, default=1, help="random seed: noise, light, drops (default 1)")
+    p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav")
+    p.add_argument("--no-video", action="store_true", help="skip the video (faster)")
+    p.add_argument("--config", help="a rovernav TOML configuration (vision, planner, rover parameters)")
+    p.add_argument("--max-time", type=float, default=900.0, help="give up after this many simulated seconds")
+    p.add_argument("--camera-fps", type=float, default=30.0, help="camera frame rate (default 30)")
+    p.add_argument("--no-host-replan", action="store_true",
+                   help="the host never replans: only the rover's own detours get it round obstacles")
+    p.add_argument("--link-outage", type=_window, action="append", default=[], metavar="START:DURATION",
+                   help="no bytes either way on the radio for DURATION seconds from START (repeatable)")
+    p.add_argument("--camera-outage", type=_window, action="append", default=[], metavar="START:DURATION",
+                   help="the camera delivers nothing (or see --camera-outage-kind) for a while (repeatable)")
+    p.add_argument("--camera-outage-kind", choices=("no_frames", "no_markers"), default="no_frames")
+    p.add_argument("--host-restart", type=_time, action="append", default=[], metavar="T",
+                   help="restart the host process state at T seconds (repeatable)")
+    p.add_argument("--firmware-reset", type=_time, action="append", default=[], metavar="T",
+                   help="reset the rover's firmware at T seconds (repeatable)")
+    p.add_argument("--gyro-dies", type=_time, metavar="T", help="the gyro stops answering at T seconds")
+    p.add_argument("--quiet", action="store_true", help="print only the summary")
+    p.set_defaults(func=cmd_sim)
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from ..config import load_config
+    from ..scenario import ScenarioError, load_scenario
+    from .report import VideoWriter, build_report, summary_picture, write_report
+    from .runner import Faults, SimOptions, Simulation
+
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        print(f"rovernav sim: {exc}", file=sys.stderr)
+        return 2
+    config = load_config(args.config) if args.config else None
+    strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
+    reports = []
+    for strategy in strategies:
+        out = args.out / strategy if len(strategies) > 1 else args.out
+        out.mkdir(parents=True, exist_ok=True)
+        faults = Faults(link_outages=args.link_outage, camera_outages=args.camera_outage,
+                        camera_outage_kind=args.camera_outage_kind, host_restarts=args.host_restart,
+                        firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
+        opts = SimOptions(seed=args.seed, strategy=strategy, camera_fps=args.camera_fps, max_time_s=args.max_time,
+                          host_replan=not args.no_host_replan, faults=faults, config=config)
+        video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
+        started = time.monotonic()
+
+        def progress(t, text, _started=started, _strategy=strategy):
+            if args.quiet:
+                return
+            if text is None:
+                wall = time.monotonic() - _started
+                print(f"  ... {t:6.1f} s simulated ({t / max(wall, 1e-9):.0f}x real time)", file=sys.stderr, flush=True)
+            else:
+                print(f"[{_strategy} {t:7.2f} s] {text}", flush=True)
+
+        if not args.quiet:
+            print(f"simulating {scenario.name} with the {strategy} strategy (seed {args.seed}) ...", flush=True)
+        sim = Simulation(scenario, opts, frame_sink=video, progress=progress)
+        try:
+            sim.run()
+        finally:
+            if video is not None:
+                video.close()
+        report = build_report(sim, time.monotonic() - started)
+        write_report(report, out / "report.json")
+        summary_picture(sim, report, out / "summary.png")
+        reports.append(report)
+        print(_summary_line(report))
+        print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}"))
+    if len(reports) > 1:
+        print()
+        print(comparison_table(reports))
+        (args.out / "comparison.json").write_text(json.dumps(reports, indent=2) + "\n")
+    return 0 if all(r["reached"] and r["collisions"] == 0 for r in reports) else 1
+
+
+def _summary_line(r: dict) -> str:
+    ok = "reached" if r["reached"] else "NOT reached"
+    return (f"{r['scenario']} / {r['strategy']}: {ok} in {r['mission_time_s']:.1f} s simulated "
+            f"({r['wall_time_s']:.1f} s wall, {r['speedup']}x), driven {r['path_length_m']:.2f} m "
+            f"(clairvoyant optimum {r['optimal_length_m']:.2f} m), SPL {r['spl']:.2f}, "
+            f"collisions {r['collisions']}, min clearance {r['min_clearance_m']} m, replans {r['replans']}"
+            + (f"; error: {r['error']}" if r.get("error") else ""))
+
+
+def comparison_table(reports: list[dict]) -> str:
+    rows = [("", *[r["strategy"] for r in reports]),
+            ("reached", *["yes" if r["reached"] else "no" for r in reports]),
+            ("mission time (s)", *[f"{r['mission_time_s']:.1f}" for r in reports]),
+            ("path length (m)", *[f"{r['path_length_m']:.2f}" for r in reports]),
+            ("clairvoyant optimum (m)", *[f"{r['optimal_length_m']:.2f}" for r in reports]),
+            ("SPL", *[f"{r['spl']:.2f}" for r in reports]),
+            ("replans", *[str(r["replans"]) for r in reports]),
+            ("collisions", *[str(r["collisions"]) for r in reports]),
+            ("min clearance (m)", *[str(r["min_clearance_m"]) for r in reports])]
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)) for row in rows)

@@ -1,0 +1,104 @@
+"""The simulated rover's body, motors and sensors.
+
+- Drive: two wheels, each following its PWM command through a dead band and a first-order
+  lag, the right motor stronger than the left (the seed compensated with a 0.8 bias), a little
+  speed noise; a differential-drive kinematic model (track 0.13 m).
+- Gyro: an MPU6050's yaw rate with white noise and a slowly drifting bias, left over after the
+  start-up calibration.
+- Sonar: an HC-SR04 on a servo: the nearest surface inside its 15-degree cone, range noise, and
+  floor echoes beyond about 0.65 m, as the seed saw.
+- Servo: travels at 0.1 s per 60 degrees; the sonar points where the servo is, not where it was
+  told to be.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .world import World
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantConfig:
+    mm_s_per_pwm: float = 2.2         # wheel speed per PWM above the dead band (firmware assumes 2.0)
+    deadband_pwm: float = 30.0
+    lag_s: float = 0.08               # motor and inertia
+    right_gain: float = 1.10          # the right motor is the stronger
+    track_m: float = 0.13             # distance between the wheels
+    speed_noise: float = 0.02         # relative, slowly varying (floor, battery)
+    gyro_noise_dps: float = 0.05      # white noise of one sample
+    gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
+    gyro_bias_walk_dps_per_sqrt_s: float = 0.005
+    sonar_cone_deg: float = 15.0
+    sonar_noise_mm: float = 3.0
+    sonar_floor_m: float = 0.65       # floor echoes from beyond here
+    sonar_max_m: float = 4.0
+    sonar_offset_m: float = 0.10      # the sensor sits ahead of the rover's centre
+    servo_deg_per_s: float = 600.0    # 0.1 s per 60 degrees
+
+
+class RoverPlant:
+    """State: pose (x, y in metres, heading in degrees), wheel speeds, servo angle, gyro bias."""
+
+    def __init__(self, x_m: float, y_m: float, heading_deg: float, config: PlantConfig, rng: np.random.Generator):
+        self.x, self.y, self.heading = x_m, y_m, heading_deg
+        self.cfg = config
+        self.rng = rng
+        self.v_left = self.v_right = 0.0   # m/s
+        self.rate_dps = 0.0
+        self.servo_deg = 0.0
+        self.gyro_bias = float(rng.normal(0.0, config.gyro_bias_dps))
+        self.speed_factor = 1.0
+        self.distance_m = 0.0
+        self.gyro_alive = True
+
+    def _wheel_target(self, pwm: float, gain: float) -> float:
+        m = abs(pwm) - self.cfg.deadband_pwm
+        if m <= 0:
+            return 0.0
+        return math.copysign(m * self.cfg.mm_s_per_pwm * gain / 1000.0, pwm)
+
+    def step(self, left_pwm: int, right_pwm: int, servo_cdeg: int, dt_s: float) -> None:
+        c = self.cfg
+        k = dt_s / (c.lag_s + dt_s)
+        self.speed_factor += 0.02 * (1.0 - self.speed_factor) + c.speed_noise * 0.1 * float(self.rng.normal())
+        self.v_left += k * (self._wheel_target(left_pwm, 1.0) * self.speed_factor - self.v_left)
+        self.v_right += k * (self._wheel_target(right_pwm, c.right_gain) * self.speed_factor - self.v_right)
+        v = 0.5 * (self.v_left + self.v_right)
+        omega = (self.v_left - self.v_right) / c.track_m   # rad/s, clockwise
+        self.rate_dps = math.degrees(omega)
+        mid = math.radians(self.heading + 0.5 * self.rate_dps * dt_s)
+        self.x += v * dt_s * math.sin(mid)
+        self.y += v * dt_s * math.cos(mid)
+        self.heading = (self.heading + self.rate_dps * dt_s + 180.0) % 360.0 - 180.0
+        self.distance_m += abs(v) * dt_s
+        # servo
+        target = servo_cdeg / 100.0
+        step = c.servo_deg_per_s * dt_s
+        self.servo_deg += max(-step, min(step, target - self.servo_deg))
+        self.gyro_bias += c.gyro_bias_walk_dps_per_sqrt_s * math.sqrt(dt_s) * float(self.rng.normal())
+
+    def gyro_mdps(self) -> int | None:
+        """One gyro sample (millidegrees/s, clockwise), or None when the gyro is dead."""
+        if not self.gyro_alive:
+            return None
+        reading = self.rate_dps + self.gyro_bias + self.cfg.gyro_noise_dps * float(self.rng.normal())
+        return int(round(reading * 1000))
+
+    def sonar_mm(self, world: World) -> int:
+        """One ping: the nearest surface in the cone (mm), a floor echo, or 0 for nothing."""
+        c = self.cfg
+        h = math.radians(self.heading)
+        sx = self.x + c.sonar_offset_m * math.sin(h)
+        sy = self.y + c.sonar_offset_m * math.cos(h)
+        axis = self.heading + self.servo_deg
+        half = c.sonar_cone_deg / 2
+        nearest = min(world.ray_m(sx, sy, axis + a, c.sonar_max_m) for a in np.linspace(-half, half, 7))
+        if nearest > c.sonar_floor_m:
+            # Beyond about 0.65 m the cone reaches the floor: an echo from there, a little random.
+            nearest = c.sonar_floor_m + abs(float(self.rng.normal(0.0, 0.05)))
+        if nearest >= c.sonar_max_m:
+            return 0
+        return max(20, int(round(nearest * 1000 + float(self.rng.normal(0.0, c.sonar_noise_mm)))))

@@ -1,0 +1,242 @@
+"""What a simulated mission produced: report.json, the summary picture and the annotated video."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..link import messages_gen as mg
+from .world import footprint
+
+TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
+
+
+def _spl(success: bool, optimal: float, driven: float) -> float:
+    """Success weighted by (normalised inverse) path length, per episode (Anderson et al. 2018)."""
+    if not success or not math.isfinite(optimal) or optimal <= 0:
+        return 0.0
+    return optimal / max(driven, optimal)
+
+
+def build_report(sim, wall_time_s: float) -> dict:
+    m = sim.mission
+    sc = sim.scenario
+    legs = []
+    driven_total = 0.0
+    for trip in m.legs:
+        pts = [s for s in sim.samples if s.trip == trip.index]
+        driven = sum(math.dist((a.x_m, a.y_m), (b.x_m, b.y_m)) for a, b in zip(pts, pts[1:]))
+        driven_total += driven
+        optimal = sim.trip_optimal_m(trip.index)
+        end = trip.finished_s if trip.finished_s is not None else sim.t
+        legs.append({
+            "index": trip.index + 1, "goal": [round(trip.goal[0], 3), round(trip.goal[1], 3)],
+            "reached": trip.reached, "time_s": round(end - trip.started_s, 2),
+            "path_length_m": round(driven, 3), "optimal_length_m": round(optimal, 3),
+            "spl": round(_spl(trip.reached, optimal, driven), 3), "replans": trip.replans,
+            "sonar_echoes": trip.obstacles_found, "planned_length_m": round(trip.planned_length_m, 3),
+        })
+    reached = len(m.legs) == m.legs_asked and all(leg["reached"] for leg in legs)
+    # A trip: one leg for a reach mission, out and back (two legs) for an out-and-back one.
+    per_trip = 2 if sc.mission.kind == "out-and-back" else 1
+    trips = []
+    for i in range(0, len(legs), per_trip):
+        group = legs[i:i + per_trip]
+        trips.append({"index": i // per_trip + 1, "reached": len(group) == per_trip and all(g["reached"] for g in group),
+                      "time_s": round(sum(g["time_s"] for g in group), 2),
+                      "path_length_m": round(sum(g["path_length_m"] for g in group), 3),
+                      "optimal_length_m": round(sum(g["optimal_length_m"] for g in group), 3),
+                      "replans": sum(g["replans"] for g in group), "legs": [g["index"] for g in group]})
+    status = m.last_status
+    c = sim.link.counters
+    unknown = [o for o in sc.obstacles if not o.known]
+    discovered = sum(1 for o in unknown if _echo_on(o, m.echoes))
+    return {
+        "scenario": sc.name,
+        "strategy": sim.opt.strategy,
+        "seed": sim.opt.seed,
+        "reached": reached,
+        "trips_asked": m.legs_asked // per_trip,
+        "legs_asked": m.legs_asked,
+        "collisions": sim.collisions,
+        "mission_time_s": round(sim.t, 2),
+        "wall_time_s": round(wall_time_s, 2),
+        "speedup": round(sim.t / wall_time_s, 1) if wall_time_s > 0 else None,
+        "path_length_m": round(driven_total, 3),
+        "optimal_length_m": round(sim.optimal_length_m(), 3),
+        "spl": round(sum(leg["spl"] for leg in legs) / max(1, m.legs_asked), 3),
+        "min_clearance_m": round(sim.min_clearance_m, 4) if math.isfinite(sim.min_clearance_m) else None,
+        "replans": m.replans,
+        "obstacles_discovered": discovered,
+        "obstacles_unknown": len(unknown),
+        "sonar_echoes": len(m.echoes),
+        "error": m.error,
+        "trips": trips,
+        "legs": legs,
+        "camera": {"fps": sim.opt.camera_fps, "latency_s": sim.opt.camera_latency_s,
+                   "frames": sim.frames_rendered, "dropped": sim.frames_dropped, "fixes_sent": m.fixes_sent},
+        "link": {
+            "baud": sim.opt.channel.baud, "delay_s": sim.opt.channel.delay_s,
+            "to_rover": sim.to_rover.counters(), "to_host": sim.to_host.counters(),
+            "host_decoder": {"frames_ok": c.frames_ok, "bad_crc": c.bad_crc, "overlong": c.overlong,
+                             "unknown_id": c.unknown_id, "malformed": c.malformed},
+            "rover_decoder": None if status is None else {
+                "frames_ok": status.rx_ok, "bad_crc": status.rx_bad_crc, "overlong": status.rx_overlong,
+                "unknown_id": status.rx_unknown_id, "malformed": status.rx_malformed,
+                "tx_dropped": status.tx_dropped},
+        },
+        "events": [{"t_s": round(t, 2), "text": text} for t, text in sim.events],
+    }
+
+
+def _echo_on(obstacle, echoes, margin_m: float = 0.06) -> bool:
+    """Whether some sonar echo's point lies on (near) this obstacle."""
+    for e in echoes:
+        h = math.radians(e.heading_deg)
+        sx, sy = e.x_m + 0.10 * math.sin(h), e.y_m + 0.10 * math.cos(h)
+        b = math.radians(e.heading_deg + e.bearing_deg)
+        px, py = sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)
+        if abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m:
+            return True
+    return False
+
+
+# ---------------------------------------------------------------- pictures
+
+class Canvas:
+    """Arena metres to picture pixels (y up in the arena, down in the picture)."""
+
+    def __init__(self, width_m: float, height_m: float, px_per_m: float = 400, margin_px: int = 20):
+        self.s, self.m = px_per_m, margin_px
+        self.h_m = height_m
+        self.img = np.full((int(height_m * px_per_m) + 2 * margin_px, int(width_m * px_per_m) + 2 * margin_px, 3),
+                           245, np.uint8)
+
+    def pt(self, x_m: float, y_m: float) -> tuple[int, int]:
+        return int(round(self.m + x_m * self.s)), int(round(self.m + (self.h_m - y_m) * self.s))
+
+    def pts(self, xy) -> np.ndarray:
+        return np.array([self.pt(x, y) for x, y in xy], np.int32)
+
+
+def draw_arena(canvas: Canvas, sim, grid=None) -> None:
+    sc = sim.scenario
+    img = canvas.img
+    if grid is not None:  # what the host's map holds: inflated cells shaded, sonar cells dark
+        res = grid.resolution_m
+        inflated = grid.inflated
+        for iy, ix in zip(*np.nonzero(inflated)):   # layers are (rows = y, columns = x)
+            x0, y0 = canvas.pt(ix * res, (iy + 1) * res)
+            x1, y1 = canvas.pt((ix + 1) * res, iy * res)
+            cv2.rectangle(img, (x0, y0), (x1, y1), (225, 225, 235), -1)
+    cv2.rectangle(img, canvas.pt(0, sc.arena.height_m), canvas.pt(sc.arena.width_m, 0), (60, 60, 60), 2)
+    for o in sc.obstacles:
+        p0, p1 = canvas.pt(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), canvas.pt(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2)
+        if o.known:
+            cv2.rectangle(img, p0, p1, (110, 110, 110), -1)
+        else:
+            cv2.rectangle(img, p0, p1, (150, 150, 200), -1)
+            for k in range(p0[0] - (p1[1] - p0[1]), p1[0], 8):  # hatch: unknown to the planner
+                cv2.line(img, (max(k, p0[0]), p0[1] + max(0, p0[0] - k)), (min(k + (p1[1] - p0[1]), p1[0]), p1[1] - max(0, k + (p1[1] - p0[1]) - p1[0])), (90, 90, 160), 1)
+    for e in sim.mission.echoes:
+        h = math.radians(e.heading_deg)
+        sx, sy = e.x_m + 0.10 * math.sin(h), e.y_m + 0.10 * math.cos(h)
+        b = math.radians(e.heading_deg + e.bearing_deg)
+        cv2.circle(img, canvas.pt(sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)), 3, (0, 0, 200), -1)
+    cv2.circle(img, canvas.pt(sc.start.x_m, sc.start.y_m), 7, (0, 150, 0), 2)
+    cv2.drawMarker(img, canvas.pt(sc.target.x_m, sc.target.y_m), (0, 170, 230), cv2.MARKER_STAR, 18, 2)
+
+
+def summary_picture(sim, report: dict, path: Path) -> None:
+    sc = sim.scenario
+    canvas = Canvas(sc.arena.width_m, sc.arena.height_m)
+    draw_arena(canvas, sim, sim.mission.grid)
+    img = canvas.img
+    for trip in sim.mission.legs:
+        pts = [(s.x_m, s.y_m) for s in sim.samples if s.trip == trip.index]
+        if len(pts) > 1:
+            cv2.polylines(img, [canvas.pts(pts)], False, TRIP_COLOURS[trip.index % len(TRIP_COLOURS)], 2, cv2.LINE_AA)
+    if sim.samples:
+        s = sim.samples[-1]
+        cv2.polylines(img, [canvas.pts(footprint(s.x_m, s.y_m, s.heading_deg))], True, (20, 20, 20), 2)
+    footer = np.full((70, img.shape[1], 3), 255, np.uint8)
+    lines = [f"{report['scenario']} / {report['strategy']}: {'reached' if report['reached'] else 'NOT reached'}, "
+             f"{report['mission_time_s']:.1f} s, {report['path_length_m']:.2f} m driven "
+             f"(optimal {report['optimal_length_m']:.2f} m), SPL {report['spl']:.2f}",
+             f"collisions {report['collisions']}, min clearance {report['min_clearance_m'] or 0:.3f} m, "
+             f"replans {report['replans']}, unknown obstacles found {report['obstacles_discovered']}/"
+             f"{report['obstacles_unknown']}; trips: " + ", ".join(
+                 f"{t['index']}: {t['time_s']:.0f} s, {t['replans']} replans" for t in report["trips"])]
+    for i, line in enumerate(lines):
+        cv2.putText(footer, line, (10, 25 + 28 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
+    cv2.imwrite(str(path), np.vstack([img, footer]))
+
+
+class VideoWriter:
+    """The camera's frames, annotated: path, known and found obstacles, true and estimated pose,
+    sonar hits, heading; written at the camera's rate."""
+
+    def __init__(self, path: Path, fps: float):
+        self.path = path
+        self.fps = fps
+        self.writer = None
+        self.frames = 0
+
+    def __call__(self, t_s: float, frame: np.ndarray, sim) -> None:
+        from ..vision.calibration import Calibration
+
+        img = frame.copy()
+        h, w = img.shape[:2]
+        sc = sim.scenario
+        cal = Calibration.straight_down(w, h, sc.arena.width_m, sc.arena.height_m)
+
+        def px(x, y):
+            u, v = cal.to_pixels(np.array([[x, y]]))[0]
+            return int(round(u)), int(round(v))
+
+        m = sim.mission
+        if m.path:
+            cv2.polylines(img, [np.array([px(x, y) for x, y in m.path], np.int32)], False, (255, 0, 255), 2, cv2.LINE_AA)
+        for o in sc.obstacles:
+            color = (200, 200, 200) if o.known else (80, 80, 255)
+            cv2.rectangle(img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1)
+        for e in m.echoes[-60:]:
+            hr = math.radians(e.heading_deg)
+            sx, sy = e.x_m + 0.10 * math.sin(hr), e.y_m + 0.10 * math.cos(hr)
+            b = math.radians(e.heading_deg + e.bearing_deg)
+            cv2.circle(img, px(sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)), 3, (0, 0, 255), -1)
+        p = sim.plant
+        cv2.polylines(img, [np.array([px(x, y) for x, y in footprint(p.x, p.y, p.heading)], np.int32)], True, (0, 255, 0), 1)
+        hr = math.radians(p.heading)
+        cv2.arrowedLine(img, px(p.x, p.y), px(p.x + 0.15 * math.sin(hr), p.y + 0.15 * math.cos(hr)), (0, 255, 0), 1)
+        st = m.last_status
+        if st is not None and st.flags & mg.StatusFlag.MISSION_ACTIVE:
+            ex, ey = st.x_mm / 1000, st.y_mm / 1000
+            sd = max(st.sd_x_mm, st.sd_y_mm) / 1000
+            cv2.circle(img, px(ex, ey), max(2, int(2 * sd * w / sc.arena.width_m)), (255, 200, 0), 1)
+            eh = math.radians(st.heading_cdeg / 100)
+            cv2.arrowedLine(img, px(ex, ey), px(ex + 0.12 * math.sin(eh), ey + 0.12 * math.cos(eh)), (255, 200, 0), 1)
+            state = mg.RoverState(st.state).name.lower() if st.state in mg.RoverState._value2member_map_ else st.state
+        else:
+            state = "-"
+        text = f"t {t_s:6.1f} s  leg {len(m.legs)}  {state}  replans {m.replans}  collisions {sim.collisions}"
+        cv2.rectangle(img, (0, 0), (w, 22), (0, 0, 0), -1)
+        cv2.putText(img, text, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+        if self.writer is None:
+            fourcc = cv2.VideoWriter_fourcc(*"mp4v")
+            self.writer = cv2.VideoWriter(str(self.path), fourcc, self.fps, (w, h))
+            if not self.writer.isOpened():
+                raise RuntimeError(f"cannot write video {self.path} (OpenCV has no mp4v encoder here)")
+        self.writer.write(img)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.release()
+
+
+def write_report(report: dict, path: Path) -> None:
+    path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")

@@ -1,0 +1,272 @@
+"""One simulated mission, in lockstep: world, plant, sensors, camera, radio, firmware, host.
+
+Every 10 ms of simulated time:
+  1. the camera takes a frame when one is due (rendered from the true world, with noise and
+     uneven light); the host's vision code locates the rover in it after the camera's latency,
+     unless the frame is dropped: the simulator never hands the host the true pose;
+  2. the host (the same Mission that `rovernav run` uses) reads the radio and acts;
+  3. the rover's firmware core (through its C ABI) steps with the gyro sample, the last sonar
+     result and the bytes the radio delivered, and its bytes go on the air at 57,600 baud;
+  4. the plant moves under the motor commands; contacts and clearances are recorded.
+"""
+from __future__ import annotations
+
+import collections
+import dataclasses
+import logging
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from ..config import Config, config_from_dict
+from ..firmware import RoverCore
+from ..link import messages_gen as mg
+from ..link.link import Link
+from ..mission import Detection, Mission, Phase
+from ..planning import NoPathError, OccupancyGrid, plan
+from ..render import Camera, Lighting, Renderer, RoverLook, Scene
+from ..vision import Locator
+from .channel import Channel, ChannelConfig, SimTransport
+from .plant import PlantConfig, RoverPlant
+from .world import World
+
+log = logging.getLogger("rovernav.sim")
+
+STEP_S = 0.010
+HOST_PERIOD_S = 0.030
+
+
+@dataclasses.dataclass
+class Faults:
+    """What can go wrong on purpose (times in simulated seconds)."""
+
+    link_outages: list[tuple[float, float]] = dataclasses.field(default_factory=list)    # (start, duration)
+    camera_outages: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # (start, duration)
+    camera_outage_kind: str = "no_frames"      # or "no_markers"
+    host_restarts: list[float] = dataclasses.field(default_factory=list)
+    firmware_resets: list[float] = dataclasses.field(default_factory=list)
+    gyro_dies_at: float | None = None
+
+
+@dataclasses.dataclass
+class SimOptions:
+    seed: int = 1
+    strategy: str = "rovernav"        # or "seed"
+    camera_fps: float = 30.0
+    camera_latency_s: float = 0.060
+    frame_drop: float = 0.02
+    max_time_s: float = 900.0
+    host_replan: bool = True
+    channel: ChannelConfig = ChannelConfig()
+    plant: PlantConfig = PlantConfig()
+    faults: Faults = dataclasses.field(default_factory=Faults)
+    config: Config | None = None
+
+
+@dataclasses.dataclass
+class Sample:
+    """What the pictures and the report need at one instant."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+    heading_deg: float
+    est: tuple[float, float, float, float] | None   # x, y, heading, sd (m, m, deg, m) from the core's probe
+    state: int
+    trip: int
+
+
+class Simulation:
+    def __init__(self, scenario, options: SimOptions, frame_sink: Callable | None = None,
+                 progress: Callable[[float, str], None] | None = None):
+        self.scenario = scenario
+        self.opt = options
+        self.cfg = options.config or config_from_dict({"arena": {"width_m": scenario.arena.width_m,
+                                                                 "height_m": scenario.arena.height_m}})
+        self.rng = np.random.default_rng(options.seed)
+        self.world = World.from_scenario(scenario)
+        s = scenario.start
+        self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, options.plant, self.rng)
+        self.frame_sink = frame_sink
+        self.progress = progress or (lambda t, text: None)
+        self.to_rover = Channel(options.channel, self.rng, self._outages())
+        self.to_host = Channel(options.channel, self.rng, self._outages())
+        self.core = RoverCore(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
+        look = RoverLook.for_vision(self.cfg.vision)
+        self.renderer = Renderer(look, Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0),
+                                 seed=int(self.rng.integers(2**31)))
+        self.locator = Locator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
+        self.scene_base = Scene(arena_w_m=scenario.arena.width_m, arena_h_m=scenario.arena.height_m,
+                                obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
+                                target=(scenario.target.x_m, scenario.target.y_m),
+                                marker_kind=self.cfg.vision.markers)
+        self.t = 0.0
+        self.samples: list[Sample] = []
+        self.frames_rendered = 0
+        self.frames_dropped = 0
+        self.collisions = 0
+        self._in_contact = False
+        self.min_clearance_m = math.inf
+        self._pending_frames: collections.deque = collections.deque()
+        self._next_frame_s = 0.0
+        self._sonar_pending: int | None = None
+        self._host_ticked = -1.0
+        self.events: list[tuple[float, str]] = []
+        self.mission = self._new_host()
+        self.restarts_done = 0
+
+    # ---------------------------------------------------------------- set-up
+
+    def _outages(self) -> list[tuple[float, float]]:
+        return [(a, a + d) for a, d in self.opt.faults.link_outages]
+
+    def _new_host(self) -> Mission:
+        self.transport = SimTransport(self.to_rover, self.to_host)
+        self.transport.set_time(self.t)
+        self.link = Link(self.transport)
+        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner)
+        sc = self.scenario
+        trips = self.cfg.mission.trips or sc.mission.trips
+        legs = trips * (2 if sc.mission.kind == "out-and-back" else 1)
+        params = list(self.cfg.rover_params())
+        if self.opt.strategy == "seed":
+            from .seed_strategy import SeedMission, seed_rover_params
+            params = seed_rover_params() + params
+            cls = SeedMission
+        else:
+            cls = Mission
+        mission = cls(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
+                      legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
+                      heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
+                      on_event=self._event)
+        return mission
+
+    def _event(self, t: float, text: str) -> None:
+        self.events.append((t, text))
+        self.progress(t, text)
+
+    # ---------------------------------------------------------------- the loop
+
+    def run(self) -> None:
+        f = self.opt.faults
+        restarts = sorted(f.host_restarts)
+        resets = sorted(f.firmware_resets)
+        next_progress = 5.0
+        while self.t < self.opt.max_time_s and not self.mission.done:
+            now = self.t
+            if restarts and now >= restarts[0]:
+                restarts.pop(0)
+                self._event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS")
+                old = self.mission
+                self.mission = self._new_host()
+                self.mission.adopt_from_restart(old.legs)
+            if resets and now >= resets[0]:
+                resets.pop(0)
+                self._event(now, "firmware reset: the rover reboots with a new boot id")
+                self.core.close()
+                self.core = RoverCore(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=4)
+                self._sonar_pending = None
+            if f.gyro_dies_at is not None and now >= f.gyro_dies_at and self.plant.gyro_alive:
+                self.plant.gyro_alive = False
+                self._event(now, "the gyro stops answering")
+            processed = self._camera(now)
+            # The host's loop runs once a camera frame (the hardware runner's does too), and at
+            # least every HOST_PERIOD_S when frames stop.
+            if processed or now - self._host_ticked >= HOST_PERIOD_S:
+                self._host_ticked = now
+                self.transport.set_time(now)
+                self.mission.tick(now)
+            self._rover(now)
+            self.t = round(now + STEP_S, 6)
+            if self.t >= next_progress:
+                next_progress += 5.0
+                self.progress(self.t, None)
+
+    def _camera(self, now: float) -> bool:
+        """Take a frame if one is due; hand the host the frames whose latency has passed.
+        Returns whether the host got a frame."""
+        if now + 1e-9 >= self._next_frame_s:
+            self._next_frame_s += 1.0 / self.opt.camera_fps
+            out = self._camera_out(now)
+            if out == "no_frames":
+                pass
+            elif self.rng.random() < self.opt.frame_drop:
+                self.frames_dropped += 1
+            else:
+                p = self.plant
+                scene = dataclasses.replace(self.scene_base, rover=(p.x, p.y, p.heading),
+                                            hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset())
+                frame = self.renderer.render(scene, self.rng)
+                self.frames_rendered += 1
+                self._pending_frames.append((now, frame))
+                if self.frame_sink is not None:
+                    self.frame_sink(now, frame, self)
+        processed = False
+        while self._pending_frames and self._pending_frames[0][0] + self.opt.camera_latency_s <= now + 1e-9:
+            processed = True
+            self.transport.set_time(now)
+            taken, frame = self._pending_frames.popleft()
+            det = self.locator.locate(frame, taken)
+            if det.rover is not None:
+                x, y, h = det.rover
+                self.mission.on_detection(Detection(taken, x, y, h), now)
+            else:
+                self.mission.on_detection(Detection(taken, None, None, None, det.reason), now)
+        return processed
+
+    def _camera_out(self, now: float) -> str | None:
+        for start, duration in self.opt.faults.camera_outages:
+            if start <= now < start + duration:
+                return self.opt.faults.camera_outage_kind
+        return None
+
+    def _rover(self, now: float) -> None:
+        rx = self.to_rover.receive(now, 255)
+        tx_room = max(0, 64 - self.to_host.queued())
+        out = self.core.step(int(round(now * 1000)), gyro_rate_mdps=self.plant.gyro_mdps(),
+                             sonar_range_mm=self._sonar_pending, rx=rx, tx_room=tx_room)
+        self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar else None
+        if out.tx:
+            self.to_host.write(out.tx, now)
+        self.plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, STEP_S)
+        clearance = self.world.clearance_m(self.plant.x, self.plant.y, self.plant.heading)
+        self.min_clearance_m = min(self.min_clearance_m, clearance)
+        contact = clearance <= 0.0
+        if contact and not self._in_contact:
+            self.collisions += 1
+            self._event(now, f"COLLISION at ({self.plant.x:.2f}, {self.plant.y:.2f}) m")
+        self._in_contact = contact
+        if int(round(now * 1000)) % 50 == 0:
+            pr = self.core.probe()
+            est = (pr.x_mm / 1000, pr.y_mm / 1000, math.degrees(pr.heading_rad), pr.position_sd_mm / 1000) \
+                if pr.state != mg.RoverState.IDLE or pr.x_mm else None
+            self.samples.append(Sample(now, self.plant.x, self.plant.y, self.plant.heading, est, pr.state,
+                                       len(self.mission.legs) - 1))
+
+    # ---------------------------------------------------------------- results
+
+    def optimal_length_m(self) -> float:
+        """A* with every obstacle known, over the trips the mission asked: the best a clairvoyant rover does."""
+        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner, all_obstacles=True)
+        sc = self.scenario
+        a, b = (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m)
+        try:
+            there = plan(grid, a, b).length_m
+            back = plan(grid, b, a).length_m
+        except NoPathError:
+            return float("nan")
+        n = self.mission.legs_asked
+        return sum(there if i % 2 == 0 else back for i in range(n))
+
+    def trip_optimal_m(self, index: int) -> float:
+        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner, all_obstacles=True)
+        sc = self.scenario
+        a, b = (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m)
+        if index % 2:
+            a, b = b, a
+        try:
+            return plan(grid, a, b).length_m
+        except NoPathError:
+            return float("nan")
