@@ -231,8 +231,14 @@ class Simulation:
         if out.tx:
             self.to_host.write(out.tx, now)
         self.plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, STEP_S)
-        clearance = self.world.clearance_m(self.plant.x, self.plant.y, self.plant.heading)
-        self.min_clearance_m = min(self.min_clearance_m, clearance)
+        # The exact footprint test only when a cheap lower bound says it could matter: a new
+        # minimum clearance, or a contact.
+        bound = self.world.clearance_bound_m(self.plant.x, self.plant.y)
+        if bound <= 0.0 or bound < self.min_clearance_m:
+            clearance = self.world.clearance_m(self.plant.x, self.plant.y, self.plant.heading)
+            self.min_clearance_m = min(self.min_clearance_m, clearance)
+        else:
+            clearance = bound
         contact = clearance <= 0.0
         if contact and not self._in_contact:
             self.collisions += 1

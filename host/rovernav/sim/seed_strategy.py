@@ -76,7 +76,7 @@ class SeedMission(Mission):
 
     def _check_path(self) -> None:
         self._map_changed_at = None
-        if not (self.host_replan and self._cells and self.trips):
+        if not (self.host_replan and self._cells and self.legs):
             return
         rest = [self._rover_xy()] + self._cells[self._next_cell:]
         if not self.grid.path_blocked(rest):

@@ -114,6 +114,15 @@ class World:
             best = min(best, _poly_box_distance(poly, b.bounds))
         return best
 
+    def clearance_bound_m(self, x_m: float, y_m: float) -> float:
+        """A lower bound of clearance_m, whatever the heading: the distance from the circle that
+        holds the footprint to the nearest wall or box."""
+        best = min(x_m, y_m, self.width_m - x_m, self.height_m - y_m)
+        for b in self.boxes:
+            x0, y0, x1, y1 = b.bounds
+            best = min(best, math.hypot(max(x0 - x_m, 0.0, x_m - x1), max(y0 - y_m, 0.0, y_m - y1)))
+        return best - HALF_DIAGONAL_M
+
     def collides(self, x_m: float, y_m: float, heading_deg: float) -> bool:
         return self.clearance_m(x_m, y_m, heading_deg) <= 0.0
 

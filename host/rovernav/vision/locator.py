@@ -113,12 +113,15 @@ class Locator:
                 x0, y0 = max(0, int(u) - half), max(0, int(v) - half)
                 x1, y1 = min(frame.shape[1], int(u) + half), min(frame.shape[0], int(v) + half)
                 key = (x0, y0, x1, y1)
+                ds = 2 if half > 50 else 1   # big windows are thresholded at half size too
                 if key not in windows and x1 > x0 and y1 > y0:
                     window = frame[y0:y1, x0:x1]
-                    windows[key] = (window, cv2.cvtColor(window, cv2.COLOR_BGR2HSV), x0, y0)
+                    small = cv2.resize(window, ((x1 - x0) // ds, (y1 - y0) // ds),
+                                       interpolation=cv2.INTER_AREA) if ds > 1 else window
+                    windows[key] = (window, cv2.cvtColor(small, cv2.COLOR_BGR2HSV), x0, y0)
                 if key in windows:
                     window, hsv, wx, wy = windows[key]
-                    result = self._find(name, hsv, window, 1, edge_ok=False)
+                    result = self._find(name, hsv, window, ds, edge_ok=False)
                     if isinstance(result, tuple):
                         result = (result[0] + wx, result[1] + wy)
             if not isinstance(result, tuple):

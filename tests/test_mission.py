@@ -1,0 +1,172 @@
+"""The mission loop against a scripted rover over the real protocol (frames on an in-process pipe)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rovernav.link import framing
+from rovernav.link import messages_gen as mg
+from rovernav.link.link import Link
+from rovernav.link.transport import PipeTransport
+from rovernav.mission import Detection, Mission, Phase
+from rovernav.planning import OccupancyGrid, PlannerConfig
+
+
+class ScriptedRover:
+    """Answers like the firmware: HELLO, ACK per command, PATH_ACCEPTED when a path is complete."""
+
+    def __init__(self, end, schema=mg.SCHEMA_HASH, boot_id=11, nack_start=None):
+        self.end, self.schema, self.boot_id, self.nack_start = end, schema, boot_id, nack_start
+        self.decoder = framing.FrameDecoder()
+        self.seq = 0
+        self.got: list = []
+        self.paths: dict[int, list] = {}
+        self.started: list[int] = []
+
+    def say(self, m):
+        self.end.write(framing.encode_frame(m, self.seq))
+        self.seq = (self.seq + 1) & 0xFF
+
+    def hello(self):
+        self.say(mg.Hello(schema_hash=self.schema, boot_id=self.boot_id, firmware_version=256, role=mg.Role.ROVER,
+                          max_waypoints=32))
+
+    def serve(self):
+        for f in self.decoder.feed(self.end.read(65536, 0)):
+            m = f.message
+            self.got.append(m)
+            if isinstance(m, mg.Hello):
+                self.hello()
+            elif isinstance(m, mg.Config):
+                self.say(mg.Ack(msg_id=m.ID, seq=f.seq))
+            elif isinstance(m, mg.Path):
+                pts = self.paths.setdefault(m.path_id, [])
+                pts += [(m.x_mm[i] / 1000, m.y_mm[i] / 1000) for i in range(m.count)]
+                self.say(mg.Ack(msg_id=m.ID, seq=f.seq))
+                if len(pts) == m.total:
+                    self.say(mg.Event(kind=mg.EventKind.PATH_ACCEPTED, arg=m.path_id))
+            elif isinstance(m, mg.Start):
+                if self.nack_start is not None:
+                    self.say(mg.Nack(msg_id=m.ID, seq=f.seq, reason=self.nack_start, detail=0))
+                else:
+                    self.started.append(m.path_id)
+                    self.say(mg.Ack(msg_id=m.ID, seq=f.seq))
+
+    def of(self, cls):
+        return [m for m in self.got if isinstance(m, cls)]
+
+
+def _setup(legs=1, **rover_kw):
+    host_end, rover_end = PipeTransport.pair()
+    rover = ScriptedRover(rover_end, **rover_kw)
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    notes = []
+    mission = Mission(Link(host_end), grid, (0.3, 0.3), (2.0, 1.4), legs=legs,
+                      rover_params=[(mg.Param.DRIVE_PWM, 80)], on_event=lambda t, text: notes.append(text))
+    return mission, rover, notes
+
+
+def _run(mission, rover, seconds, pose=(0.3, 0.3, 0.0), t0=0.0, step=0.03):
+    t = t0
+    while t < t0 + seconds and not mission.done:
+        mission.on_detection(Detection(t - 0.04, *pose), t)
+        mission.tick(t)
+        rover.serve()
+        t += step
+    return t
+
+
+def test_a_mission_configures_plans_loads_the_path_starts_and_streams_fixes():
+    mission, rover, notes = _setup()
+    _run(mission, rover, 2.0)
+    assert mission.phase is Phase.RUN
+    assert [(c.param, c.value) for c in rover.of(mg.Config)] == [(mg.Param.DRIVE_PWM, 80)]
+    assert rover.started == [mission.path_id]
+    path = rover.paths[mission.path_id]
+    assert math.dist(path[0], (0.3, 0.3)) < 0.01 and math.dist(path[-1], (2.0, 1.4)) < 0.01
+    fixes = rover.of(mg.Fix)
+    assert len(fixes) > 50 and fixes[-1].x_mm == 300 and 30 <= fixes[-1].age_ms <= 50
+    assert rover.of(mg.Heartbeat)
+
+
+def test_an_obstacle_that_blocks_the_path_triggers_one_replan_after_the_sweep():
+    mission, rover, notes = _setup()
+    t = _run(mission, rover, 1.0)
+    first = mission.path_id
+    # The rover, at (0.8, 0.6) heading for the target, sees something 0.3 m straight ahead.
+    heading = math.degrees(math.atan2(2.0 - 0.8, 1.4 - 0.6))
+    for bearing in (-1500, 0, 1500):
+        rover.say(mg.Obstacle(scan_id=1, bearing_cdeg=bearing, range_mm=300, x_mm=800, y_mm=600,
+                              heading_cdeg=round(heading * 100), sd_mm=3))
+    rover.say(mg.Event(kind=mg.EventKind.SCAN_DONE, arg=3))
+    _run(mission, rover, 1.0, pose=(0.8, 0.6, heading), t0=t)
+    assert mission.replans == 1 and mission.path_id == first + 1
+    assert not mission.grid.path_blocked(rover.paths[mission.path_id][1:])
+    assert any("replanned" in n for n in notes)
+
+
+def test_out_and_back_sends_the_rover_home_after_arrival():
+    mission, rover, notes = _setup(legs=2)
+    t = _run(mission, rover, 1.0)
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))
+    t = _run(mission, rover, 1.0, pose=(2.0, 1.4, 45.0), t0=t)
+    assert len(mission.legs) == 2 and mission.legs[0].reached
+    home = rover.paths[mission.path_id]
+    assert math.dist(home[-1], (0.3, 0.3)) < 0.01 and len(rover.started) == 2
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))
+    _run(mission, rover, 0.5, pose=(0.3, 0.3, 200.0), t0=t)
+    assert mission.phase is Phase.DONE and rover.of(mg.Stop)
+
+
+def test_a_rover_from_another_protocol_definition_fails_the_mission_with_both_hashes():
+    mission, rover, notes = _setup(schema=0x12345678)
+    _run(mission, rover, 1.0)
+    assert mission.phase is Phase.FAILED
+    assert "0x12345678" in mission.error and f"0x{mg.SCHEMA_HASH:08X}" in mission.error
+
+
+def test_a_nack_fails_the_mission_with_the_rovers_reason():
+    mission, rover, notes = _setup(nack_start=mg.NackReason.FAULTED)
+    _run(mission, rover, 2.0)
+    assert mission.phase is Phase.FAILED and "faulted" in mission.error
+
+
+def test_a_silent_rover_fails_the_mission_after_the_retries():
+    mission, rover, notes = _setup()
+    t = 0.0
+    while t < 10 and not mission.done:  # HELLO is answered, then the rover goes quiet
+        mission.on_detection(Detection(t, 0.3, 0.3, 0.0), t)
+        mission.tick(t)
+        if t < 0.1:
+            rover.serve()
+        else:
+            rover.end.read(65536, 0)
+        t += 0.05
+    assert mission.phase is Phase.FAILED and "did not answer" in mission.error and "after 8 tries" in mission.error
+
+
+def test_a_rebooted_rover_is_sent_its_parameters_and_path_again():
+    mission, rover, notes = _setup()
+    t = _run(mission, rover, 2.0)
+    configs = len(rover.of(mg.Config))
+    rover.boot_id = 99
+    rover.hello()
+    _run(mission, rover, 2.0, t0=t)
+    assert len(rover.of(mg.Config)) == configs + 1
+    assert any("restarted" in n for n in notes)
+    assert rover.started[-1] == mission.path_id and len(rover.started) >= 2
+
+
+def test_the_learned_map_is_saved_and_loaded(tmp_path):
+    mission, rover, _ = _setup()
+    t = _run(mission, rover, 1.0)
+    rover.say(mg.Obstacle(scan_id=1, bearing_cdeg=0, range_mm=250, x_mm=1000, y_mm=800, heading_cdeg=0, sd_mm=3))
+    _run(mission, rover, 0.3, t0=t)
+    mission.save_map(tmp_path / "map.json")
+    fresh, _, _ = _setup()
+    assert fresh.load_map(tmp_path / "map.json") == 1
+    assert (fresh.grid.raw == mission.grid.raw).all()
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(Exception, match="not a rovernav map"):
+        fresh.load_map(tmp_path / "bad.json")
