@@ -59,6 +59,7 @@ class SeedMission(Mission):
             self._next_cell += 1
         target = self._cells[self._next_cell]
         self._start_sent = False
+        self.phase = Phase.LOAD   # each waypoint is a mission of its own: path, then START
         self._send_path([here, target])
 
     def _on_event(self, m: mg.Event) -> None:
@@ -69,7 +70,6 @@ class SeedMission(Mission):
                 super()._on_event(m)   # the trip is done
                 return
             self._next_cell += 1
-            self.phase = Phase.LOAD
             self._send_next()
             return
         super()._on_event(m)
@@ -88,5 +88,4 @@ class SeedMission(Mission):
         self.legs[-1].replans += 1
         self.on_event(self._now, f"the sonar found the path blocked: replanned ({len(cells)} grid waypoints)")
         self._cells, self._next_cell = cells, 0
-        self.phase = Phase.LOAD
         self._send_next()
