@@ -159,9 +159,9 @@ class Simulation:
             if restarts and now >= restarts[0]:
                 restarts.pop(0)
                 self._event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS")
-                old = self.mission
+                # Nothing of the old host survives: the new one starts from HELLO, as a restarted
+                # process would. (Rebuilding the leg from the rover's STATUS is issue 6's work.)
                 self.mission = self._new_host()
-                self.mission.adopt_from_restart(old.legs)
             if resets and now >= resets[0]:
                 resets.pop(0)
                 self._event(now, "firmware reset: the rover reboots with a new boot id")

@@ -1,0 +1,137 @@
+"""The overhead-frame renderer: what it draws, where, in which colours, how exactly and how fast."""
+from __future__ import annotations
+
+import math
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene, render_frame
+from rovernav.vision.calibration import Calibration
+from rovernav.vision.config import VisionConfig
+
+W, H = 2.36, 1.75
+HSV = VisionConfig().hsv
+RANGES = {name: getattr(HSV, name) for name in ("target", "rover_front", "rover_back")}
+
+
+def _in_range(hsv_pixels: np.ndarray, rng_pair) -> np.ndarray:
+    lo, hi = (np.array(b) for b in rng_pair)
+    return np.all((hsv_pixels >= lo) & (hsv_pixels <= hi), axis=-1)
+
+
+def test_a_frame_is_640_by_480_bgr_and_the_same_rng_gives_the_same_frame():
+    scene = Scene(rover=(1.0, 0.8, 30.0), target=(2.0, 1.4), obstacles=((1.3, 0.9, 0.2, 0.85),))
+    a = render_frame(scene, np.random.default_rng(4))
+    b = render_frame(scene, np.random.default_rng(4))
+    c = render_frame(scene, np.random.default_rng(5))
+    assert a.shape == (480, 640, 3) and a.dtype == np.uint8
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)                        # new noise
+    assert np.abs(a.astype(int) - c.astype(int)).mean() < 6  # ... but only noise
+
+
+@pytest.mark.parametrize("lighting", [Lighting.uniform(), Lighting(level=1.05, gradient=0.25, vignette=0.35),
+                                      Lighting(level=0.9, gradient=0.25, gradient_angle_deg=200, vignette=0.35)])
+def test_only_the_markers_fall_in_the_markers_hsv_ranges(lighting):
+    """Floor, grout, obstacles, rover body and what lies beyond the arena are in no marker's range,
+    under bright and dim uneven light; each marker is in its own (apart from its edge pixels)."""
+    look = RoverLook()
+    cam = Camera(lighting=lighting, noise_sigma=0.0)
+    scene = Scene(rover=(0.6, 0.5, 20.0), target=(2.0, 1.4), obstacles=((1.3, 0.9, 0.3, 0.6),))
+    frame = Renderer(look, cam).render(scene, np.random.default_rng(0))
+    hsv = cv2.cvtColor(frame, cv2.COLOR_BGR2HSV)
+    cal = cam.mapping(W, H)
+    masks = {name: _in_range(hsv, r) for name, r in RANGES.items()}
+    # Far from every marker, nothing is in any range.
+    far = np.ones(frame.shape[:2], bool)
+    for x, y, radius in ((0.6, 0.5, 0.16), (2.0, 1.4, 0.06)):
+        u, v = cal.to_pixels((x, y))
+        r_px = radius * 640 / W
+        vv, uu = np.mgrid[0:480, 0:640]
+        far &= (uu - u) ** 2 + (vv - v) ** 2 > r_px ** 2
+    for name, m in masks.items():
+        assert not (m & far).any(), f"{name} range matches {int((m & far).sum())} background pixels"
+    # Each marker's centre pixel is in its own range.
+    fwd = np.array([math.sin(math.radians(20.0)), math.cos(math.radians(20.0))])
+    back = np.array([0.6, 0.5]) - look.centre_fraction * look.marker_distance_m * fwd
+    front = back + look.marker_distance_m * fwd
+    for name, p in (("rover_back", back), ("rover_front", front), ("target", (2.0, 1.4))):
+        u, v = np.rint(cal.to_pixels(p)).astype(int)
+        assert masks[name][v, u], f"{name} at {p}: HSV {hsv[v, u]}"
+
+
+def test_a_marker_moved_by_a_tenth_of_a_pixel_moves_its_rendered_centroid_by_a_tenth():
+    """Sub-pixel drawing: the intensity centroid of the (noise-free) target square follows its position."""
+    cam = Camera(lighting=Lighting.uniform(), noise_sigma=0.0)
+    r = Renderer(RoverLook(), cam)
+    empty = r.render(Scene(), np.random.default_rng(0)).astype(np.float64)
+    px_per_m = 640 / W
+    for k in range(11):
+        x = 1.0 + k * 0.1 / px_per_m                       # steps of 0.1 px
+        frame = r.render(Scene(target=(x, 0.9)), np.random.default_rng(0)).astype(np.float64)
+        diff = np.abs(frame - empty).sum(axis=2)
+        vv, uu = np.mgrid[0:480, 0:640]
+        u = (diff * uu).sum() / diff.sum()
+        expected_u = Calibration.straight_down(640, 480, W, H).to_pixels((x, 0.9))[0]
+        assert abs(u - expected_u) < 0.02, (k, u, expected_u)
+
+
+def test_an_oblique_camera_puts_the_arena_corners_at_the_calibrated_pixels():
+    corners = [(60.0, 450.0), (600.0, 440.0), (520.0, 80.0), (130.0, 95.0)]
+    cal = Calibration.from_corners(corners, W, H)
+    frame = Renderer(RoverLook(), Camera(calibration=cal, lighting=Lighting.uniform(), noise_sigma=0.0)).render(
+        Scene(), np.random.default_rng(0))
+    outside = np.array(RoverLook().outside_bgr)
+    for (u, v), (du, dv) in zip(corners, [(-1, 1), (1, 1), (1, -1), (-1, -1)]):
+        # Just outside each corner: beyond the arena; just inside: floor.
+        out_px = frame[int(round(v + 4 * dv)), int(round(u + 4 * du))]
+        in_px = frame[int(round(v - 6 * dv)), int(round(u - 6 * du))]
+        assert np.abs(out_px.astype(int) - outside).max() <= 1
+        assert in_px.mean() > outside.mean() + 40
+
+
+@pytest.mark.parametrize("heading", [0.0, 90.0, 200.0])
+def test_an_aruco_rover_is_a_readable_tag_whose_top_edge_faces_forward(heading):
+    look = RoverLook()
+    r = Renderer(look, Camera(lighting=Lighting.uniform(), noise_sigma=2.0))
+    frame = r.render(Scene(rover=(1.0, 0.8, heading), target=(2.0, 1.4), marker_kind="aruco"),
+                     np.random.default_rng(1))
+    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50))
+    corners, ids, _ = detector.detectMarkers(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+    assert ids is not None and sorted(ids.ravel().tolist()) == [look.rover_tag_id, look.target_tag_id]
+    c = corners[list(ids.ravel()).index(look.rover_tag_id)].reshape(4, 2)
+    up = (c[0] + c[1]) / 2 - (c[2] + c[3]) / 2            # image pixels, v down
+    seen = math.degrees(math.atan2(up[0], -up[1])) % 360
+    assert abs((seen - heading + 180) % 360 - 180) < 3
+
+
+def test_hidden_markers_and_decoys_are_drawn_as_asked():
+    cam = Camera(lighting=Lighting.uniform(), noise_sigma=0.0)
+    r = Renderer(RoverLook(), cam)
+    hsv = cv2.cvtColor(r.render(Scene(rover=(1.0, 0.8, 0.0), hidden=frozenset({"front"}),
+                                      decoys=(("back", 2.0, 0.3), ("target", 0.4, 1.5))),
+                                np.random.default_rng(0)), cv2.COLOR_BGR2HSV)
+    count = lambda name: cv2.connectedComponents(_in_range(hsv, RANGES[name]).astype(np.uint8))[0] - 1  # noqa: E731
+    assert count("rover_front") == 0
+    assert count("rover_back") == 2
+    assert count("target") == 1
+    with pytest.raises(ValueError, match="decoy kind"):
+        r.render(Scene(decoys=(("purple", 1.0, 1.0),)), np.random.default_rng(0))
+
+
+def test_a_frame_of_a_moving_rover_takes_a_few_milliseconds():
+    """The simulator renders every camera frame: the static arena is cached, a frame is cheap.
+    (About 1 ms here; the bound leaves room for a slow or busy machine.)"""
+    r = Renderer(RoverLook(), Camera(lighting=Lighting.random(np.random.default_rng(2))))
+    rng = np.random.default_rng(3)
+    obstacles = ((1.3, 0.875, 0.2, 0.85), (1.1, 1.2, 0.6, 0.2))
+    r.render(Scene(obstacles=obstacles, target=(2.0, 1.4)), rng)
+    times = []
+    for i in range(60):
+        t0 = time.perf_counter()
+        r.render(Scene(obstacles=obstacles, target=(2.0, 1.4), rover=(0.5 + 0.01 * i, 0.6, 3.0 * i)), rng)
+        times.append(time.perf_counter() - t0)
+    assert 1000 * float(np.median(times)) < 5.0
