@@ -1,0 +1,111 @@
+"""The host's TOML configuration, and `rovernav run`'s errors for a missing port, a missing
+camera and a rover built from another protocol definition."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+
+import cv2
+import numpy as np
+import pytest
+
+from rovernav.config import ConfigError, config_from_dict, load_config
+from rovernav.link import framing
+from rovernav.link import messages_gen as mg
+from rovernav.link.transport import PtyTransport
+
+
+def test_defaults_are_the_seeds_set_up():
+    cfg = load_config(None)
+    assert (cfg.arena.width_m, cfg.arena.height_m) == (2.36, 1.75)
+    assert cfg.link.baud == 57600
+    assert cfg.vision.markers == "colour" and cfg.vision.hsv.rover_back == ((55, 50, 50), (80, 255, 255))
+    assert cfg.planner.resolution_m == 0.03 and cfg.planner.robot_radius_m == 0.12
+
+
+def test_a_full_file_is_read(tmp_path):
+    f = tmp_path / "rover.toml"
+    f.write_text('[arena]\nwidth_m = 3.0\nheight_m = 2\n[link]\nport = "/dev/ttyUSB0"\n'
+                 '[rover]\ndrive_pwm = 90\nsweep_interval_mm = 250\n[vision]\nmarkers = "aruco"\n')
+    cfg = load_config(f)
+    assert cfg.arena.width_m == 3.0 and cfg.arena.height_m == 2.0
+    assert dict(cfg.rover_params()) == {mg.Param.DRIVE_PWM: 90, mg.Param.SWEEP_INTERVAL_MM: 250}
+    assert cfg.vision.markers == "aruco"
+
+
+@pytest.mark.parametrize("data, words", [
+    ({"arena": {"width_m": -1}}, "[arena] width_m"),
+    ({"arena": {"depth_m": 1}}, "no key 'depth_m'"),
+    ({"link": {"baud": 12345}}, "[link] baud"),
+    ({"rover": {"drive_pwm": 300}}, "drive_pwm = 300 is outside [0, 255]"),
+    ({"rover": {"warp_speed": 9}}, "no parameter 'warp_speed'"),
+    ({"rover": {"drive_pwm": 1.5}}, "should be an integer"),
+    ({"vision": {"markers": "lasers"}}, "vision.markers"),
+    ({"planner": {"resolution_m": -0.1}}, "[planner]"),
+    ({"warp": {}}, "unknown section [warp]"),
+])
+def test_a_bad_value_names_its_section_and_key(data, words):
+    with pytest.raises(ConfigError) as exc:
+        config_from_dict(data, where="rover.toml: ")
+    assert words in str(exc.value) and str(exc.value).startswith("rover.toml: ")
+
+
+def test_unreadable_files_are_refused_clearly(tmp_path):
+    with pytest.raises(ConfigError, match="not found"):
+        load_config(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[arena\nwidth_m = 2")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(bad)
+
+
+def _rovernav(*args, timeout=60):
+    return subprocess.run([sys.executable, "-m", "rovernav.cli", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_run_with_a_missing_camera_or_port_fails_with_a_message(tmp_path):
+    r = _rovernav("run", "--port", "/dev/ttyUSB0", "--camera", str(tmp_path / "nocam.mp4"))
+    assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
+    video = _video(tmp_path / "arena.mp4")
+    r = _rovernav("run", "--port", "/dev/ttyNOPE9", "--camera", str(video))
+    assert r.returncode == 2 and "/dev/ttyNOPE9" in r.stderr and "Traceback" not in r.stderr
+
+
+def _video(path):
+    from rovernav.render import Renderer, Scene
+
+    r = Renderer(seed=0)
+    rng = np.random.default_rng(0)
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30, (640, 480))
+    for _ in range(150):
+        out.write(r.render(Scene(rover=(0.3, 0.3, 0.0), target=(2.0, 1.4)), rng))
+    out.release()
+    return path
+
+
+def test_run_refuses_a_rover_built_from_another_protocol_definition(tmp_path):
+    video = _video(tmp_path / "arena.mp4")
+    with PtyTransport() as rover_end:
+        stop = threading.Event()
+
+        def fake_rover():
+            dec = framing.FrameDecoder()
+            while not stop.is_set():
+                for f in dec.feed(rover_end.read(4096, 0.05)):
+                    if isinstance(f.message, mg.Hello):
+                        rover_end.write(framing.encode_frame(
+                            mg.Hello(schema_hash=0xBADC0DE5, boot_id=7, firmware_version=256, role=mg.Role.ROVER,
+                                     max_waypoints=32), 0))
+
+        t = threading.Thread(target=fake_rover, daemon=True)
+        t.start()
+        try:
+            r = _rovernav("run", "--port", rover_end.peer_name, "--camera", str(video),
+                          "--scenario", "seed-fig4-8-unknown-obstacle", timeout=90)
+        finally:
+            stop.set()
+            t.join(2)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "0xBADC0DE5" in r.stderr and f"0x{mg.SCHEMA_HASH:08X}" in r.stderr
