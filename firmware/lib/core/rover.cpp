@@ -374,7 +374,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
 ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
   switch (f.msg_id) {
     case msg::Hello::kId: {
-      msg::Hello m;
+      msg::Hello m{};
       decode_message(f, m);
       if (m.role == static_cast<uint8_t>(Role::Host)) {
         schema_ok_ = m.schema_hash == kSchemaHash;
@@ -383,37 +383,37 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
       break;
     }
     case msg::Heartbeat::kId: {
-      msg::Heartbeat m;
+      msg::Heartbeat m{};
       decode_message(f, m);
       camera_ = m.camera;
       break;
     }
     case msg::Fix::kId: {
-      msg::Fix m;
+      msg::Fix m{};
       decode_message(f, m);
       on_fix(m, now);
       break;
     }
     case msg::Path::kId: {
-      msg::Path m;
+      msg::Path m{};
       decode_message(f, m);
       on_path(m, f.seq);
       break;
     }
     case msg::Start::kId: {
-      msg::Start m;
+      msg::Start m{};
       decode_message(f, m);
       on_start(m, f.seq);
       break;
     }
     case msg::Stop::kId: {
-      msg::Stop m;
+      msg::Stop m{};
       decode_message(f, m);
       on_stop(m, f.seq);
       break;
     }
     case msg::Config::kId: {
-      msg::Config m;
+      msg::Config m{};
       decode_message(f, m);
       on_config(m, f.seq);
       break;
