@@ -181,3 +181,9 @@ def test_rovernav_sim_refuses_an_unknown_scenario_and_a_bad_fault_window(tmp_pat
     r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "--link-outage", "ten"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "START:DURATION" in r.stderr
+
+
+def test_with_the_hosts_replanning_off_the_rover_gets_round_the_figure_4_8_obstacle_itself():
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
+    assert r["reached"] and r["collisions"] == 0 and r["replans"] == 0
+    assert any("rover: replanned" in e["text"] for e in r["events"])   # the rover's own detour

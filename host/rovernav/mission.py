@@ -30,7 +30,7 @@ RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 8         # ... this many times, then the mission fails
 HELLO_EVERY_S = 0.5
 WALL_ECHO_M = 0.06    # an echo this close to the arena's border is the border itself
-KNOWN_ECHO_M = 0.04   # an echo this close to an obstacle already mapped is that obstacle
+KNOWN_ECHO_M = 0.08   # an echo this close to an obstacle already mapped is that obstacle (another face of it)
 
 
 class MissionFailed(LinkError):

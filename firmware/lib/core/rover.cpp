@@ -68,6 +68,7 @@ uint16_t Rover::flags() const {
   if (!radio_lost_ && (dead_reckoning_ || camera_ != static_cast<uint8_t>(CameraState::Ok))) f |= StatusFlag::CameraLost;
   if (fault_ == FaultCode::GyroSilent || fault_ == FaultCode::GyroImplausible) f |= StatusFlag::GyroFault;
   if (schema_ok_) f |= StatusFlag::SchemaOk;
+  if (detour_i_ < detour_n_ || blocked_) f |= StatusFlag::LocalReplan;
   return f;
 }
 
@@ -212,7 +213,7 @@ ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s == RoverState::Drive && state_ != RoverState::Drive) {
     calib_anchor_ = false;
     drive_since_ms_ = last_ms_;
-    min_distance_mm_ = wp_ < path_len_ ? distance_to(wp_) : 0.0f;
+    min_distance_mm_ = wp_ < path_len_ ? distance_to(target()) : 0.0f;
   }
   state_ = s;
   if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_ = false;
@@ -230,12 +231,14 @@ void Rover::stop_sweep() {
   servo_cdeg_ = 0;
 }
 
-float Rover::distance_to(uint8_t i) const {
-  return length(static_cast<float>(path_[i].x_mm) - est_.x_mm(), static_cast<float>(path_[i].y_mm) - est_.y_mm());
+Waypoint Rover::target() const { return detour_i_ < detour_n_ ? detour_[detour_i_] : path_[wp_]; }
+
+float Rover::distance_to(Waypoint w) const {
+  return length(static_cast<float>(w.x_mm) - est_.x_mm(), static_cast<float>(w.y_mm) - est_.y_mm());
 }
 
-float Rover::error_to_deg(uint8_t i) const {
-  const float b = bearing_rad(est_.x_mm(), est_.y_mm(), path_[i].x_mm, path_[i].y_mm);
+float Rover::error_to_deg(Waypoint w) const {
+  const float b = bearing_rad(est_.x_mm(), est_.y_mm(), w.x_mm, w.y_mm);
   return wrap_rad(b - est_.heading_rad()) * kDegPerRad;
 }
 
@@ -270,6 +273,15 @@ uint8_t Rover::closest_target() const {
 }
 
 void Rover::reached_waypoint() {
+  if (detour_i_ < detour_n_) {
+    // A point of the rover's own detour: on to the next, or back onto the host's path.
+    if (++detour_i_ >= detour_n_) {
+      detour_n_ = detour_i_ = 0;
+      wp_ = closest_target();
+    }
+    enter(RoverState::Rotate);
+    return;
+  }
   send_event(EventKind::WaypointReached, wp_);
   if (wp_ + 1 >= path_len_) {
     enter(RoverState::Arrived);
@@ -278,8 +290,8 @@ void Rover::reached_waypoint() {
   }
   ++wp_;
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
-  const float l = distance_to(wp_);
-  if (state_ == RoverState::Drive && fabsf(error_to_deg(wp_)) <= cone_deg(l)) {
+  const float l = distance_to(target());
+  if (state_ == RoverState::Drive && fabsf(error_to_deg(target())) <= cone_deg(l)) {
     min_distance_mm_ = l;
   } else {
     enter(RoverState::Rotate);
@@ -315,23 +327,31 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
       o.sd_mm = saturate_u16(est_.position_sd_mm());
       tx_.send(o);
       ++scan_echoes_;
+      remember_echo(echo.bearing_cdeg, echo.range_mm);
     }
     if (!sweep_.running()) {
       send_event(EventKind::ScanDone, scan_echoes_);
       sweep_distance_mm_ = 0.0f;
       enter(RoverState::Rotate);
+      replan_locally();
     }
     return;
   }
+  if (blocked_) {
+    // No way round on the rover's grid. With the radio up, wait for the host's new path; if none
+    // comes, the host (whose map knows more) holds the path clear, and the rover goes on.
+    if (radio_lost_ || now - blocked_since_ms_ < kBlockedWaitMs) return;
+    blocked_ = false;
+  }
 
   if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
-  float l = distance_to(wp_);
+  float l = distance_to(target());
   if (l <= p.arrival_radius_mm()) {
     reached_waypoint();
     if (!mission_) return;
-    l = distance_to(wp_);
+    l = distance_to(target());
   }
-  const float err = error_to_deg(wp_);
+  const float err = error_to_deg(target());
 
   if (state_ == RoverState::Rotate) {
     if (fabsf(err) <= p.rotate_done_deg() && fabsf(rate_dps_) < kRotateSettledDps) {
@@ -358,6 +378,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
     ++scan_id_;
     scan_echoes_ = 0;
+    local_.clear();
     sweep_.start(now, servo_cdeg_, p.sweep_step_ms());
     enter(RoverState::Scan);
     return;
@@ -367,6 +388,77 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   const float base = p.drive_pwm();
   out.left_pwm = clamp_pwm(base + u);
   out.right_pwm = clamp_pwm(base - u * p.right_bias());
+}
+
+// ---------------------------------------------------------------- local replanning
+
+void Rover::remember_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+  // Where the echo came from: the beam's axis at its range, from the sensor ahead of the centre.
+  const float h = est_.heading_rad();
+  const float b = h + cdeg_to_rad(bearing_cdeg);
+  // The sonar sees only the near face; the obstacle goes on behind it for all it knows. One disk
+  // covers the face point and kAssumedDepthMm behind it along the beam: centred half that depth
+  // further on, with the clearance, half the beam's 15-degree width there and half the depth.
+  const float r = static_cast<float>(range_mm) + 0.5f * kAssumedDepthMm;
+  Point p;
+  p.x_mm = saturate_i16(est_.x_mm() + kSonarOffsetMm * sinf(h) + r * sinf(b));
+  p.y_mm = saturate_i16(est_.y_mm() + kSonarOffsetMm * cosf(h) + r * cosf(b));
+  local_.add(p, static_cast<uint16_t>(kDetourClearanceMm + static_cast<float>(range_mm) * kHalfBeamTan +
+                                      0.5f * kAssumedDepthMm));
+}
+
+Waypoint Rover::rejoin_point(float ahead_mm) const {
+  // The point `ahead_mm` along the rest of the path: from the rover to path_[wp_], then on.
+  Waypoint from = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
+  float left = ahead_mm;
+  for (uint8_t i = wp_; i < path_len_; ++i) {
+    const Waypoint to = path_[i];
+    const float seg = length(static_cast<float>(to.x_mm - from.x_mm), static_cast<float>(to.y_mm - from.y_mm));
+    if (seg >= left && seg > 0.0f) {
+      const float f = left / seg;
+      Waypoint w = {saturate_i16(from.x_mm + f * static_cast<float>(to.x_mm - from.x_mm)),
+                    saturate_i16(from.y_mm + f * static_cast<float>(to.y_mm - from.y_mm))};
+      return w;
+    }
+    left -= seg;
+    from = to;
+  }
+  return path_[path_len_ - 1];
+}
+
+void Rover::replan_locally() {
+  blocked_ = false;
+  if (!mission_ || local_.echoes() == 0 || detour_i_ < detour_n_) return;
+  const Waypoint here = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
+  const Waypoint next = target();
+  const Point a = {here.x_mm, here.y_mm}, b = {next.x_mm, next.y_mm};
+  // Act only when the leg runs into what was seen itself (the disks less their assumed depth):
+  // the host's map, which knows more, may pass closer than the rover's cautious disks allow.
+  if (!local_.blocks(a, b, kAssumedDepthMm)) return;
+  // The leg runs into what the sonar found. The path-staging buffer is the planner's scratch
+  // (unless a path is arriving: then the host's new path will do, and the rover waits for it).
+  static_assert(sizeof(stage_) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");
+  uint8_t n = 0;
+  Point detour[LocalPlanner::kMaxDetour];
+  if (!staging_) {
+    // Rejoin the path well past the obstacle (its depth is unknown), but inside the grid.
+    for (uint16_t ahead = 900; ahead >= 600 && n == 0; ahead = static_cast<uint16_t>(ahead - 100)) {
+      const Waypoint g = rejoin_point(static_cast<float>(ahead));
+      const Point goal = {g.x_mm, g.y_mm};
+      if (local_.inside(goal)) continue;
+      n = local_.plan(a, goal, reinterpret_cast<uint8_t*>(stage_), detour);
+    }
+  }
+  if (n == 0) {
+    blocked_ = true;   // stopped; a path from the host (or kBlockedWaitMs of it sending none) ends it
+    blocked_since_ms_ = last_ms_;
+    send_event(EventKind::Replanned, 0);
+    return;
+  }
+  for (uint8_t i = 0; i < n; ++i) detour_[i] = Waypoint{detour[i].x_mm, detour[i].y_mm};
+  detour_n_ = n;
+  detour_i_ = 0;
+  send_event(EventKind::Replanned, n);
 }
 
 // ---------------------------------------------------------------- messages in
@@ -499,6 +591,8 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   for (uint8_t i = 0; i < stage_total_; ++i) path_[i] = stage_[i];
   path_len_ = stage_total_;
   path_id_ = stage_id_;
+  detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
+  blocked_ = false;
   send_event(EventKind::PathAccepted, path_id_);
   if (mission_ && est_.initialised()) {
     wp_ = closest_target();

@@ -13,6 +13,7 @@
 #include "frame.h"
 #include "heading_pid.h"
 #include "io.h"
+#include "local_planner.h"
 #include "messages_gen.h"
 #include "params.h"
 #include "sweep.h"
@@ -85,6 +86,13 @@ struct RoverFields {
   uint32_t drive_since_ms_ = 0;
   int16_t calib_x_mm_ = 0, calib_y_mm_ = 0;  // the fix calibration measures from
   float calib_model_mm_ = 0.0f;              // the model's distance since that fix
+
+  LocalPlanner local_;                        // the last sweep's echoes, as obstacle disks
+  Waypoint detour_[LocalPlanner::kMaxDetour] = {};  // the rover's own way round them
+  uint8_t detour_n_ = 0;
+  uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
+  bool blocked_ = false;                      // blocked and no way round: wait for the host
+  uint32_t blocked_since_ms_ = 0;
 };
 
 class Rover : private RoverFields {
@@ -96,7 +104,12 @@ class Rover : private RoverFields {
     kGyroRecoverMs = 500,       // a faulted gyro must be good this long before the fault clears
     kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
+    kSonarOffsetMm = 100,       // the ranger sits this far ahead of the rover's centre
+    kDetourClearanceMm = 170,   // robot radius 120 + sonar placement margin 50, as the host plans
+    kAssumedDepthMm = 160,      // how far an obstacle is taken to reach behind the face the sonar saw
+    kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
   };
+  static constexpr float kHalfBeamTan = 0.1317f;  // tan(7.5 deg): half the HC-SR04's cone
 
   Rover() : RoverFields{} {}
   /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
@@ -115,6 +128,8 @@ class Rover : private RoverFields {
   const FrameCounters& rx_counters() const { return decoder_.counters(); }
   uint16_t tx_dropped() const { return tx_.dropped(); }
   float speed_scale() const { return speed_scale_; }
+  uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
+  bool blocked() const { return blocked_; }
   float dr_distance_mm() const { return dr_distance_mm_; }
 
  private:
@@ -141,8 +156,12 @@ class Rover : private RoverFields {
   void reached_waypoint();
   float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
   uint8_t closest_target() const;
-  float distance_to(uint8_t i) const;
-  float error_to_deg(uint8_t i) const;
+  Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
+  float distance_to(Waypoint w) const;
+  float error_to_deg(Waypoint w) const;
+  void remember_echo(int16_t bearing_cdeg, uint16_t range_mm);
+  Waypoint rejoin_point(float ahead_mm) const;
+  void replan_locally();
   float cone_deg(float distance_mm) const;
   float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
 

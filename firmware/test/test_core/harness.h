@@ -70,7 +70,44 @@ class Bench {
   bool stream_fixes = false;    // a FIX every fix_period_ms from the plant's true pose
   uint16_t fix_period_ms = 33;
   bool heartbeats = false;
-  uint16_t sonar_range_mm = 0;  // what the next ping returns (0 = nothing)
+  uint16_t sonar_range_mm = 0;  // what the next ping returns (0 = nothing), unless a box is set
+  bool has_box = false;         // an obstacle in the world: the sonar sees it, the host does not
+  float box_x0 = 0, box_y0 = 0, box_x1 = 0, box_y1 = 0;
+  float closest_to_box_mm = 1e9f;  // nearest the rover's centre came to the box
+  void set_box(float cx, float cy, float w, float h) {
+    has_box = true;
+    box_x0 = cx - w / 2;
+    box_x1 = cx + w / 2;
+    box_y0 = cy - h / 2;
+    box_y1 = cy + h / 2;
+  }
+  /// The ping's range: the box along the beam's axis (and +-7.5 degrees), within 1 m; else 0.
+  uint16_t ping(int16_t servo_cdeg) const {
+    if (!has_box) return sonar_range_mm;
+    const float h = plant.heading_rad;
+    const float sx = plant.x_mm + 100.0f * sinf(h), sy = plant.y_mm + 100.0f * cosf(h);
+    float best = 1e9f;
+    for (int k = -2; k <= 2; ++k) {
+      const float a = h + (static_cast<float>(servo_cdeg) / 100.0f + 3.75f * static_cast<float>(k)) * 0.0174533f;
+      const float dx = sinf(a), dy = cosf(a);
+      float t0 = 0.0f, t1 = 1e9f;
+      bool hit = true;
+      const float lo[2] = {box_x0, box_y0}, hi[2] = {box_x1, box_y1}, p[2] = {sx, sy}, d[2] = {dx, dy};
+      for (int i = 0; i < 2 && hit; ++i) {
+        if (fabsf(d[i]) < 1e-9f) {
+          hit = p[i] >= lo[i] && p[i] <= hi[i];
+          continue;
+        }
+        float ta = (lo[i] - p[i]) / d[i], tb = (hi[i] - p[i]) / d[i];
+        if (ta > tb) { const float t = ta; ta = tb; tb = t; }
+        t0 = fmaxf(t0, ta);
+        t1 = fminf(t1, tb);
+        hit = t0 <= t1;
+      }
+      if (hit && t0 < best) best = t0;
+    }
+    return best < 1000.0f ? static_cast<uint16_t>(best) : 0;
+  }
   uint32_t pings = 0;
   core::Outputs out{};
   Said said[512];
@@ -138,7 +175,7 @@ class Bench {
     in.gyro_valid = gyro_alive;
     in.gyro_rate_mdps = gyro_override ? gyro_override_mdps : static_cast<int32_t>(lroundf(plant.rate_dps * 1000.0f));
     in.sonar_valid = pending_ping_;
-    in.sonar_range_mm = sonar_range_mm;
+    in.sonar_range_mm = ping_result_;
     pending_ping_ = false;
     if (stream_fixes && camera && now_ms - last_fix_ms_ >= fix_period_ms) {
       last_fix_ms_ = now_ms;
@@ -161,6 +198,7 @@ class Bench {
     rx_len_ = static_cast<uint16_t>(rx_len_ - chunk);
     if (out.fire_sonar) {
       pending_ping_ = true;
+      ping_result_ = ping(out.servo_cdeg);
       ++pings;
     }
     for (uint8_t i = 0; i < out.tx_len; ++i) {
@@ -173,6 +211,11 @@ class Bench {
       }
     }
     plant.advance(out.left_pwm, out.right_pwm, static_cast<float>(step_ms) / 1000.0f);
+    if (has_box) {
+      const float dx = fmaxf(fmaxf(box_x0 - plant.x_mm, 0.0f), plant.x_mm - box_x1);
+      const float dy = fmaxf(fmaxf(box_y0 - plant.y_mm, 0.0f), plant.y_mm - box_y1);
+      closest_to_box_mm = fminf(closest_to_box_mm, sqrtf(dx * dx + dy * dy));
+    }
     now_ms += step_ms;
   }
   void run_ms(uint32_t ms) {
@@ -249,6 +292,7 @@ class Bench {
   uint16_t rx_len_ = 0;
   uint8_t host_seq_ = 0;
   bool pending_ping_ = false;
+  uint16_t ping_result_ = 0;
   uint32_t last_fix_ms_ = 0;
   uint32_t last_hb_ms_ = 0;
   FrameDecoder decoder_;

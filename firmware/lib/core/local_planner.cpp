@@ -1,0 +1,151 @@
+#include "local_planner.h"
+
+namespace rovernav {
+namespace core {
+
+namespace {
+
+// The 8 neighbours, as (dx, dy); the opposite of direction k is k ^ 4 in this order.
+const int8_t kDx[8] = {1, 1, 0, -1, -1, -1, 0, 1};
+const int8_t kDy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+
+inline bool bit(const uint8_t* bits, uint16_t i) { return (bits[i >> 3] >> (i & 7)) & 1; }
+inline void set_bit(uint8_t* bits, uint16_t i) { bits[i >> 3] = static_cast<uint8_t>(bits[i >> 3] | (1u << (i & 7))); }
+inline uint8_t nibble(const uint8_t* n, uint16_t i) { return (i & 1) ? static_cast<uint8_t>(n[i >> 1] >> 4) : static_cast<uint8_t>(n[i >> 1] & 0x0F); }
+inline void set_nibble(uint8_t* n, uint16_t i, uint8_t v) {
+  n[i >> 1] = (i & 1) ? static_cast<uint8_t>((n[i >> 1] & 0x0F) | (v << 4)) : static_cast<uint8_t>((n[i >> 1] & 0xF0) | v);
+}
+
+int32_t sq(int32_t v) { return v * v; }
+
+}  // namespace
+
+void LocalPlanner::add(Point p, uint16_t radius_mm) {
+  if (n_ >= kMaxEchoes) return;
+  disks_[n_].c = p;
+  disks_[n_].r_mm = radius_mm;
+  ++n_;
+}
+
+bool LocalPlanner::inside(Point p) const {
+  for (uint8_t i = 0; i < n_; ++i) {
+    ++ops_;
+    const Disk& d = disks_[i];
+    if (sq(p.x_mm - d.c.x_mm) + sq(p.y_mm - d.c.y_mm) < sq(d.r_mm)) return true;
+  }
+  return false;
+}
+
+bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
+  const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
+  const float len2 = vx * vx + vy * vy;
+  for (uint8_t i = 0; i < n_; ++i) {
+    ++ops_;
+    const Disk& d = disks_[i];
+    const float px = static_cast<float>(d.c.x_mm - a.x_mm), py = static_cast<float>(d.c.y_mm - a.y_mm);
+    float t = len2 > 0.0f ? (px * vx + py * vy) / len2 : 0.0f;
+    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    const float ex = px - t * vx, ey = py - t * vy;
+    const float r = static_cast<float>(d.r_mm) - static_cast<float>(shrink_mm);
+    if (r > 0.0f && ex * ex + ey * ey < r * r) return true;
+  }
+  return false;
+}
+
+Point LocalPlanner::cell_centre(int16_t ix, int16_t iy) const {
+  Point p;
+  p.x_mm = static_cast<int16_t>(origin_.x_mm + ix * kCellMm + kCellMm / 2);
+  p.y_mm = static_cast<int16_t>(origin_.y_mm + iy * kCellMm + kCellMm / 2);
+  return p;
+}
+
+bool LocalPlanner::cell_free(int16_t ix, int16_t iy) const { return !inside(cell_centre(ix, iy)); }
+
+uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out) {
+  ops_ = 0;
+  const int16_t half = static_cast<int16_t>(kCells * kCellMm / 2);
+  origin_.x_mm = static_cast<int16_t>((start.x_mm + goal.x_mm) / 2 - half);
+  origin_.y_mm = static_cast<int16_t>((start.y_mm + goal.y_mm) / 2 - half);
+  const int16_t sx = static_cast<int16_t>((start.x_mm - origin_.x_mm) / kCellMm);
+  const int16_t sy = static_cast<int16_t>((start.y_mm - origin_.y_mm) / kCellMm);
+  const int16_t gx = static_cast<int16_t>((goal.x_mm - origin_.x_mm) / kCellMm);
+  const int16_t gy = static_cast<int16_t>((goal.y_mm - origin_.y_mm) / kCellMm);
+  if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return 0;
+  if (inside(goal)) return 0;
+
+  // Scratch: direction nibbles (0 = not reached; k + 1 = step k leads towards the goal; 9 = the
+  // goal), the blocked cells, and two frontier bitsets.
+  const uint16_t nbits = (kCellCount + 7) / 8;
+  uint8_t* dir = scratch;
+  uint8_t* blocked = scratch + kCellCount / 2;
+  uint8_t* cur = blocked + nbits;
+  uint8_t* nxt = cur + nbits;
+  for (uint16_t i = 0; i < kCellCount / 2 + 3 * nbits; ++i) scratch[i] = 0;
+  for (int16_t iy = 0; iy < kCells; ++iy)
+    for (int16_t ix = 0; ix < kCells; ++ix)
+      if (!cell_free(ix, iy)) set_bit(blocked, static_cast<uint16_t>(iy * kCells + ix));
+  const uint16_t start_i = static_cast<uint16_t>(sy * kCells + sx);
+  const uint16_t goal_i = static_cast<uint16_t>(gy * kCells + gx);
+  set_nibble(dir, goal_i, 9);
+  set_bit(cur, goal_i);
+
+  // Breadth-first from the goal, one frontier layer at a time; no corner cutting.
+  bool reached = start_i == goal_i;
+  for (uint16_t layer = 0; layer < kCellCount && !reached; ++layer) {
+    bool any = false;
+    for (uint16_t i = 0; i < nbits; ++i) nxt[i] = 0;
+    for (uint16_t c = 0; c < kCellCount; ++c) {
+      ++ops_;
+      if (!bit(cur, c)) continue;
+      const int16_t cx = static_cast<int16_t>(c % kCells), cy = static_cast<int16_t>(c / kCells);
+      for (uint8_t k = 0; k < 8; ++k) {
+        ++ops_;
+        const int16_t nx = static_cast<int16_t>(cx + kDx[k]), ny = static_cast<int16_t>(cy + kDy[k]);
+        if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
+        const uint16_t n = static_cast<uint16_t>(ny * kCells + nx);
+        if (nibble(dir, n) != 0) continue;
+        if (bit(blocked, n) && n != start_i) continue;
+        if ((k & 1) && (bit(blocked, static_cast<uint16_t>(cy * kCells + nx)) ||
+                        bit(blocked, static_cast<uint16_t>(ny * kCells + cx)))) continue;
+        set_nibble(dir, n, static_cast<uint8_t>(((k ^ 4) & 7) + 1));  // from n, step back towards c
+        set_bit(nxt, n);
+        any = true;
+        if (n == start_i) reached = true;
+      }
+    }
+    if (!any) break;
+    uint8_t* t = cur;
+    cur = nxt;
+    nxt = t;
+  }
+  if (!reached) return 0;
+
+  // Walk from the start towards the goal; keep a turning point wherever the straight line from
+  // the last kept point would cross a disk.
+  uint8_t n_out = 0;
+  Point anchor = start;
+  Point prev = start;
+  int16_t x = sx, y = sy;
+  for (uint16_t guard = 0; guard < kCellCount; ++guard) {
+    const uint16_t i = static_cast<uint16_t>(y * kCells + x);
+    const uint8_t d = nibble(dir, i);
+    const bool at_goal = d == 9 || i == goal_i;
+    const Point here = at_goal ? goal : cell_centre(x, y);
+    if (blocks(anchor, here)) {
+      if (n_out >= kMaxDetour - 1) return 0;
+      out[n_out++] = prev;
+      anchor = prev;
+    }
+    if (at_goal) {
+      out[n_out++] = goal;
+      return n_out;
+    }
+    prev = here;
+    x = static_cast<int16_t>(x + kDx[d - 1]);
+    y = static_cast<int16_t>(y + kDy[d - 1]);
+  }
+  return 0;
+}
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,66 @@
+// The rover's own detour round an obstacle its sonar has just found, without the host.
+//
+// After a sweep, the echoes become disks to keep the rover's centre out of (the echo's point,
+// widened by half the 15-degree beam at its range and by the clearance). If the next leg passes
+// through one, a breadth-first wavefront on a small grid (kCells x kCells cells of kCellMm,
+// centred between the rover and a rejoin point further along its path) finds a way round, and
+// its turning points become a detour of at most kMaxDetour waypoints.
+//
+// Memory: the wavefront's working arrays (a direction nibble per cell, the blocked cells and two
+// frontier bitsets,
+// kScratchBytes in all) live in a scratch buffer the caller lends (the Rover lends its idle
+// path-staging buffer), so the planner adds only its echoes to the static RAM.
+// Time: bounded by the grid (every cell enters the frontier once); ops() counts the work so the
+// native tests can estimate the ATmega328P's time.
+#pragma once
+#include <stdint.h>
+
+namespace rovernav {
+namespace core {
+
+struct Point {
+  int16_t x_mm;
+  int16_t y_mm;
+};
+
+class LocalPlanner {
+ public:
+  enum : uint8_t { kCells = 12, kMaxEchoes = 9, kMaxDetour = 4 };
+  enum : int16_t { kCellMm = 80 };
+  enum : uint16_t {
+    kCellCount = kCells * kCells,
+    kScratchBytes = kCellCount / 2 + 3 * ((kCellCount + 7) / 8),
+  };
+
+  void clear() { n_ = 0; }
+  uint8_t echoes() const { return n_; }
+  /// An obstacle point to keep the rover's centre at least radius_mm away from.
+  void add(Point p, uint16_t radius_mm);
+  /// Whether the segment a-b passes within an obstacle disk (each disk shrunk by shrink_mm).
+  bool blocks(Point a, Point b, uint16_t shrink_mm = 0) const;
+  /// Whether point p is inside an obstacle disk.
+  bool inside(Point p) const;
+  /// Plans from start round the disks to goal. Writes the detour's waypoints (turning points,
+  /// the goal last) to out and returns how many (1..kMaxDetour), or 0 when there is no way on
+  /// the grid. scratch: kScratchBytes bytes the planner may use.
+  uint8_t plan(Point start, Point goal, uint8_t* scratch, Point* out);
+  /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests).
+  uint32_t ops() const { return ops_; }
+
+ private:
+  struct Disk {
+    Point c;
+    uint16_t r_mm;
+  };
+  bool cell_free(int16_t ix, int16_t iy) const;
+  Point cell_centre(int16_t ix, int16_t iy) const;
+  bool line_free(int16_t ax, int16_t ay, int16_t bx, int16_t by) const;
+
+  Disk disks_[kMaxEchoes];
+  uint8_t n_ = 0;
+  Point origin_ = {0, 0};  // the grid's lower-left corner
+  mutable uint32_t ops_ = 0;
+};
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,106 @@
+// The rover's own detour: the wavefront planner on its small grid, its cost on the Uno, and the
+// rover getting round an obstacle its sonar found with no help from the host.
+#include <doctest.h>
+#include <math.h>
+
+#include "harness.h"
+#include "local_planner.h"
+
+using namespace rovernav;
+using rovernav::core::LocalPlanner;
+using rovernav::core::Point;
+using rovernav::test::Bench;
+
+namespace {
+
+// A conservative cost of one counted operation on a 16 MHz ATmega328P: a disk test is two 16x16
+// multiplies into 32 bits and a compare (about 40 cycles with the loop); a neighbour visit is a
+// few bit operations on an 8-bit core (about 30). 60 cycles an operation overstates both.
+const float kCyclesPerOp = 60.0f;
+const float kAvrHz = 16e6f;
+
+bool detour_clear(const LocalPlanner& lp, Point start, const Point* wps, uint8_t n) {
+  Point a = start;
+  for (uint8_t i = 0; i < n; ++i) {
+    if (lp.blocks(a, wps[i])) return false;
+    a = wps[i];
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("a disk on the leg: the planner finds a clear way round, within 50 ms of an ATmega328P") {
+  LocalPlanner lp;
+  lp.clear();
+  lp.add(Point{300, 700}, 230);  // an echo 0.4 m ahead with its clearance and beam width
+  lp.add(Point{340, 700}, 230);
+  uint8_t scratch[LocalPlanner::kScratchBytes];
+  Point out[LocalPlanner::kMaxDetour];
+  const Point start{300, 300}, goal{300, 1000};
+  REQUIRE(lp.blocks(start, goal));
+  const uint8_t n = lp.plan(start, goal, scratch, out);
+  REQUIRE(n >= 2);
+  CHECK(out[n - 1].x_mm == goal.x_mm);
+  CHECK(out[n - 1].y_mm == goal.y_mm);
+  CHECK(detour_clear(lp, start, out, n));
+  const float ms = static_cast<float>(lp.ops()) * kCyclesPerOp / kAvrHz * 1000.0f;
+  MESSAGE("detour of " << static_cast<int>(n) << " waypoints; " << lp.ops() << " operations, about " << ms
+                       << " ms on a 16 MHz ATmega328P");
+  CHECK(ms < 50.0f);
+  CHECK(LocalPlanner::kScratchBytes <= 128);
+}
+
+TEST_CASE("the worst case on the grid stays within 50 ms too: a maze of nine disks") {
+  LocalPlanner lp;
+  lp.clear();
+  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(100 + 60 * i), static_cast<int16_t>(650 + (i % 2) * 60)}, 120);
+  uint8_t scratch[LocalPlanner::kScratchBytes];
+  Point out[LocalPlanner::kMaxDetour];
+  lp.plan(Point{300, 300}, Point{300, 1000}, scratch, out);
+  const float ms = static_cast<float>(lp.ops()) * kCyclesPerOp / kAvrHz * 1000.0f;
+  MESSAGE(lp.ops() << " operations, about " << ms << " ms");
+  CHECK(ms < 50.0f);
+}
+
+TEST_CASE("no way round on the grid: the planner says so instead of guessing") {
+  LocalPlanner lp;
+  lp.clear();
+  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(-200 + 110 * i), 650}, 200);  // a wall
+  uint8_t scratch[LocalPlanner::kScratchBytes];
+  Point out[LocalPlanner::kMaxDetour];
+  CHECK(lp.plan(Point{300, 300}, Point{300, 1000}, scratch, out) == 0);
+  CHECK(lp.plan(Point{300, 300}, Point{300, 650}, scratch, out) == 0);  // the goal itself is blocked
+}
+
+TEST_CASE("the rover gets round an obstacle its sonar found, with no new path from the host") {
+  Bench b;
+  b.stream_fixes = true;
+  b.set_box(300, 1050, 200, 200);  // dead ahead on the leg; the host's path runs through it
+  const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
+  b.start_mission(wps, 2);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 120000));
+  msg::Event e;
+  REQUIRE(b.events(EventKind::Replanned, &e) >= 1);
+  CHECK(e.arg >= 1);
+  CHECK(b.count<msg::Obstacle>() >= 1);
+  MESSAGE("closest the rover's centre came to the box: " << b.closest_to_box_mm << " mm");
+  CHECK(b.closest_to_box_mm > 110.0f);   // half the rover's width is 75 mm: never touched
+  CHECK(b.true_distance_to(300, 1600) < 46.0f);
+}
+
+TEST_CASE("a path from the host replaces the rover's own detour") {
+  Bench b;
+  b.stream_fixes = true;
+  b.set_box(300, 1050, 200, 200);
+  const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
+  b.start_mission(wps, 2);
+  REQUIRE(b.run_until([&] { return b.rover.detour_left() > 0; }, 60000));
+  CHECK((b.rover.flags() & StatusFlag::LocalReplan) != 0);
+  const core::Waypoint around[] = {{300, 600}, {650, 800}, {650, 1300}, {300, 1600}};
+  b.load_path(2, around, 4);
+  CHECK(b.rover.detour_left() == 0);
+  CHECK((b.rover.flags() & StatusFlag::LocalReplan) == 0);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 120000));
+  CHECK(b.closest_to_box_mm > 110.0f);
+}
