@@ -187,3 +187,29 @@ def test_with_the_hosts_replanning_off_the_rover_gets_round_the_figure_4_8_obsta
     r = _run("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
     assert r["reached"] and r["collisions"] == 0 and r["replans"] == 0
     assert any("rover: replanned" in e["text"] for e in r["events"])   # the rover's own detour
+
+
+def test_a_ten_second_camera_outage_mid_path_is_ridden_out_on_dead_reckoning():
+    from rovernav.sim.runner import Faults
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(camera_outages=[(12.0, 10.0)]))
+    assert r["reached"] and r["collisions"] == 0
+    f = r["faults"]
+    assert f["camera_lost_events"] == 1 and f["holds"] == []
+    assert f["max_dr_error_m"] is not None and f["max_dr_error_m"] < 0.05
+
+
+def test_a_firmware_reset_mid_mission_is_brought_back_up_to_date_and_the_mission_completes():
+    from rovernav.sim.runner import Faults
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(firmware_resets=[15.0]))
+    assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 1
+    assert any("rover restarted" in e["text"] for e in r["events"])
+
+
+def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
+    from rovernav.sim.runner import Faults
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(gyro_dies_at=15.0))
+    assert not r["reached"] and r["error"] == "rover fault: gyro_silent"
+    assert r["mission_time_s"] < 16.0 and r["faults"]["rover_faults"][0]["fault"] == "gyro_silent"

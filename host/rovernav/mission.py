@@ -30,6 +30,8 @@ RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 8         # ... this many times, then the mission fails
 HELLO_EVERY_S = 0.5
 WALL_ECHO_M = 0.06    # an echo this close to the arena's border is the border itself
+ECHO_DEPTH_M = 0.20   # an obstacle is taken to reach this far behind the face the sonar saw
+ECHO_DEPTH_STEP_M = 0.04
 KNOWN_ECHO_M = 0.08   # an echo this close to an obstacle already mapped is that obstacle (another face of it)
 
 
@@ -126,6 +128,7 @@ class Mission:
         self._start_sent = False
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
+        self._resume_leg = False
 
     # ---------------------------------------------------------------- inputs
 
@@ -169,7 +172,15 @@ class Mission:
         elif self.phase is Phase.CONFIGURE and not self._pending:
             self.phase = Phase.LOCATE
         if self.phase is Phase.LOCATE and self._rover_seen():
-            self._begin_trip()
+            if self._resume_leg:
+                self._resume_leg = False
+                path = self._replan_from_rover()
+                if path is not None:
+                    self._start_sent = False
+                    self.phase = Phase.LOAD
+                    self._send_path(path)
+            else:
+                self._begin_trip()
         if self.phase is Phase.LOAD and not self._pending and self._accepted_path_id == self.path_id:
             if not self._start_sent:
                 self._request(mg.Start(path_id=self.path_id))
@@ -210,9 +221,9 @@ class Mission:
             self._pending.clear()
             self.link.send(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=0x484F5354, firmware_version=0x0001,
                                     role=mg.Role.HOST, max_waypoints=0))
+            resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.legs[-1].reached
             self._configure()
-            if self.phase in (Phase.LOAD, Phase.RUN) and self.legs:
-                self._send_path(self._replan_from_rover() or self.path)
+            self._resume_leg = resume   # once configured: the same leg again, from where the rover is
             return
         if self.phase is Phase.HELLO:
             self.rover_boot_id = m.boot_id
@@ -241,11 +252,20 @@ class Mission:
             self.repeat_echoes += 1
             return
         self.echoes.append(echo)
-        self.grid.add_sonar_echo(echo.x_m, echo.y_m, echo.heading_deg, echo.bearing_deg, echo.range_m)
+        self._fold(echo)
         if self.legs:
             self.legs[-1].obstacles_found += 1
         # The rover is stopped for its sweep: replan once when the sweep is done, not per echo.
         self._map_changed_at = self._now
+
+    def _fold(self, e: Echo) -> None:
+        """Mark the echo's arc in the map, and arcs behind it to ECHO_DEPTH_M: the sonar sees an
+        obstacle's near face only, and a map holding just that face lets a later path clip the
+        obstacle's unseen body (as a rover that lost its own memory, or its radio, then would)."""
+        depth = 0.0
+        while depth <= ECHO_DEPTH_M + 1e-9:
+            self.grid.add_sonar_echo(e.x_m, e.y_m, e.heading_deg, e.bearing_deg, e.range_m + depth)
+            depth += ECHO_DEPTH_STEP_M
 
     def _echo_point(self, e: Echo) -> tuple[float, float]:
         """Where the beam's axis meets the echo's range."""
@@ -451,7 +471,7 @@ class Mission:
         for e in data["echoes"]:
             echo = Echo(**e)
             self.echoes.append(echo)
-            self.grid.add_sonar_echo(echo.x_m, echo.y_m, echo.heading_deg, echo.bearing_deg, echo.range_m)
+            self._fold(echo)
         return len(data["echoes"])
 
 

@@ -88,7 +88,41 @@ def build_report(sim, wall_time_s: float) -> dict:
                 "unknown_id": status.rx_unknown_id, "malformed": status.rx_malformed,
                 "tx_dropped": status.tx_dropped},
         },
+        "faults": fault_figures(sim),
         "events": [{"t_s": round(t, 2), "text": text} for t, text in sim.events],
+    }
+
+
+def fault_figures(sim) -> dict:
+    """What was injected and what the rover did about it, from its EVENTs (as the host got them)."""
+    f = sim.opt.faults
+    events = [(t, e) for t, e in sim.mission.events]
+
+    def of(kind):
+        return [(t, e) for t, e in events if e.kind == kind]
+
+    dr_errors = [e.arg / 1000 for _, e in of(mg.EventKind.CAMERA_BACK)]
+    holds = [{"t_s": round(e.time_ms / 1000, 2), "x_m": e.x_mm / 1000, "y_m": e.y_mm / 1000,
+              "uncertainty_2sd_m": e.arg / 1000} for _, e in of(mg.EventKind.HOLD)]
+    resumes = [round(e.time_ms / 1000, 2) for _, e in of(mg.EventKind.RESUMED)]
+    recoveries = []
+    for h in holds:
+        later = [r for r in resumes if r >= h["t_s"]]
+        recoveries.append(round(later[0] - h["t_s"], 2) if later else None)
+    return {
+        "injected": {"link_outages": f.link_outages, "camera_outages": f.camera_outages,
+                     "camera_outage_kind": f.camera_outage_kind, "host_restarts": f.host_restarts,
+                     "firmware_resets": f.firmware_resets, "gyro_dies_at": f.gyro_dies_at},
+        "dr_errors_m": dr_errors,
+        "max_dr_error_m": max(dr_errors) if dr_errors else None,
+        "holds": holds,
+        "hold_recovery_s": recoveries,
+        "link_lost_events": len(of(mg.EventKind.LINK_LOST)),
+        "camera_lost_events": len(of(mg.EventKind.CAMERA_LOST)),
+        "rover_faults": [{"t_s": round(e.time_ms / 1000, 2),
+                          "fault": mg.FaultCode(e.arg).name.lower() if e.arg in mg.FaultCode._value2member_map_ else e.arg}
+                         for _, e in of(mg.EventKind.FAULT)],
+        "local_detours": sum(1 for _, e in of(mg.EventKind.REPLANNED) if e.arg > 0),
     }
 
 
