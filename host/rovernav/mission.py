@@ -92,7 +92,7 @@ class Mission:
     def __init__(self, link, grid: OccupancyGrid, start_xy: tuple[float, float], target_xy: tuple[float, float],
                  legs: int = 1, rover_params: list | None = None, planner: str = "astar",
                  fix_sd_mm: int = 3, heartbeat_hz: float = 5.0, host_replan: bool = True,
-                 on_event: Callable[[float, str], None] | None = None):
+                 on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None):
         self.link = link
         self.grid = grid
         self.start_xy = start_xy
@@ -104,6 +104,7 @@ class Mission:
         self.heartbeat_period_s = 1.0 / heartbeat_hz
         self.host_replan = host_replan
         self.on_event = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
+        self.map_file = Path(map_file) if map_file else None   # kept up to date: a restarted host reloads it
 
         self.phase = Phase.HELLO
         self.error: str | None = None
@@ -253,6 +254,8 @@ class Mission:
             return
         self.echoes.append(echo)
         self._fold(echo)
+        if self.map_file is not None:
+            self.save_map(self.map_file)
         if self.legs:
             self.legs[-1].obstacles_found += 1
         # The rover is stopped for its sweep: replan once when the sweep is done, not per echo.

@@ -102,13 +102,20 @@ def fault_figures(sim) -> dict:
         return [(t, e) for t, e in events if e.kind == kind]
 
     dr_errors = [e.arg / 1000 for _, e in of(mg.EventKind.CAMERA_BACK)]
-    holds = [{"t_s": round(e.time_ms / 1000, 2), "x_m": e.x_mm / 1000, "y_m": e.y_mm / 1000,
-              "uncertainty_2sd_m": e.arg / 1000} for _, e in of(mg.EventKind.HOLD)]
-    resumes = [round(e.time_ms / 1000, 2) for _, e in of(mg.EventKind.RESUMED)]
-    recoveries = []
-    for h in holds:
-        later = [r for r in resumes if r >= h["t_s"]]
-        recoveries.append(round(later[0] - h["t_s"], 2) if later else None)
+    # Safe stops from the rover's own state (sampled through the core's probe, for the report
+    # only): its HOLD events are lost when the radio is what failed.
+    holds, recoveries = [], []
+    in_hold = None
+    for smp in sim.samples:
+        if smp.state == mg.RoverState.HOLD and in_hold is None:
+            in_hold = smp
+            holds.append({"t_s": round(smp.t_s, 2), "x_m": round(smp.x_m, 3), "y_m": round(smp.y_m, 3),
+                          "uncertainty_2sd_m": round(2 * smp.est[3], 3) if smp.est else None})
+        elif smp.state != mg.RoverState.HOLD and in_hold is not None:
+            recoveries.append(round(smp.t_s - in_hold.t_s, 2))
+            in_hold = None
+    if in_hold is not None:
+        recoveries.append(None)
     return {
         "injected": {"link_outages": f.link_outages, "camera_outages": f.camera_outages,
                      "camera_outage_kind": f.camera_outage_kind, "host_restarts": f.host_restarts,

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import tempfile
+from pathlib import Path
 import logging
 import math
 import time
@@ -114,6 +116,8 @@ class Simulation:
         self._sonar_pending: int | None = None
         self._host_ticked = -1.0
         self.events: list[tuple[float, str]] = []
+        self._map_dir = tempfile.TemporaryDirectory(prefix="rovernav-sim-")
+        self._map_file = Path(self._map_dir.name) / "learned-map.json"
         self.mission = self._new_host()
         self.restarts_done = 0
 
@@ -140,7 +144,9 @@ class Simulation:
         mission = cls(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
                       legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
                       heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
-                      on_event=self._event)
+                      on_event=self._event, map_file=self._map_file)
+        if self._map_file.exists():   # a restarted host: its learned map survived on disk
+            mission.load_map(self._map_file)
         return mission
 
     def _event(self, t: float, text: str) -> None:
