@@ -56,7 +56,7 @@ class Estimator {
   float last_innovation_mm() const { return last_innovation_mm_; }
   uint16_t rejected_fixes() const { return rejected_total_; }
 
-  enum : uint8_t { kHistory = 8, kMaxRejects = 10 };
+  enum : uint8_t { kHistory = 6, kMaxRejects = 10 };
   enum : uint16_t { kHistoryPeriodMs = 40 };
 
  private:
