@@ -132,18 +132,34 @@ def test_a_nack_fails_the_mission_with_the_rovers_reason():
     assert mission.phase is Phase.FAILED and "faulted" in mission.error
 
 
-def test_a_silent_rover_fails_the_mission_after_the_retries():
+def test_a_rover_that_hears_but_does_not_answer_fails_the_mission_after_the_retries():
     mission, rover, notes = _setup()
     t = 0.0
-    while t < 10 and not mission.done:  # HELLO is answered, then the rover goes quiet
+    while t < 10 and not mission.done:  # HELLO is answered; then STATUS comes, but no ACK
         mission.on_detection(Detection(t, 0.3, 0.3, 0.0), t)
         mission.tick(t)
         if t < 0.1:
             rover.serve()
         else:
             rover.end.read(65536, 0)
+            rover.say(mg.Status(time_ms=int(t * 1000)))
         t += 0.05
     assert mission.phase is Phase.FAILED and "did not answer" in mission.error and "after 8 tries" in mission.error
+
+
+def test_a_silent_rover_is_waited_for_then_given_up_on():
+    mission, rover, notes = _setup()
+    t = 0.0
+    while t < 200 and not mission.done:  # HELLO is answered, then nothing: the radio is down
+        mission.on_detection(Detection(t, 0.3, 0.3, 0.0), t)
+        mission.tick(t)
+        if t < 0.1:
+            rover.serve()
+        else:
+            rover.end.read(65536, 0)
+        t += 0.25
+    assert mission.phase is Phase.FAILED and "no word from the rover for 120 s" in mission.error
+    assert 120 < t < 125
 
 
 def test_a_rebooted_rover_is_sent_its_parameters_and_path_again():

@@ -29,6 +29,8 @@ log = logging.getLogger("rovernav.mission")
 RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 8         # ... this many times, then the mission fails
 HELLO_EVERY_S = 0.5
+SILENT_S = 1.0              # no frame from the rover for this long: the radio is down
+GIVE_UP_SILENT_S = 120.0    # ... for this long: the mission is over
 WALL_ECHO_M = 0.06    # an echo this close to the arena's border is the border itself
 ECHO_DEPTH_M = 0.20   # an obstacle is taken to reach this far behind the face the sonar saw
 ECHO_DEPTH_STEP_M = 0.04
@@ -130,6 +132,7 @@ class Mission:
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
         self._resume_leg = False
+        self._last_heard_s = 0.0
 
     # ---------------------------------------------------------------- inputs
 
@@ -196,6 +199,7 @@ class Mission:
     # ---------------------------------------------------------------- what the rover says
 
     def _handle(self, frame) -> None:
+        self._last_heard_s = self._now
         m = frame.message
         if isinstance(m, mg.Hello):
             self._on_hello(m)
@@ -414,15 +418,22 @@ class Mission:
         self._pending[seq] = (message, self._now, 1)
 
     def _resend(self, now_s: float) -> None:
+        # While the rover says nothing at all (no STATUS either: the radio is down), a request is
+        # re-sent but its tries are not counted: the rover is carrying on alone, and will answer
+        # when the radio is back. Only a long silence ends the mission.
+        silent = now_s - self._last_heard_s > SILENT_S
+        if self._pending and now_s - self._last_heard_s > GIVE_UP_SILENT_S:
+            self._fail(f"no word from the rover for {GIVE_UP_SILENT_S:.0f} s")
+            return
         for seq, (message, sent_at, tries) in list(self._pending.items()):
             if now_s - sent_at < RESEND_S:
                 continue
             del self._pending[seq]
-            if tries >= MAX_TRIES:
+            if tries >= MAX_TRIES and not silent:
                 self._fail(f"the rover did not answer {message.NAME.upper()} after {tries} tries")
                 return
             new_seq = self.link.send(message)
-            self._pending[new_seq] = (message, now_s, tries + 1)
+            self._pending[new_seq] = (message, now_s, tries if silent else tries + 1)
 
     def _fail(self, why: str) -> None:
         if self.phase is Phase.FAILED:
