@@ -213,3 +213,29 @@ def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
     r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(gyro_dies_at=15.0))
     assert not r["reached"] and r["error"] == "rover fault: gyro_silent"
     assert r["mission_time_s"] < 16.0 and r["faults"]["rover_faults"][0]["fault"] == "gyro_silent"
+
+
+def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_completes():
+    from rovernav.sim.runner import Faults
+
+    r = _run("out-and-back", seed=1, faults=Faults(host_restarts=[80.0]))
+    assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 4
+    assert any("host restarted" in e["text"] for e in r["events"])
+
+
+def test_a_radio_outage_over_the_moment_the_obstacle_is_found_still_ends_without_contact():
+    from rovernav.sim.runner import Faults
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(link_outages=[(8.0, 10.0)]))
+    assert r["reached"] and r["collisions"] == 0
+    assert r["faults"]["local_detours"] >= 0 and r["faults"]["max_dr_error_m"] < 0.05
+
+
+def test_an_outage_too_long_to_trust_ends_in_a_safe_stop_and_a_resume():
+    from rovernav.sim.runner import Faults
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(link_outages=[(8.0, 40.0)]))
+    assert r["reached"] and r["collisions"] == 0
+    f = r["faults"]
+    assert len(f["holds"]) == 1 and f["holds"][0]["uncertainty_2sd_m"] <= 0.05
+    assert f["hold_recovery_s"][0] is not None and f["holds"][0]["t_s"] + f["hold_recovery_s"][0] >= 48.0

@@ -94,7 +94,8 @@ class Mission:
     def __init__(self, link, grid: OccupancyGrid, start_xy: tuple[float, float], target_xy: tuple[float, float],
                  legs: int = 1, rover_params: list | None = None, planner: str = "astar",
                  fix_sd_mm: int = 3, heartbeat_hz: float = 5.0, host_replan: bool = True,
-                 on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None):
+                 on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None,
+                 state_file: str | Path | None = None):
         self.link = link
         self.grid = grid
         self.start_xy = start_xy
@@ -107,6 +108,7 @@ class Mission:
         self.host_replan = host_replan
         self.on_event = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
         self.map_file = Path(map_file) if map_file else None   # kept up to date: a restarted host reloads it
+        self.state_file = Path(state_file) if state_file else None   # the legs done, for a restarted host
 
         self.phase = Phase.HELLO
         self.error: str | None = None
@@ -320,6 +322,8 @@ class Mission:
             trip = self.legs[-1]
             trip.finished_s, trip.reached = self._now, True
             self.on_event(self._now, f"leg {trip.index + 1} reached ({trip.goal[0]:.2f}, {trip.goal[1]:.2f}) m")
+            if self.state_file is not None:
+                self.state_file.write_text(json.dumps({"legs_done": len(self.legs)}) + "\n", encoding="utf-8")
             if len(self.legs) >= self.legs_asked:
                 self.phase = Phase.DONE
                 self.link.send(mg.Stop(reason=mg.StopReason.MISSION_DONE))
@@ -467,6 +471,17 @@ class Mission:
         return mg.CameraState.OK
 
     # ---------------------------------------------------------------- the learned map
+
+    def restore_state(self) -> int:
+        """A restarted host: take up the mission at the leg the last host had reached (from
+        state_file; the rover's HELLO and STATUS then say the rest). Returns the legs done."""
+        if self.state_file is None or not self.state_file.exists():
+            return 0
+        done = int(json.loads(self.state_file.read_text(encoding="utf-8")).get("legs_done", 0))
+        for i in range(min(done, self.legs_asked)):
+            goal = self.target_xy if i % 2 == 0 else self.start_xy
+            self.legs.append(Leg(index=i, goal=goal, started_s=self._now, finished_s=self._now, reached=True))
+        return done
 
     def save_map(self, path: str | Path) -> None:
         """Write what the sonar found (every echo), so a later mission starts knowing it."""

@@ -144,9 +144,11 @@ class Simulation:
         mission = cls(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
                       legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
                       heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
-                      on_event=self._event, map_file=self._map_file)
+                      on_event=self._event, map_file=self._map_file,
+                      state_file=Path(self._map_dir.name) / "mission-state.json")
         if self._map_file.exists():   # a restarted host: its learned map survived on disk
             mission.load_map(self._map_file)
+        mission.restore_state()
         return mission
 
     def _event(self, t: float, text: str) -> None:
