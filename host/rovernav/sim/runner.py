@@ -161,7 +161,7 @@ class Simulation:
         f = self.opt.faults
         restarts = sorted(f.host_restarts)
         resets = sorted(f.firmware_resets)
-        next_progress = 5.0
+        next_progress = 30.0
         while self.t < self.opt.max_time_s and not self.mission.done:
             now = self.t
             if restarts and now >= restarts[0]:
@@ -189,7 +189,7 @@ class Simulation:
             self._rover(now)
             self.t = round(now + STEP_S, 6)
             if self.t >= next_progress:
-                next_progress += 5.0
+                next_progress += 30.0
                 self.progress(self.t, None)
 
     def _camera(self, now: float) -> bool:
