@@ -75,6 +75,13 @@ class Echo:
     bearing_deg: float
     range_m: float
 
+    def point(self, sonar_offset_m: float) -> tuple[float, float]:
+        """Where the beam's axis meets the echo's range (the sensor sits sonar_offset_m ahead)."""
+        h = math.radians(self.heading_deg)
+        sx, sy = self.x_m + sonar_offset_m * math.sin(h), self.y_m + sonar_offset_m * math.cos(h)
+        b = math.radians(self.heading_deg + self.bearing_deg)
+        return sx + self.range_m * math.sin(b), sy + self.range_m * math.cos(b)
+
 
 @dataclasses.dataclass
 class Detection:
@@ -277,12 +284,7 @@ class Mission:
             depth += ECHO_DEPTH_STEP_M
 
     def _echo_point(self, e: Echo) -> tuple[float, float]:
-        """Where the beam's axis meets the echo's range."""
-        h = math.radians(e.heading_deg)
-        offset = self.grid.config.sonar_offset_m
-        sx, sy = e.x_m + offset * math.sin(h), e.y_m + offset * math.cos(h)
-        b = math.radians(e.heading_deg + e.bearing_deg)
-        return sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)
+        return e.point(self.grid.config.sonar_offset_m)
 
     def _is_known(self, e: Echo) -> bool:
         """Whether the map already has an obstacle within KNOWN_ECHO_M of the echo's point."""

@@ -53,7 +53,7 @@ def build_report(sim, wall_time_s: float) -> dict:
     status = m.last_status
     c = sim.link.counters
     unknown = [o for o in sc.obstacles if not o.known]
-    discovered = sum(1 for o in unknown if _echo_on(o, m.echoes))
+    discovered = sum(1 for o in unknown if _echo_on(o, m.echoes, m.grid.config.sonar_offset_m))
     return {
         "scenario": sc.name,
         "strategy": sim.opt.strategy,
@@ -133,13 +133,10 @@ def fault_figures(sim) -> dict:
     }
 
 
-def _echo_on(obstacle, echoes, margin_m: float = 0.06) -> bool:
+def _echo_on(obstacle, echoes, offset_m: float, margin_m: float = 0.06) -> bool:
     """Whether some sonar echo's point lies on (near) this obstacle."""
     for e in echoes:
-        h = math.radians(e.heading_deg)
-        sx, sy = e.x_m + 0.10 * math.sin(h), e.y_m + 0.10 * math.cos(h)
-        b = math.radians(e.heading_deg + e.bearing_deg)
-        px, py = sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)
+        px, py = e.point(offset_m)
         if abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m:
             return True
     return False
@@ -183,10 +180,7 @@ def draw_arena(canvas: Canvas, sim, grid=None) -> None:
             for k in range(p0[0] - (p1[1] - p0[1]), p1[0], 8):  # hatch: unknown to the planner
                 cv2.line(img, (max(k, p0[0]), p0[1] + max(0, p0[0] - k)), (min(k + (p1[1] - p0[1]), p1[0]), p1[1] - max(0, k + (p1[1] - p0[1]) - p1[0])), (90, 90, 160), 1)
     for e in sim.mission.echoes:
-        h = math.radians(e.heading_deg)
-        sx, sy = e.x_m + 0.10 * math.sin(h), e.y_m + 0.10 * math.cos(h)
-        b = math.radians(e.heading_deg + e.bearing_deg)
-        cv2.circle(img, canvas.pt(sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)), 3, (0, 0, 200), -1)
+        cv2.circle(img, canvas.pt(*e.point(sim.mission.grid.config.sonar_offset_m)), 3, (0, 0, 200), -1)
     cv2.circle(img, canvas.pt(sc.start.x_m, sc.start.y_m), 7, (0, 150, 0), 2)
     cv2.drawMarker(img, canvas.pt(sc.target.x_m, sc.target.y_m), (0, 170, 230), cv2.MARKER_STAR, 18, 2)
 
@@ -245,10 +239,7 @@ class VideoWriter:
             color = (200, 200, 200) if o.known else (80, 80, 255)
             cv2.rectangle(img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1)
         for e in m.echoes[-60:]:
-            hr = math.radians(e.heading_deg)
-            sx, sy = e.x_m + 0.10 * math.sin(hr), e.y_m + 0.10 * math.cos(hr)
-            b = math.radians(e.heading_deg + e.bearing_deg)
-            cv2.circle(img, px(sx + e.range_m * math.sin(b), sy + e.range_m * math.cos(b)), 3, (0, 0, 255), -1)
+            cv2.circle(img, px(*e.point(m.grid.config.sonar_offset_m)), 3, (0, 0, 255), -1)
         p = sim.plant
         cv2.polylines(img, [np.array([px(x, y) for x, y in footprint(p.x, p.y, p.heading)], np.int32)], True, (0, 255, 0), 1)
         hr = math.radians(p.heading)
