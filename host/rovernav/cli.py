@@ -4,6 +4,7 @@
     rovernav run --port P --camera C      a mission with a real rover and webcam
     rovernav plan SCENARIO                plan a path on a scenario's arena
     rovernav locate IMAGE                 find the rover and the target in a camera image
+    rovernav pose / rovernav study        the Russo (2024) study: moving to a pose, A* on a crater map, EKF
     rovernav protocol [--json]            the link protocol's messages and parameters
     rovernav link-check --port PORT       say HELLO to a rover and watch what it sends
     rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
@@ -140,12 +141,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .planning.cli import add_plan_parser
     from .sim.cli import add_sim_parser
+    from .study.cli import add_pose_parser, add_study_parser
     from .vision.cli import add_locate_parser
 
     add_sim_parser(sub)
     add_plan_parser(sub)
     add_locate_parser(sub)
     add_run_parser(sub)
+    add_pose_parser(sub)
+    add_study_parser(sub)
 
     p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends",
                        description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "

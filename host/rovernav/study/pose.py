@@ -1,0 +1,220 @@
+"""Moving to a pose (the seed's section 2): the polar transformation, the control law, the kinematics.
+
+Conventions (the report's): x right, y up, metres; θ from the x axis, counter-clockwise, radians.
+The goal pose (x*, y*, θ*) need not be the origin.
+
+Which α: the report prints α = atan2(y − y*, x − x*) − θ (eq. 2.3), the bearing *from the goal
+to the rover*, but its dynamics (eq. 2.7, ρ̇ = −v cos α) only hold for the bearing *from the
+rover to the goal*, atan2(y* − y, x* − x) − θ, which is the printed α with θ + π. Integrated
+literally (v = +Kρρ and the printed α) the rover drives away, for ever; reversing into the goal
+(v = −Kρρ with the printed α) diverges too from P0, whose printed α is −2.24 rad, outside
+(−π/2, π/2]. The rover-to-goal α with v = +Kρρ reproduces the report: P0 → P1 in 3.846 days
+(report: 3.85), final error [0.097 m, −5.5e-9 m, 7.8e-7 rad] (report: [8.71e-2, 2.21e-9,
+8.47e-7]). That is the reading used here (`to_polar`).
+
+The printed inverse (eq. 2.4, x = −ρ cos(α + β) + x*) does not invert eq. 2.3 either; the
+inverse of the transformation used here is x = x* − ρ cos(θ* − β), y = y* − ρ sin(θ* − β),
+θ = θ* − α − β (`from_polar`).
+
+Stability (Siegwart & Nourbakhsh, the law's source): locally exponentially stable when
+Kρ > 0, Kβ < 0 and Kα − Kρ > 0; `PoseGains` refuses gains that break one of these. The strong
+condition Kα + 5/3·Kβ − 2/π·Kρ > 0 (α never leaves (−π/2, π/2], so the rover never reverses)
+is *not* met by the report's own gains (0.145 − 0.317 − 0.064 = −0.235), so it is checked only
+on request (`check(strong=True)`) and reported as `strongly_stable`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Sequence
+
+import numpy as np
+
+CURIOSITY_VMAX_M_S = 0.04            # the seed's V_max: 4 cm/s
+REPORT_P0 = (42_380.0, 11_590.0, math.pi / 2)   # eq. 2.1 [m, m, rad]
+REPORT_P1 = (33_070.0, 19_010.0, math.pi)       # eq. 2.2 [m, m, rad]
+REPORT_TIME_S = 3.85 * 86_400.0                 # "Time Required: 3.85 days"
+
+
+def wrap_angle(a: float) -> float:
+    """`a` [rad] folded into [−π, π)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseGains:
+    """The law's three proportional gains: v = Kρ·ρ [m/s], ω = Kα·α + Kβ·β [rad/s]."""
+
+    k_rho: float = 0.100     # Table 1
+    k_alpha: float = 0.145
+    k_beta: float = -0.190
+
+    def __post_init__(self) -> None:
+        for name in ("k_rho", "k_alpha", "k_beta"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"pose gains: {name} must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        self.check()
+
+    @property
+    def strong_margin(self) -> float:
+        """Kα + 5/3·Kβ − 2/π·Kρ: positive when the strong stability condition holds."""
+        return self.k_alpha + 5.0 / 3.0 * self.k_beta - 2.0 / math.pi * self.k_rho
+
+    @property
+    def strongly_stable(self) -> bool:
+        return self.strong_margin > 0
+
+    def check(self, strong: bool = False) -> None:
+        """Raise ValueError naming the first stability condition the gains break."""
+        if not self.k_rho > 0:
+            raise ValueError(f"unstable gains: K_rho > 0 required, got K_rho = {self.k_rho:g}")
+        if not self.k_beta < 0:
+            raise ValueError(f"unstable gains: K_beta < 0 required, got K_beta = {self.k_beta:g}")
+        if not self.k_alpha - self.k_rho > 0:
+            raise ValueError(f"unstable gains: K_alpha - K_rho > 0 required, got "
+                             f"{self.k_alpha:g} - {self.k_rho:g} = {self.k_alpha - self.k_rho:g}")
+        if strong and not self.strongly_stable:
+            raise ValueError(f"gains not strongly stable: K_alpha + 5/3 K_beta - 2/pi K_rho > 0 required, "
+                             f"got {self.strong_margin:g}")
+
+
+def to_polar(state: Sequence[float], goal: Sequence[float]) -> tuple[float, float, float]:
+    """(x, y, θ) → (ρ [m], α [rad], β [rad]) relative to the goal pose (x*, y*, θ*); α, β in [−π, π).
+
+    α is the bearing of the goal seen from the rover, relative to its heading (see the module's
+    note on the report's eq. 2.3); β = −α − θ + θ*.
+    """
+    x, y, theta = state
+    gx, gy, gtheta = goal
+    rho = math.hypot(x - gx, y - gy)
+    alpha = wrap_angle(math.atan2(gy - y, gx - x) - theta)
+    beta = wrap_angle(-alpha - theta + gtheta)
+    return rho, alpha, beta
+
+
+def from_polar(polar: Sequence[float], goal: Sequence[float]) -> tuple[float, float, float]:
+    """(ρ, α, β) → (x, y, θ): the inverse of `to_polar` (θ in [−π, π))."""
+    rho, alpha, beta = polar
+    gx, gy, gtheta = goal
+    bearing = gtheta - beta              # direction rover → goal
+    return (gx - rho * math.cos(bearing), gy - rho * math.sin(bearing), wrap_angle(gtheta - alpha - beta))
+
+
+def report_inverse_as_printed(polar: Sequence[float], goal: Sequence[float]) -> tuple[float, float, float]:
+    """Eq. 2.4 exactly as printed; kept to show (in the tests) that it does not invert eq. 2.3."""
+    rho, alpha, beta = polar
+    gx, gy, gtheta = goal
+    return (-rho * math.cos(alpha + beta) + gx, -rho * math.sin(alpha + beta) + gy,
+            wrap_angle(-alpha - beta + gtheta))
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseRun:
+    """One run of the law. Arrays hold one sample per Euler step, the start included.
+
+    t [s], x [m], y [m], theta [rad], v [m/s], omega [rad/s] (v, ω: the command applied from
+    that sample to the next; the last sample's are those that would apply there).
+    final_error: [x − x*, y − y*, wrap(θ − θ*)] in m, m, rad.
+    converged: ρ and the heading error fell below the tolerances before the time limit.
+    """
+
+    start: tuple[float, float, float]
+    goal: tuple[float, float, float]
+    gains: PoseGains
+    vmax_m_s: float
+    dt_s: float
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    v: np.ndarray
+    omega: np.ndarray
+    converged: bool
+
+    @property
+    def time_s(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def final_error(self) -> list[float]:
+        gx, gy, gtheta = self.goal
+        return [float(self.x[-1] - gx), float(self.y[-1] - gy), wrap_angle(float(self.theta[-1]) - gtheta)]
+
+    @property
+    def path_length_m(self) -> float:
+        return float(np.hypot(np.diff(self.x), np.diff(self.y)).sum())
+
+
+def simulate_pose(start: Sequence[float] = REPORT_P0, goal: Sequence[float] = REPORT_P1,
+                  gains: PoseGains | None = None, vmax: float = CURIOSITY_VMAX_M_S, dt: float = 1.0,
+                  rho_tol_m: float = 0.1, heading_tol_rad: float = 1e-3,
+                  max_time_s: float = 30 * 86_400.0) -> PoseRun:
+    """Drive from `start` to `goal` (poses [m, m, rad]) with the law, Euler steps of `dt` [s].
+
+    v = min(Kρ·ρ, vmax); ω = Kα·α + Kβ·β (not limited); ẋ = v cos θ, ẏ = v sin θ, θ̇ = ω.
+    Stops when ρ < `rho_tol_m` and |θ − θ*| < `heading_tol_rad`, or at `max_time_s`
+    (then `converged` is False). ValueError for unstable gains or a non-positive vmax or dt.
+    """
+    gains = gains or PoseGains()
+    if not (vmax > 0 and math.isfinite(vmax)):
+        raise ValueError(f"vmax must be a positive speed [m/s], got {vmax!r}")
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be a positive time step [s], got {dt!r}")
+    start = tuple(float(s) for s in start)
+    goal = tuple(float(g) for g in goal)
+    kr, ka, kb = gains.k_rho, gains.k_alpha, gains.k_beta
+    x, y, theta = start[0], start[1], wrap_angle(start[2])
+    ts, xs, ys, ths, vs, oms = [], [], [], [], [], []
+    t = 0.0
+    n_max = int(math.ceil(max_time_s / dt))
+    converged = False
+    for k in range(n_max + 1):
+        rho, alpha, beta = to_polar((x, y, theta), goal)
+        v = min(kr * rho, vmax)
+        omega = ka * alpha + kb * beta
+        ts.append(t); xs.append(x); ys.append(y); ths.append(theta); vs.append(v); oms.append(omega)
+        if rho < rho_tol_m and abs(wrap_angle(theta - goal[2])) < heading_tol_rad:
+            converged = True
+            break
+        if k == n_max:
+            break
+        x += v * math.cos(theta) * dt
+        y += v * math.sin(theta) * dt
+        theta = wrap_angle(theta + omega * dt)
+        t = (k + 1) * dt
+    return PoseRun(start=start, goal=goal, gains=gains, vmax_m_s=float(vmax), dt_s=float(dt),
+                   t=np.array(ts), x=np.array(xs), y=np.array(ys), theta=np.array(ths),
+                   v=np.array(vs), omega=np.array(oms), converged=converged)
+
+
+def plot_pose(run: PoseRun, path: str, obstacles: np.ndarray | None = None, scale_m: float = 1.0) -> None:
+    """Trajectory (over `obstacles`, a boolean map of `scale_m` m per pixel, when given), v, θ and ω
+    against time in days, in one PNG (the report's Figures 1-5)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    days = run.t / 86_400.0
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    ax = axes[0, 0]
+    if obstacles is not None:
+        ny, nx = obstacles.shape
+        ax.imshow(obstacles, origin="lower", cmap="Greys", extent=(0, nx * scale_m / 1e3, 0, ny * scale_m / 1e3))
+    ax.plot(run.x / 1e3, run.y / 1e3, "b-", lw=1.5, label="trajectory")
+    ax.plot(run.start[0] / 1e3, run.start[1] / 1e3, "go", label="start")
+    ax.plot(run.goal[0] / 1e3, run.goal[1] / 1e3, "r*", ms=12, label="goal")
+    ax.set_xlabel("x [km]"); ax.set_ylabel("y [km]"); ax.set_title("Trajectory"); ax.legend(loc="best")
+    if obstacles is None:
+        ax.set_aspect("equal", adjustable="datalim")
+    axes[0, 1].plot(days, run.v * 100.0); axes[0, 1].set_ylabel("v [cm/s]"); axes[0, 1].set_title("Velocity")
+    axes[1, 0].plot(days, np.unwrap(run.theta)); axes[1, 0].set_ylabel("θ [rad], unwrapped"); axes[1, 0].set_title("Heading")
+    axes[1, 1].plot(days, run.omega); axes[1, 1].set_ylabel("ω [rad/s]"); axes[1, 1].set_title("Angular velocity")
+    for a in (axes[0, 1], axes[1, 0], axes[1, 1]):
+        a.set_xlabel("t [days]"); a.grid(True, alpha=0.3)
+    fig.suptitle(f"Moving to a pose: {run.time_s / 86_400:.2f} days, final error "
+                 f"[{run.final_error[0]:.2e} m, {run.final_error[1]:.2e} m, {run.final_error[2]:.2e} rad]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
