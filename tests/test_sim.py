@@ -239,3 +239,17 @@ def test_an_outage_too_long_to_trust_ends_in_a_safe_stop_and_a_resume():
     f = r["faults"]
     assert len(f["holds"]) == 1 and f["holds"][0]["uncertainty_2sd_m"] <= 0.05
     assert f["hold_recovery_s"][0] is not None and f["holds"][0]["t_s"] + f["hold_recovery_s"][0] >= 48.0
+
+
+def test_the_pose_law_drive_mode_completes_a_mission_and_the_report_says_so():
+    ours = _run("seed-fig4-8-unknown-obstacle", seed=1, drive_mode="pose_law")
+    assert ours["reached"] and ours["collisions"] == 0 and ours["drive_mode"] == "pose_law"
+
+
+def test_rovernav_sim_compares_the_drive_modes(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-large-obstacles", "--drive-mode", "both",
+                        "--no-video", "--quiet", "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "faster: rovernav / " in r.stdout
+    both = json.loads((tmp_path / "comparison.json").read_text())
+    assert {x["drive_mode"] for x in both} == {"rotate_drive", "pose_law"}

@@ -43,6 +43,11 @@ class Params {
   float speed_mm_s_per_pwm() const { return scaled(Param::SpeedMmSPerPwmX1000, 0.001f); }
   int16_t motor_deadband_pwm() const { return static_cast<int16_t>(raw(Param::MotorDeadbandPwm)); }
   float wheel_mm_per_tick() const { return scaled(Param::WheelMmPerTickX1000, 0.001f); }
+  bool pose_law() const { return raw(Param::DriveMode) == static_cast<int32_t>(DriveMode::PoseLaw); }
+  float pose_k_rho() const { return scaled(Param::PoseKRhoX1000, 0.001f); }      // 1/s
+  float pose_k_alpha() const { return scaled(Param::PoseKAlphaX1000, 0.001f); }  // 1/s
+  float pose_k_beta() const { return scaled(Param::PoseKBetaX1000, 0.001f); }    // 1/s
+  float pose_pwm_per_dps() const { return scaled(Param::PosePwmPerDpsX1000, 0.001f); }
 
  private:
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads

@@ -291,7 +291,7 @@ void Rover::reached_waypoint() {
   ++wp_;
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
   const float l = distance_to(target());
-  if (state_ == RoverState::Drive && fabsf(error_to_deg(target())) <= cone_deg(l)) {
+  if (state_ == RoverState::Drive && (params_.pose_law() || fabsf(error_to_deg(target())) <= cone_deg(l))) {
     min_distance_mm_ = l;
   } else {
     enter(RoverState::Rotate);
@@ -354,7 +354,9 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   const float err = error_to_deg(target());
 
   if (state_ == RoverState::Rotate) {
-    if (fabsf(err) <= p.rotate_done_deg() && fabsf(rate_dps_) < kRotateSettledDps) {
+    // The pose law steers while it drives: it only needs to face roughly the right way.
+    const float done_deg = p.pose_law() ? 0.5f * kPoseMaxErrorDeg : p.rotate_done_deg();
+    if (fabsf(err) <= done_deg && fabsf(rate_dps_) < kRotateSettledDps) {
       enter(RoverState::Drive);
     } else {
       float u = heading_command(err, dt_s);
@@ -370,22 +372,76 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     }
   }
 
+  if (p.pose_law() && state_ == RoverState::Drive) {
+    if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+      start_sweep(now);
+      return;
+    }
+    // Too far off (the goal behind the rover): turn on the spot first, as the seed would.
+    if (fabsf(err) > kPoseMaxErrorDeg) {
+      enter(RoverState::Rotate);
+      return;
+    }
+    pose_command(l, out);
+    return;
+  }
+
   // Drive: stop and re-rotate outside the cone, or once we are moving away from the waypoint.
   if (fabsf(err) > cone_deg(l) || l > min_distance_mm_ + static_cast<float>(kGrowMarginMm)) {
     enter(RoverState::Rotate);
     return;
   }
   if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
-    ++scan_id_;
-    scan_echoes_ = 0;
-    local_.clear();
-    sweep_.start(now, servo_cdeg_, p.sweep_step_ms());
-    enter(RoverState::Scan);
+    start_sweep(now);
     return;
   }
   if (l < min_distance_mm_) min_distance_mm_ = l;
   const float u = heading_command(err, dt_s);
   const float base = p.drive_pwm();
+  out.left_pwm = clamp_pwm(base + u);
+  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+}
+
+void Rover::start_sweep(uint32_t now) {
+  ++scan_id_;
+  scan_echoes_ = 0;
+  local_.clear();
+  sweep_.start(now, servo_cdeg_, params_.sweep_step_ms());
+  enter(RoverState::Scan);
+}
+
+// The moving-to-a-pose law (Russo 2024, eq. 2.3-2.6, with alpha the bearing from the rover to
+// the goal): rho, alpha, beta in the usual counter-clockwise frame from our clockwise headings,
+// v = K_rho rho, omega = K_alpha alpha + K_beta beta; v through the speed model to a forward
+// command, omega to a wheel difference. The goal heading at a waypoint is its next leg's.
+void Rover::pose_command(float rho_mm, Outputs& out) {
+  const Params& p = params_;
+  const Waypoint w = target();
+  float goal_cw = est_.heading_rad();
+  const bool in_detour = detour_i_ < detour_n_;
+  if (!in_detour && wp_ + 1 < path_len_) {
+    goal_cw = bearing_rad(w.x_mm, w.y_mm, path_[wp_ + 1].x_mm, path_[wp_ + 1].y_mm);
+  } else if (!in_detour && wp_ > 0) {
+    goal_cw = bearing_rad(path_[wp_ - 1].x_mm, path_[wp_ - 1].y_mm, w.x_mm, w.y_mm);
+  } else {
+    goal_cw = bearing_rad(est_.x_mm(), est_.y_mm(), w.x_mm, w.y_mm);
+  }
+  // Counter-clockwise from +x: theta = pi/2 - clockwise-from-+y.
+  const float theta = 0.5f * kPi - est_.heading_rad();
+  const float theta_goal = 0.5f * kPi - goal_cw;
+  const float alpha = wrap_rad(atan2f(static_cast<float>(w.y_mm) - est_.y_mm(), static_cast<float>(w.x_mm) - est_.x_mm()) - theta);
+  const float beta = wrap_rad(-alpha - theta + theta_goal);
+  const float v_max = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  // Slow down for the last waypoint only: the others are passed through at speed.
+  const bool last = !in_detour && wp_ + 1 >= path_len_;
+  float v = last ? p.pose_k_rho() * rho_mm : v_max;
+  if (v > v_max) v = v_max;
+  const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s
+  const float per_pwm = p.speed_mm_s_per_pwm() * speed_scale_;
+  float base = per_pwm > 0.0f ? static_cast<float>(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
+  const float floor_pwm = static_cast<float>(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
+  if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
+  const float u = -omega_ccw * kDegPerRad * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
   out.left_pwm = clamp_pwm(base + u);
   out.right_pwm = clamp_pwm(base - u * p.right_bias());
 }

@@ -110,6 +110,8 @@ class Rover : private RoverFields {
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
   };
   static constexpr float kHalfBeamTan = 0.1317f;  // tan(7.5 deg): half the HC-SR04's cone
+  static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
+  static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
 
   Rover() : RoverFields{} {}
   /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
@@ -162,6 +164,8 @@ class Rover : private RoverFields {
   void remember_echo(int16_t bearing_cdeg, uint16_t range_mm);
   Waypoint rejoin_point(float ahead_mm) const;
   void replan_locally();
+  void start_sweep(uint32_t now);
+  void pose_command(float rho_mm, Outputs& out);
   float cone_deg(float distance_mm) const;
   float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
 

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x4099A89CUL;
+static const uint32_t kSchemaHash = 0x0AC57B55UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -104,6 +104,12 @@ enum class StopReason : uint8_t {
   Replanning = 3,  ///< the host is about to send a new path
 };
 
+/// How the rover moves between waypoints (parameter drive_mode).
+enum class DriveMode : uint8_t {
+  RotateDrive = 0,  ///< the seed's: rotate on the spot, then drive inside the tolerance cone
+  PoseLaw = 1,  ///< the moving-to-a-pose law (rho, alpha, beta): smooth arcs, a final heading at each waypoint
+};
+
 /// Parameters set by CONFIG.
 enum class Param : uint8_t {
   PidKpX100 = 1,  ///< [PWM per degree, x100] proportional gain of the heading PID (seed: 30)
@@ -122,18 +128,23 @@ enum class Param : uint8_t {
   DrMaxDistanceMm = 14,  ///< [mm] hold after driving this far without a fix
   ClearanceMarginMm = 15,  ///< [mm] hold when the 2-sigma position uncertainty exceeds this
   StatusPeriodMs = 16,  ///< [ms] STATUS is sent this often
+  DriveMode = 17,  ///< [enum drive_mode] rotate_drive (the seed's) or pose_law
   RotateDoneCdeg = 18,  ///< [cdeg] rotation is done within this heading error (seed: 1 degree)
   GyroTimeoutMs = 19,  ///< [ms] no gyro sample for this long is a fault
   GyroMaxRateCdegS = 20,  ///< [cdeg/s] a gyro rate beyond this is implausible for the rover: a fault
   SpeedMmSPerPwmX1000 = 21,  ///< [mm/s per PWM above the dead band, x1000] speed model for dead reckoning without encoders; corrected online by fixes
   MotorDeadbandPwm = 22,  ///< [PWM] commands below this do not move a wheel
   WheelMmPerTickX1000 = 23,  ///< [mm per encoder tick, x1000] 0 = no wheel encoders fitted
+  PoseKRhoX1000 = 24,  ///< [1/s, x1000] moving-to-a-pose gain K_rho: forward speed per metre to the goal
+  PoseKAlphaX1000 = 25,  ///< [1/s, x1000] moving-to-a-pose gain K_alpha (K_alpha > K_rho)
+  PoseKBetaX1000 = 26,  ///< [1/s, x1000] moving-to-a-pose gain K_beta (negative)
+  PosePwmPerDpsX1000 = 27,  ///< [PWM per degree/second of yaw rate, x1000] pose law: wheel command difference (each side) per degree/second of turn asked
 };
-enum : uint8_t { kParamMaxId = 23 };
+enum : uint8_t { kParamMaxId = 27 };
 
 /// Default, min and max of every parameter, by id - 1; an unused id has min > max.
 /// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[23][3] ROVERNAV_PROGMEM = {
+static const int32_t kParamTable[27][3] ROVERNAV_PROGMEM = {
   {3000L, 0L, 100000L},  // 1 pid_kp_x100
   {300L, 0L, 100000L},  // 2 pid_ki_x100
   {500L, 0L, 100000L},  // 3 pid_kd_x100
@@ -150,13 +161,17 @@ static const int32_t kParamTable[23][3] ROVERNAV_PROGMEM = {
   {1500L, 0L, 100000L},  // 14 dr_max_distance_mm
   {50L, 5L, 1000L},  // 15 clearance_margin_mm
   {200L, 20L, 10000L},  // 16 status_period_ms
-  {0L, 1L, 0L},  // 17 unused
+  {0L, 0L, 1L},  // 17 drive_mode
   {100L, 10L, 3000L},  // 18 rotate_done_cdeg
   {50L, 5L, 1000L},  // 19 gyro_timeout_ms
   {50000L, 1000L, 200000L},  // 20 gyro_max_rate_cdeg_s
   {2000L, 0L, 100000L},  // 21 speed_mm_s_per_pwm_x1000
   {30L, 0L, 255L},  // 22 motor_deadband_pwm
   {0L, 0L, 100000L},  // 23 wheel_mm_per_tick_x1000
+  {500L, 1L, 100000L},  // 24 pose_k_rho_x1000
+  {1500L, 1L, 100000L},  // 25 pose_k_alpha_x1000
+  {-400L, -100000L, -1L},  // 26 pose_k_beta_x1000
+  {500L, 0L, 100000L},  // 27 pose_pwm_per_dps_x1000
 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.

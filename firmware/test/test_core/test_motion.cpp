@@ -155,3 +155,60 @@ TEST_CASE("a stronger right motor is held straight by the heading PID") {
   CHECK(b.rover.state() == RoverState::Arrived);
   CHECK(worst_mm < 25.0f);
 }
+
+namespace {
+void set_param(Bench& b, Param p, int32_t v) {
+  msg::Config c{};
+  c.param = static_cast<uint8_t>(p);
+  c.value = v;
+  b.send(c);
+  b.run_ms(20);
+}
+}  // namespace
+
+TEST_CASE("pose law: round a corner in arcs, without stopping to turn at the waypoints, and arrive") {
+  Bench b;
+  b.stream_fixes = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 900}, {900, 1300}, {1400, 1300}};
+  b.hello();
+  set_param(b, Param::DriveMode, static_cast<int32_t>(DriveMode::PoseLaw));
+  set_param(b, Param::SweepIntervalMm, 0);
+  b.start_mission(wps, 4);
+  int rotations_after_drive = 0;
+  bool driving = false;
+  RoverState last = b.rover.state();
+  for (int i = 0; i < 20000 && b.rover.state() != RoverState::Arrived; ++i) {
+    b.step();
+    if (b.rover.state() == RoverState::Drive) driving = true;
+    if (driving && last == RoverState::Drive && b.rover.state() == RoverState::Rotate) ++rotations_after_drive;
+    last = b.rover.state();
+  }
+  REQUIRE(b.rover.state() == RoverState::Arrived);
+  CHECK(rotations_after_drive == 0);
+  CHECK(b.events(EventKind::WaypointReached) == 4);
+  CHECK(b.true_distance_to(1400, 1300) < 46.0f);
+  // It arrives heading along the last leg (east, 90 degrees), as the law's goal pose asks.
+  CHECK(fabsf(b.plant.heading_rad * core::kDegPerRad - 90.0f) < 25.0f);
+}
+
+TEST_CASE("pose law and the seed's rotate-and-drive both reach the end of the same path") {
+  uint32_t took[2] = {0, 0};
+  for (int mode = 0; mode < 2; ++mode) {
+    Bench b;
+    b.stream_fixes = true;
+    const core::Waypoint wps[] = {{300, 300}, {300, 900}, {900, 1300}, {1400, 1300}};
+    b.hello();
+    set_param(b, Param::DriveMode, mode);
+    set_param(b, Param::SweepIntervalMm, 0);
+    b.start_mission(wps, 4);
+    const uint32_t t0 = b.now_ms;
+    REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 200000));
+    took[mode] = b.now_ms - t0;
+  }
+  MESSAGE("rotate_drive " << took[0] << " ms, pose_law " << took[1] << " ms");
+  CHECK(took[0] > 0);
+  CHECK(took[1] > 0);
+  // Neither is far behind: the law trades the seed's quick spins for longer arcs at drive speed.
+  CHECK(took[1] < 2 * took[0]);
+  CHECK(took[0] < 2 * took[1]);
+}

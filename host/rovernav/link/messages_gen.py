@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x4099A89C
+SCHEMA_HASH = 0x0AC57B55
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -152,6 +152,14 @@ class StopReason(enum.IntEnum):
     REPLANNING = 3
     """the host is about to send a new path"""
 
+class DriveMode(enum.IntEnum):
+    """How the rover moves between waypoints (parameter drive_mode)."""
+
+    ROTATE_DRIVE = 0
+    """the seed's: rotate on the spot, then drive inside the tolerance cone"""
+    POSE_LAW = 1
+    """the moving-to-a-pose law (rho, alpha, beta): smooth arcs, a final heading at each waypoint"""
+
 
 class Param(enum.IntEnum):
     """Parameters set by CONFIG."""
@@ -172,12 +180,17 @@ class Param(enum.IntEnum):
     DR_MAX_DISTANCE_MM = 14
     CLEARANCE_MARGIN_MM = 15
     STATUS_PERIOD_MS = 16
+    DRIVE_MODE = 17
     ROTATE_DONE_CDEG = 18
     GYRO_TIMEOUT_MS = 19
     GYRO_MAX_RATE_CDEG_S = 20
     SPEED_MM_S_PER_PWM_X1000 = 21
     MOTOR_DEADBAND_PWM = 22
     WHEEL_MM_PER_TICK_X1000 = 23
+    POSE_K_RHO_X1000 = 24
+    POSE_K_ALPHA_X1000 = 25
+    POSE_K_BETA_X1000 = 26
+    POSE_PWM_PER_DPS_X1000 = 27
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -197,12 +210,17 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.DR_MAX_DISTANCE_MM: ParamSpec(14, 'dr_max_distance_mm', 'mm', 1500, 0, 100000, 'hold after driving this far without a fix'),
     Param.CLEARANCE_MARGIN_MM: ParamSpec(15, 'clearance_margin_mm', 'mm', 50, 5, 1000, 'hold when the 2-sigma position uncertainty exceeds this'),
     Param.STATUS_PERIOD_MS: ParamSpec(16, 'status_period_ms', 'ms', 200, 20, 10000, 'STATUS is sent this often'),
+    Param.DRIVE_MODE: ParamSpec(17, 'drive_mode', 'enum drive_mode', 0, 0, 1, "rotate_drive (the seed's) or pose_law"),
     Param.ROTATE_DONE_CDEG: ParamSpec(18, 'rotate_done_cdeg', 'cdeg', 100, 10, 3000, 'rotation is done within this heading error (seed: 1 degree)'),
     Param.GYRO_TIMEOUT_MS: ParamSpec(19, 'gyro_timeout_ms', 'ms', 50, 5, 1000, 'no gyro sample for this long is a fault'),
     Param.GYRO_MAX_RATE_CDEG_S: ParamSpec(20, 'gyro_max_rate_cdeg_s', 'cdeg/s', 50000, 1000, 200000, 'a gyro rate beyond this is implausible for the rover: a fault'),
     Param.SPEED_MM_S_PER_PWM_X1000: ParamSpec(21, 'speed_mm_s_per_pwm_x1000', 'mm/s per PWM above the dead band, x1000', 2000, 0, 100000, 'speed model for dead reckoning without encoders; corrected online by fixes'),
     Param.MOTOR_DEADBAND_PWM: ParamSpec(22, 'motor_deadband_pwm', 'PWM', 30, 0, 255, 'commands below this do not move a wheel'),
     Param.WHEEL_MM_PER_TICK_X1000: ParamSpec(23, 'wheel_mm_per_tick_x1000', 'mm per encoder tick, x1000', 0, 0, 100000, '0 = no wheel encoders fitted'),
+    Param.POSE_K_RHO_X1000: ParamSpec(24, 'pose_k_rho_x1000', '1/s, x1000', 500, 1, 100000, 'moving-to-a-pose gain K_rho: forward speed per metre to the goal'),
+    Param.POSE_K_ALPHA_X1000: ParamSpec(25, 'pose_k_alpha_x1000', '1/s, x1000', 1500, 1, 100000, 'moving-to-a-pose gain K_alpha (K_alpha > K_rho)'),
+    Param.POSE_K_BETA_X1000: ParamSpec(26, 'pose_k_beta_x1000', '1/s, x1000', -400, -100000, -1, 'moving-to-a-pose gain K_beta (negative)'),
+    Param.POSE_PWM_PER_DPS_X1000: ParamSpec(27, 'pose_pwm_per_dps_x1000', 'PWM per degree/second of yaw rate, x1000', 500, 0, 100000, 'pose law: wheel command difference (each side) per degree/second of turn asked'),
 }
 
 

@@ -44,6 +44,10 @@ def add_sim_parser(sub) -> None:
     p.add_argument("--out", type=Path, default=Path("out/sim"), help="output folder (default out/sim)")
     p.add_argument("--seed", type=int, default=1, help="random seed: noise, light, drops (default 1)")
     p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav")
+    p.add_argument("--drive-mode", choices=("rotate_drive", "pose_law", "both"), default="rotate_drive",
+                   help="how the rover drives between waypoints: the seed's rotate-then-drive, or the "
+                        "moving-to-a-pose law (arcs, a heading at each waypoint); both runs each and says "
+                        "which was faster")
     p.add_argument("--no-video", action="store_true", help="skip the video (faster)")
     p.add_argument("--config", help="a rovernav TOML configuration (vision, planner, rover parameters)")
     p.add_argument("--max-time", type=float, default=900.0, help="give up after this many simulated seconds")
@@ -77,15 +81,18 @@ def cmd_sim(args: argparse.Namespace) -> int:
         return 2
     config = load_config(args.config) if args.config else None
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
+    modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]
+    runs = [(st, mode) for st in strategies for mode in modes]
     reports = []
-    for strategy in strategies:
-        out = args.out / strategy if len(strategies) > 1 else args.out
+    for strategy, mode in runs:
+        name = strategy if len(modes) == 1 else (mode if len(strategies) == 1 else f"{strategy}-{mode}")
+        out = args.out / name if len(runs) > 1 else args.out
         out.mkdir(parents=True, exist_ok=True)
         faults = Faults(link_outages=args.link_outage, camera_outages=args.camera_outage,
                         camera_outage_kind=args.camera_outage_kind, host_restarts=args.host_restart,
                         firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
         opts = SimOptions(seed=args.seed, strategy=strategy, camera_fps=args.camera_fps, max_time_s=args.max_time,
-                          host_replan=not args.no_host_replan, faults=faults, config=config)
+                          host_replan=not args.no_host_replan, faults=faults, config=config, drive_mode=mode)
         video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
         started = time.monotonic()
 
@@ -99,7 +106,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
                 print(f"[{_strategy} {t:7.2f} s] {text}", flush=True)
 
         if not args.quiet:
-            print(f"simulating {scenario.name} with the {strategy} strategy (seed {args.seed}) ...", flush=True)
+            print(f"simulating {scenario.name} with the {strategy} strategy, {mode} (seed {args.seed}) ...", flush=True)
         sim = Simulation(scenario, opts, frame_sink=video, progress=progress)
         try:
             sim.run()
@@ -115,13 +122,17 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if len(reports) > 1:
         print()
         print(comparison_table(reports))
+        done = [r for r in reports if r["reached"]]
+        if len(modes) > 1 and done:
+            best = min(done, key=lambda r: r["mission_time_s"])
+            print(f"faster: {best['strategy']} / {best['drive_mode']} ({best['mission_time_s']:.1f} s)")
         (args.out / "comparison.json").write_text(json.dumps(reports, indent=2) + "\n")
     return 0 if all(r["reached"] and r["collisions"] == 0 for r in reports) else 1
 
 
 def _summary_line(r: dict) -> str:
     ok = "reached" if r["reached"] else "NOT reached"
-    return (f"{r['scenario']} / {r['strategy']}: {ok} in {r['mission_time_s']:.1f} s simulated "
+    return (f"{r['scenario']} / {r['strategy']} / {r['drive_mode']}: {ok} in {r['mission_time_s']:.1f} s simulated "
             f"({r['wall_time_s']:.1f} s wall, {r['speedup']}x), driven {r['path_length_m']:.2f} m "
             f"(clairvoyant optimum {r['optimal_length_m']:.2f} m), SPL {r['spl']:.2f}, "
             f"collisions {r['collisions']}, min clearance {r['min_clearance_m']} m, replans {r['replans']}"
@@ -129,7 +140,7 @@ def _summary_line(r: dict) -> str:
 
 
 def comparison_table(reports: list[dict]) -> str:
-    rows = [("", *[r["strategy"] for r in reports]),
+    rows = [("", *[f"{r['strategy']}/{r['drive_mode']}" for r in reports]),
             ("reached", *["yes" if r["reached"] else "no" for r in reports]),
             ("mission time (s)", *[f"{r['mission_time_s']:.1f}" for r in reports]),
             ("path length (m)", *[f"{r['path_length_m']:.2f}" for r in reports]),

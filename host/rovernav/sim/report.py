@@ -57,6 +57,7 @@ def build_report(sim, wall_time_s: float) -> dict:
     return {
         "scenario": sc.name,
         "strategy": sim.opt.strategy,
+        "drive_mode": sim.opt.drive_mode,
         "seed": sim.opt.seed,
         "reached": reached,
         "trips_asked": m.legs_asked // per_trip,

@@ -61,6 +61,7 @@ class SimOptions:
     frame_drop: float = 0.02
     max_time_s: float = 900.0
     host_replan: bool = True
+    drive_mode: str = "rotate_drive"  # or "pose_law": the rover's DRIVE_MODE parameter
     channel: ChannelConfig = ChannelConfig()
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
@@ -135,6 +136,8 @@ class Simulation:
         trips = self.cfg.mission.trips or sc.mission.trips
         legs = trips * (2 if sc.mission.kind == "out-and-back" else 1)
         params = list(self.cfg.rover_params())
+        if self.opt.drive_mode != "rotate_drive":
+            params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.opt.drive_mode.upper()])))
         if self.opt.strategy == "seed":
             from .seed_strategy import SeedMission, seed_rover_params
             params = seed_rover_params() + params
