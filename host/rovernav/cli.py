@@ -81,20 +81,35 @@ def _cmd_link_check(args: argparse.Namespace) -> int:
     from .link.transport import open_transport
 
     with open_transport(args.port) as transport:
-        link = Link(transport)
-        hello = link.handshake(boot_id=int.from_bytes(os.urandom(4), "little"), timeout_s=args.timeout)
-        print(f"rover says HELLO: firmware {hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, "
-              f"boot id {hello.boot_id}, holds {hello.max_waypoints} waypoints, "
-              f"schema hash 0x{hello.schema_hash:08X} (matches ours)")
-        end = time.monotonic() + args.seconds
-        while time.monotonic() < end:
-            frame = link.recv(timeout_s=min(0.2, max(0.0, end - time.monotonic())))
-            if frame is not None:
-                print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
-        c = link.counters
-        print(f"link: {c.frames_ok} frames received, dropped {c.bad_crc} bad CRC, {c.overlong} overlong, "
-              f"{c.unknown_id} unknown id, {c.malformed} malformed")
+        talk_to_rover(Link(transport), args.seconds, args.timeout)
     return 0
+
+
+def talk_to_rover(link, seconds: float, hello_timeout_s: float, listening_note: str = "") -> None:
+    """HELLO (with the schema check), then print what the rover says for `seconds` while sending
+    heartbeats (the host is alive, with no camera), then the link's counters. Shared by
+    `link-check` (a real rover) and `demo` (the Uno image in simavr)."""
+    from .link import messages_gen as mg
+
+    started = time.monotonic()
+    hello = link.handshake(boot_id=int.from_bytes(os.urandom(4), "little"), timeout_s=hello_timeout_s)
+    print(f"rover says HELLO after {time.monotonic() - started:.2f} s: firmware "
+          f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, boot id {hello.boot_id}, "
+          f"holds {hello.max_waypoints} waypoints, schema hash 0x{hello.schema_hash:08X} (matches ours)")
+    print(f"listening for {seconds:g} s{listening_note}:")
+    end = time.monotonic() + seconds
+    next_heartbeat = 0.0
+    while time.monotonic() < end:
+        if time.monotonic() >= next_heartbeat:
+            link.send(mg.Heartbeat(host_time_ms=int(time.monotonic() * 1000) & 0xFFFFFFFF,
+                                   camera=mg.CameraState.NO_FRAMES))
+            next_heartbeat = time.monotonic() + 0.2
+        frame = link.recv(timeout_s=min(0.05, max(0.0, end - time.monotonic())))
+        if frame is not None:
+            print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
+    c = link.counters
+    print(f"link: {c.frames_ok} frames received; dropped {c.bad_crc} bad CRC, {c.overlong} overlong, "
+          f"{c.unknown_id} unknown id, {c.malformed} malformed; sent {link.tx_frames} frames")
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:

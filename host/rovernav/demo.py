@@ -8,10 +8,8 @@ checkout of the repository (the firmware sources and tools are not part of the P
 from __future__ import annotations
 
 import logging
-import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from .link.errors import LinkError
@@ -51,7 +49,7 @@ def start_avrsim(elf: Path, speed: float = 1.0, seconds: float | None = None) ->
 
 
 def run_demo(seconds: float = 3.0) -> int:
-    from .cli import _describe
+    from .cli import talk_to_rover
     from .link.link import Link
     from .link.transport import SerialTransport
 
@@ -66,27 +64,7 @@ def run_demo(seconds: float = 3.0) -> int:
     try:
         with SerialTransport(pty, 57600) as transport:
             link = Link(transport)
-            started = time.monotonic()
-            hello = link.handshake(boot_id=int.from_bytes(os.urandom(4), "little"), timeout_s=5.0)
-            print(f"rover says HELLO after {time.monotonic() - started:.2f} s: firmware "
-                  f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, boot id {hello.boot_id}, "
-                  f"holds {hello.max_waypoints} waypoints, schema hash 0x{hello.schema_hash:08X} (matches ours)")
-            print(f"listening for {seconds:g} s (no gyro is simulated: the rover must say so, not hang):")
-            from .link import messages_gen as mg
-
-            end = time.monotonic() + seconds
-            next_heartbeat = 0.0
-            while time.monotonic() < end:
-                if time.monotonic() >= next_heartbeat:  # the host is alive; it has no camera here
-                    link.send(mg.Heartbeat(host_time_ms=int(time.monotonic() * 1000) & 0xFFFFFFFF,
-                                           camera=mg.CameraState.NO_FRAMES))
-                    next_heartbeat = time.monotonic() + 0.2
-                frame = link.recv(timeout_s=min(0.05, max(0.0, end - time.monotonic())))
-                if frame is not None:
-                    print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
-            c = link.counters
-            print(f"link: {c.frames_ok} frames received; dropped {c.bad_crc} bad CRC, {c.overlong} overlong, "
-                  f"{c.unknown_id} unknown id, {c.malformed} malformed; sent {link.tx_frames} frames")
+            talk_to_rover(link, seconds, 5.0, " (no gyro is simulated: the rover must say so, not hang)")
     finally:
         proc.terminate()
         try:
