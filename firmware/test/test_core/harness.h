@@ -125,6 +125,13 @@ class Bench {
     for (uint16_t i = 0; i < n && rx_len_ < sizeof rx_; ++i) rx_[rx_len_++] = bytes[i];
   }
   uint8_t last_host_seq() const { return last_cmd_seq_; }
+  /// Sends CONFIG {param, value}.
+  void config(Param p, int32_t value) {
+    msg::Config c{};
+    c.param = static_cast<uint8_t>(p);
+    c.value = value;
+    send(c);
+  }
 
   void hello() {
     msg::Hello h{};

@@ -12,10 +12,7 @@ namespace {
 const core::Waypoint kLong[] = {{300, 300}, {300, 2300}};
 
 void no_sweeps(Bench& b) {
-  msg::Config c{};
-  c.param = static_cast<uint8_t>(Param::SweepIntervalMm);
-  c.value = 0;
-  b.send(c);
+  b.config(Param::SweepIntervalMm, 0);
   b.run_ms(20);
 }
 }  // namespace
@@ -96,10 +93,7 @@ TEST_CASE("dr_max_distance_mm also bounds a dead-reckoned drive") {
   b.stream_fixes = true;
   b.start_mission(kLong, 2);
   no_sweeps(b);
-  msg::Config c{};
-  c.param = static_cast<uint8_t>(Param::DrMaxDistanceMm);
-  c.value = 200;
-  b.send(c);
+  b.config(Param::DrMaxDistanceMm, 200);
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
   b.camera = false;
   const float y0 = b.plant.y_mm;

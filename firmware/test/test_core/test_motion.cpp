@@ -71,10 +71,7 @@ TEST_CASE("a straight run of waypoints is driven through without stopping at eac
   core::Waypoint wps[8];
   for (int16_t i = 0; i < 8; ++i) wps[i] = {300, static_cast<int16_t>(300 + 100 * i)};
   b.start_mission(wps, 8);
-  msg::Config c{};
-  c.param = static_cast<uint8_t>(Param::SweepIntervalMm);
-  c.value = 0;  // no sweeps: this test is about waypoints
-  b.send(c);
+  b.config(Param::SweepIntervalMm, 0);  // no sweeps: this test is about waypoints
   int rotations_after_drive = 0;
   bool driving = false;
   RoverState last = b.rover.state();
@@ -119,23 +116,12 @@ TEST_CASE("when the distance to the waypoint starts growing, the rover stops and
   b.stream_fixes = true;
   const core::Waypoint wps[] = {{300, 300}, {300, 700}};
   b.start_mission(wps, 2);
-  msg::Config c{};
-  c.param = static_cast<uint8_t>(Param::ArrivalRadiusMm);
-  c.value = 5;  // a tiny radius the rover can drive past
-  b.send(c);
-  c.param = static_cast<uint8_t>(Param::ConeTolMm);
-  c.value = 1000;  // and a cone so wide that only the distance test can stop it
-  b.send(c);
-  c.param = static_cast<uint8_t>(Param::SweepIntervalMm);
-  c.value = 0;
-  b.send(c);
+  b.config(Param::ArrivalRadiusMm, 5);   // a tiny radius the rover can drive past
+  b.config(Param::ConeTolMm, 1000);      // and a cone so wide that only the distance test can stop it
+  b.config(Param::SweepIntervalMm, 0);
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
   const Param gains[] = {Param::PidKpX100, Param::PidKiX100, Param::PidKdX100};
-  for (Param gain : gains) {
-    c.param = static_cast<uint8_t>(gain);  // no steering: it drives straight on
-    c.value = 0;
-    b.send(c);
-  }
+  for (Param gain : gains) b.config(gain, 0);  // no steering: it drives straight on
   b.plant.x_mm += 30;  // knocked sideways: it will pass the waypoint at 30 mm
   b.run_until([&] { return b.plant.y_mm > 720 || b.rover.state() == RoverState::Rotate; }, 20000);
   CHECK(b.rover.state() == RoverState::Rotate);
@@ -158,10 +144,7 @@ TEST_CASE("a stronger right motor is held straight by the heading PID") {
 
 namespace {
 void set_param(Bench& b, Param p, int32_t v) {
-  msg::Config c{};
-  c.param = static_cast<uint8_t>(p);
-  c.value = v;
-  b.send(c);
+  b.config(p, v);
   b.run_ms(20);
 }
 }  // namespace
