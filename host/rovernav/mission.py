@@ -352,14 +352,25 @@ class Mission:
         index = len(self.legs)
         goal = self.target_xy if index % 2 == 0 else self.start_xy
         self.legs.append(Leg(index=index, goal=goal, started_s=self._now))
-        path = self._plan_from(self._rover_xy(), goal)
+        path = self._leg_path(self._rover_xy(), goal)
         if path is None:
             return
         self.legs[-1].planned_length_m = _length(path)
-        self.on_event(self._now, f"leg {index + 1}: {len(path)} waypoints, {_length(path):.2f} m to "
+        self.on_event(self._now, f"leg {index + 1}{self.LEG_NOTE}: {len(path)} waypoints, {_length(path):.2f} m to "
                                  f"({goal[0]:.2f}, {goal[1]:.2f}) m")
+        self._start_leg(path)
+
+    # The two steps a strategy may change (sim/seed_strategy.py does).
+    LEG_NOTE = ""
+
+    def _leg_path(self, start, goal) -> list[tuple[float, float]] | None:
+        """The path of a new leg: A*, simplified."""
+        return self._plan_from(start, goal)
+
+    def _start_leg(self, path: list[tuple[float, float]]) -> None:
+        """Send a new leg's path; the rover needs it and a START."""
         self._start_sent = False
-        self.phase = Phase.LOAD   # a new trip: the rover needs the path and a START
+        self.phase = Phase.LOAD
         self._send_path(path)
 
     def _send_path(self, path: list[tuple[float, float]]) -> None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from ..link import messages_gen as mg
-from ..mission import Leg, Mission, NoPathError, Phase, _length, plan
+from ..mission import Mission, NoPathError, Phase, plan
 
 
 def seed_rover_params() -> list[tuple[mg.Param, int]]:
@@ -39,17 +39,13 @@ class SeedMission(Mission):
             return path
         return [self.grid.cell_to_world(int(ix), int(iy)) for ix, iy in result.cells] + [goal]
 
-    def _begin_trip(self) -> None:
-        index = len(self.legs)
-        goal = self.target_xy if index % 2 == 0 else self.start_xy
-        self.legs.append(Leg(index=index, goal=goal, started_s=self._now))
-        cells = self._raw_path(self._rover_xy(), goal)
-        if cells is None:
-            return
-        self.legs[-1].planned_length_m = _length(cells)
-        self.on_event(self._now, f"leg {index + 1} (seed strategy): {len(cells)} grid waypoints, "
-                                 f"{_length(cells):.2f} m to ({goal[0]:.2f}, {goal[1]:.2f}) m")
-        self._cells, self._next_cell = cells, 0
+    LEG_NOTE = " (seed strategy, every grid cell a waypoint)"
+
+    def _leg_path(self, start, goal):
+        return self._raw_path(start, goal)
+
+    def _start_leg(self, path) -> None:
+        self._cells, self._next_cell = path, 0
         self._send_next()
 
     def _send_next(self) -> None:
