@@ -9,7 +9,7 @@ from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
-from rovernav.mission import Detection, Mission, Phase
+from rovernav.mission import Detection, Mission, Outcome, Phase
 from rovernav.planning import OccupancyGrid, PlannerConfig
 
 
@@ -186,3 +186,110 @@ def test_the_learned_map_is_saved_and_loaded(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(Exception, match="not a rovernav map"):
         fresh.load_map(tmp_path / "bad.json")
+
+
+# ---------------------------------------------------------------- arrivals the host must not lose
+
+class ArrivingRover(ScriptedRover):
+    """Arrives as soon as it is started (a leg that is nearly done), before the host has seen
+    START's ACK move it to its running phase; optionally the ARRIVED event is lost and only
+    STATUS (state arrived on that path) tells."""
+
+    def __init__(self, end, lose_event=False, **kw):
+        super().__init__(end, **kw)
+        self.lose_event = lose_event
+
+    def serve(self):
+        before = len(self.started)
+        super().serve()
+        for path_id in self.started[before:]:
+            if self.lose_event:
+                self.say(mg.Status(time_ms=1, state=mg.RoverState.ARRIVED, path_id=path_id))
+            else:
+                self.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))
+
+
+def _setup_with(rover_cls, start=(0.3, 0.3), target=(2.0, 1.4), legs=1, grid=None, **kw):
+    host_end, rover_end = PipeTransport.pair()
+    rover = rover_cls(rover_end, **kw)
+    notes = []
+    mission = Mission(Link(host_end), grid or OccupancyGrid(2.36, 1.75, PlannerConfig()), start, target, legs=legs,
+                      on_event=lambda t, text: notes.append(text))
+    return mission, rover, notes
+
+
+@pytest.mark.parametrize("lose_event", [False, True])
+def test_an_arrival_that_comes_before_the_host_expects_it_is_not_lost(lose_event):
+    mission, rover, _ = _setup_with(ArrivingRover, lose_event=lose_event)
+    t = _run(mission, rover, 3.0)
+    assert mission.phase is Phase.DONE and mission.outcome is Outcome.REACHED
+    assert mission.legs[0].reached and len(rover.started) == 1 and t < 1.0
+
+
+def test_a_leg_that_is_done_at_once_is_done_without_moving_the_rover():
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(0.32, 0.3))
+    _run(mission, rover, 2.0)
+    assert mission.phase is Phase.DONE and mission.outcome is Outcome.REACHED
+    assert rover.started == [] and any("already within 36 mm" in n for n in notes)
+
+
+def test_a_status_from_before_start_is_not_taken_for_an_arrival():
+    # The rover still reports ARRIVED from its last path while the new one loads: no false arrival.
+    mission, rover, _ = _setup_with(ScriptedRover, legs=2)
+    t = _run(mission, rover, 0.5)
+    assert mission.phase in (Phase.LOAD, Phase.RUN)
+    rover.say(mg.Status(time_ms=1, state=mg.RoverState.ARRIVED, path_id=mission.path_id + 1))
+    rover.say(mg.Status(time_ms=1, state=mg.RoverState.ARRIVED, path_id=mission.path_id - 1))
+    _run(mission, rover, 0.5, t0=t)
+    assert not mission.legs[0].reached
+
+
+# ---------------------------------------------------------------- every phase has a deadline
+
+def _run_until_done(mission, rover, seconds, seen=True, answer=True):
+    t = 0.0
+    while t < seconds and not mission.done:
+        if seen:
+            mission.on_detection(Detection(t - 0.04, 0.3, 0.3, 0.0), t)
+        mission.tick(t)
+        if answer:
+            rover.serve()
+            rover.say(mg.Status(time_ms=int(t * 1000), state=mg.RoverState.DRIVE, path_id=mission.path_id))
+        else:
+            rover.end.read(65536, 0)
+        t += 0.1
+    return t
+
+
+def test_a_rover_that_never_says_hello_fails_the_mission_at_the_hello_deadline():
+    mission, rover, _ = _setup_with(ScriptedRover)
+    t = _run_until_done(mission, rover, 600, answer=False)
+    assert mission.phase is Phase.FAILED and "no HELLO" in mission.error
+    assert mission.deadlines.hello_s <= t <= mission.deadlines.hello_s + 1
+
+
+def test_a_rover_the_camera_never_sees_fails_the_mission_at_the_locate_deadline():
+    mission, rover, _ = _setup_with(ScriptedRover)
+    t = _run_until_done(mission, rover, 600, seen=False)
+    assert mission.phase is Phase.FAILED and "camera has not seen the rover" in mission.error
+    assert t <= mission.deadlines.locate_s + 2
+
+
+def test_a_leg_never_reached_is_replanned_then_fails_within_its_deadlines():
+    mission, rover, notes = _setup_with(ScriptedRover)
+    t = _run_until_done(mission, rover, 3000)
+    d = mission.deadlines
+    leg = mission.legs[0]
+    assert mission.phase is Phase.FAILED and "not reached" in mission.error
+    assert leg.recoveries == d.leg_recoveries and len(rover.started) == 1 + d.leg_recoveries
+    assert t <= (1 + d.leg_recoveries) * d.leg_s(leg.planned_length_m) + 5
+    assert sum("is late" in n for n in notes) == d.leg_recoveries
+
+
+def test_an_enclosed_target_ends_the_mission_with_the_no_path_verdict():
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    for x, y, w, h in ((2.0, 1.15, 0.5, 0.05), (2.0, 1.65, 0.5, 0.05), (1.75, 1.4, 0.05, 0.5), (2.25, 1.4, 0.05, 0.5)):
+        grid.add_box(x, y, w, h)
+    mission, rover, _ = _setup_with(ScriptedRover, target=(2.0, 1.4), grid=grid)
+    _run_until_done(mission, rover, 60)
+    assert mission.phase is Phase.FAILED and mission.outcome is Outcome.NO_PATH and "no path" in mission.error

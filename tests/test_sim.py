@@ -253,3 +253,47 @@ def test_rovernav_sim_compares_the_drive_modes(tmp_path):
     assert "faster: rovernav / " in r.stdout
     both = json.loads((tmp_path / "comparison.json").read_text())
     assert {x["drive_mode"] for x in both} == {"rotate_drive", "pose_law"}
+
+
+# ---------------------------------------------------------------- contact ends the run
+
+def test_the_world_names_what_the_rover_touches():
+    w = World(2.0, 2.0, [Box(1.0, 1.0, 0.2, 0.2, known=False)])
+    assert w.touching(1.0, 0.8, 0.0).startswith("obstacle 1 (unknown box at (1.00, 1.00) m")
+    assert w.touching(0.05, 1.5, 0.0) == "the left wall"
+
+
+def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its_face(monkeypatch):
+    # With its sonar deaf the rover cannot see Figure 4.8's obstacle: the run must end at the
+    # obstacle's face (a crash), never pass through it, and say so.
+    monkeypatch.setattr("rovernav.sim.plant.RoverPlant.sonar_mm", lambda self, world: 0)
+    sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"), SimOptions(seed=1, host_replan=False))
+    box = next(b for b in sim.world.boxes if not b.known)
+    deepest = -math.inf
+    step = sim._rover
+
+    def watched(now):
+        nonlocal deepest
+        step(now)
+        x0, y0, x1, y1 = box.bounds
+        p = sim.plant
+        deepest = max(deepest, min(p.x - x0, x1 - p.x, p.y - y0, y1 - p.y))   # > 0: the centre is inside
+    monkeypatch.setattr(sim, "_rover", watched)
+    sim.run()
+    r = build_report(sim, 1.0)
+    assert r["outcome"] == "crashed" and r["crashed"] and not r["reached"] and r["collisions"] == 1
+    assert r["crash"]["against"].startswith("obstacle 1 (unknown box")
+    assert r["mission_time_s"] == pytest.approx(r["crash"]["t_s"], abs=0.05)
+    assert deepest < 0.0   # the rover's centre never entered the box
+    json.dumps(r, allow_nan=False)
+
+
+def test_a_target_two_centimetres_from_the_start_is_reached_at_once():
+    from rovernav.scenario import parse_scenario
+
+    sc = parse_scenario("version = 1\n[arena]\nwidth_m = 2.0\nheight_m = 1.5\n[start]\nx_m = 0.5\ny_m = 0.5\n"
+                        "[target]\nx_m = 0.52\ny_m = 0.5\n")
+    sim = Simulation(sc, SimOptions(seed=1, max_time_s=120))
+    sim.run()
+    r = build_report(sim, 1.0)
+    assert r["outcome"] == "reached" and r["mission_time_s"] < 5.0 and not r["timed_out"]

@@ -10,7 +10,8 @@
     rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
 
 Errors a user can cause (a missing port, a rover built from another protocol, no answer)
-end with a one-line message and exit status 2, not a traceback.
+end with a one-line message and exit status 2, not a traceback; a mission that could not
+reach its goal ends with exit status 1.
 """
 from __future__ import annotations
 
@@ -193,13 +194,14 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    from .config import ConfigError
-    from .link.errors import LinkError
-    from .scenario import ScenarioError
+    from .errors import MissionFailed, RovernavError
 
     try:
         return args.func(args)
-    except (LinkError, ConfigError, ScenarioError) as exc:
+    except MissionFailed as exc:
+        print(f"rovernav {args.command}: {exc}", file=sys.stderr)
+        return 1
+    except RovernavError as exc:
         print(f"rovernav {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

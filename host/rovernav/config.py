@@ -20,10 +20,11 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
 from .link import messages_gen as mg
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError):
     """A configuration file or value is wrong; the message names the file, section and key."""
 
 

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from .config import load_config
+from .errors import CameraError
 from .link.errors import LinkError
 from .link.link import Link
 from .link.transport import SerialTransport, parse_serial_spec
@@ -20,10 +21,6 @@ from .mission import Detection, Mission, MissionFailed, Phase
 from .planning import OccupancyGrid
 
 log = logging.getLogger("rovernav.run")
-
-
-class CameraError(LinkError):
-    """The camera could not be opened or stopped delivering frames."""
 
 
 def open_camera(source: str):

@@ -27,12 +27,14 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
+
 FORMAT_VERSION = 1
 MISSION_KINDS = ("reach", "out-and-back")
 DEFAULT_SCENARIO = "out-and-back"
 
 
-class ScenarioError(ValueError):
+class ScenarioError(InputError):
     """A scenario file is missing, unreadable or invalid; the message names the file and the key."""
 
 

@@ -1,8 +1,10 @@
 """The link's exceptions: catch LinkError for anything the radio or the rover did wrong."""
 from __future__ import annotations
 
+from ..errors import RovernavError
 
-class LinkError(Exception):
+
+class LinkError(RovernavError):
     """Base of every link failure."""
 
 

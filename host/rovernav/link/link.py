@@ -28,7 +28,8 @@ from types import TracebackType
 from .. import __version__
 from .errors import LinkTimeout, Nacked, SchemaMismatch
 from .framing import DecoderCounters, Frame, FrameDecoder, encode_frame
-from .messages_gen import SCHEMA_HASH, Ack, Hello, Nack, Role
+from .messages_gen import SCHEMA_HASH, Hello, Nack, Role
+from .requests import RequestTracker
 from .schema import Message
 from .transport import DEFAULT_BAUD, Transport
 
@@ -49,6 +50,12 @@ def version_word(version: str) -> int:
     if major > 0xFF or minor > 0xFF:
         raise ValueError(f"version {version!r} does not fit major * 256 + minor in 16 bits")
     return major * 256 + minor
+
+
+def host_hello(boot_id: int) -> Hello:
+    """The host's HELLO: role host, our schema hash and version, `boot_id` (new at every host start)."""
+    return Hello(schema_hash=SCHEMA_HASH, boot_id=boot_id & 0xFFFFFFFF, firmware_version=version_word(__version__),
+                 role=Role.HOST, max_waypoints=0)
 
 
 class Link:
@@ -156,26 +163,23 @@ class Link:
             raise ValueError(f"timeout_s must be positive, got {timeout_s}")
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
-        sent: set[int] = set()
-
-        def answers(frame: Frame) -> bool:
-            reply = frame.message
-            return isinstance(reply, (Ack, Nack)) and reply.msg_id == message.ID and reply.seq in sent
-
+        tracker = RequestTracker(resend_s=timeout_s, max_tries=retries + 1)
         with self._rx_lock:
-            for attempt in range(retries + 1):
-                if attempt:
-                    log.warning("no answer to %s on %s within %.3g s; resending (%d of %d)",
-                                message.NAME.upper(), self.transport, timeout_s, attempt, retries)
-                sent.add(self.send(message))
-                reply = self._await(answers, self._deadline(timeout_s))
-                if reply is None:
-                    continue
-                if isinstance(reply.message, Nack):
-                    nack = reply.message
-                    log.info("%s refused: reason %d detail %d", message.NAME.upper(), nack.reason, nack.detail)
-                    raise Nacked(message.NAME, nack.reason, nack.detail)
-                return reply
+            pending = tracker.sent(message, self.send(message), time.monotonic())
+            while True:
+                reply = self._await(lambda frame: tracker.matches(frame.message), self._deadline(timeout_s))
+                if reply is not None:
+                    tracker.answer(reply.message)
+                    if isinstance(reply.message, Nack):
+                        nack = reply.message
+                        log.info("%s refused: reason %d detail %d", message.NAME.upper(), nack.reason, nack.detail)
+                        raise Nacked(message.NAME, nack.reason, nack.detail)
+                    return reply
+                if tracker.exhausted(pending):
+                    break
+                log.warning("no answer to %s on %s within %.3g s; resending (%d of %d)",
+                            message.NAME.upper(), self.transport, timeout_s, pending.tries, retries)
+                tracker.resent(pending, self.send(message), time.monotonic())
         raise LinkTimeout(f"no ACK or NACK for {message.NAME.upper()} from the rover on {self.transport} "
                           f"after {retries + 1} attempts of {timeout_s:g} s")
 
@@ -187,8 +191,7 @@ class Link:
         HELLO (also kept as .peer_hello). Raises SchemaMismatch if its schema hash differs,
         LinkTimeout if none came. Other frames arriving meanwhile are queued for recv().
         """
-        ours = Hello(schema_hash=SCHEMA_HASH, boot_id=boot_id, firmware_version=version_word(__version__),
-                     role=Role.HOST, max_waypoints=0)
+        ours = host_hello(boot_id)
 
         def is_rover_hello(frame: Frame) -> bool:
             return isinstance(frame.message, Hello) and frame.message.role == Role.ROVER

@@ -71,6 +71,7 @@ def add_sim_parser(sub) -> None:
 def cmd_sim(args: argparse.Namespace) -> int:
     from ..config import load_config
     from ..scenario import ScenarioError, load_scenario
+    from ..files import write_atomic
     from .report import VideoWriter, build_report, summary_picture, write_report
     from .runner import Faults, SimOptions, Simulation
 
@@ -126,25 +127,29 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if len(modes) > 1 and done:
             best = min(done, key=lambda r: r["mission_time_s"])
             print(f"faster: {best['strategy']} / {best['drive_mode']} ({best['mission_time_s']:.1f} s)")
-        (args.out / "comparison.json").write_text(json.dumps(reports, indent=2) + "\n")
+        write_atomic(args.out / "comparison.json", json.dumps(reports, indent=2, allow_nan=False) + "\n")
     return 0 if all(r["reached"] and r["collisions"] == 0 for r in reports) else 1
 
 
 def _summary_line(r: dict) -> str:
-    ok = "reached" if r["reached"] else "NOT reached"
+    from .report import fmt_m, outcome_text
+
+    ok = outcome_text(r)
     return (f"{r['scenario']} / {r['strategy']} / {r['drive_mode']}: {ok} in {r['mission_time_s']:.1f} s simulated "
             f"({r['wall_time_s']:.1f} s wall, {r['speedup']}x), driven {r['path_length_m']:.2f} m "
-            f"(clairvoyant optimum {r['optimal_length_m']:.2f} m), SPL {r['spl']:.2f}, "
+            f"(clairvoyant optimum {fmt_m(r['optimal_length_m'])}), SPL {r['spl']:.2f}, "
             f"collisions {r['collisions']}, min clearance {r['min_clearance_m']} m, replans {r['replans']}"
             + (f"; error: {r['error']}" if r.get("error") else ""))
 
 
 def comparison_table(reports: list[dict]) -> str:
+    from .report import fmt_m
+
     rows = [("", *[f"{r['strategy']}/{r['drive_mode']}" for r in reports]),
-            ("reached", *["yes" if r["reached"] else "no" for r in reports]),
+            ("outcome", *[r["outcome"] for r in reports]),
             ("mission time (s)", *[f"{r['mission_time_s']:.1f}" for r in reports]),
             ("path length (m)", *[f"{r['path_length_m']:.2f}" for r in reports]),
-            ("clairvoyant optimum (m)", *[f"{r['optimal_length_m']:.2f}" for r in reports]),
+            ("clairvoyant optimum", *[fmt_m(r["optimal_length_m"]) for r in reports]),
             ("SPL", *[f"{r['spl']:.2f}" for r in reports]),
             ("replans", *[str(r["replans"]) for r in reports]),
             ("collisions", *[str(r["collisions"]) for r in reports]),

@@ -9,16 +9,56 @@ import cv2
 import numpy as np
 
 from ..link import messages_gen as mg
+from ..files import write_atomic
 from .world import footprint
 
 TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
 
 
-def _spl(success: bool, optimal: float, driven: float) -> float:
+def _spl(success: bool, optimal: float | None, driven: float) -> float:
     """Success weighted by (normalised inverse) path length, per episode (Anderson et al. 2018)."""
-    if not success or not math.isfinite(optimal) or optimal <= 0:
+    if not success or optimal is None or optimal <= 0:
         return 0.0
     return optimal / max(driven, optimal)
+
+
+def fmt_m(value: float | None) -> str:
+    """A length for people: "2.13 m", or "none" where it is undefined (no path exists)."""
+    return "none" if value is None else f"{value:.2f} m"
+
+
+def outcome_text(report: dict) -> str:
+    """How a run ended, in a few words."""
+    o = report["outcome"]
+    if o == "reached":
+        return "reached"
+    if o == "crashed":
+        c = report["crash"]
+        return f"CRASHED at {c['t_s']:.1f} s into {c['against']}"
+    if o == "no_path":
+        return "NOT reached: no path (the host's verdict)"
+    if o == "timeout":
+        return "NOT reached: stopped by the time limit"
+    return "NOT reached: mission failed"
+
+
+def _r(value: float | None, digits: int) -> float | None:
+    """Rounded, or None for an undefined value (report.json is strict JSON: no NaN, no Infinity)."""
+    if value is None or not math.isfinite(value):
+        return None
+    return round(value, digits)
+
+
+def cruise_speed_m_s(params: list) -> float:
+    """The rover's straight-line speed by its own motor model: (drive_pwm - dead band) x speed per PWM,
+    from its CONFIG parameters as sent (defaults from the protocol definition)."""
+    p = {int(k): v for k, v in params}
+
+    def get(param):
+        return p.get(int(param), mg.PARAMS[param].default)
+
+    pwm = get(mg.Param.DRIVE_PWM) - get(mg.Param.MOTOR_DEADBAND_PWM)
+    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000
 
 
 def build_report(sim, wall_time_s: float) -> dict:
@@ -35,7 +75,7 @@ def build_report(sim, wall_time_s: float) -> dict:
         legs.append({
             "index": trip.index + 1, "goal": [round(trip.goal[0], 3), round(trip.goal[1], 3)],
             "reached": trip.reached, "time_s": round(end - trip.started_s, 2),
-            "path_length_m": round(driven, 3), "optimal_length_m": round(optimal, 3),
+            "path_length_m": round(driven, 3), "optimal_length_m": _r(optimal, 3),
             "spl": round(_spl(trip.reached, optimal, driven), 3), "replans": trip.replans,
             "sonar_echoes": trip.obstacles_found, "planned_length_m": round(trip.planned_length_m, 3),
         })
@@ -48,18 +88,26 @@ def build_report(sim, wall_time_s: float) -> dict:
         trips.append({"index": i // per_trip + 1, "reached": len(group) == per_trip and all(g["reached"] for g in group),
                       "time_s": round(sum(g["time_s"] for g in group), 2),
                       "path_length_m": round(sum(g["path_length_m"] for g in group), 3),
-                      "optimal_length_m": round(sum(g["optimal_length_m"] for g in group), 3),
+                      "optimal_length_m": None if any(g["optimal_length_m"] is None for g in group)
+                      else round(sum(g["optimal_length_m"] for g in group), 3),
                       "replans": sum(g["replans"] for g in group), "legs": [g["index"] for g in group]})
     status = m.last_status
     c = sim.link.counters
     unknown = [o for o in sc.obstacles if not o.known]
     discovered = sum(1 for o in unknown if _echo_on(o, m.echoes, m.grid.config.sonar_offset_m))
+    optimal = sim.optimal_length_m()
+    speed = cruise_speed_m_s(m.rover_params)
     return {
         "scenario": sc.name,
+        "scenario_meta": getattr(sc, "generated", None),
         "strategy": sim.opt.strategy,
         "drive_mode": sim.opt.drive_mode,
         "seed": sim.opt.seed,
         "reached": reached,
+        "outcome": sim.outcome,
+        "crashed": sim.crash is not None,
+        "crash": sim.crash,
+        "timed_out": sim.timed_out,
         "trips_asked": m.legs_asked // per_trip,
         "legs_asked": m.legs_asked,
         "collisions": sim.collisions,
@@ -67,7 +115,9 @@ def build_report(sim, wall_time_s: float) -> dict:
         "wall_time_s": round(wall_time_s, 2),
         "speedup": round(sim.t / wall_time_s, 1) if wall_time_s > 0 else None,
         "path_length_m": round(driven_total, 3),
-        "optimal_length_m": round(sim.optimal_length_m(), 3),
+        "optimal_length_m": _r(optimal, 3),
+        "cruise_speed_m_s": round(speed, 4),
+        "optimal_time_s": _r(optimal / speed, 2) if optimal is not None and speed > 0 else None,
         "spl": round(sum(leg["spl"] for leg in legs) / max(1, m.legs_asked), 3),
         "min_clearance_m": round(sim.min_clearance_m, 4) if math.isfinite(sim.min_clearance_m) else None,
         "replans": m.replans,
@@ -199,9 +249,9 @@ def summary_picture(sim, report: dict, path: Path) -> None:
         s = sim.samples[-1]
         cv2.polylines(img, [canvas.pts(footprint(s.x_m, s.y_m, s.heading_deg))], True, (20, 20, 20), 2)
     footer = np.full((70, img.shape[1], 3), 255, np.uint8)
-    lines = [f"{report['scenario']} / {report['strategy']}: {'reached' if report['reached'] else 'NOT reached'}, "
+    lines = [f"{report['scenario']} / {report['strategy']}: {outcome_text(report)}, "
              f"{report['mission_time_s']:.1f} s, {report['path_length_m']:.2f} m driven "
-             f"(optimal {report['optimal_length_m']:.2f} m), SPL {report['spl']:.2f}",
+             f"(optimal {fmt_m(report['optimal_length_m'])}), SPL {report['spl']:.2f}",
              f"collisions {report['collisions']}, min clearance {report['min_clearance_m'] or 0:.3f} m, "
              f"replans {report['replans']}, unknown obstacles found {report['obstacles_discovered']}/"
              f"{report['obstacles_unknown']}; trips: " + ", ".join(
@@ -272,4 +322,5 @@ class VideoWriter:
 
 
 def write_report(report: dict, path: Path) -> None:
-    path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    """report.json: strict JSON (undefined values are null), written atomically."""
+    write_atomic(path, json.dumps(report, indent=2, allow_nan=False) + "\n")

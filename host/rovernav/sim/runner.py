@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import tempfile
-from pathlib import Path
 import logging
 import math
-import time
+import tempfile
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -26,7 +25,7 @@ from ..config import Config, config_from_dict
 from ..firmware import RoverCore
 from ..link import messages_gen as mg
 from ..link.link import Link
-from ..mission import Detection, Mission, Phase
+from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin, make_strategy
 from ..planning import NoPathError, OccupancyGrid, plan
 from ..render import Camera, Lighting, Renderer, RoverLook, Scene
 from ..vision import Locator
@@ -110,6 +109,8 @@ class Simulation:
         self.frames_rendered = 0
         self.frames_dropped = 0
         self.collisions = 0
+        self.crash: dict | None = None       # where and when the rover first touched something
+        self.timed_out = False
         self._in_contact = False
         self.min_clearance_m = math.inf
         self._pending_frames: collections.deque = collections.deque()
@@ -119,8 +120,9 @@ class Simulation:
         self.events: list[tuple[float, str]] = []
         self._map_dir = tempfile.TemporaryDirectory(prefix="rovernav-sim-")
         self._map_file = Path(self._map_dir.name) / "learned-map.json"
-        self.mission = self._new_host()
         self.restarts_done = 0
+        self.mission = self._new_host()
+        self._clairvoyant: OccupancyGrid | None = None
 
     # ---------------------------------------------------------------- set-up
 
@@ -138,17 +140,13 @@ class Simulation:
         params = list(self.cfg.rover_params())
         if self.opt.drive_mode != "rotate_drive":
             params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.opt.drive_mode.upper()])))
-        if self.opt.strategy == "seed":
-            from .seed_strategy import SeedMission, seed_rover_params
-            params = seed_rover_params() + params
-            cls = SeedMission
-        else:
-            cls = Mission
-        mission = cls(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
-                      legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
-                      heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
-                      on_event=self._event, map_file=self._map_file,
-                      state_file=Path(self._map_dir.name) / "mission-state.json")
+        mission = Mission(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
+                          legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
+                          heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
+                          on_event=self._event, map_file=self._map_file,
+                          state_file=Path(self._map_dir.name) / "mission-state.json",
+                          strategy=make_strategy(self.opt.strategy),
+                          host_boot_id=0x484F5354 + self.restarts_done)   # "HOST", +1 per restart
         if self._map_file.exists():   # a restarted host: its learned map survived on disk
             mission.load_map(self._map_file)
         mission.restore_state()
@@ -165,13 +163,18 @@ class Simulation:
         restarts = sorted(f.host_restarts)
         resets = sorted(f.firmware_resets)
         next_progress = 30.0
-        while self.t < self.opt.max_time_s and not self.mission.done:
+        while not self.mission.done and self.crash is None:
+            if self.t >= self.opt.max_time_s:
+                self.timed_out = True
+                self._event(self.t, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)")
+                break
             now = self.t
             if restarts and now >= restarts[0]:
                 restarts.pop(0)
                 self._event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS")
                 # Nothing of the old host survives: the new one starts from HELLO, as a restarted
                 # process would. (Rebuilding the leg from the rover's STATUS is issue 6's work.)
+                self.restarts_done += 1
                 self.mission = self._new_host()
             if resets and now >= resets[0]:
                 resets.pop(0)
@@ -253,7 +256,12 @@ class Simulation:
         contact = clearance <= 0.0
         if contact and not self._in_contact:
             self.collisions += 1
-            self._event(now, f"COLLISION at ({self.plant.x:.2f}, {self.plant.y:.2f}) m")
+            against = self.world.touching(self.plant.x, self.plant.y, self.plant.heading)
+            # Motors cannot push a rover through a box or a wall: the run ends where it touched.
+            self.crash = {"t_s": round(now, 2), "x_m": round(self.plant.x, 3), "y_m": round(self.plant.y, 3),
+                          "heading_deg": round(self.plant.heading, 1), "against": against}
+            self._event(now, f"CRASH at ({self.plant.x:.2f}, {self.plant.y:.2f}) m against {against}")
+            self.mission.fail(f"the rover crashed into {against}")
         self._in_contact = contact
         if int(round(now * 1000)) % 50 == 0:
             pr = self.core.probe()
@@ -264,26 +272,31 @@ class Simulation:
 
     # ---------------------------------------------------------------- results
 
-    def optimal_length_m(self) -> float:
-        """A* with every obstacle known, over the trips the mission asked: the best a clairvoyant rover does."""
-        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner, all_obstacles=True)
-        sc = self.scenario
-        a, b = (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m)
-        try:
-            there = plan(grid, a, b).length_m
-            back = plan(grid, b, a).length_m
-        except NoPathError:
-            return float("nan")
-        n = self.mission.legs_asked
-        return sum(there if i % 2 == 0 else back for i in range(n))
+    @property
+    def outcome(self) -> str:
+        """How the run ended: reached, crashed, no_path (the host's verdict), failed, or timeout."""
+        if self.crash is not None:
+            return "crashed"
+        if self.timed_out:
+            return "timeout"
+        return {Outcome.REACHED: "reached", Outcome.NO_PATH: "no_path", Outcome.FAILED: "failed",
+                Outcome.RUNNING: "timeout"}[self.mission.outcome]
 
-    def trip_optimal_m(self, index: int) -> float:
-        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner, all_obstacles=True)
+    def _clairvoyant_grid(self) -> OccupancyGrid:
+        if self._clairvoyant is None:
+            self._clairvoyant = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner, all_obstacles=True)
+        return self._clairvoyant
+
+    def trip_optimal_m(self, index: int) -> float | None:
+        """A* with every obstacle known for leg `index`: the best a clairvoyant rover does (None: no path)."""
         sc = self.scenario
         a, b = (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m)
-        if index % 2:
-            a, b = b, a
         try:
-            return plan(grid, a, b).length_m
+            return plan(self._clairvoyant_grid(), leg_origin(a, b, index), leg_goal(a, b, index)).length_m
         except NoPathError:
-            return float("nan")
+            return None
+
+    def optimal_length_m(self) -> float | None:
+        """The clairvoyant optimum over every leg the mission asked (None: some leg has no path)."""
+        lengths = [self.trip_optimal_m(i) for i in range(self.mission.legs_asked)]
+        return None if any(v is None for v in lengths) else sum(lengths)

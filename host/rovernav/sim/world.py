@@ -123,6 +123,22 @@ class World:
             best = min(best, math.hypot(max(x0 - x_m, 0.0, x_m - x1), max(y0 - y_m, 0.0, y_m - y1)))
         return best - HALF_DIAGONAL_M
 
+    def touching(self, x_m: float, y_m: float, heading_deg: float) -> str:
+        """What the rover's footprint touches (or comes nearest to): "the left wall", or a box
+        described by its number in the scenario, centre and whether the planner knew it."""
+        poly = footprint(x_m, y_m, heading_deg)
+        xs, ys = poly[:, 0], poly[:, 1]
+        walls = {"the left wall": xs.min(), "the bottom wall": ys.min(),
+                 "the right wall": self.width_m - xs.max(), "the top wall": self.height_m - ys.max()}
+        best_name, best = min(walls.items(), key=lambda kv: kv[1])
+        for i, b in enumerate(self.boxes):
+            d = _poly_box_distance(poly, b.bounds)
+            if d < best:
+                best = d
+                best_name = (f"obstacle {i + 1} ({'known' if b.known else 'unknown'} box at "
+                             f"({b.x_m:.2f}, {b.y_m:.2f}) m, {b.w_m:.2f} x {b.h_m:.2f} m)")
+        return best_name
+
     def collides(self, x_m: float, y_m: float, heading_deg: float) -> bool:
         return self.clearance_m(x_m, y_m, heading_deg) <= 0.0
 

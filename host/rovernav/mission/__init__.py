@@ -1,0 +1,16 @@
+"""The host's side of a run, the same against the simulator and the radio.
+
+    core.py          Mission: phases with deadlines, legs, what the rover says
+    legs.py          Leg, Deadlines, leg goals, the record of legs done
+    strategies.py    how a leg is driven: rovernav's strategy and the 2019 seed's
+    learned_map.py   the sonar's echoes folded into the planner's grid, saved and reloaded
+Requests and their resends are the link's (rovernav.link.requests), shared with Link.request.
+"""
+from ..errors import MissionFailed
+from .core import Detection, Mission, Outcome, Phase
+from .learned_map import Echo, LearnedMap
+from .legs import Deadlines, Leg, leg_goal, leg_origin
+from .strategies import RovernavStrategy, SeedStrategy, Strategy, make_strategy
+
+__all__ = ["Deadlines", "Detection", "Echo", "LearnedMap", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
+           "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "make_strategy"]

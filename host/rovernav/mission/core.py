@@ -1,0 +1,543 @@
+"""The mission: phases with deadlines, legs, and what the rover says, over any link.
+
+The host is thin. It says HELLO and checks the schema, sends the rover its parameters, streams
+camera fixes and heartbeats, has its strategy plan each leg and hand it to the rover, folds the
+rover's sonar reports into the learned map, and, for an out-and-back mission, sends the rover
+home on what it learned and repeats for the trips asked.
+
+`Mission` never blocks and never reads a clock of its own: whoever runs it (the hardware loop
+in `rovernav run`, the simulator in lockstep) calls `on_detection()` for each camera frame and
+`tick(now_s)` often, with its own notion of time. Every phase has a deadline and a recovery
+(see `Deadlines`): a mission ends by itself, reached or failed with the reason, and never
+waits for ever.
+"""
+from __future__ import annotations
+
+import dataclasses
+import enum
+import logging
+import math
+import os
+from pathlib import Path
+from typing import Callable
+
+from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
+from ..link import messages_gen as mg
+from ..link.errors import LinkError, Nacked, SchemaMismatch
+from ..link.link import host_hello
+from ..link.requests import RequestTracker
+from ..planning import NoPathError, OccupancyGrid, plan
+from .learned_map import Echo, LearnedMap
+from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
+from .strategies import RovernavStrategy, Strategy
+
+log = logging.getLogger("rovernav.mission")
+
+RESEND_S = 0.4        # an un-ACKed request goes again after this long
+MAX_TRIES = 8         # ... this many times, then the mission fails
+HELLO_EVERY_S = 0.5
+SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
+MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
+
+
+class Phase(enum.Enum):
+    HELLO = "hello"            # waiting for the rover's HELLO
+    CONFIGURE = "configure"    # sending parameters
+    LOCATE = "locate"          # waiting for the camera to see the rover
+    LOAD = "load"              # a path is being sent
+    RUN = "run"                # the rover follows the path
+    DONE = "done"
+    FAILED = "failed"
+
+
+class Outcome(enum.Enum):
+    RUNNING = "running"
+    REACHED = "reached"        # every leg reached
+    NO_PATH = "no_path"        # the planner says the goal cannot be reached on what is known
+    FAILED = "failed"          # anything else: a refusal, a fault, silence, a deadline
+
+
+@dataclasses.dataclass
+class Detection:
+    """A camera fix of the rover in arena coordinates (None fields: the rover was not seen)."""
+
+    t_s: float
+    x_m: float | None
+    y_m: float | None
+    heading_deg: float | None
+    reason: str | None = None
+
+
+class Mission:
+    """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
+    and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
+
+    def __init__(self, link, grid: OccupancyGrid, start_xy: tuple[float, float], target_xy: tuple[float, float],
+                 legs: int = 1, rover_params: list | None = None, planner: str = "astar",
+                 fix_sd_mm: int = 3, heartbeat_hz: float = 5.0, host_replan: bool = True,
+                 on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None,
+                 state_file: str | Path | None = None, strategy: Strategy | None = None,
+                 deadlines: Deadlines = Deadlines(), host_boot_id: int | None = None):
+        self.link = link
+        self.map = LearnedMap(grid)
+        self.start_xy = start_xy
+        self.target_xy = target_xy
+        self.legs_asked = legs
+        self.strategy = strategy or RovernavStrategy()
+        self.rover_params = self.strategy.rover_params() + list(rover_params or [])
+        self.planner = planner
+        self.fix_sd_mm = fix_sd_mm
+        self.heartbeat_period_s = 1.0 / heartbeat_hz
+        self.host_replan = host_replan
+        self.deadlines = deadlines
+        self.on_event = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
+        self.map_file = Path(map_file) if map_file else None   # kept up to date: a restarted host reloads it
+        self.record = LegRecord(state_file)
+        self.host_boot_id = int.from_bytes(os.urandom(4), "little") if host_boot_id is None else host_boot_id
+
+        self.phase = Phase.HELLO
+        self.outcome = Outcome.RUNNING
+        self.error: str | None = None
+        self.legs: list[Leg] = []
+        self.path: list[tuple[float, float]] = []
+        self.path_id = 0
+        self.rover_boot_id: int | None = None
+        self.last_status: mg.Status | None = None
+        self.events: list[tuple[float, mg.Event]] = []
+        self.nacks: list[mg.Nack] = []
+        self.fixes_sent = 0
+        self.replans = 0
+        self.requests = RequestTracker(RESEND_S, MAX_TRIES)
+        self._now = 0.0
+        self._phase_since: float | None = None   # set by the first tick: the mission's clock starts there
+        self._hello_at = -1e9
+        self._heartbeat_at = -1e9
+        self._last_detection: Detection | None = None
+        self._last_frame_s: float | None = None
+        self._start_sent_for: int | None = None    # path id the last START was sent for
+        self._start_acked_for: int | None = None   # ... and acknowledged for
+        self._accepted_path_id: int | None = None
+        self._map_changed_at: float | None = None
+        self._resume_leg = False
+        self._last_heard_s = 0.0
+
+    # ---------------------------------------------------------------- views
+
+    @property
+    def grid(self) -> OccupancyGrid:
+        return self.map.grid
+
+    @property
+    def echoes(self) -> list[Echo]:
+        return self.map.echoes
+
+    @property
+    def wall_echoes(self) -> int:
+        return self.map.wall_echoes
+
+    @property
+    def repeat_echoes(self) -> int:
+        return self.map.repeat_echoes
+
+    @property
+    def done(self) -> bool:
+        return self.phase in (Phase.DONE, Phase.FAILED)
+
+    @property
+    def current_leg(self) -> Leg:
+        return self.legs[-1]
+
+    @property
+    def arrival_radius_m(self) -> float:
+        """The rover's arrival radius (its ARRIVAL_RADIUS_MM parameter, as configured)."""
+        value = dict(self.rover_params).get(mg.Param.ARRIVAL_RADIUS_MM, mg.PARAMS[mg.Param.ARRIVAL_RADIUS_MM].default)
+        return value / 1000.0
+
+    # ---------------------------------------------------------------- inputs
+
+    def on_detection(self, detection: Detection, now_s: float) -> None:
+        """A camera frame was processed; send its fix if the rover was seen."""
+        self._last_frame_s = now_s
+        if detection.x_m is None:
+            self._last_detection = detection if self._last_detection is None else self._last_detection
+            return
+        self._last_detection = detection
+        if self.phase is Phase.HELLO:
+            return
+        age_ms = max(0, min(65535, round((now_s - detection.t_s) * 1000)))
+        heading_cdeg = round(((detection.heading_deg + 180.0) % 360.0 - 180.0) * 100)
+        if heading_cdeg == -18000:
+            heading_cdeg = 18000
+        self.link.send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m), heading_cdeg=heading_cdeg,
+                              age_ms=age_ms, sd_mm=self.fix_sd_mm, frame_seq=self.fixes_sent & 0xFFFF))
+        self.fixes_sent += 1
+
+    def tick(self, now_s: float) -> None:
+        """Advance: read what the rover said, re-send what is unanswered, move the phases on."""
+        self._now = now_s
+        if self._phase_since is None:
+            self._phase_since = self._last_heard_s = now_s
+        while not self.done:
+            frame = self.link.recv(timeout_s=0)
+            if frame is None:
+                break
+            self._handle(frame)
+        if self.done:
+            return
+        if now_s - self._heartbeat_at >= self.heartbeat_period_s:
+            self._heartbeat_at = now_s
+            self.link.send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))
+        if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
+            self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s")
+            return
+        self._resend(now_s)
+        if self.done:
+            return
+        if self._map_changed_at is not None and now_s - self._map_changed_at > MAP_CHECK_S:
+            self._map_changed()   # the SCAN_DONE event was lost
+        self._advance(now_s)
+
+    def _advance(self, now_s: float) -> None:
+        """The phase machine: what each phase waits for, and its deadline."""
+        d = self.deadlines
+        in_phase_s = now_s - self._phase_since
+        if self.phase is Phase.HELLO:
+            if in_phase_s > d.hello_s:
+                self._fail(f"no HELLO from the rover within {d.hello_s:.0f} s")
+            elif now_s - self._hello_at >= HELLO_EVERY_S:
+                self._hello_at = now_s
+                self.link.send(host_hello(self.host_boot_id))
+        elif self.phase is Phase.CONFIGURE:
+            if not self.requests:
+                self._set_phase(Phase.LOCATE)
+            elif in_phase_s > d.configure_s and not self._silent():
+                self._fail(f"the rover did not take its parameters within {d.configure_s:.0f} s")
+        if self.phase is Phase.LOCATE:
+            if self._rover_seen():
+                if self._resume_leg:
+                    self._resume_leg = False
+                    self._resume()
+                else:
+                    self._next_leg()
+            elif in_phase_s > d.locate_s:
+                self._fail(f"the camera has not seen the rover for {d.locate_s:.0f} s")
+        if self.phase is Phase.LOAD:
+            if not self.requests and self._accepted_path_id == self.path_id:
+                if self._start_sent_for != self.path_id:
+                    self._start_sent_for = self.path_id
+                    self._request(mg.Start(path_id=self.path_id))
+                elif self._start_acked_for == self.path_id:
+                    self._set_phase(Phase.RUN)
+            elif in_phase_s > d.load_s and not self._silent():
+                self._fail(f"the rover did not take path {self.path_id} within {d.load_s:.0f} s")
+        if self.phase is Phase.RUN and self.legs:
+            self._watch_leg(now_s)
+
+    def _watch_leg(self, now_s: float) -> None:
+        """The leg's deadline, and an arrival that only the rover's STATUS shows (its ARRIVED event
+        was lost): the recovery is to re-plan from where the rover is and send the leg again."""
+        leg = self.current_leg
+        if now_s <= leg.deadline_s:
+            return
+        if leg.recoveries >= self.deadlines.leg_recoveries:
+            self._fail(f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s "
+                       f"and {leg.recoveries} re-sends")
+            return
+        leg.recoveries += 1
+        self.on_event(now_s, f"leg {leg.index + 1} is late: re-planning from where the rover is "
+                             f"(recovery {leg.recoveries} of {self.deadlines.leg_recoveries})")
+        self._resume()
+
+    # ---------------------------------------------------------------- what the rover says
+
+    def _handle(self, frame) -> None:
+        self._last_heard_s = self._now
+        m = frame.message
+        if isinstance(m, mg.Hello):
+            self._on_hello(m)
+        elif isinstance(m, (mg.Ack, mg.Nack)):
+            self._on_answer(m)
+        elif isinstance(m, mg.Status):
+            self._on_status(m)
+        elif isinstance(m, mg.Obstacle):
+            self._on_obstacle(m)
+        elif isinstance(m, mg.Event):
+            self._on_event(m)
+
+    def _on_hello(self, m: mg.Hello) -> None:
+        if m.role != mg.Role.ROVER:
+            return
+        if m.schema_hash != mg.SCHEMA_HASH:
+            self._fail(str(SchemaMismatch(mg.SCHEMA_HASH, m.schema_hash)))
+            return
+        if self.rover_boot_id is not None and m.boot_id != self.rover_boot_id and self.phase is not Phase.HELLO:
+            # The rover restarted: it forgot its parameters and its path. Bring it back.
+            self.on_event(self._now, f"rover restarted (boot id {self.rover_boot_id} -> {m.boot_id}); "
+                                     "re-sending parameters and path")
+            self.rover_boot_id = m.boot_id
+            self.requests.clear()
+            self.link.send(host_hello(self.host_boot_id))
+            resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
+            self._configure()
+            self._resume_leg = resume   # once configured: the same leg again, from where the rover is
+            return
+        if self.phase is Phase.HELLO:
+            self.rover_boot_id = m.boot_id
+            self.on_event(self._now, f"rover HELLO: boot id {m.boot_id}, firmware "
+                                     f"{m.firmware_version >> 8}.{m.firmware_version & 0xFF}, schema ok")
+            self._configure()
+
+    def _on_answer(self, m) -> None:
+        pending = self.requests.answer(m)
+        if pending is None:
+            return
+        if isinstance(m, mg.Nack):
+            self.nacks.append(m)
+            self._fail(str(Nacked(pending.message.NAME, m.reason, m.detail)))
+        elif isinstance(pending.message, mg.Start):
+            self._start_acked_for = pending.message.path_id
+
+    def _on_status(self, m: mg.Status) -> None:
+        self.last_status = m
+        # A STATUS after START was acknowledged that says the rover has arrived on this path:
+        # the ARRIVED event itself was lost on the radio.
+        if (m.state == mg.RoverState.ARRIVED and m.path_id == self.path_id
+                and self._start_acked_for == self.path_id and self._leg_open()):
+            self._arrived()
+
+    def _on_obstacle(self, m: mg.Obstacle) -> None:
+        echo = Echo(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100, m.range_mm / 1000)
+        if not self.map.add(echo):
+            return
+        if self.map_file is not None:
+            self.map.save(self.map_file)
+        if self.legs:
+            self.current_leg.obstacles_found += 1
+        # The rover is stopped for its sweep: replan once when the sweep is done, not per echo.
+        self._map_changed_at = self._now
+
+    def _on_event(self, m: mg.Event) -> None:
+        self.events.append((self._now, m))
+        kind = mg.EventKind(m.kind) if m.kind in mg.EventKind._value2member_map_ else None
+        if kind is mg.EventKind.ARRIVED:
+            # Whatever the phase: a rover may arrive before the host has seen START's ACK (a leg
+            # that was nearly done), and that arrival must not be lost.
+            if self._start_sent_for == self.path_id and self._leg_open():
+                self._arrived()
+        elif kind is mg.EventKind.SCAN_DONE:
+            if self._map_changed_at is not None:
+                self._map_changed()
+        elif kind is mg.EventKind.PATH_ACCEPTED:
+            self._accepted_path_id = m.arg
+        elif kind is mg.EventKind.FAULT:
+            self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}")
+        elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
+            self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
+
+    def _leg_open(self) -> bool:
+        return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
+
+    def _arrived(self) -> None:
+        if not self.strategy.on_arrived(self):
+            return
+        self._leg_done()
+
+    def _leg_done(self) -> None:
+        leg = self.current_leg
+        leg.finished_s, leg.reached = self._now, True
+        self.on_event(self._now, f"leg {leg.index + 1} reached ({leg.goal[0]:.2f}, {leg.goal[1]:.2f}) m")
+        self.record.save(len(self.legs))
+        if len(self.legs) >= self.legs_asked:
+            self._set_phase(Phase.DONE)
+            self.outcome = Outcome.REACHED
+            self.link.send(mg.Stop(reason=mg.StopReason.MISSION_DONE))
+        else:
+            self._next_leg()
+
+    def _map_changed(self) -> None:
+        self._map_changed_at = None
+        if self.host_replan and self._leg_open():
+            self.strategy.map_changed(self)
+
+    # ---------------------------------------------------------------- doing things
+
+    def _set_phase(self, phase: Phase) -> None:
+        if phase is not self.phase:
+            self.phase = phase
+            self._phase_since = self._now
+
+    def _configure(self) -> None:
+        self._set_phase(Phase.CONFIGURE)
+        for param, value in self.rover_params:
+            self._request(mg.Config(param=int(param), value=int(value)))
+
+    def _next_leg(self) -> None:
+        index = len(self.legs)
+        goal = leg_goal(self.start_xy, self.target_xy, index)
+        leg = Leg(index=index, goal=goal, started_s=self._now)
+        self.legs.append(leg)
+        here = self.rover_xy()
+        if math.dist(here, goal) <= self.arrival_radius_m:
+            # Already there: a leg that is done at once is done (the rover would not move).
+            self.on_event(self._now, f"leg {index + 1}: the rover is already within "
+                                     f"{self.arrival_radius_m * 1000:.0f} mm of ({goal[0]:.2f}, {goal[1]:.2f}) m")
+            self._leg_done()
+            return
+        path = self.strategy.leg_path(self, here, goal)
+        if path is None:
+            return
+        leg.planned_length_m = path_length_m(path)
+        leg.deadline_s = self._now + self.deadlines.leg_s(leg.planned_length_m)
+        self.on_event(self._now, f"leg {index + 1}{self.strategy.note}: {len(path)} waypoints, "
+                                 f"{leg.planned_length_m:.2f} m to ({goal[0]:.2f}, {goal[1]:.2f}) m")
+        self.strategy.start_leg(self, path)
+
+    def _resume(self) -> None:
+        """The current leg again, from where the rover is (after a rover restart or a late leg)."""
+        leg = self.current_leg
+        path = self.strategy.leg_path(self, self.rover_xy(), leg.goal)
+        if path is None:
+            return
+        leg.deadline_s = self._now + self.deadlines.leg_s(path_length_m(path))
+        self.strategy.start_leg(self, path)
+
+    def load_path(self, path: list[tuple[float, float]]) -> None:
+        """Send `path` under a new id; START follows once the rover has it whole."""
+        if len(path) > mg.MAX_WAYPOINTS:
+            # The rover holds MAX_WAYPOINTS: it drives straight from the last it holds to the goal.
+            # A later sweep (or the leg's deadline) replans the rest if that is blocked.
+            path = path[:mg.MAX_WAYPOINTS - 1] + [path[-1]]
+        self.path = path
+        self.path_id = (self.path_id + 1) & 0xFFFF
+        self._accepted_path_id = None
+        self._set_phase(Phase.LOAD)
+        n = mg.WAYPOINTS_PER_CHUNK
+        for first in range(0, len(path), n):
+            chunk = path[first:first + n]
+            xs = tuple(_mm(x) for x, _ in chunk) + (0,) * (n - len(chunk))
+            ys = tuple(_mm(y) for _, y in chunk) + (0,) * (n - len(chunk))
+            self._request(mg.Path(path_id=self.path_id, total=len(path), first_index=first, count=len(chunk),
+                                  x_mm=xs, y_mm=ys))
+
+    def replanned(self, path: list[tuple[float, float]], what: str) -> None:
+        """A strategy replanned the current leg after the map changed."""
+        self.replans += 1
+        leg = self.current_leg
+        leg.replans += 1
+        leg.deadline_s = max(leg.deadline_s, self._now + self.deadlines.leg_s(path_length_m(path)))
+        self.on_event(self._now, f"the sonar found the path blocked: replanned ({what}, {path_length_m(path):.2f} m)")
+
+    def plan_from(self, start: tuple[float, float], goal: tuple[float, float]) -> list[tuple[float, float]] | None:
+        """A* from `start` to `goal`, simplified; None when there is none (the mission has then
+        ended with the no-path verdict and the planner's reason)."""
+        try:
+            result = plan(self.grid, start, goal, planner=self.planner)
+        except NoPathError as exc:
+            # Close to a newly found obstacle the rover may stand inside its inflated margin:
+            # plan from the nearest free cell and let the first leg back out to it.
+            free = self._nearest_free(start)
+            if free is None:
+                self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {exc}", Outcome.NO_PATH)
+                return None
+            try:
+                result = plan(self.grid, free, goal, planner=self.planner)
+            except NoPathError as exc2:
+                self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {exc2}", Outcome.NO_PATH)
+                return None
+            return [start] + [tuple(p) for p in result.waypoints]
+        return [tuple(p) for p in result.waypoints]
+
+    def _nearest_free(self, xy: tuple[float, float], max_m: float = 0.3) -> tuple[float, float] | None:
+        step = self.grid.resolution_m
+        for ring in range(1, int(max_m / step) + 1):
+            r = ring * step
+            for k in range(max(8, ring * 8)):
+                a = 2 * math.pi * k / max(8, ring * 8)
+                p = (xy[0] + r * math.cos(a), xy[1] + r * math.sin(a))
+                if self.grid.contains(*p) and self.grid.is_free(*p):
+                    return p
+        return None
+
+    def remaining_path(self) -> list[tuple[float, float]]:
+        """From where the rover is through the waypoints it has still to reach."""
+        if not self.path:
+            return []
+        wp = self.last_status.waypoint_index if self.last_status else 0
+        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):]
+
+    def _request(self, message) -> None:
+        self.requests.sent(message, self.link.send(message), self._now)
+
+    def _silent(self) -> bool:
+        return self._now - self._last_heard_s > SILENT_S
+
+    def _resend(self, now_s: float) -> None:
+        # While the rover says nothing at all (no STATUS either: the radio is down), a request is
+        # re-sent but its tries are not counted: the rover is carrying on alone, and will answer
+        # when the radio is back. Only a long silence ends the mission (see tick).
+        silent = self._silent()
+        for pending in self.requests.due(now_s):
+            if self.requests.exhausted(pending) and not silent:
+                self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries")
+                return
+            self.requests.resent(pending, self.link.send(pending.message), now_s, count=not silent)
+
+    def _fail(self, why: str, outcome: Outcome = Outcome.FAILED) -> None:
+        if self.phase is Phase.FAILED:
+            return
+        self.error = why
+        self.outcome = outcome
+        self._set_phase(Phase.FAILED)
+        self.on_event(self._now, f"mission failed: {why}")
+        try:
+            self.link.send(mg.Stop(reason=mg.StopReason.HOST_SHUTDOWN))
+        except LinkError:
+            pass   # the link itself is what failed: nothing more to tell the rover
+
+    def fail(self, why: str) -> None:
+        """End the mission from outside (an operator, or the simulator's time limit)."""
+        self._fail(why)
+
+    def _rover_seen(self) -> bool:
+        d = self._last_detection
+        return d is not None and d.x_m is not None and self._now - d.t_s < 1.0
+
+    def rover_xy(self) -> tuple[float, float]:
+        """Where the rover is: the camera's last fix (if recent), else its own estimate, else the start."""
+        d = self._last_detection
+        if d is not None and d.x_m is not None and self._now - d.t_s < 0.5:
+            return (d.x_m, d.y_m)
+        if self.last_status is not None:
+            return (self.last_status.x_mm / 1000, self.last_status.y_mm / 1000)
+        return self.start_xy
+
+    def _camera_state(self) -> int:
+        if self._last_frame_s is None or self._now - self._last_frame_s > 0.5:
+            return mg.CameraState.NO_FRAMES
+        d = self._last_detection
+        if d is None or d.x_m is None or self._now - d.t_s > 0.5:
+            return mg.CameraState.NO_ROVER
+        return mg.CameraState.OK
+
+    # ---------------------------------------------------------------- persistence
+
+    def restore_state(self) -> int:
+        """A restarted host: take up the mission at the leg the last host had reached (from
+        state_file; the rover's HELLO and STATUS then say the rest). Returns the legs done."""
+        done = min(self.record.load(), self.legs_asked)
+        for i in range(done):
+            self.legs.append(Leg(index=i, goal=leg_goal(self.start_xy, self.target_xy, i), started_s=self._now,
+                                 finished_s=self._now, reached=True))
+        return done
+
+    def save_map(self, path: str | Path) -> None:
+        """Write what the sonar found (see rovernav.mission.learned_map for the format)."""
+        self.map.save(path)
+
+    def load_map(self, path: str | Path) -> int:
+        """Fold a saved map's echoes into the grid; returns how many. MapFileError if it is not a map."""
+        return self.map.load(path)
+
+
+def _mm(v_m: float) -> int:
+    return max(-32768, min(32767, round(v_m * 1000)))

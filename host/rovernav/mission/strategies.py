@@ -1,0 +1,137 @@
+"""How a leg is driven: rovernav's strategy and the 2019 seed's, two strategies of one interface.
+
+A strategy decides a leg's path, how it is handed to the rover, what an arrival means, and
+what to do when the map changes. The mission (`rovernav.mission.Mission`) does the rest:
+phases, deadlines, requests, the map. Both run the same firmware.
+
+- `RovernavStrategy`: A*'s path simplified to a few waypoints, sent whole; the rover follows it,
+  sweeps every 0.3 m and detours on its own; the host replans when a sweep shows the rest of
+  the path blocked.
+- `SeedStrategy`: Pont (2019) kept the autonomy on the laptop: the rover stopped at every
+  raw grid cell of A*'s path (0.03 m apart) and swept for about 9 s every 0.3 m
+  (500 ms + 500 ms per 15-degree step). Here the host sends one cell at a time (the next
+  beyond the arrival radius) and START; sweeps are slowed to the seed's pace
+  (sweep_step_ms = 750 gives 12 x 0.75 s = 9 s a sweep).
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Protocol
+
+from ..link import messages_gen as mg
+from ..planning import NoPathError, plan
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .core import Mission
+
+Path = list[tuple[float, float]]
+
+
+class Strategy(Protocol):
+    name: str
+    note: str          # said when a leg starts
+
+    def rover_params(self) -> list[tuple[mg.Param, int]]:
+        """CONFIG parameters the strategy needs, sent before the mission's own."""
+
+    def leg_path(self, m: "Mission", start: tuple[float, float], goal: tuple[float, float]) -> Path | None:
+        """The path of a new leg (None: the mission has failed, with the reason)."""
+
+    def start_leg(self, m: "Mission", path: Path) -> None:
+        """Hand a new leg to the rover."""
+
+    def on_arrived(self, m: "Mission") -> bool:
+        """The rover arrived at the end of the path it was given: is the leg done?"""
+
+    def map_changed(self, m: "Mission") -> None:
+        """The map changed (after a sweep): replan if the rest of the leg is blocked."""
+
+
+class RovernavStrategy:
+    name = "rovernav"
+    note = ""
+
+    def rover_params(self) -> list[tuple[mg.Param, int]]:
+        return []
+
+    def leg_path(self, m, start, goal):
+        return m.plan_from(start, goal)
+
+    def start_leg(self, m, path):
+        m.load_path(path)
+
+    def on_arrived(self, m):
+        return True
+
+    def map_changed(self, m):
+        remaining = m.remaining_path()
+        if not remaining or not m.grid.path_blocked(remaining):
+            return
+        new = m.plan_from(m.rover_xy(), m.current_leg.goal)
+        if new is not None:
+            m.replanned(new, f"{len(new)} waypoints")
+            m.load_path(new)
+
+
+class SeedStrategy:
+    name = "seed"
+    note = " (seed strategy, every grid cell a waypoint)"
+
+    def __init__(self):
+        self.cells: Path = []
+        self.next_cell = 0
+
+    def rover_params(self):
+        return [(mg.Param.SWEEP_STEP_MS, 750)]
+
+    def _raw_path(self, m, start, goal):
+        try:
+            result = plan(m.grid, start, goal, planner=m.planner)
+        except NoPathError:
+            return m.plan_from(start, goal)   # its fallbacks (nearest free cell) and failure verdict
+        return [m.grid.cell_to_world(int(ix), int(iy)) for ix, iy in result.cells] + [goal]
+
+    def leg_path(self, m, start, goal):
+        return self._raw_path(m, start, goal)
+
+    def start_leg(self, m, path):
+        self.cells, self.next_cell = path, 0
+        self._send_next(m)
+
+    def _send_next(self, m):
+        here = m.rover_xy()
+        radius_m = m.arrival_radius_m
+        while self.next_cell < len(self.cells) - 1 and math.dist(here, self.cells[self.next_cell]) < radius_m:
+            self.next_cell += 1
+        m.load_path([here, self.cells[self.next_cell]])   # each cell is a path of its own: path, then START
+
+    def on_arrived(self, m):
+        if not self.cells or self.next_cell >= len(self.cells) - 1:
+            self.cells = []
+            return True
+        self.next_cell += 1
+        self._send_next(m)
+        return False
+
+    def map_changed(self, m):
+        if not self.cells:
+            return
+        rest = [m.rover_xy()] + self.cells[self.next_cell:]
+        if not m.grid.path_blocked(rest):
+            return
+        cells = self._raw_path(m, m.rover_xy(), m.current_leg.goal)
+        if cells is None:
+            return
+        m.replanned(cells, f"{len(cells)} grid waypoints")
+        self.cells, self.next_cell = cells, 0
+        self._send_next(m)
+
+
+STRATEGIES = {"rovernav": RovernavStrategy, "seed": SeedStrategy}
+
+
+def make_strategy(name: str) -> Strategy:
+    try:
+        return STRATEGIES[name]()
+    except KeyError:
+        raise ValueError(f"unknown strategy {name!r} (choose from {', '.join(STRATEGIES)})") from None
