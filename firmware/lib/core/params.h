@@ -48,6 +48,8 @@ class Params {
   float pose_k_alpha() const { return scaled(Param::PoseKAlphaX1000, 0.001f); }  // 1/s
   float pose_k_beta() const { return scaled(Param::PoseKBetaX1000, 0.001f); }    // 1/s
   float pose_pwm_per_dps() const { return scaled(Param::PosePwmPerDpsX1000, 0.001f); }
+  uint16_t reflex_ping_ms() const { return static_cast<uint16_t>(raw(Param::ReflexPingMs)); }
+  float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
 
  private:
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads

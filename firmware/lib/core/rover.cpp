@@ -317,17 +317,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     servo_cdeg_ = servo;
     out.fire_sonar = fire;
     if (echo.valid && echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
-      msg::Obstacle o;
-      o.scan_id = scan_id_;
-      o.bearing_cdeg = echo.bearing_cdeg;
-      o.range_mm = echo.range_mm;
-      o.x_mm = saturate_i16(est_.x_mm());
-      o.y_mm = saturate_i16(est_.y_mm());
-      o.heading_cdeg = rad_to_cdeg(est_.heading_rad());
-      o.sd_mm = saturate_u16(est_.position_sd_mm());
-      tx_.send(o);
-      ++scan_echoes_;
-      remember_echo(echo.bearing_cdeg, echo.range_mm);
+      report_echo(echo.bearing_cdeg, echo.range_mm);
     }
     if (!sweep_.running()) {
       send_event(EventKind::ScanDone, scan_echoes_);
@@ -372,6 +362,8 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     }
   }
 
+  if (state_ == RoverState::Drive && reflex(in, now, l, out)) return;
+
   if (p.pose_law() && state_ == RoverState::Drive) {
     if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
       start_sweep(now);
@@ -402,7 +394,61 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   out.right_pwm = clamp_pwm(base - u * p.right_bias());
 }
 
+void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+  msg::Obstacle o;
+  o.scan_id = scan_id_;
+  o.bearing_cdeg = bearing_cdeg;
+  o.range_mm = range_mm;
+  o.x_mm = saturate_i16(est_.x_mm());
+  o.y_mm = saturate_i16(est_.y_mm());
+  o.heading_cdeg = rad_to_cdeg(est_.heading_rad());
+  o.sd_mm = saturate_u16(est_.position_sd_mm());
+  tx_.send(o);
+  ++scan_echoes_;
+  remember_echo(bearing_cdeg, range_mm);
+}
+
+float Rover::reflex_range_mm() const {
+  const Params& p = params_;
+  const float v_mm_s = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  const float stop_mm = v_mm_s * static_cast<float>(p.reflex_ping_ms() + kReflexLatencyMs) / 1000.0f;
+  return (stop_mm > 0.0f ? stop_mm : 0.0f) + p.reflex_margin_mm();
+}
+
+// The forward reflex: while driving, the sonar (pointing ahead between sweeps) pings every
+// reflex_ping_ms; an echo on the path nearer than the stopping distance plus the margin stops
+// the motors in that step, is reported, and a sweep follows (then the rover's detour or the
+// host's new path). Returns whether it stopped the rover. An echo from beyond the waypoint
+// being approached (by more than the robot's radius) is no threat to this leg: the goal in
+// front of a wall is reached, not refused.
+bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
+  const uint16_t period_ms = params_.reflex_ping_ms();
+  if (period_ms == 0) return false;
+  if (reflex_waiting_ && in.sonar_valid) {
+    reflex_waiting_ = false;
+    const uint16_t r = in.sonar_range_mm;
+    const float face_mm = static_cast<float>(r) + static_cast<float>(kSonarOffsetMm);
+    if (r > 0 && static_cast<float>(r) <= reflex_range_mm() && face_mm <= l_mm + static_cast<float>(kRobotRadiusMm)) {
+      ++reflex_stops_;
+      start_sweep(now);
+      report_echo(0, r);
+      send_event(EventKind::Reflex, r);
+      out.left_pwm = out.right_pwm = 0;
+      return true;
+    }
+  } else if (reflex_waiting_ && now - reflex_fired_ms_ >= Sweep::kPingTimeoutMs) {
+    reflex_waiting_ = false;   // no result came: ping again
+  }
+  if (!reflex_waiting_ && servo_cdeg_ == 0 && now - reflex_fired_ms_ >= period_ms) {
+    out.fire_sonar = true;
+    reflex_waiting_ = true;
+    reflex_fired_ms_ = now;
+  }
+  return false;
+}
+
 void Rover::start_sweep(uint32_t now) {
+  reflex_waiting_ = false;   // a ping still out belongs to the reflex, not to the sweep
   ++scan_id_;
   scan_echoes_ = 0;
   local_.clear();

@@ -93,6 +93,10 @@ struct RoverFields {
   uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
   bool blocked_ = false;                      // blocked and no way round: wait for the host
   uint32_t blocked_since_ms_ = 0;
+
+  uint32_t reflex_fired_ms_ = 0;              // the forward reflex's last ping
+  bool reflex_waiting_ = false;               // ... whose result is still to come
+  uint16_t reflex_stops_ = 0;
 };
 
 class Rover : private RoverFields {
@@ -108,6 +112,8 @@ class Rover : private RoverFields {
     kDetourClearanceMm = 170,   // robot radius 120 + sonar placement margin 50, as the host plans
     kAssumedDepthMm = 160,      // how far an obstacle is taken to reach behind the face the sonar saw
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
+    kRobotRadiusMm = 120,       // the rover's centre to its furthest point that matters when passing
+    kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
   };
   static constexpr float kHalfBeamTan = 0.1317f;  // tan(7.5 deg): half the HC-SR04's cone
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
@@ -133,6 +139,9 @@ class Rover : private RoverFields {
   uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
   bool blocked() const { return blocked_; }
   float dr_distance_mm() const { return dr_distance_mm_; }
+  uint16_t reflex_stops() const { return reflex_stops_; }
+  /// The forward reflex's range from the sensor: stopping distance at cruise speed plus the margin.
+  float reflex_range_mm() const;
 
  private:
   // link
@@ -165,6 +174,8 @@ class Rover : private RoverFields {
   Waypoint rejoin_point(float ahead_mm) const;
   void replan_locally();
   void start_sweep(uint32_t now);
+  bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
+  void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
   void pose_command(float rho_mm, Outputs& out);
   float cone_deg(float distance_mm) const;
   float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x0AC57B55UL;
+static const uint32_t kSchemaHash = 0xBABDE052UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -64,6 +64,7 @@ enum class EventKind : uint8_t {
   Resumed = 12,  ///< left hold; arg = waypoint index
   PathAccepted = 13,  ///< a complete path was received; arg = path id
   Stopped = 14,  ///< a STOP was obeyed; arg = stop reason
+  Reflex = 15,  ///< the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm
 };
 
 /// Why the rover is in the fault state.
@@ -139,12 +140,14 @@ enum class Param : uint8_t {
   PoseKAlphaX1000 = 25,  ///< [1/s, x1000] moving-to-a-pose gain K_alpha (K_alpha > K_rho)
   PoseKBetaX1000 = 26,  ///< [1/s, x1000] moving-to-a-pose gain K_beta (negative)
   PosePwmPerDpsX1000 = 27,  ///< [PWM per degree/second of yaw rate, x1000] pose law: wheel command difference (each side) per degree/second of turn asked
+  ReflexPingMs = 28,  ///< [ms] while driving, ping straight ahead this often (the HC-SR04 needs ~60 ms between pings); 0 disables the forward reflex
+  ReflexMarginMm = 29,  ///< [mm] the forward reflex stops for an echo on the path nearer than the stopping distance (speed x (ping period + 150 ms of latency and motor lag)) plus this, from the sensor
 };
-enum : uint8_t { kParamMaxId = 27 };
+enum : uint8_t { kParamMaxId = 29 };
 
 /// Default, min and max of every parameter, by id - 1; an unused id has min > max.
 /// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[27][3] ROVERNAV_PROGMEM = {
+static const int32_t kParamTable[29][3] ROVERNAV_PROGMEM = {
   {3000L, 0L, 100000L},  // 1 pid_kp_x100
   {300L, 0L, 100000L},  // 2 pid_ki_x100
   {500L, 0L, 100000L},  // 3 pid_kd_x100
@@ -172,6 +175,8 @@ static const int32_t kParamTable[27][3] ROVERNAV_PROGMEM = {
   {1500L, 1L, 100000L},  // 25 pose_k_alpha_x1000
   {-400L, -100000L, -1L},  // 26 pose_k_beta_x1000
   {500L, 0L, 100000L},  // 27 pose_pwm_per_dps_x1000
+  {60L, 0L, 1000L},  // 28 reflex_ping_ms
+  {100L, 0L, 1000L},  // 29 reflex_margin_mm
 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.

@@ -21,7 +21,7 @@ TEST_CASE("a sweep runs every 300 mm driven, stopped, from -60 to +60 degrees in
   RoverState last = b.rover.state();
   while (b.rover.state() != RoverState::Arrived && b.now_ms < 120000) {
     b.step();
-    if (b.out.fire_sonar && fires < 64) fired_at[fires++] = b.out.servo_cdeg;
+    if (b.out.fire_sonar && b.rover.state() == RoverState::Scan && fires < 64) fired_at[fires++] = b.out.servo_cdeg;
     if (b.rover.state() == RoverState::Scan) {
       CHECK(b.out.left_pwm == 0);
       CHECK(b.out.right_pwm == 0);

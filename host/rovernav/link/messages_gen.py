@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x0AC57B55
+SCHEMA_HASH = 0xBABDE052
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -95,6 +95,8 @@ class EventKind(enum.IntEnum):
     """a complete path was received; arg = path id"""
     STOPPED = 14
     """a STOP was obeyed; arg = stop reason"""
+    REFLEX = 15
+    """the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm"""
 
 class FaultCode(enum.IntEnum):
     """Why the rover is in the fault state."""
@@ -191,6 +193,8 @@ class Param(enum.IntEnum):
     POSE_K_ALPHA_X1000 = 25
     POSE_K_BETA_X1000 = 26
     POSE_PWM_PER_DPS_X1000 = 27
+    REFLEX_PING_MS = 28
+    REFLEX_MARGIN_MM = 29
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -221,6 +225,8 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.POSE_K_ALPHA_X1000: ParamSpec(25, 'pose_k_alpha_x1000', '1/s, x1000', 1500, 1, 100000, 'moving-to-a-pose gain K_alpha (K_alpha > K_rho)'),
     Param.POSE_K_BETA_X1000: ParamSpec(26, 'pose_k_beta_x1000', '1/s, x1000', -400, -100000, -1, 'moving-to-a-pose gain K_beta (negative)'),
     Param.POSE_PWM_PER_DPS_X1000: ParamSpec(27, 'pose_pwm_per_dps_x1000', 'PWM per degree/second of yaw rate, x1000', 500, 0, 100000, 'pose law: wheel command difference (each side) per degree/second of turn asked'),
+    Param.REFLEX_PING_MS: ParamSpec(28, 'reflex_ping_ms', 'ms', 60, 0, 1000, 'while driving, ping straight ahead this often (the HC-SR04 needs ~60 ms between pings); 0 disables the forward reflex'),
+    Param.REFLEX_MARGIN_MM: ParamSpec(29, 'reflex_margin_mm', 'mm', 100, 0, 1000, 'the forward reflex stops for an echo on the path nearer than the stopping distance (speed x (ping period + 150 ms of latency and motor lag)) plus this, from the sensor'),
 }
 
 

@@ -181,6 +181,7 @@ def fault_figures(sim) -> dict:
                           "fault": mg.FaultCode(e.arg).name.lower() if e.arg in mg.FaultCode._value2member_map_ else e.arg}
                          for _, e in of(mg.EventKind.FAULT)],
         "local_detours": sum(1 for _, e in of(mg.EventKind.REPLANNED) if e.arg > 0),
+        "reflex_stops": len(of(mg.EventKind.REFLEX)),
     }
 
 
