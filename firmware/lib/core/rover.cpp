@@ -316,8 +316,12 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     const Sweep::Echo echo = sweep_.step(now, in.sonar_valid, in.sonar_range_mm, servo, fire);
     servo_cdeg_ = servo;
     out.fire_sonar = fire;
-    if (echo.valid && echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
-      report_echo(echo.bearing_cdeg, echo.range_mm);
+    if (echo.valid) {
+      if (echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
+        report_echo(echo.bearing_cdeg, echo.range_mm);
+      } else {
+        report_clear(echo.bearing_cdeg);   // nothing within the report range: the host clears the cone
+      }
     }
     if (!sweep_.running()) {
       send_event(EventKind::ScanDone, scan_echoes_);
@@ -394,7 +398,7 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
   out.right_pwm = clamp_pwm(base - u * p.right_bias());
 }
 
-void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_mm) {
   msg::Obstacle o;
   o.scan_id = scan_id_;
   o.bearing_cdeg = bearing_cdeg;
@@ -404,9 +408,15 @@ void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   o.heading_cdeg = rad_to_cdeg(est_.heading_rad());
   o.sd_mm = saturate_u16(est_.position_sd_mm());
   tx_.send(o);
+}
+
+void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+  send_reading(bearing_cdeg, range_mm);
   ++scan_echoes_;
   remember_echo(bearing_cdeg, range_mm);
 }
+
+void Rover::report_clear(int16_t bearing_cdeg) { send_reading(bearing_cdeg, 0); }
 
 float Rover::reflex_range_mm() const {
   const Params& p = params_;

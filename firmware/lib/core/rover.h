@@ -175,7 +175,9 @@ class Rover : private RoverFields {
   void replan_locally();
   void start_sweep(uint32_t now);
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
+  void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
   void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
+  void report_clear(int16_t bearing_cdeg);
   void pose_command(float rho_mm, Outputs& out);
   float cone_deg(float distance_mm) const;
   float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }

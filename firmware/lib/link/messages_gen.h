@@ -417,12 +417,12 @@ struct Status {
   }
 };
 
-/// A sonar echo within sonar_report_mm, with the rover's pose estimate when it was taken. (rover to host)
+/// One sonar reading of a sweep (or the echo that set off the forward reflex), with the rover's pose estimate when it was taken: an echo within sonar_report_mm, or range_mm = 0 for none within that range (the cone is clear to it). (rover to host)
 struct Obstacle {
   enum : uint8_t { kId = 0x11, kPayloadSize = 14 };
   uint16_t scan_id;  ///< counts sweeps since boot
   int16_t bearing_cdeg;  ///< [cdeg] servo angle relative to the rover's heading, clockwise positive
-  uint16_t range_mm;  ///< [mm] echo range from the sensor
+  uint16_t range_mm;  ///< [mm] echo range from the sensor; 0: no echo within sonar_report_mm
   int16_t x_mm;  ///< [mm] rover position estimate, x
   int16_t y_mm;  ///< [mm] rover position estimate, y
   int16_t heading_cdeg;  ///< [cdeg] rover heading estimate

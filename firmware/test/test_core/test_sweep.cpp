@@ -69,7 +69,7 @@ TEST_CASE("echoes within 400 mm are reported as OBSTACLE with bearing, range and
   CHECK(e.arg == 9);
 }
 
-TEST_CASE("echoes beyond the report range, and no echo at all, are not reported") {
+TEST_CASE("a ping with no echo within the report range is reported as a clear reading (range 0)") {
   const uint16_t ranges[] = {0, 401, 650};
   for (uint16_t range : ranges) {
     CAPTURE(range);
@@ -78,7 +78,12 @@ TEST_CASE("echoes beyond the report range, and no echo at all, are not reported"
     b.sonar_range_mm = range;
     b.start_mission(kNorth, 2);
     REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) == 1; }, 20000));
-    CHECK(b.count<msg::Obstacle>() == 0);
+    msg::Obstacle o;
+    CHECK(b.count(&o) == 9);
+    CHECK(o.range_mm == 0);
+    msg::Event e;
+    b.events(EventKind::ScanDone, &e);
+    CHECK(e.arg == 0);   // echoes, not readings
   }
 }
 

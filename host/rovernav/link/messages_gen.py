@@ -428,7 +428,7 @@ class Status(Message):
 
 @dataclasses.dataclass
 class Obstacle(Message):
-    """A sonar echo within sonar_report_mm, with the rover's pose estimate when it was taken."""
+    """One sonar reading of a sweep (or the echo that set off the forward reflex), with the rover's pose estimate when it was taken: an echo within sonar_report_mm, or range_mm = 0 for none within that range (the cone is clear to it)."""
 
     ID: ClassVar[int] = 0x11
     NAME: ClassVar[str] = 'obstacle'
@@ -437,7 +437,7 @@ class Obstacle(Message):
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('scan_id', 'u16', 0, '', 'counts sweeps since boot'),
         FieldSpec('bearing_cdeg', 'i16', 0, 'cdeg', "servo angle relative to the rover's heading, clockwise positive"),
-        FieldSpec('range_mm', 'u16', 0, 'mm', 'echo range from the sensor'),
+        FieldSpec('range_mm', 'u16', 0, 'mm', 'echo range from the sensor; 0: no echo within sonar_report_mm'),
         FieldSpec('x_mm', 'i16', 0, 'mm', 'rover position estimate, x'),
         FieldSpec('y_mm', 'i16', 0, 'mm', 'rover position estimate, y'),
         FieldSpec('heading_cdeg', 'i16', 0, 'cdeg', 'rover heading estimate'),

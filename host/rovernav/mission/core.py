@@ -27,6 +27,7 @@ from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, plan
+from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
 from .strategies import RovernavStrategy, Strategy
@@ -131,13 +132,14 @@ class Mission:
     def echoes(self) -> list[Echo]:
         return self.map.echoes
 
-    @property
-    def wall_echoes(self) -> int:
-        return self.map.wall_echoes
+    def _param(self, param: mg.Param) -> int:
+        """A rover parameter as this mission configures it (the protocol's default otherwise)."""
+        return dict(self.rover_params).get(param, mg.PARAMS[param].default)
 
     @property
-    def repeat_echoes(self) -> int:
-        return self.map.repeat_echoes
+    def sonar_report_m(self) -> float:
+        """The range within which the rover reports echoes: a reading without one is clear to it."""
+        return self._param(mg.Param.SONAR_REPORT_MM) / 1000.0
 
     @property
     def done(self) -> bool:
@@ -150,8 +152,7 @@ class Mission:
     @property
     def arrival_radius_m(self) -> float:
         """The rover's arrival radius (its ARRIVAL_RADIUS_MM parameter, as configured)."""
-        value = dict(self.rover_params).get(mg.Param.ARRIVAL_RADIUS_MM, mg.PARAMS[mg.Param.ARRIVAL_RADIUS_MM].default)
-        return value / 1000.0
+        return self._param(mg.Param.ARRIVAL_RADIUS_MM) / 1000.0
 
     # ---------------------------------------------------------------- inputs
 
@@ -306,15 +307,16 @@ class Mission:
             self._arrived()
 
     def _on_obstacle(self, m: mg.Obstacle) -> None:
-        echo = Echo(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100, m.range_mm / 1000)
-        if not self.map.add(echo):
-            return
+        reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
+                               m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
+        changed = self.map.add(reading)
         if self.map_file is not None:
             self.map.save(self.map_file)
-        if self.legs:
+        if m.range_mm and self.legs:
             self.current_leg.obstacles_found += 1
-        # The rover is stopped for its sweep: replan once when the sweep is done, not per echo.
-        self._map_changed_at = self._now
+        if changed:
+            # The rover is stopped for its sweep: replan once when the sweep is done, not per reading.
+            self._map_changed_at = self._now
 
     def _on_event(self, m: mg.Event) -> None:
         self.events.append((self._now, m))

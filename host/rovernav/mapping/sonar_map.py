@@ -1,0 +1,161 @@
+"""A log-odds occupancy grid built from every sonar reading (Moravec and Elfes, 1985).
+
+Each cell holds L = log(p / (1 - p)) of being occupied, 0 (p = 0.5) while nothing is known.
+A reading is the rover's pose when it pinged, the servo's bearing, and a range (or none: no
+echo within `max_range_m`). The HC-SR04 answers with the NEAREST surface anywhere in its cone,
+which makes the inverse sensor model:
+
+    cells in the cone nearer than the range (less `band_m`)   L += free_logodds  (nothing there)
+    cells in the cone within `band_m` of the range (the arc)   L += occupied_logodds
+    cells in the cone out to max_range_m, when no echo came    L += free_logodds
+    cells behind the arc                                      unchanged (unknown)
+    cells under the rover's own body                          free (it stands there)
+
+An echo already explained, because its arc meets the arena's wall, a known obstacle or cells
+already believed occupied, raises only those cells, not the rest of its arc: a second look
+at a known face sharpens it where a fresh arc would smear it wider each time it is seen from
+a new place (and close corridors the last trip drove through). Its free interior is folded
+in all the same.
+
+A cell is believed occupied when L >= occupied_threshold. One echo marks its whole arc (the
+obstacle may stand anywhere across the 15-degree cone); another reading whose cone passes
+through part of that arc without an echo there carves it away, so repeated readings sharpen
+the map instead of smearing it. Nothing is dropped, and nothing is assumed behind a face.
+
+Unknown space (|L| small) is planned through optimistically: the rover's sweeps every 0.3 m
+and its forward reflex look again before it gets there. The planner's layer is the known
+obstacles' inflation OR the believed-occupied cells inflated by the same radius (robot radius +
+sonar margin): `apply(grid)` writes it into an OccupancyGrid.
+
+The cell layout is the planner's (rovernav.planning.grid): arrays [iy, ix], cell centres at
+((ix + 0.5)·res, (iy + 0.5)·res) metres.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class SensorModel:
+    """The inverse sensor model's numbers (log-odds are dimensionless, lengths in metres)."""
+
+    cone_deg: float = 15.0            # HC-SR04 beam width
+    occupied_logodds: float = 1.0     # added on the arc of an echo (p 0.5 -> 0.73)
+    free_logodds: float = -0.5        # added inside the cone before the arc (p 0.5 -> 0.38)
+    occupied_threshold: float = 0.6   # believed occupied at or above this (p >= 0.65)
+    clamp_logodds: float = 4.0        # |L| never exceeds this, so a change of world can be learned
+    band_m: float = 0.03              # half-thickness of the arc, plus the reading's position sd
+    body_radius_m: float = 0.075      # cells within this of the rover's centre are free (half its width)
+
+
+@dataclasses.dataclass(frozen=True)
+class SonarReading:
+    """One ping as the rover reported it: its estimated pose, the servo's bearing off the heading
+    (clockwise positive), the range from the sensor, or None for no echo within max_range_m."""
+
+    x_m: float
+    y_m: float
+    heading_deg: float
+    bearing_deg: float
+    range_m: float | None
+    max_range_m: float
+    sd_m: float = 0.0
+
+
+class SonarMap:
+    """Log-odds occupancy over a `width_m` x `height_m` arena in cells of `resolution_m`.
+
+    `sonar_offset_m`: the sensor sits this far ahead of the rover's centre.
+    """
+
+    def __init__(self, width_m: float, height_m: float, resolution_m: float, sonar_offset_m: float,
+                 model: SensorModel = SensorModel(), known: np.ndarray | None = None):
+        self.width_m, self.height_m, self.resolution_m = float(width_m), float(height_m), float(resolution_m)
+        self.nx = max(1, int(math.ceil(self.width_m / resolution_m - 1e-9)))
+        self.ny = max(1, int(math.ceil(self.height_m / resolution_m - 1e-9)))
+        self.xs = (np.arange(self.nx) + 0.5) * resolution_m
+        self.ys = (np.arange(self.ny) + 0.5) * resolution_m
+        self.sonar_offset_m = float(sonar_offset_m)
+        self.model = model
+        self.logodds = np.zeros((self.ny, self.nx), dtype=np.float32)
+        self.known = np.zeros((self.ny, self.nx), dtype=bool) if known is None else np.asarray(known, dtype=bool)
+        self.readings: list[SonarReading] = []
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """Cells the sonar found occupied that the known obstacles do not already hold (bool [iy, ix])."""
+        return (self.logodds >= self.model.occupied_threshold) & ~self.known
+
+    def probability(self) -> np.ndarray:
+        """p(occupied) of every cell."""
+        return 1.0 / (1.0 + np.exp(-self.logodds.astype(np.float64)))
+
+    def sensor_xy(self, r: SonarReading) -> tuple[float, float]:
+        h = math.radians(r.heading_deg)
+        return r.x_m + self.sonar_offset_m * math.sin(h), r.y_m + self.sonar_offset_m * math.cos(h)
+
+    def update(self, r: SonarReading) -> int:
+        """Fold one reading in; returns how many cells crossed the occupied threshold (either way)."""
+        m = self.model
+        before = self.occupied
+        self.readings.append(r)
+        sx, sy = self.sensor_xy(r)
+        band = m.band_m + max(0.0, r.sd_m)
+        reach = (r.range_m + band) if r.range_m is not None else r.max_range_m
+        res = self.resolution_m
+        c0, c1 = max(int((sx - reach) / res) - 1, 0), min(int((sx + reach) / res) + 2, self.nx)
+        r0, r1 = max(int((sy - reach) / res) - 1, 0), min(int((sy + reach) / res) + 2, self.ny)
+        if c0 < c1 and r0 < r1:
+            dx = self.xs[c0:c1][None, :] - sx
+            dy = self.ys[r0:r1][:, None] - sy
+            d = np.hypot(dx, dy)
+            axis = math.radians(r.heading_deg + r.bearing_deg)
+            off = np.abs((np.arctan2(dx, dy) - axis + math.pi) % (2 * math.pi) - math.pi)
+            # A cell is in the cone when any of it is: half a cell's angular size more than the half-cone.
+            half = math.radians(m.cone_deg) / 2 + np.arctan2(0.5 * res, np.maximum(d, 1e-6))
+            cone = off <= half
+            window = self.logodds[r0:r1, c0:c1]
+            if r.range_m is None:
+                window[cone & (d <= r.max_range_m)] += m.free_logodds
+            else:
+                window[cone & (d < r.range_m - band)] += m.free_logodds
+                arc = cone & (np.abs(d - r.range_m) <= band)
+                explains = arc & ((window >= m.occupied_threshold) | self.known[r0:r1, c0:c1])
+                if explains.any():
+                    window[explains] += m.occupied_logodds
+                elif not self._arc_meets_wall(sx, sy, axis, r.range_m + band):
+                    window[arc] += m.occupied_logodds
+        self._free_body(r.x_m, r.y_m)
+        np.clip(self.logodds, -m.clamp_logodds, m.clamp_logodds, out=self.logodds)
+        return int(np.count_nonzero(before != self.occupied))
+
+    def _arc_meets_wall(self, sx: float, sy: float, axis_rad: float, range_m: float) -> bool:
+        """Whether some of the cone at `range_m` lies on or beyond the arena's border (the wall)."""
+        half = math.radians(self.model.cone_deg) / 2
+        a = axis_rad + np.linspace(-half, half, 9)
+        px, py = sx + range_m * np.sin(a), sy + range_m * np.cos(a)
+        return bool(np.any((px <= 0) | (py <= 0) | (px >= self.width_m) | (py >= self.height_m)))
+
+    def _free_body(self, x_m: float, y_m: float) -> None:
+        """The rover stands here: the cells under its body are not obstacles."""
+        res, rad = self.resolution_m, self.model.body_radius_m
+        c0, c1 = max(int((x_m - rad) / res), 0), min(int((x_m + rad) / res) + 1, self.nx)
+        r0, r1 = max(int((y_m - rad) / res), 0), min(int((y_m + rad) / res) + 1, self.ny)
+        if c0 < c1 and r0 < r1:
+            d = np.hypot(self.xs[c0:c1][None, :] - x_m, self.ys[r0:r1][:, None] - y_m)
+            window = self.logodds[r0:r1, c0:c1]
+            np.minimum(window, np.where(d <= rad, self.model.free_logodds, np.inf), out=window)
+
+    def inflated(self, radius_m: float) -> np.ndarray:
+        """Cells whose centre lies within radius_m of a believed-occupied cell's centre."""
+        occ = self.occupied.astype(np.uint8)
+        if not occ.any():
+            return np.zeros_like(occ, dtype=bool)
+        k = int(math.floor(radius_m / self.resolution_m + 1e-9))
+        yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
+        kernel = ((xx * xx + yy * yy) * self.resolution_m ** 2 <= radius_m ** 2 + 1e-12).astype(np.uint8)
+        return cv2.dilate(occ, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)

@@ -1,0 +1,143 @@
+"""The log-odds sonar map: the inverse sensor model against hand-worked cells, sharpening by
+repeated readings, explained echoes, and what the planner then sees."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rovernav.mapping import SensorModel, SonarMap, SonarReading
+from rovernav.mission.learned_map import LearnedMap, read_map_file
+from rovernav.planning import OccupancyGrid, PlannerConfig, plan
+
+RES = 0.03
+
+
+def _cell(m: SonarMap, x_m: float, y_m: float) -> float:
+    return float(m.logodds[int(y_m / RES), int(x_m / RES)])
+
+
+def _map(**kw) -> SonarMap:
+    # Sensor at the rover's centre (offset 0) to keep the hand-worked geometry plain.
+    return SonarMap(3.0, 3.0, RES, sonar_offset_m=0.0, **kw)
+
+
+def test_an_echo_raises_its_arc_lowers_the_cone_before_it_and_leaves_what_is_behind_unknown():
+    m = _map()
+    model = m.model
+    # Rover at (1.5, 1.0) facing +y (0 deg), sonar ahead, echo at 0.30 m: the arc is at y = 1.30.
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
+    # Hand-worked cells (centres on the 0.03 m grid: x 1.515 is the column holding 1.5).
+    assert _cell(m, 1.515, 1.305) == pytest.approx(model.occupied_logodds)      # on the axis, on the arc
+    assert _cell(m, 1.515, 1.155) == pytest.approx(model.free_logodds)          # on the axis, half way
+    assert _cell(m, 1.515, 1.395) == 0.0                                         # behind the arc: unknown
+    # 7.5 deg off the axis at 0.30 m is 0.039 m to the side: still on the arc; 0.10 m to the side is not.
+    assert _cell(m, 1.545, 1.305) == pytest.approx(model.occupied_logodds)
+    assert _cell(m, 1.605, 1.305) == 0.0
+    # Under the rover's body: free.
+    assert _cell(m, 1.515, 1.005) == pytest.approx(model.free_logodds)
+
+
+def test_no_echo_clears_the_cone_to_the_report_range_and_no_further():
+    m = _map()
+    m.update(SonarReading(1.5, 1.0, 90.0, 0.0, None, 0.4))   # facing +x, nothing within 0.4 m
+    assert _cell(m, 1.875, 1.005) == pytest.approx(m.model.free_logodds)   # 0.36 m out
+    assert _cell(m, 1.965, 1.005) == 0.0                                     # 0.45 m out: unknown
+    assert not m.occupied.any()
+
+
+def test_repeated_readings_sharpen_a_smeared_arc_instead_of_widening_it():
+    m = _map()
+    # An echo at 0.30 m straight ahead marks its whole arc: cells from x 1.455 to 1.545.
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
+    wide = int(m.occupied.sum())
+    assert _cell(m, 1.545, 1.305) >= m.model.occupied_threshold
+    # A second look from 8 cm to the right finds nothing within 0.4 m: its cone passes through
+    # the arc's right end (x 1.545), which was never an obstacle, and clears it; the rest stays.
+    m.update(SonarReading(1.58, 1.0, 0.0, 0.0, None, 0.4))
+    assert _cell(m, 1.545, 1.305) < m.model.occupied_threshold
+    assert _cell(m, 1.485, 1.305) >= m.model.occupied_threshold
+    assert int(m.occupied.sum()) < wide
+    # A second echo on the same face raises the cells it shares with the first.
+    before = _cell(m, 1.485, 1.305)
+    m.update(SonarReading(1.45, 1.0, 0.0, 0.0, 0.30, 0.4))
+    assert _cell(m, 1.485, 1.305) > before
+
+
+def test_an_echo_off_the_wall_or_a_known_obstacle_marks_nothing_new():
+    known = np.zeros((100, 100), dtype=bool)
+    known[40:45, 40:60] = True   # a known box, cells [iy, ix]: y 1.20 to 1.35, x 1.20 to 1.80
+    m = _map(known=known)
+    m.update(SonarReading(1.5, 0.9, 0.0, 0.0, 0.30, 0.4))    # its face at y = 1.20
+    assert not m.occupied.any()
+    m.update(SonarReading(0.3, 2.5, -90.0, 0.0, 0.30, 0.4))  # the left wall, at 0.30 m
+    assert not m.occupied.any()
+
+
+def test_the_planner_goes_round_what_the_sonar_found_and_unknown_space_is_planned_through():
+    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
+    lm = LearnedMap(grid)
+    direct = plan(grid, (0.3, 0.9), (2.1, 0.9))
+    assert direct.length_m == pytest.approx(1.8, abs=0.01)   # nothing known: straight through
+    # A face 0.30 m ahead of the sensor (offset 0.10 m), across the straight line, seen by a fan.
+    for bearing in (-15.0, -7.5, 0.0, 7.5, 15.0):
+        lm.add(SonarReading(0.8, 0.9, 90.0, bearing, 0.30 / math.cos(math.radians(bearing)), 0.4))
+    assert grid.path_blocked(direct.waypoints)
+    around = plan(grid, (0.3, 0.9), (2.1, 0.9))
+    assert around.length_m > 1.85 and not grid.path_blocked(around.waypoints)
+
+
+def test_a_gap_one_cell_wider_than_the_rover_needs_stays_open_after_sweeping_both_sides():
+    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
+    inflation = grid.config.inflation_m
+    gap = 2 * inflation + 2 * RES
+    lm = LearnedMap(grid)
+    # Two walls along x = 1.2 with a gap centred on y = 0.9; the rover at (0.8, 0.9) sweeps them.
+    lower_top, upper_bottom = 0.9 - gap / 2, 0.9 + gap / 2
+    sx, sy = 0.8 + 0.10, 0.9
+    for bearing in range(-60, 61, 15):
+        a = math.radians(90.0 + bearing)
+        dx, dy = math.sin(a), math.cos(a)
+        t = (1.2 - sx) / dx
+        y = sy + t * dy
+        hit = y <= lower_top or y >= upper_bottom
+        lm.add(SonarReading(0.8, 0.9, 90.0, float(bearing), t if hit and t <= 0.4 else None, 0.4))
+    result = plan(grid, (0.8, 0.9), (1.8, 0.9))
+    assert result.length_m < 1.2
+
+
+def test_the_map_saves_and_reloads_to_the_same_grid(tmp_path):
+    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
+    lm = LearnedMap(grid)
+    for b in (-30.0, 0.0, 30.0):
+        lm.add(SonarReading(1.0, 0.9, 90.0, b, 0.25, 0.4, 0.003))
+    lm.add(SonarReading(1.0, 0.9, 90.0, 60.0, None, 0.4, 0.003))
+    lm.save(tmp_path / "map.json")
+    again = LearnedMap(OccupancyGrid(2.4, 1.8, PlannerConfig()))
+    assert again.load(tmp_path / "map.json") == 4
+    assert (again.grid.inflated == grid.inflated).all() and (again.sonar.logodds == lm.sonar.logodds).all()
+    assert len(read_map_file(tmp_path / "map.json")) == 4
+
+
+@pytest.mark.parametrize("text, what", [
+    ("[]", "not a rovernav map"),
+    ('{"format": "rovernav-map", "version": 2, "readings": {}}', "must be a list"),
+    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1}]}', "exactly the keys"),
+    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": NaN, "y_m": 0, "heading_deg": 0, '
+     '"bearing_deg": 0, "range_m": 0.2, "max_range_m": 0.4, "sd_m": 0}]}', "finite number"),
+    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1, "y_m": 0, "heading_deg": 0, '
+     '"bearing_deg": 0, "range_m": -1, "max_range_m": 0.4, "sd_m": 0}]}', "range_m"),
+])
+def test_a_bad_map_file_is_refused_naming_what_is_wrong(tmp_path, text, what):
+    from rovernav.errors import MapFileError
+
+    (tmp_path / "m.json").write_text(text)
+    with pytest.raises(MapFileError, match=what):
+        read_map_file(tmp_path / "m.json")
+
+
+def test_the_sensor_model_numbers_make_one_echo_occupied_and_one_clear_look_undo_it():
+    m = SensorModel()
+    assert m.occupied_logodds >= m.occupied_threshold
+    assert m.occupied_logodds + m.free_logodds < m.occupied_threshold
