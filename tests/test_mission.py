@@ -81,7 +81,9 @@ def test_a_mission_configures_plans_loads_the_path_starts_and_streams_fixes():
     mission, rover, notes = _setup()
     _run(mission, rover, 2.0)
     assert mission.phase is Phase.RUN
-    assert [(c.param, c.value) for c in rover.of(mg.Config)] == [(mg.Param.DRIVE_PWM, 80)]
+    assert [(c.param, c.value) for c in rover.of(mg.Config)] == [
+        (mg.Param.ROBOT_RADIUS_MM, 120), (mg.Param.SONAR_MARGIN_MM, 50), (mg.Param.SONAR_OFFSET_MM, 100),
+        (mg.Param.SONAR_CONE_CDEG, 1500), (mg.Param.DRIVE_PWM, 80)]
     assert rover.started == [mission.path_id]
     path = rover.paths[mission.path_id]
     assert math.dist(path[0], (0.3, 0.3)) < 0.01 and math.dist(path[-1], (2.0, 1.4)) < 0.01
@@ -169,7 +171,7 @@ def test_a_rebooted_rover_is_sent_its_parameters_and_path_again():
     rover.boot_id = 99
     rover.hello()
     _run(mission, rover, 2.0, t0=t)
-    assert len(rover.of(mg.Config)) == configs + 1
+    assert len(rover.of(mg.Config)) == 2 * configs == 2 * len(mission.rover_params)
     assert any("restarted" in n for n in notes)
     assert rover.started[-1] == mission.path_id and len(rover.started) >= 2
 

@@ -116,6 +116,8 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
         cap.release()
         transport.close()
     if mission.phase is Phase.FAILED:
+        if mission.cause is not None:
+            raise mission.cause   # the rover cannot be used (e.g. another protocol definition): exit 2
         raise MissionFailed(mission.error or "mission failed")
     done = sum(1 for t in mission.legs if t.reached)
     print(f"{done} of {mission.legs_asked} legs reached; {mission.replans} replans; "

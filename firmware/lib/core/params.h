@@ -50,6 +50,10 @@ class Params {
   float pose_pwm_per_dps() const { return scaled(Param::PosePwmPerDpsX1000, 0.001f); }
   uint16_t reflex_ping_ms() const { return static_cast<uint16_t>(raw(Param::ReflexPingMs)); }
   float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
+  float robot_radius_mm() const { return as_float(Param::RobotRadiusMm); }
+  float clearance_mm() const { return as_float(Param::RobotRadiusMm) + as_float(Param::SonarMarginMm); }
+  float sonar_offset_mm() const { return as_float(Param::SonarOffsetMm); }
+  float sonar_half_cone_rad() const { return scaled(Param::SonarConeCdeg, 0.5f * 0.01f * 0.017453292f); }
 
  private:
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads

@@ -437,8 +437,8 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
   if (reflex_waiting_ && in.sonar_valid) {
     reflex_waiting_ = false;
     const uint16_t r = in.sonar_range_mm;
-    const float face_mm = static_cast<float>(r) + static_cast<float>(kSonarOffsetMm);
-    if (r > 0 && static_cast<float>(r) <= reflex_range_mm() && face_mm <= l_mm + static_cast<float>(kRobotRadiusMm)) {
+    const float face_mm = static_cast<float>(r) + params_.sonar_offset_mm();
+    if (r > 0 && static_cast<float>(r) <= reflex_range_mm() && face_mm <= l_mm + params_.robot_radius_mm()) {
       ++reflex_stops_;
       start_sweep(now);
       report_echo(0, r);
@@ -505,18 +505,18 @@ void Rover::pose_command(float rho_mm, Outputs& out) {
 // ---------------------------------------------------------------- local replanning
 
 void Rover::remember_echo(int16_t bearing_cdeg, uint16_t range_mm) {
-  // Where the echo came from: the beam's axis at its range, from the sensor ahead of the centre.
+  // What the sonar saw, as the host's map marks it: the echo's arc (the obstacle may stand
+  // anywhere across the cone at that range), as one disk round the point on the beam's axis
+  // wide enough for the arc, plus the clearance the host plans with. Nothing is assumed behind it.
+  const Params& p = params_;
   const float h = est_.heading_rad();
   const float b = h + cdeg_to_rad(bearing_cdeg);
-  // The sonar sees only the near face; the obstacle goes on behind it for all it knows. One disk
-  // covers the face point and kAssumedDepthMm behind it along the beam: centred half that depth
-  // further on, with the clearance, half the beam's 15-degree width there and half the depth.
-  const float r = static_cast<float>(range_mm) + 0.5f * kAssumedDepthMm;
-  Point p;
-  p.x_mm = saturate_i16(est_.x_mm() + kSonarOffsetMm * sinf(h) + r * sinf(b));
-  p.y_mm = saturate_i16(est_.y_mm() + kSonarOffsetMm * cosf(h) + r * cosf(b));
-  local_.add(p, static_cast<uint16_t>(kDetourClearanceMm + static_cast<float>(range_mm) * kHalfBeamTan +
-                                      0.5f * kAssumedDepthMm));
+  const float r = static_cast<float>(range_mm);
+  const float off = p.sonar_offset_mm();
+  Point c;
+  c.x_mm = saturate_i16(est_.x_mm() + off * sinf(h) + r * sinf(b));
+  c.y_mm = saturate_i16(est_.y_mm() + off * cosf(h) + r * cosf(b));
+  local_.add(c, saturate_u16(p.clearance_mm() + r * tanf(p.sonar_half_cone_rad())));
 }
 
 Waypoint Rover::rejoin_point(float ahead_mm) const {
@@ -544,9 +544,8 @@ void Rover::replan_locally() {
   const Waypoint here = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
   const Waypoint next = target();
   const Point a = {here.x_mm, here.y_mm}, b = {next.x_mm, next.y_mm};
-  // Act only when the leg runs into what was seen itself (the disks less their assumed depth):
-  // the host's map, which knows more, may pass closer than the rover's cautious disks allow.
-  if (!local_.blocks(a, b, kAssumedDepthMm)) return;
+  // Act only when the leg runs into what was seen, with the clearance the host keeps too.
+  if (!local_.blocks(a, b)) return;
   // The leg runs into what the sonar found. The path-staging buffer is the planner's scratch
   // (unless a path is arriving: then the host's new path will do, and the rover waits for it).
   static_assert(sizeof(stage_) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");

@@ -108,14 +108,9 @@ class Rover : private RoverFields {
     kGyroRecoverMs = 500,       // a faulted gyro must be good this long before the fault clears
     kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
-    kSonarOffsetMm = 100,       // the ranger sits this far ahead of the rover's centre
-    kDetourClearanceMm = 170,   // robot radius 120 + sonar placement margin 50, as the host plans
-    kAssumedDepthMm = 160,      // how far an obstacle is taken to reach behind the face the sonar saw
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
-    kRobotRadiusMm = 120,       // the rover's centre to its furthest point that matters when passing
     kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
   };
-  static constexpr float kHalfBeamTan = 0.1317f;  // tan(7.5 deg): half the HC-SR04's cone
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
 

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0xBABDE052UL;
+static const uint32_t kSchemaHash = 0x9922A990UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -142,12 +142,16 @@ enum class Param : uint8_t {
   PosePwmPerDpsX1000 = 27,  ///< [PWM per degree/second of yaw rate, x1000] pose law: wheel command difference (each side) per degree/second of turn asked
   ReflexPingMs = 28,  ///< [ms] while driving, ping straight ahead this often (the HC-SR04 needs ~60 ms between pings); 0 disables the forward reflex
   ReflexMarginMm = 29,  ///< [mm] the forward reflex stops for an echo on the path nearer than the stopping distance (speed x (ping period + 150 ms of latency and motor lag)) plus this, from the sensor
+  RobotRadiusMm = 30,  ///< [mm] geometry: how far the rover's centre keeps from an obstacle for its body (the seed's robot_radius)
+  SonarMarginMm = 31,  ///< [mm] geometry: added to the robot radius for the sonar's placement error (clearance = radius + margin)
+  SonarOffsetMm = 32,  ///< [mm] geometry: how far ahead of the rover's centre the ultrasonic ranger sits
+  SonarConeCdeg = 33,  ///< [cdeg] geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it
 };
-enum : uint8_t { kParamMaxId = 29 };
+enum : uint8_t { kParamMaxId = 33 };
 
 /// Default, min and max of every parameter, by id - 1; an unused id has min > max.
 /// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[29][3] ROVERNAV_PROGMEM = {
+static const int32_t kParamTable[33][3] ROVERNAV_PROGMEM = {
   {3000L, 0L, 100000L},  // 1 pid_kp_x100
   {300L, 0L, 100000L},  // 2 pid_ki_x100
   {500L, 0L, 100000L},  // 3 pid_kd_x100
@@ -177,6 +181,10 @@ static const int32_t kParamTable[29][3] ROVERNAV_PROGMEM = {
   {500L, 0L, 100000L},  // 27 pose_pwm_per_dps_x1000
   {60L, 0L, 1000L},  // 28 reflex_ping_ms
   {100L, 0L, 1000L},  // 29 reflex_margin_mm
+  {120L, 50L, 500L},  // 30 robot_radius_mm
+  {50L, 0L, 300L},  // 31 sonar_margin_mm
+  {100L, 0L, 300L},  // 32 sonar_offset_mm
+  {1500L, 100L, 9000L},  // 33 sonar_cone_cdeg
 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xBABDE052
+SCHEMA_HASH = 0x9922A990
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -195,6 +195,10 @@ class Param(enum.IntEnum):
     POSE_PWM_PER_DPS_X1000 = 27
     REFLEX_PING_MS = 28
     REFLEX_MARGIN_MM = 29
+    ROBOT_RADIUS_MM = 30
+    SONAR_MARGIN_MM = 31
+    SONAR_OFFSET_MM = 32
+    SONAR_CONE_CDEG = 33
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -227,6 +231,10 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.POSE_PWM_PER_DPS_X1000: ParamSpec(27, 'pose_pwm_per_dps_x1000', 'PWM per degree/second of yaw rate, x1000', 500, 0, 100000, 'pose law: wheel command difference (each side) per degree/second of turn asked'),
     Param.REFLEX_PING_MS: ParamSpec(28, 'reflex_ping_ms', 'ms', 60, 0, 1000, 'while driving, ping straight ahead this often (the HC-SR04 needs ~60 ms between pings); 0 disables the forward reflex'),
     Param.REFLEX_MARGIN_MM: ParamSpec(29, 'reflex_margin_mm', 'mm', 100, 0, 1000, 'the forward reflex stops for an echo on the path nearer than the stopping distance (speed x (ping period + 150 ms of latency and motor lag)) plus this, from the sensor'),
+    Param.ROBOT_RADIUS_MM: ParamSpec(30, 'robot_radius_mm', 'mm', 120, 50, 500, "geometry: how far the rover's centre keeps from an obstacle for its body (the seed's robot_radius)"),
+    Param.SONAR_MARGIN_MM: ParamSpec(31, 'sonar_margin_mm', 'mm', 50, 0, 300, "geometry: added to the robot radius for the sonar's placement error (clearance = radius + margin)"),
+    Param.SONAR_OFFSET_MM: ParamSpec(32, 'sonar_offset_mm', 'mm', 100, 0, 300, "geometry: how far ahead of the rover's centre the ultrasonic ranger sits"),
+    Param.SONAR_CONE_CDEG: ParamSpec(33, 'sonar_cone_cdeg', 'cdeg', 1500, 100, 9000, "geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it"),
 }
 
 

@@ -85,7 +85,9 @@ class Mission:
         self.target_xy = target_xy
         self.legs_asked = legs
         self.strategy = strategy or RovernavStrategy()
-        self.rover_params = self.strategy.rover_params() + list(rover_params or [])
+        # The geometry the host plans with first, so that the rover's own detours keep the same
+        # clearance; then the strategy's; then what the caller asks (which wins).
+        self.rover_params = grid.config.rover_geometry() + self.strategy.rover_params() + list(rover_params or [])
         self.planner = planner
         self.fix_sd_mm = fix_sd_mm
         self.heartbeat_period_s = 1.0 / heartbeat_hz
@@ -99,6 +101,7 @@ class Mission:
         self.phase = Phase.HELLO
         self.outcome = Outcome.RUNNING
         self.error: str | None = None
+        self.cause: Exception | None = None   # the link error behind a failure, when there is one
         self.legs: list[Leg] = []
         self.path: list[tuple[float, float]] = []
         self.path_id = 0
@@ -269,7 +272,8 @@ class Mission:
         if m.role != mg.Role.ROVER:
             return
         if m.schema_hash != mg.SCHEMA_HASH:
-            self._fail(str(SchemaMismatch(mg.SCHEMA_HASH, m.schema_hash)))
+            self.cause = SchemaMismatch(mg.SCHEMA_HASH, m.schema_hash)
+            self._fail(str(self.cause))
             return
         if self.rover_boot_id is not None and m.boot_id != self.rover_boot_id and self.phase is not Phase.HELLO:
             # The rover restarted: it forgot its parameters and its path. Bring it back.

@@ -5,6 +5,13 @@ import dataclasses
 import math
 from typing import Any, Mapping
 
+from ..link.messages_gen import PARAMS, Param
+
+
+def geometry_m(param: Param) -> float:
+    """A length of the rover's geometry [m], from its one definition (protocol/messages.toml)."""
+    return PARAMS[param].default / 1000.0
+
 
 @dataclasses.dataclass(frozen=True)
 class PlannerConfig:
@@ -16,10 +23,10 @@ class PlannerConfig:
     """
 
     resolution_m: float = 0.03          # side of a grid cell (the seed's grid_size)
-    robot_radius_m: float = 0.12        # the seed's robot_radius
-    sonar_margin_m: float = 0.05        # the sonar's placement error, added to the radius
-    sonar_offset_m: float = 0.10        # the sonar sits this far ahead of the rover's centre
-    sonar_cone_deg: float = 15.0        # HC-SR04 beam width: an echo may come from anywhere on it
+    robot_radius_m: float = geometry_m(Param.ROBOT_RADIUS_MM)    # the seed's robot_radius (0.12)
+    sonar_margin_m: float = geometry_m(Param.SONAR_MARGIN_MM)    # the sonar's placement error, added to the radius
+    sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)    # the sonar sits this far ahead of the rover's centre
+    sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0   # HC-SR04 beam: an echo may come from anywhere on it
     sonar_max_range_m: float = 4.0      # HC-SR04 datasheet range; longer echoes are refused
     # The potential field (see planning.potential): U = k_att·d + k_rep·((c0 − c)/c0)² within c0.
     # With k_att = 1, Table 4.2 holds (trapped by the large obstacles, through the small ones)
@@ -64,6 +71,14 @@ class PlannerConfig:
 
     def to_dict(self) -> dict[str, float]:
         return dataclasses.asdict(self)
+
+    def rover_geometry(self) -> list[tuple[Param, int]]:
+        """The geometry this planner plans with, as the rover's CONFIG parameters (so that its own
+        detours keep the same clearance)."""
+        return [(Param.ROBOT_RADIUS_MM, round(self.robot_radius_m * 1000)),
+                (Param.SONAR_MARGIN_MM, round(self.sonar_margin_m * 1000)),
+                (Param.SONAR_OFFSET_MM, round(self.sonar_offset_m * 1000)),
+                (Param.SONAR_CONE_CDEG, round(self.sonar_cone_deg * 100))]
 
     def replace(self, **changes: Any) -> "PlannerConfig":
         return self.from_dict({**self.to_dict(), **changes})

@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from ..link.messages_gen import PARAMS, Param
+from ..planning.config import geometry_m
 from .world import World
 
 
@@ -31,11 +33,11 @@ class PlantConfig:
     gyro_noise_dps: float = 0.05      # white noise of one sample
     gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
     gyro_bias_walk_dps_per_sqrt_s: float = 0.005
-    sonar_cone_deg: float = 15.0
+    sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0
     sonar_noise_mm: float = 3.0
     sonar_floor_m: float = 0.65       # floor echoes from beyond here
     sonar_max_m: float = 4.0
-    sonar_offset_m: float = 0.10      # the sensor sits ahead of the rover's centre
+    sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre
     servo_deg_per_s: float = 600.0    # 0.1 s per 60 degrees
 
 
