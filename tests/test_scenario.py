@@ -1,6 +1,7 @@
 """Scenario files: the shared ones load, and every mistake names the file and the key."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -171,3 +172,85 @@ def test_the_repository_copies_of_the_shared_scenarios_have_not_drifted():
     assert shared, "the shared scenario folder is empty"
     for name, data in shared.items():
         assert ours.get(name) == data, f"scenarios/{name} differs from {SHARED_SCENARIOS / name}: copy it again"
+
+
+GENERATED = GOOD + """
+[generated]
+family = "narrow_passage"
+seed = 7
+index = 12
+solvable = false
+passage_width_m = 0.355
+
+[generated.difficulty]
+closest_obstacle_m = 0.0
+mean_clearance_m = 0.21
+dispersion = 6.5
+characteristic_dimension_m = 0.74
+narrowest_dimension_m = 0.0
+known_path_blocked = true
+score = 0.62
+band = "hard"
+"""
+
+
+def test_a_generated_arena_keeps_its_labels_and_others_have_none(tmp_path):
+    assert parse_scenario(GOOD).generated is None
+    f = tmp_path / "arena.toml"
+    f.write_text(GENERATED)
+    scenario = load_scenario(f)
+    assert scenario.generated == {
+        "family": "narrow_passage", "seed": 7, "index": 12, "solvable": False, "passage_width_m": 0.355,
+        "difficulty": {"closest_obstacle_m": 0.0, "mean_clearance_m": 0.21, "dispersion": 6.5,
+                       "characteristic_dimension_m": 0.74, "narrowest_dimension_m": 0.0, "known_path_blocked": True, "score": 0.62,
+                       "band": "hard"}}
+    solvable = _replace(_replace(GENERATED, "solvable = false", "solvable = true"), "score = 0.62",
+                        "score = 0.62\noptimal_length_m = 2.5\ndetour_ratio = 1.1")
+    difficulty = parse_scenario(solvable).generated["difficulty"]
+    assert difficulty["optimal_length_m"] == 2.5 and difficulty["detour_ratio"] == 1.1
+    # the rest of the scenario is as without the table
+    assert dataclasses.replace(scenario, generated=None) == dataclasses.replace(load_scenario(f), generated=None)
+    assert scenario.obstacles == parse_scenario(GOOD).obstacles
+
+
+GENERATED_MISTAKES = [
+    ("unknown key", lambda t: _replace(t, "index = 12", "index = 12\ncolour = 1"), "generated.colour",
+     "not a known key"),
+    ("unknown metric", lambda t: _replace(t, "dispersion = 6.5", "dispersion = 6.5\nfun = 1.0"),
+     "generated.difficulty.fun", "not a known key"),
+    ("missing family", lambda t: _replace(t, 'family = "narrow_passage"\n', ""), "generated.family", "missing"),
+    ("negative seed", lambda t: _replace(t, "seed = 7", "seed = -7"), "generated.seed", "≥ 0"),
+    ("text for an index", lambda t: _replace(t, "index = 12", 'index = "12"'), "generated.index", "whole number"),
+    ("bad solvable", lambda t: _replace(t, "solvable = false", "solvable = 0"), "generated.solvable",
+     "true or false"),
+    ("not finite", lambda t: _replace(t, "dispersion = 6.5", "dispersion = nan"), "generated.difficulty.dispersion",
+     "number"),
+    ("infinite", lambda t: _replace(t, "mean_clearance_m = 0.21", "mean_clearance_m = inf"),
+     "generated.difficulty.mean_clearance_m", "number"),
+    ("negative metric", lambda t: _replace(t, "closest_obstacle_m = 0.0", "closest_obstacle_m = -0.1"),
+     "generated.difficulty.closest_obstacle_m", "≥ 0"),
+    ("missing metric", lambda t: _replace(t, "characteristic_dimension_m = 0.74\n", ""),
+     "generated.difficulty.characteristic_dimension_m", "missing"),
+    ("score above 1", lambda t: _replace(t, "score = 0.62", "score = 1.5"), "generated.difficulty.score", "0 to 1"),
+    ("bad band", lambda t: _replace(t, 'band = "hard"', 'band = "brutal"'), "generated.difficulty.band",
+     "easy, medium, hard"),
+    ("zero passage", lambda t: _replace(t, "passage_width_m = 0.355", "passage_width_m = 0"),
+     "generated.passage_width_m", "> 0"),
+    ("no difficulty", lambda t: t[:t.index("[generated.difficulty]")], "generated.difficulty", "missing"),
+]
+
+
+@pytest.mark.parametrize("what, breaks, key, says", GENERATED_MISTAKES, ids=[m[0] for m in GENERATED_MISTAKES])
+def test_a_bad_generated_table_names_the_file_and_the_key(tmp_path, what, breaks, key, says):
+    f = tmp_path / "arena.toml"
+    f.write_text(breaks(GENERATED))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(f)
+    message = str(info.value)
+    assert message.startswith(f"{f}: {key} "), message
+    assert says in message
+
+
+def test_a_generated_scenario_can_still_be_hashed():
+    plain, generated = parse_scenario(GOOD), parse_scenario(GENERATED)
+    assert hash(plain) == hash(generated) and plain != generated

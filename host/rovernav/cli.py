@@ -156,11 +156,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_protocol)
 
     from .planning.cli import add_plan_parser
+    from .sim.arenas import add_arenas_parser
     from .sim.cli import add_sim_parser
+    from .sim.trials import add_trials_parser
     from .study.cli import add_pose_parser, add_study_parser
     from .vision.cli import add_locate_parser
 
     add_sim_parser(sub)
+    add_arenas_parser(sub)
+    add_trials_parser(sub)
     add_plan_parser(sub)
     add_locate_parser(sub)
     add_run_parser(sub)

@@ -8,12 +8,24 @@
     [target]    x_m, y_m                              (on the arena)
     [mission]   kind = "reach" | "out-and-back", trips = 1   (optional table; trips ≥ 1)
     [[obstacles]]  x_m, y_m (centre), w_m, h_m (size > 0), known = true
+    [generated]    optional: how `rovernav arenas` made the file (see below)
 
 Metres and degrees; origin at the arena's bottom-left corner, x right, y up. `known = false`
 obstacles exist only in the world: the planner learns them through the sonar. Every problem
 raises `ScenarioError` (a ValueError) naming the file and the key, e.g.
 "seed.toml: obstacles[2].w_m must be a number > 0, got -0.1". Unknown keys are refused, so
 a misspelt key cannot be silently ignored.
+
+A generated arena (rovernav.sim.arenas) carries its labels; none of them changes the mission:
+
+    [generated]   family (text), seed (whole ≥ 0), index (whole ≥ 0), solvable (true/false),
+                  passage_width_m (optional, > 0: the narrow_passage family's gap)
+    [generated.difficulty]   closest_obstacle_m, mean_clearance_m, dispersion,
+                  characteristic_dimension_m, narrowest_dimension_m (numbers ≥ 0), score (0 to 1), band ("easy",
+                  "medium" or "hard"); optional: optimal_length_m, detour_ratio (numbers ≥ 0),
+                  known_path_blocked (true/false)
+
+It is exposed as `Scenario.generated`, a plain dict of the same keys (None without the table).
 
 The shared scenarios live in `../shared/scenarios/` beside the repository (override with the
 environment variable ROVERNAV_SCENARIO_DIR); `load_scenario` takes their name or any path.
@@ -31,6 +43,7 @@ from .errors import InputError
 
 FORMAT_VERSION = 1
 MISSION_KINDS = ("reach", "out-and-back")
+DIFFICULTY_BANDS = ("easy", "medium", "hard")
 DEFAULT_SCENARIO = "out-and-back"
 
 
@@ -93,6 +106,8 @@ class Scenario:
     description: str = ""
     version: int = FORMAT_VERSION
     path: Path | None = None
+    # The [generated] table of a generated arena, else None (a dict: left out of the hash).
+    generated: dict | None = dataclasses.field(default=None, hash=False)
 
     @property
     def known_obstacles(self) -> tuple[Obstacle, ...]:
@@ -203,7 +218,8 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML: {exc}") from exc
-    r.only(doc, "", ("name", "version", "description", "arena", "start", "target", "mission", "obstacles"))
+    r.only(doc, "", ("name", "version", "description", "arena", "start", "target", "mission", "obstacles",
+                     "generated"))
 
     if "version" not in doc:
         raise r.fail("version", f"is missing (this reader understands version {FORMAT_VERSION})")
@@ -265,6 +281,62 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
                                   r.number(o, prefix, "w_m", positive=True),
                                   r.number(o, prefix, "h_m", positive=True), known))
 
+    generated = _generated(r, doc) if "generated" in doc else None
+
     path = Path(source) if not str(source).startswith("<") else None
     return Scenario(name=name, arena=arena, start=start, target=target, mission=mission,
-                    obstacles=tuple(obstacles), description=description, version=version, path=path)
+                    obstacles=tuple(obstacles), description=description, version=version, path=path,
+                    generated=generated)
+
+
+def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:
+    """The optional [generated] table (see the module's docstring), checked key by key."""
+    g = r.table(doc, "generated")
+    r.only(g, "generated.", ("family", "seed", "index", "solvable", "passage_width_m", "difficulty"))
+    for key in ("family", "seed", "index", "solvable", "difficulty"):
+        if key not in g:
+            raise r.fail(f"generated.{key}", "is missing")
+    out: dict[str, Any] = {}
+    family = g.get("family")
+    if not isinstance(family, str) or not family:
+        raise r.fail("generated.family", f"must be a non-empty string, got {family!r}")
+    out["family"] = family
+    for key in ("seed", "index"):
+        value = g.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise r.fail(f"generated.{key}", f"must be a whole number ≥ 0, got {value!r}")
+        out[key] = value
+    solvable = g.get("solvable")
+    if not isinstance(solvable, bool):
+        raise r.fail("generated.solvable", f"must be true or false, got {solvable!r}")
+    out["solvable"] = solvable
+    if "passage_width_m" in g:
+        out["passage_width_m"] = r.number(g, "generated.", "passage_width_m", positive=True)
+
+    prefix = "generated.difficulty."
+    d = r.table(g, "difficulty")
+    numbers = ("closest_obstacle_m", "mean_clearance_m", "dispersion", "characteristic_dimension_m",
+               "narrowest_dimension_m")
+    optional = ("optimal_length_m", "detour_ratio")
+    r.only(d, prefix, (*numbers, *optional, "known_path_blocked", "score", "band"))
+    difficulty: dict[str, Any] = {}
+    for key in (*numbers, *(k for k in optional if k in d)):
+        value = r.number(d, prefix, key)
+        if value < 0:
+            raise r.fail(f"{prefix}{key}", f"must be a number ≥ 0, got {value!r}")
+        difficulty[key] = value
+    if "known_path_blocked" in d:
+        blocked = d["known_path_blocked"]
+        if not isinstance(blocked, bool):
+            raise r.fail(f"{prefix}known_path_blocked", f"must be true or false, got {blocked!r}")
+        difficulty["known_path_blocked"] = blocked
+    score = r.number(d, prefix, "score")
+    if not 0.0 <= score <= 1.0:
+        raise r.fail(f"{prefix}score", f"must be a number from 0 to 1, got {score!r}")
+    difficulty["score"] = score
+    band = d.get("band")
+    if band not in DIFFICULTY_BANDS:
+        raise r.fail(f"{prefix}band", f"must be one of {', '.join(DIFFICULTY_BANDS)}, got {band!r}")
+    difficulty["band"] = band
+    out["difficulty"] = difficulty
+    return out
