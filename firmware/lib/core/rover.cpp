@@ -349,7 +349,14 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
 
   if (state_ == RoverState::Rotate) {
     // The pose law steers while it drives: it only needs to face roughly the right way.
-    const float done_deg = p.pose_law() ? 0.5f * kPoseMaxErrorDeg : p.rotate_done_deg();
+    // Rotate until well inside the cone the drive will hold: far from the waypoint the cone
+    // atan(cone_tol / L) is narrower than rotate_done (0.6 degrees at 1.7 m), and a rotation
+    // that stopped between the two would hand over to a drive that hands straight back.
+    float done_deg = p.pose_law() ? 0.5f * kPoseMaxErrorDeg : p.rotate_done_deg();
+    if (!p.pose_law()) {
+      const float half_cone = 0.5f * cone_deg(l);
+      if (half_cone < done_deg) done_deg = half_cone;
+    }
     if (fabsf(err) <= done_deg && fabsf(rate_dps_) < kRotateSettledDps) {
       enter(RoverState::Drive);
     } else {

@@ -195,3 +195,21 @@ TEST_CASE("pose law and the seed's rotate-and-drive both reach the end of the sa
   CHECK(took[1] < 2 * took[0]);
   CHECK(took[0] < 2 * took[1]);
 }
+
+TEST_CASE("a far waypoint a fraction of a degree off the heading is driven to, not stalled on between rotate and drive") {
+  // Far away the cone (0.6 degrees at 1.7 m) is narrower than rotate_done (1 degree): an error
+  // between the two once left the rover handing over from rotate to drive and back, motors off.
+  const float offs_deg[] = {0.7f, -0.8f, 0.95f};
+  for (float off_deg : offs_deg) {
+    CAPTURE(off_deg);
+    Bench b;
+    b.stream_fixes = true;
+    b.plant.x_mm = 427.0f;
+    b.plant.y_mm = 870.0f;
+    b.plant.heading_rad = (90.0f - off_deg) * core::kRadPerDeg;
+    const core::Waypoint wps[] = {{427, 870}, {2127, 870}};
+    b.start_mission(wps, 2);
+    REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 60000));
+    CHECK(b.true_distance_to(2127.0f, 870.0f) < 60.0f);
+  }
+}

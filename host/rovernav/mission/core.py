@@ -435,32 +435,44 @@ class Mission:
 
     def plan_from(self, start: tuple[float, float], goal: tuple[float, float]) -> list[tuple[float, float]] | None:
         """A* from `start` to `goal`, simplified; None when there is none (the mission has then
-        ended with the no-path verdict and the planner's reason)."""
-        try:
-            result = plan(self.grid, start, goal, planner=self.planner)
-        except NoPathError as exc:
-            # Close to a newly found obstacle the rover may stand inside its inflated margin:
-            # plan from the nearest free cell and let the first leg back out to it.
-            free = self._nearest_free(start)
-            if free is None:
-                self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {exc}", Outcome.NO_PATH)
-                return None
-            try:
-                result = plan(self.grid, free, goal, planner=self.planner)
-            except NoPathError as exc2:
-                self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {exc2}", Outcome.NO_PATH)
-                return None
-            return [start] + [tuple(p) for p in result.waypoints]
-        return [tuple(p) for p in result.waypoints]
+        ended with the no-path verdict and the planner's reason).
 
-    def _nearest_free(self, xy: tuple[float, float], max_m: float = 0.3) -> tuple[float, float] | None:
-        step = self.grid.resolution_m
+        Before that verdict: from the nearest free cell when the rover stands inside an inflated
+        margin (close to what it has just found), and, round what only the sonar has seen, with
+        the robot radius alone (the log-odds map already places an echo anywhere across its
+        cone, so the sonar's placement margin counts it twice). A target is unreachable only
+        when the obstacles enclose it even then.
+        """
+        reason = None
+        for grid in (self.grid, self.map.lenient_grid()):
+            if grid is None:
+                continue
+            for origin in (start, self._nearest_free(start, grid)):
+                if origin is None:
+                    continue
+                try:
+                    result = plan(grid, origin, goal, planner=self.planner)
+                except NoPathError as exc:
+                    reason = reason or exc
+                    continue
+                if grid is not self.grid:
+                    self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
+                path = [tuple(p) for p in result.waypoints]
+                return path if origin is start else [start] + path
+        self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Outcome.NO_PATH)
+        return None
+
+    def _nearest_free(self, xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.3
+                      ) -> tuple[float, float] | None:
+        if grid.is_free(*xy):
+            return None   # the start itself is free: nothing nearer to try
+        step = grid.resolution_m
         for ring in range(1, int(max_m / step) + 1):
             r = ring * step
             for k in range(max(8, ring * 8)):
                 a = 2 * math.pi * k / max(8, ring * 8)
                 p = (xy[0] + r * math.cos(a), xy[1] + r * math.sin(a))
-                if self.grid.contains(*p) and self.grid.is_free(*p):
+                if grid.contains(*p) and grid.is_free(*p):
                     return p
         return None
 

@@ -84,6 +84,16 @@ class LearnedMap:
         g.inflated = self._base_inflated | self.sonar.inflated(g.config.inflation_m)
         g.version += 1
 
+    def lenient_grid(self) -> OccupancyGrid | None:
+        """The planner's grid with what only the sonar has seen inflated by the robot radius alone
+        (None when the sonar has found nothing, so there is nothing to be lenient about)."""
+        occupied = self.sonar.occupied
+        if not occupied.any():
+            return None
+        g = self.grid.copy()
+        g.inflated = self._base_inflated | self.sonar.inflated(g.config.robot_radius_m)
+        return g
+
     def point(self, e: Echo) -> tuple[float, float]:
         return e.point(self.grid.config.sonar_offset_m)
 
