@@ -332,10 +332,16 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     return;
   }
   if (blocked_) {
-    // No way round on the rover's grid. With the radio up, wait for the host's new path; if none
-    // comes, the host (whose map knows more) holds the path clear, and the rover goes on.
+    // Waiting for the host's new path (or no way round on the rover's grid). If none comes, the
+    // host (whose map knows more) holds the path clear: the rover goes on, once trusting it.
+    if (awaiting_host_ && radio_lost_) {
+      awaiting_host_ = false;
+      plan_detour();   // the radio went down while it waited: no path will come
+      return;
+    }
     if (radio_lost_ || now - blocked_since_ms_ < kBlockedWaitMs) return;
-    blocked_ = false;
+    blocked_ = awaiting_host_ = false;
+    trusted_host_ = true;
   }
 
   if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
@@ -447,12 +453,15 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
     const float face_mm = static_cast<float>(r) + params_.sonar_offset_mm();
     if (r > 0 && static_cast<float>(r) <= reflex_range_mm() && face_mm <= l_mm + params_.robot_radius_mm()) {
       ++reflex_stops_;
+      if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
+      reflex_look_ = true;
       start_sweep(now);
       report_echo(0, r);
       send_event(EventKind::Reflex, r);
       out.left_pwm = out.right_pwm = 0;
       return true;
     }
+    reflex_look_ = false;   // clear ahead
   } else if (reflex_waiting_ && now - reflex_fired_ms_ >= Sweep::kPingTimeoutMs) {
     reflex_waiting_ = false;   // no result came: ping again
   }
@@ -460,6 +469,12 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
     out.fire_sonar = true;
     reflex_waiting_ = true;
     reflex_fired_ms_ = now;
+  }
+  // After a reflex stop the rover looks before it goes: no creeping up on what stopped it, a few
+  // millimetres a ping.
+  if (reflex_look_) {
+    out.left_pwm = out.right_pwm = 0;
+    return true;
   }
   return false;
 }
@@ -545,16 +560,32 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
   return path_[path_len_ - 1];
 }
 
+// After a sweep: does the leg run into what the sonar saw (by more than the sonar's placement
+// margin: the host plans with the full clearance, and an echo off a face it already keeps clear of
+// must not set the rover off on its own)? With the radio up the host, whose map knows more,
+// replans after the sweep: the rover holds still and waits for its path. It plans its own
+// detour when the radio is down, or when it trusted the host's path once this leg and its
+// forward reflex stopped it on that path all the same (a host that cannot replan).
 void Rover::replan_locally() {
   blocked_ = false;
+  awaiting_host_ = false;
   if (!mission_ || local_.echoes() == 0 || detour_i_ < detour_n_) return;
   const Waypoint here = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
   const Waypoint next = target();
   const Point a = {here.x_mm, here.y_mm}, b = {next.x_mm, next.y_mm};
-  // Act only when the leg runs into what was seen, with the clearance the host keeps too.
-  if (!local_.blocks(a, b)) return;
-  // The leg runs into what the sonar found. The path-staging buffer is the planner's scratch
-  // (unless a path is arriving: then the host's new path will do, and the rover waits for it).
+  if (!local_.blocks(a, b, static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
+  if (!radio_lost_ && !reflex_after_trust_) {
+    blocked_ = awaiting_host_ = true;
+    blocked_since_ms_ = last_ms_;
+    return;
+  }
+  plan_detour();
+}
+
+void Rover::plan_detour() {
+  const Point a = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
+  // The path-staging buffer is the planner's scratch (unless a path is arriving: then the host's
+  // new path will do, and the rover waits for it).
   static_assert(sizeof(stage_) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");
   uint8_t n = 0;
   Point detour[LocalPlanner::kMaxDetour];
@@ -710,7 +741,7 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   path_len_ = stage_total_;
   path_id_ = stage_id_;
   detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
-  blocked_ = false;
+  blocked_ = awaiting_host_ = trusted_host_ = reflex_after_trust_ = false;
   send_event(EventKind::PathAccepted, path_id_);
   if (mission_ && est_.initialised()) {
     wp_ = closest_target();

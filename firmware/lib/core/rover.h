@@ -91,7 +91,11 @@ struct RoverFields {
   Waypoint detour_[LocalPlanner::kMaxDetour] = {};  // the rover's own way round them
   uint8_t detour_n_ = 0;
   uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
-  bool blocked_ = false;                      // blocked and no way round: wait for the host
+  bool blocked_ = false;                      // stopped: waiting for the host's path
+  bool awaiting_host_ = false;                // ... after a sweep found the leg blocked
+  bool trusted_host_ = false;                 // the host sent no new path once this leg: it holds it clear
+  bool reflex_after_trust_ = false;           // ... and the reflex stopped the rover on it all the same
+  bool reflex_look_ = false;                  // stopped by the reflex: look (a clear ping) before driving
   uint32_t blocked_since_ms_ = 0;
 
   uint32_t reflex_fired_ms_ = 0;              // the forward reflex's last ping
@@ -168,6 +172,7 @@ class Rover : private RoverFields {
   void remember_echo(int16_t bearing_cdeg, uint16_t range_mm);
   Waypoint rejoin_point(float ahead_mm) const;
   void replan_locally();
+  void plan_detour();
   void start_sweep(uint32_t now);
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
   void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
