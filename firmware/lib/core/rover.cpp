@@ -445,27 +445,34 @@ float Rover::reflex_range_mm() const {
 // being approached (by more than the robot's radius) is no threat to this leg: the goal in
 // front of a wall is reached, not refused.
 bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
-  const uint16_t period_ms = params_.reflex_ping_ms();
+  const Params& p = params_;
+  const uint16_t period_ms = p.reflex_ping_ms();
   if (period_ms == 0) return false;
+  // Ahead, right 15 and 30 degrees, ahead, left 15 and 30: at close range the 15-degree cone is
+  // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
+  static const int16_t kLookCdeg[kReflexLooks] = {0, 1500, 3000, 0, -1500, -3000};
   if (reflex_waiting_ && in.sonar_valid) {
     reflex_waiting_ = false;
     const uint16_t r = in.sonar_range_mm;
-    const float face_mm = static_cast<float>(r) + params_.sonar_offset_mm();
-    if (r > 0 && static_cast<float>(r) <= reflex_range_mm() && face_mm <= l_mm + params_.robot_radius_mm()) {
+    const int16_t look = kLookCdeg[reflex_look_i_];
+    reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
+    if (r > 0 && reflex_on_path(look, r, l_mm)) {
       ++reflex_stops_;
       if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
       reflex_look_ = true;
       start_sweep(now);
-      report_echo(0, r);
+      report_echo(look, r);
       send_event(EventKind::Reflex, r);
       out.left_pwm = out.right_pwm = 0;
       return true;
     }
-    reflex_look_ = false;   // clear ahead
+    if (look == 0) reflex_look_ = false;   // clear straight ahead
   } else if (reflex_waiting_ && now - reflex_fired_ms_ >= Sweep::kPingTimeoutMs) {
     reflex_waiting_ = false;   // no result came: ping again
+    reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
   }
-  if (!reflex_waiting_ && servo_cdeg_ == 0 && now - reflex_fired_ms_ >= period_ms) {
+  servo_cdeg_ = kLookCdeg[reflex_look_i_];
+  if (!reflex_waiting_ && now - reflex_fired_ms_ >= period_ms) {
     out.fire_sonar = true;
     reflex_waiting_ = true;
     reflex_fired_ms_ = now;
@@ -477,6 +484,20 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
     return true;
   }
   return false;
+}
+
+// Whether an echo at bearing look_cdeg and range_mm may lie on the rover's way: nearer than the
+// reflex range, no further to the side than the robot radius wherever in the cone it came
+// from, and not beyond the waypoint being approached (by more than the robot radius).
+bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const {
+  const Params& p = params_;
+  const float r = static_cast<float>(range_mm);
+  const float look = fabsf(cdeg_to_rad(look_cdeg));
+  if (r * cosf(look) > reflex_range_mm()) return false;   // the stopping range, measured along the way
+  const float nearest_side = look - p.sonar_half_cone_rad();
+  const float lateral_mm = nearest_side > 0.0f ? r * sinf(nearest_side) : 0.0f;
+  if (lateral_mm > p.robot_radius_mm()) return false;
+  return r * cosf(look) + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
 }
 
 void Rover::start_sweep(uint32_t now) {
@@ -761,7 +782,12 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   mission_ = true;
   wp_ = closest_target();
   // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
-  enter(RoverState::Rotate);
+  // Look before the first turn: something beside the rover would be hit by its corners as it turns.
+  if (params_.sweep_at_start()) {
+    start_sweep(last_ms_);
+  } else {
+    enter(RoverState::Rotate);
+  }
 }
 
 void Rover::on_stop(const msg::Stop& m, uint8_t seq) {

@@ -96,6 +96,7 @@ struct RoverFields {
   bool trusted_host_ = false;                 // the host sent no new path once this leg: it holds it clear
   bool reflex_after_trust_ = false;           // ... and the reflex stopped the rover on it all the same
   bool reflex_look_ = false;                  // stopped by the reflex: look (a clear ping) before driving
+  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
   uint32_t blocked_since_ms_ = 0;
 
   uint32_t reflex_fired_ms_ = 0;              // the forward reflex's last ping
@@ -113,7 +114,8 @@ class Rover : private RoverFields {
     kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
-    kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
+    kReflexLatencyMs = 150,
+    kReflexLooks = 6,           // the directions the reflex's pings cycle through     // ping result one step late, motor lag and coasting, in the stopping distance
   };
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
@@ -175,6 +177,7 @@ class Rover : private RoverFields {
   void plan_detour();
   void start_sweep(uint32_t now);
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
+  bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;
   void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
   void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
   void report_clear(int16_t bearing_cdeg);

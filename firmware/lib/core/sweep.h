@@ -1,4 +1,4 @@
-// The sonar sweep: stopped, the servo steps from -60 to +60 degrees in 15-degree steps, one
+// The sonar sweep: stopped, the servo steps from -90 to +90 degrees in 15-degree steps, one
 // ping a step. Each step waits for the servo (sweep_step_ms per 15 degrees moved), fires the
 // sonar, and waits for its result (at most kPingTimeoutMs). Nothing waits without a bound:
 // a sonar that never answers costs kPingTimeoutMs a step, not the rover.
@@ -10,7 +10,7 @@ namespace core {
 
 class Sweep {
  public:
-  enum : int16_t { kFirstCdeg = -6000, kLastCdeg = 6000, kStepCdeg = 1500 };
+  enum : int16_t { kFirstCdeg = -9000, kLastCdeg = 9000, kStepCdeg = 1500 };
   enum : uint16_t { kPingTimeoutMs = 60 };
 
   struct Echo {

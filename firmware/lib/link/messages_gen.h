@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x9922A990UL;
+static const uint32_t kSchemaHash = 0x921D710AUL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -146,12 +146,13 @@ enum class Param : uint8_t {
   SonarMarginMm = 31,  ///< [mm] geometry: added to the robot radius for the sonar's placement error (clearance = radius + margin)
   SonarOffsetMm = 32,  ///< [mm] geometry: how far ahead of the rover's centre the ultrasonic ranger sits
   SonarConeCdeg = 33,  ///< [cdeg] geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it
+  SweepAtStart = 34,  ///< [bool] 1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)
 };
-enum : uint8_t { kParamMaxId = 33 };
+enum : uint8_t { kParamMaxId = 34 };
 
 /// Default, min and max of every parameter, by id - 1; an unused id has min > max.
 /// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[33][3] ROVERNAV_PROGMEM = {
+static const int32_t kParamTable[34][3] ROVERNAV_PROGMEM = {
   {3000L, 0L, 100000L},  // 1 pid_kp_x100
   {300L, 0L, 100000L},  // 2 pid_ki_x100
   {500L, 0L, 100000L},  // 3 pid_kd_x100
@@ -185,6 +186,7 @@ static const int32_t kParamTable[33][3] ROVERNAV_PROGMEM = {
   {50L, 0L, 300L},  // 31 sonar_margin_mm
   {100L, 0L, 300L},  // 32 sonar_offset_mm
   {1500L, 100L, 9000L},  // 33 sonar_cone_cdeg
+  {1L, 0L, 1L},  // 34 sweep_at_start
 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.

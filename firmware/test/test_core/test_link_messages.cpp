@@ -78,7 +78,7 @@ TEST_CASE("START is refused with the reason until HELLO, fix and path are all th
   b.send(s);
   b.run_ms(20);
   CHECK(b.ack_for(b.last_host_seq()));
-  CHECK((b.rover.state() == RoverState::Rotate || b.rover.state() == RoverState::Drive));
+  CHECK(b.rover.state() == RoverState::Scan);   // a mission begins with a look round
   CHECK((b.rover.flags() & StatusFlag::MissionActive) != 0);
 }
 

@@ -50,7 +50,8 @@ TEST_CASE("the rover rotates on the spot towards a waypoint, then drives to it a
   b.stream_fixes = true;
   const core::Waypoint wps[] = {{300, 300}, {900, 300}};  // due east: a 90 degree turn first
   b.start_mission(wps, 2);
-  REQUIRE(b.rover.state() == RoverState::Rotate);
+  REQUIRE(b.rover.state() == RoverState::Scan);   // a look round before the first turn
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Rotate; }, 5000));
   b.step();
   CHECK(b.out.left_pwm > 0);   // clockwise: left forward, right back
   CHECK(b.out.right_pwm < 0);

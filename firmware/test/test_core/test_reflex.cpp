@@ -22,20 +22,40 @@ void drive_north(Bench& b, bool reflex_on) {
 }
 }  // namespace
 
-TEST_CASE("while driving the rover pings straight ahead about every 60 ms") {
+TEST_CASE("while driving the rover pings about every 60 ms: ahead, right 15 and 30 degrees, ahead, left 15 and 30") {
   Bench b;
   drive_north(b, true);
-  int fired = 0, ahead = 0;
+  int fired = 0, ahead = 0, right = 0, left = 0, wide = 0;
   for (int i = 0; i < 100; ++i) {   // one second
     b.step();
     if (b.out.fire_sonar) {
       ++fired;
-      if (b.out.servo_cdeg == 0) ++ahead;
+      ahead += b.out.servo_cdeg == 0;
+      right += b.out.servo_cdeg == 1500;
+      left += b.out.servo_cdeg == -1500;
+      wide += b.out.servo_cdeg == 3000 || b.out.servo_cdeg == -3000;
     }
   }
   CHECK(fired >= 14);
   CHECK(fired <= 17);
-  CHECK(ahead == fired);
+  CHECK(ahead + right + left + wide == fired);
+  CHECK(ahead >= fired / 3 - 1);
+  CHECK(right >= 2);
+  CHECK(left >= 2);
+  CHECK(wide >= 4);
+}
+
+TEST_CASE("a box corner beside the path, which straight ahead misses, stops the rover") {
+  Bench b;
+  drive_north(b, true);
+  // A box whose corner sits 60 mm to the right of the rover's centre line, 250 mm ahead of the
+  // sensor: inside the rover's width, outside the straight-ahead cone at that range.
+  const float x0 = b.plant.x_mm + 60.0f, y0 = b.plant.y_mm + 100.0f + 250.0f;
+  b.set_box(x0 + 150.0f, y0 + 150.0f, 300.0f, 300.0f);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Scan; }, 10000));
+  b.run_ms(300);
+  CHECK(b.events(EventKind::Reflex) == 1);
+  CHECK(b.closest_to_box_mm > 75.0f);   // the rover's half width: no contact
 }
 
 TEST_CASE("a wall appearing ahead stops the rover within its stopping distance, reported, then a sweep") {

@@ -10,7 +10,7 @@ namespace {
 const core::Waypoint kNorth[] = {{300, 300}, {300, 1400}};
 }
 
-TEST_CASE("a sweep runs every 300 mm driven, stopped, from -60 to +60 degrees in 15-degree steps") {
+TEST_CASE("a sweep runs at the start and every 300 mm driven, stopped, from -90 to +90 degrees in 15-degree steps") {
   Bench b;
   b.stream_fixes = true;
   b.start_mission(kNorth, 2);
@@ -18,7 +18,9 @@ TEST_CASE("a sweep runs every 300 mm driven, stopped, from -60 to +60 degrees in
   int fires = 0;
   float y_at_scan[8];
   int scans = 0;
-  RoverState last = b.rover.state();
+  RoverState last = RoverState::Idle;
+  if (b.rover.state() == RoverState::Scan) y_at_scan[scans++] = b.plant.y_mm;   // the look before moving
+  last = b.rover.state();
   while (b.rover.state() != RoverState::Arrived && b.now_ms < 120000) {
     b.step();
     if (b.out.fire_sonar && b.rover.state() == RoverState::Scan && fires < 64) fired_at[fires++] = b.out.servo_cdeg;
@@ -30,11 +32,12 @@ TEST_CASE("a sweep runs every 300 mm driven, stopped, from -60 to +60 degrees in
     last = b.rover.state();
   }
   REQUIRE(b.rover.state() == RoverState::Arrived);
-  CHECK(scans == 3);  // at 0.3, 0.6 and 0.9 m of the 1.1 m
-  for (int i = 0; i < scans; ++i) CHECK(y_at_scan[i] - 300.0f == doctest::Approx(300.0f * static_cast<float>(i + 1)).epsilon(0.1));
-  REQUIRE(fires == 27);
-  for (int i = 0; i < 9; ++i) CHECK(fired_at[i] == -6000 + 1500 * i);
-  CHECK(b.events(EventKind::ScanDone) == 3);
+  CHECK(scans == 4);  // before moving, then at 0.3, 0.6 and 0.9 m of the 1.1 m
+  CHECK(y_at_scan[0] == doctest::Approx(300.0f).epsilon(0.01));
+  for (int i = 1; i < scans; ++i) CHECK(y_at_scan[i] - 300.0f == doctest::Approx(300.0f * static_cast<float>(i)).epsilon(0.1));
+  REQUIRE(fires == 52);
+  for (int i = 0; i < 13; ++i) CHECK(fired_at[i] == -9000 + 1500 * i);
+  CHECK(b.events(EventKind::ScanDone) == 4);
 }
 
 TEST_CASE("a sweep takes well under 2.5 s with the default timing (the seed's took 9 s)") {
@@ -57,16 +60,16 @@ TEST_CASE("echoes within 400 mm are reported as OBSTACLE with bearing, range and
   b.start_mission(kNorth, 2);
   REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) == 1; }, 20000));
   msg::Obstacle o;
-  REQUIRE(b.count(&o) == 9);
+  REQUIRE(b.count(&o) == 13);
   CHECK(o.range_mm == 250);
-  CHECK(o.bearing_cdeg == 6000);
+  CHECK(o.bearing_cdeg == 9000);
   CHECK(o.scan_id == 1);
   CHECK(o.x_mm == doctest::Approx(b.plant.x_mm).epsilon(0.02));
   CHECK(o.y_mm == doctest::Approx(b.plant.y_mm).epsilon(0.02));
   CHECK(o.sd_mm <= 5);
   msg::Event e;
   b.events(EventKind::ScanDone, &e);
-  CHECK(e.arg == 9);
+  CHECK(e.arg == 13);
 }
 
 TEST_CASE("a ping with no echo within the report range is reported as a clear reading (range 0)") {
@@ -79,7 +82,7 @@ TEST_CASE("a ping with no echo within the report range is reported as a clear re
     b.start_mission(kNorth, 2);
     REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) == 1; }, 20000));
     msg::Obstacle o;
-    CHECK(b.count(&o) == 9);
+    CHECK(b.count(&o) == 13);
     CHECK(o.range_mm == 0);
     msg::Event e;
     b.events(EventKind::ScanDone, &e);

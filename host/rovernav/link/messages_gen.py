@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x9922A990
+SCHEMA_HASH = 0x921D710A
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -199,6 +199,7 @@ class Param(enum.IntEnum):
     SONAR_MARGIN_MM = 31
     SONAR_OFFSET_MM = 32
     SONAR_CONE_CDEG = 33
+    SWEEP_AT_START = 34
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -235,6 +236,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.SONAR_MARGIN_MM: ParamSpec(31, 'sonar_margin_mm', 'mm', 50, 0, 300, "geometry: added to the robot radius for the sonar's placement error (clearance = radius + margin)"),
     Param.SONAR_OFFSET_MM: ParamSpec(32, 'sonar_offset_mm', 'mm', 100, 0, 300, "geometry: how far ahead of the rover's centre the ultrasonic ranger sits"),
     Param.SONAR_CONE_CDEG: ParamSpec(33, 'sonar_cone_cdeg', 'cdeg', 1500, 100, 9000, "geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it"),
+    Param.SWEEP_AT_START: ParamSpec(34, 'sweep_at_start', 'bool', 1, 0, 1, '1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)'),
 }
 
 

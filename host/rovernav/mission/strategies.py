@@ -82,7 +82,8 @@ class SeedStrategy:
         self.next_cell = 0
 
     def rover_params(self):
-        return [(mg.Param.SWEEP_STEP_MS, 750)]
+        # The seed's rover: 9-second sweeps, no look before it first moves, no forward reflex.
+        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SWEEP_AT_START, 0), (mg.Param.REFLEX_PING_MS, 0)]
 
     def _raw_path(self, m, start, goal):
         try:
