@@ -36,6 +36,16 @@ bool LocalPlanner::inside(Point p) const {
   return false;
 }
 
+bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const {
+  for (uint8_t i = 0; i < n_; ++i) {
+    const Disk& d = disks_[i];
+    const int32_t arc = d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0;   // half the arc's width
+    const int32_t r = arc + reach_mm;
+    if (sq(p.x_mm - d.c.x_mm) + sq(p.y_mm - d.c.y_mm) < sq(r)) return true;
+  }
+  return false;
+}
+
 bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
   const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
   const float len2 = vx * vx + vy * vy;

@@ -40,6 +40,9 @@ class LocalPlanner {
   bool blocks(Point a, Point b, uint16_t shrink_mm = 0) const;
   /// Whether point p is inside an obstacle disk.
   bool inside(Point p) const;
+  /// Whether some echo's arc (its disk less the clearance it was widened by) comes within
+  /// reach_mm of point p.
+  bool within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const;
   /// Plans from start round the disks to goal. Writes the detour's waypoints (turning points,
   /// the goal last) to out and returns how many (1..kMaxDetour), or 0 when there is no way on
   /// the grid. scratch: kScratchBytes bytes the planner may use.

@@ -50,6 +50,7 @@ class Params {
   float pose_pwm_per_dps() const { return scaled(Param::PosePwmPerDpsX1000, 0.001f); }
   uint16_t reflex_ping_ms() const { return static_cast<uint16_t>(raw(Param::ReflexPingMs)); }
   float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
+  float sweep_before_turn_deg() const { return as_float(Param::SweepBeforeTurnDeg); }
   bool sweep_at_start() const { return raw(Param::SweepAtStart) != 0; }
   float robot_radius_mm() const { return as_float(Param::RobotRadiusMm); }
   float clearance_mm() const { return as_float(Param::RobotRadiusMm) + as_float(Param::SonarMarginMm); }

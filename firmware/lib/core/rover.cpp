@@ -188,7 +188,8 @@ void Rover::watch_link(uint32_t now) {
     if (!radio_lost_) send_event(EventKind::CameraLost, camera_);
   }
   // Safe stop: never drive on past what the estimate can vouch for.
-  const bool moving = state_ == RoverState::Rotate || state_ == RoverState::Drive || state_ == RoverState::Scan;
+  const bool moving = state_ == RoverState::Rotate || state_ == RoverState::Drive || state_ == RoverState::Scan ||
+                      state_ == RoverState::BackOff;
   if (mission_ && moving && dead_reckoning_) {
     const float u = uncertainty_2sd_mm();
     if (u >= 0.9f * params_.clearance_margin_mm() ||
@@ -210,6 +211,8 @@ void Rover::watch_link(uint32_t now) {
 
 ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s != state_) pid_.reset();
+  if (s == RoverState::Rotate && state_ != RoverState::Rotate) rotate_checked_ = false;
+  if (s == RoverState::BackOff) back_off_mm_ = 0.0f;
   if (s == RoverState::Drive && state_ != RoverState::Drive) {
     calib_anchor_ = false;
     drive_since_ms_ = last_ms_;
@@ -291,12 +294,20 @@ void Rover::reached_waypoint() {
   ++wp_;
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
   const float l = distance_to(target());
-  if (state_ == RoverState::Drive && (params_.pose_law() || fabsf(error_to_deg(target())) <= cone_deg(l))) {
+  const float turn_deg = fabsf(error_to_deg(target()));
+  if (state_ == RoverState::Drive && (params_.pose_law() || turn_deg <= cone_deg(l))) {
     min_distance_mm_ = l;
-  } else {
-    enter(RoverState::Rotate);
-    pid_.reset();
+    return;
   }
+  // A sharp turn on the spot swings the rover's corners wider than its sides: look round first,
+  // unless it has only just done so (the sweep then hands over to the rotation).
+  const float look_deg = params_.sweep_before_turn_deg();
+  if (look_deg > 0.0f && turn_deg > look_deg && sweep_distance_mm_ >= static_cast<float>(kTurnLookAfterMm)) {
+    start_sweep(last_ms_);
+    return;
+  }
+  enter(RoverState::Rotate);
+  pid_.reset();
 }
 
 float Rover::heading_command(float error_deg, float dt_s) {
@@ -344,16 +355,28 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     trusted_host_ = true;
   }
 
+  if (state_ == RoverState::BackOff) {
+    back_off(dt_s, out);
+    return;
+  }
   if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
   float l = distance_to(target());
   if (l <= p.arrival_radius_mm()) {
     reached_waypoint();
-    if (!mission_) return;
+    if (!mission_ || state_ == RoverState::Scan) return;
     l = distance_to(target());
   }
   const float err = error_to_deg(target());
 
   if (state_ == RoverState::Rotate) {
+    servo_cdeg_ = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
+    if (!rotate_checked_) {
+      rotate_checked_ = true;
+      if (fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn()) {
+        enter(RoverState::BackOff);
+        return;
+      }
+    }
     // The pose law steers while it drives: it only needs to face roughly the right way.
     // Rotate until well inside the cone the drive will hold: far from the waypoint the cone
     // atan(cone_tol / L) is narrower than rotate_done (0.6 degrees at 1.7 m), and a rotation
@@ -457,7 +480,6 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
     const int16_t look = kLookCdeg[reflex_look_i_];
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
     if (r > 0 && reflex_on_path(look, r, l_mm)) {
-      ++reflex_stops_;
       if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
       reflex_look_ = true;
       start_sweep(now);
@@ -467,15 +489,15 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
       return true;
     }
     if (look == 0) reflex_look_ = false;   // clear straight ahead
-  } else if (reflex_waiting_ && now - reflex_fired_ms_ >= Sweep::kPingTimeoutMs) {
+  } else if (reflex_waiting_ && static_cast<uint16_t>(now - reflex_fired_ms_) >= Sweep::kPingTimeoutMs) {
     reflex_waiting_ = false;   // no result came: ping again
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
   }
   servo_cdeg_ = kLookCdeg[reflex_look_i_];
-  if (!reflex_waiting_ && now - reflex_fired_ms_ >= period_ms) {
+  if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {
     out.fire_sonar = true;
     reflex_waiting_ = true;
-    reflex_fired_ms_ = now;
+    reflex_fired_ms_ = static_cast<uint16_t>(now);
   }
   // After a reflex stop the rover looks before it goes: no creeping up on what stopped it, a few
   // millimetres a ping.
@@ -498,6 +520,29 @@ bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) con
   const float lateral_mm = nearest_side > 0.0f ? r * sinf(nearest_side) : 0.0f;
   if (lateral_mm > p.robot_radius_mm()) return false;
   return r * cosf(look) + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
+}
+
+// Whether the last sweep saw nothing within reach of the corners as the rover turns on the spot.
+bool Rover::room_to_turn() const {
+  const Point c = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
+  return !local_.within(c, saturate_u16(params_.clearance_mm()), kSwingMm);
+}
+
+// Backing out: straight back, holding the heading, the way the rover came (the only ground it
+// knows is clear behind it), until its corners can swing clear of what the sweep saw, or for
+// kBackOffMaxMm at most; then the turn it put off.
+void Rover::back_off(float dt_s, Outputs& out) {
+  const Params& p = params_;
+  const float v_mm_s = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  back_off_mm_ += v_mm_s * dt_s;
+  if (room_to_turn() || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
+    enter(RoverState::Rotate);
+    rotate_checked_ = true;
+    return;
+  }
+  const float u = heading_command(0.0f, dt_s);   // hold the heading: damp any turn
+  out.left_pwm = clamp_pwm(-p.drive_pwm() + u);
+  out.right_pwm = clamp_pwm(-p.drive_pwm() - u * p.right_bias());
 }
 
 void Rover::start_sweep(uint32_t now) {

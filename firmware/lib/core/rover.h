@@ -30,7 +30,9 @@ struct Waypoint {
 /// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
 /// and a base of the Rover's, so that the Rover's constructor sets it as one block
 /// (`RoverFields{}`): on the Uno that is a clearing loop and a few stores, where setting it field
-/// by field took four bytes of flash for every byte of state (some 600 bytes in all).
+/// by field took four bytes of flash for every byte of state (some 600 bytes in all). Flags are
+/// one-bit fields without initialisers (value-initialisation clears them): a byte each would
+/// cost the Uno's static RAM.
 struct RoverFields {
   TxQueue tx_;
   Estimator est_;
@@ -91,17 +93,19 @@ struct RoverFields {
   Waypoint detour_[LocalPlanner::kMaxDetour] = {};  // the rover's own way round them
   uint8_t detour_n_ = 0;
   uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
-  bool blocked_ = false;                      // stopped: waiting for the host's path
-  bool awaiting_host_ = false;                // ... after a sweep found the leg blocked
-  bool trusted_host_ = false;                 // the host sent no new path once this leg: it holds it clear
-  bool reflex_after_trust_ = false;           // ... and the reflex stopped the rover on it all the same
-  bool reflex_look_ = false;                  // stopped by the reflex: look (a clear ping) before driving
-  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
   uint32_t blocked_since_ms_ = 0;
+  uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
+  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
+  float back_off_mm_ = 0.0f;                  // distance backed out so far
 
-  uint32_t reflex_fired_ms_ = 0;              // the forward reflex's last ping
-  bool reflex_waiting_ = false;               // ... whose result is still to come
-  uint16_t reflex_stops_ = 0;
+  // Flags, one bit each.
+  bool blocked_ : 1;                          // stopped: waiting for the host's path
+  bool awaiting_host_ : 1;                    // ... after a sweep found the leg blocked
+  bool trusted_host_ : 1;                     // the host sent no new path once this leg: it holds it clear
+  bool reflex_after_trust_ : 1;               // ... and the reflex stopped the rover on it all the same
+  bool reflex_look_ : 1;                      // stopped by the reflex: look (a clear ping) before driving
+  bool reflex_waiting_ : 1;                   // a reflex ping's result is still to come
+  bool rotate_checked_ : 1;                   // this rotation's start was checked for room to swing
 };
 
 class Rover : private RoverFields {
@@ -115,7 +119,11 @@ class Rover : private RoverFields {
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
     kReflexLatencyMs = 150,
-    kReflexLooks = 6,           // the directions the reflex's pings cycle through     // ping result one step late, motor lag and coasting, in the stopping distance
+    kReflexLooks = 6,
+    kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent
+    kSwingMm = 150,             // the rover's corners swing within this of its centre (half-diagonal 129 + margin)
+    kBackOffMaxMm = 150,        // backing out stops after this much, cleared or not
+    kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners           // the directions the reflex's pings cycle through     // ping result one step late, motor lag and coasting, in the stopping distance
   };
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
@@ -140,7 +148,6 @@ class Rover : private RoverFields {
   uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
   bool blocked() const { return blocked_; }
   float dr_distance_mm() const { return dr_distance_mm_; }
-  uint16_t reflex_stops() const { return reflex_stops_; }
   /// The forward reflex's range from the sensor: stopping distance at cruise speed plus the margin.
   float reflex_range_mm() const;
 
@@ -178,6 +185,8 @@ class Rover : private RoverFields {
   void start_sweep(uint32_t now);
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
   bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;
+  bool room_to_turn() const;
+  void back_off(float dt_s, Outputs& out);
   void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
   void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
   void report_clear(int16_t bearing_cdeg);

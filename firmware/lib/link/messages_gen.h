@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x921D710AUL;
+static const uint32_t kSchemaHash = 0x1D259221UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -31,6 +31,7 @@ enum class RoverState : uint8_t {
   Arrived = 4,  ///< reached the last waypoint; motors off
   Hold = 5,  ///< stopped safely: position too uncertain to go on; resumes on fixes
   Fault = 6,  ///< stopped by a fault (see fault code); motors off
+  BackOff = 7,  ///< backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners
 };
 
 /// Bits of STATUS.flags.
@@ -147,12 +148,13 @@ enum class Param : uint8_t {
   SonarOffsetMm = 32,  ///< [mm] geometry: how far ahead of the rover's centre the ultrasonic ranger sits
   SonarConeCdeg = 33,  ///< [cdeg] geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it
   SweepAtStart = 34,  ///< [bool] 1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)
+  SweepBeforeTurnDeg = 35,  ///< [deg] at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm): its corners swing wider than its sides; 0 disables
 };
-enum : uint8_t { kParamMaxId = 34 };
+enum : uint8_t { kParamMaxId = 35 };
 
 /// Default, min and max of every parameter, by id - 1; an unused id has min > max.
 /// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[34][3] ROVERNAV_PROGMEM = {
+static const int32_t kParamTable[35][3] ROVERNAV_PROGMEM = {
   {3000L, 0L, 100000L},  // 1 pid_kp_x100
   {300L, 0L, 100000L},  // 2 pid_ki_x100
   {500L, 0L, 100000L},  // 3 pid_kd_x100
@@ -187,6 +189,7 @@ static const int32_t kParamTable[34][3] ROVERNAV_PROGMEM = {
   {100L, 0L, 300L},  // 32 sonar_offset_mm
   {1500L, 100L, 9000L},  // 33 sonar_cone_cdeg
   {1L, 0L, 1L},  // 34 sweep_at_start
+  {30L, 0L, 180L},  // 35 sweep_before_turn_deg
 };
 
 /// Default and limits of parameter `id`; false if there is no such parameter.

@@ -214,3 +214,40 @@ TEST_CASE("a far waypoint a fraction of a degree off the heading is driven to, n
     CHECK(b.true_distance_to(2127.0f, 870.0f) < 60.0f);
   }
 }
+
+namespace {
+// Whether a corner of the rover's 150 x 210 mm footprint lies inside the bench's box.
+bool corner_in_box(const test::Bench& b) {
+  const float h = b.plant.heading_rad, fx = sinf(h), fy = cosf(h), rx = cosf(h), ry = -sinf(h);
+  const float along[2] = {105.0f, -105.0f}, side[2] = {75.0f, -75.0f};
+  for (float a : along) {
+    for (float s : side) {
+      const float x = b.plant.x_mm + a * fx + s * rx, y = b.plant.y_mm + a * fy + s * ry;
+      if (x >= b.box_x0 && x <= b.box_x1 && y >= b.box_y0 && y <= b.box_y1) return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
+TEST_CASE("with something within reach of its corners the rover backs out before it turns on the spot") {
+  Bench b;
+  b.stream_fixes = true;
+  b.hello();
+  b.config(Param::SweepIntervalMm, 0);
+  b.run_ms(50);
+  // Facing north; a box whose corner is 110 mm from the centre, ahead and to the right, clear of
+  // the body (whose side is 75 mm out). Turning clockwise would swing the front-right corner into it.
+  b.set_box(300.0f + 85.0f + 100.0f, 300.0f + 70.0f + 100.0f, 200.0f, 200.0f);
+  REQUIRE_FALSE(corner_in_box(b));
+  const core::Waypoint east[] = {{300, 300}, {300, 50}};   // due south: a half turn
+  b.start_mission(east, 2);
+  bool backed = false, touched = false;
+  REQUIRE(b.run_until([&] {
+    backed = backed || b.rover.state() == RoverState::BackOff;
+    touched = touched || corner_in_box(b);
+    return b.rover.state() == RoverState::Arrived;
+  }, 30000));
+  CHECK(backed);
+  CHECK_FALSE(touched);
+}

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x921D710A
+SCHEMA_HASH = 0x1D259221
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -41,6 +41,8 @@ class RoverState(enum.IntEnum):
     """stopped safely: position too uncertain to go on; resumes on fixes"""
     FAULT = 6
     """stopped by a fault (see fault code); motors off"""
+    BACK_OFF = 7
+    """backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners"""
 
 class StatusFlag(enum.IntFlag):
     """Bits of STATUS.flags."""
@@ -200,6 +202,7 @@ class Param(enum.IntEnum):
     SONAR_OFFSET_MM = 32
     SONAR_CONE_CDEG = 33
     SWEEP_AT_START = 34
+    SWEEP_BEFORE_TURN_DEG = 35
 
 
 PARAMS: dict[Param, ParamSpec] = {
@@ -237,6 +240,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.SONAR_OFFSET_MM: ParamSpec(32, 'sonar_offset_mm', 'mm', 100, 0, 300, "geometry: how far ahead of the rover's centre the ultrasonic ranger sits"),
     Param.SONAR_CONE_CDEG: ParamSpec(33, 'sonar_cone_cdeg', 'cdeg', 1500, 100, 9000, "geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it"),
     Param.SWEEP_AT_START: ParamSpec(34, 'sweep_at_start', 'bool', 1, 0, 1, '1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)'),
+    Param.SWEEP_BEFORE_TURN_DEG: ParamSpec(35, 'sweep_before_turn_deg', 'deg', 30, 0, 180, 'at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm): its corners swing wider than its sides; 0 disables'),
 }
 
 

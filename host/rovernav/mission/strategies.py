@@ -82,8 +82,9 @@ class SeedStrategy:
         self.next_cell = 0
 
     def rover_params(self):
-        # The seed's rover: 9-second sweeps, no look before it first moves, no forward reflex.
-        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SWEEP_AT_START, 0), (mg.Param.REFLEX_PING_MS, 0)]
+        # The seed's rover: 9-second sweeps, no look before it first moves or turns, no forward reflex.
+        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SWEEP_AT_START, 0), (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
+                (mg.Param.REFLEX_PING_MS, 0)]
 
     def _raw_path(self, m, start, goal):
         try:
