@@ -21,10 +21,20 @@ int32_t sq(int32_t v) { return v * v; }
 }  // namespace
 
 void LocalPlanner::add(Point p, uint16_t radius_mm) {
-  if (n_ >= kMaxEchoes) return;
-  disks_[n_].c = p;
-  disks_[n_].r_mm = radius_mm;
-  ++n_;
+  uint8_t i = n_;
+  if (n_ >= kMaxEchoes) {
+    // Full (a sweep has more pings than there are disks): keep the nearest echoes, whose disks
+    // are the smallest (an echo's disk widens with its range), in place of the farthest.
+    i = 0;
+    for (uint8_t k = 1; k < n_; ++k) {
+      if (disks_[k].r_mm > disks_[i].r_mm) i = k;
+    }
+    if (disks_[i].r_mm <= radius_mm) return;
+  } else {
+    ++n_;
+  }
+  disks_[i].c = p;
+  disks_[i].r_mm = radius_mm;
 }
 
 bool LocalPlanner::inside(Point p) const {

@@ -34,7 +34,8 @@ class LocalPlanner {
 
   void clear() { n_ = 0; }
   uint8_t echoes() const { return n_; }
-  /// An obstacle point to keep the rover's centre at least radius_mm away from.
+  /// An obstacle point to keep the rover's centre at least radius_mm away from. When all
+  /// kMaxEchoes are held, the largest disk (the farthest echo) gives way to a smaller one.
   void add(Point p, uint16_t radius_mm);
   /// Whether the segment a-b passes within an obstacle disk (each disk shrunk by shrink_mm).
   bool blocks(Point a, Point b, uint16_t shrink_mm = 0) const;

@@ -104,3 +104,17 @@ TEST_CASE("a path from the host replaces the rover's own detour") {
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 120000));
   CHECK(b.closest_to_box_mm > 110.0f);
 }
+
+TEST_CASE("with more echoes than disks the planner keeps the nearest (the smallest disks)") {
+  core::LocalPlanner lp;
+  for (int i = 0; i < core::LocalPlanner::kMaxEchoes; ++i) {
+    lp.add(core::Point{static_cast<int16_t>(1000 + 100 * i), 0}, static_cast<uint16_t>(300 + i));
+  }
+  CHECK(lp.inside(core::Point{1800, 305}));            // only the farthest disk (radius 308) reaches here
+  lp.add(core::Point{0, 0}, 200);                      // a near echo: replaces the radius-308 disk
+  CHECK(lp.echoes() == core::LocalPlanner::kMaxEchoes);
+  CHECK(lp.inside(core::Point{0, 0}));
+  CHECK_FALSE(lp.inside(core::Point{1800, 305}));      // ... and it gave way
+  lp.add(core::Point{5000, 0}, 900);                   // far and wide: not kept
+  CHECK_FALSE(lp.inside(core::Point{5000, 0}));
+}
