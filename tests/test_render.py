@@ -1,6 +1,7 @@
 """The overhead-frame renderer: what it draws, where, in which colours, how exactly and how fast."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -124,7 +125,7 @@ def test_hidden_markers_and_decoys_are_drawn_as_asked():
 
 def test_a_frame_of_a_moving_rover_takes_a_few_milliseconds():
     """The simulator renders every camera frame: the static arena is cached, a frame is cheap.
-    (About 1 ms here; the bound leaves room for a slow or busy machine.)"""
+    (About 0.3 ms here, benchmarks/bench_render.py; the bound leaves room for a slow or busy machine.)"""
     r = Renderer(RoverLook(), Camera(lighting=Lighting.random(np.random.default_rng(2))))
     rng = np.random.default_rng(3)
     obstacles = ((1.3, 0.875, 0.2, 0.85), (1.1, 1.2, 0.6, 0.2))
@@ -135,3 +136,83 @@ def test_a_frame_of_a_moving_rover_takes_a_few_milliseconds():
         r.render(Scene(obstacles=obstacles, target=(2.0, 1.4), rover=(0.5 + 0.01 * i, 0.6, 3.0 * i)), rng)
         times.append(time.perf_counter() - t0)
     assert 1000 * float(np.median(times)) < 5.0
+
+
+OBSTACLES = ((0.8, 1.2, 0.3, 0.15), (1.6, 0.45, 0.25, 0.25), (1.1, 0.7, 0.18, 0.18), (1.65, 1.15, 0.15, 0.15))
+OBLIQUE = Calibration.from_corners([(60.0, 450.0), (600.0, 440.0), (520.0, 80.0), (130.0, 95.0)], W, H)
+
+
+@pytest.mark.parametrize("markers", ["colour", "aruco"])
+@pytest.mark.parametrize("calibration", [None, OBLIQUE], ids=["straight-down", "oblique"])
+def test_a_cached_frame_is_the_whole_scene_drawn_plainly_pixel_for_pixel(markers, calibration):
+    """render() keeps the lit arena and draws only a window round the rover; without noise its
+    frame must be what reference_frame() paints on one full-frame image: the rover anywhere
+    (crossing the frame's edge, off it, over the target, hidden markers), after the static scene
+    changed and changed back."""
+    cam = Camera(calibration=calibration, lighting=Lighting(level=1.0, gradient=0.25, vignette=0.35),
+                 noise_sigma=0.0)
+    r = Renderer(RoverLook(), cam, seed=7)
+    rng = np.random.default_rng(11)
+    decoys = (("back", 0.3, 1.5), (7, 2.1, 0.3))
+    arenas = [Scene(obstacles=OBSTACLES, target=(2.0, 1.4), marker_kind=markers, decoys=decoys),
+              Scene(obstacles=OBSTACLES[:2], target=(0.5, 1.5), marker_kind=markers)]
+    poses = [(1.0, 0.8, 30.0), (2.0, 1.4, -75.0), (0.02, 0.9, 45.0), (2.33, 1.73, 200.0), (-0.5, 0.9, 0.0),
+             (1.18, 0.02, 135.0)] + [(float(rng.uniform(-0.05, W + 0.05)), float(rng.uniform(-0.05, H + 0.05)),
+                                      float(rng.uniform(-180, 180))) for _ in range(6)]
+    checked = 0
+    for k, pose in enumerate(poses):
+        base = arenas[(k // 3) % 2]
+        hidden = frozenset({"tag"} if markers == "aruco" else {"front"}) if k == 4 else frozenset()
+        for scene in (dataclasses.replace(base, rover=pose, hidden=hidden), base):
+            got = r.render(scene, rng)
+            want = r.reference_frame(scene)
+            diff = np.argwhere(got != want)
+            assert diff.size == 0, f"rover {pose}: {len(diff)} values differ, first at {diff[0].tolist()}"
+            checked += 1
+    assert checked == 2 * len(poses)
+
+
+def _noise_of(r: Renderer, scene: Scene, frames: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The noise of `frames` frames (frame minus the noiseless reference, int16) and where it can be
+    seen unclipped (the noiseless value well inside 0-255)."""
+    rng = np.random.default_rng(seed)
+    clean = r.reference_frame(scene).astype(np.int16)
+    noise = np.stack([r.render(scene, rng).astype(np.int16) - clean for _ in range(frames)])
+    return noise, (clean > 20) & (clean < 235)
+
+
+def _box_round(mask: np.ndarray, grow: int) -> tuple[slice, slice]:
+    vv, uu = np.nonzero(mask)
+    return slice(max(vv.min() - grow, 0), vv.max() + grow + 1), slice(max(uu.min() - grow, 0), uu.max() + grow + 1)
+
+
+def test_the_noise_is_gaussian_everywhere_and_fresh_each_frame_where_the_locator_measures():
+    """The floor's noise may come from a few noisy copies of the arena kept from frame to frame; the
+    rover, the target and 6 px round them (where the locator weighs pixels for its centroids) get a
+    new draw every frame. Everywhere the noise is the camera's: mean 0, standard deviation sigma
+    (rounded: sqrt(sigma^2 + 1/12))."""
+    sigma = 3.0
+    cam = Camera(lighting=Lighting(level=1.0, gradient=0.2, vignette=0.3), noise_sigma=sigma)
+    r = Renderer(RoverLook(), cam, seed=3)
+    base = Scene(obstacles=OBSTACLES, target=(2.0, 1.4))
+    scene = dataclasses.replace(base, rover=(0.9, 0.5, 40.0))
+    noise, ok = _noise_of(r, scene, 24, seed=5)
+    expected = math.sqrt(sigma ** 2 + 1 / 12)
+    seen = noise[:, ok].astype(np.float64)
+    assert abs(seen.mean()) < 0.02
+    assert abs(seen.std() - expected) < 0.03 * expected
+    # Where the locator measures: the rover and the target, grown by 6 px.
+    rover_px = (r.reference_frame(scene) != r.reference_frame(base)).any(axis=2)
+    target_px = (r.reference_frame(base) != r.reference_frame(dataclasses.replace(base, target=None))).any(axis=2)
+    windows = {"rover": _box_round(rover_px, 6), "target": _box_round(target_px, 6)}
+    # Frames whose floor noise is the same (one kept copy) must still differ there.
+    floor = noise[:, 400:460, 20:80].reshape(len(noise), -1)
+    pairs = [(i, j) for i in range(len(noise)) for j in range(i + 1, len(noise)) if np.array_equal(floor[i], floor[j])]
+    patterns = len({floor[i].tobytes() for i in range(len(noise))})
+    assert pairs and 4 <= patterns < len(noise), (len(pairs), patterns)
+    for name, (vs, us) in windows.items():
+        win = noise[:, vs, us].reshape(len(noise), -1).astype(np.float64)
+        assert abs(win.std() - expected) < 0.06 * expected, name
+        for i, j in pairs:
+            c = np.corrcoef(win[i], win[j])[0, 1]
+            assert abs(c) < 0.1, f"{name}: frames {i} and {j} share their noise there (correlation {c:.2f})"

@@ -12,9 +12,11 @@ supersampling: a shape's coverage of each pixel is the mean of an 8 x 8 grid of 
 itself anti-aliased, so a marker moved by a tenth of a pixel moves its rendered centroid by a
 tenth of a pixel (to within 0.02 px).
 
-Speed: the floor, obstacles and target are drawn once per scene and cached; a frame then costs a
-copy, the rover (a few small patches) and the noise (a random window into a bank of Gaussian
-noise drawn once), about a millisecond for 640 x 480.
+Speed (benchmarks/bench_render.py): the floor, obstacles and target are drawn and lit once per
+scene and kept, with a few noisy copies; a frame then costs a copy of one of those, the rover drawn
+in a window round its body, and fresh noise (a random window into a bank of Gaussian noise drawn
+once) over the rover and the markers: about 0.25 ms for 640 x 480 on this project's 2-core
+machine, where drawing the rover with the whole frame's noise took 0.9 ms.
 
 Conventions are the vision package's: arena metres from the bottom-left corner, x right, y up;
 heading 0 = +y (up the image), clockwise positive, degrees.
@@ -32,9 +34,11 @@ from .vision.config import ARUCO_SIZE_M, MARKER_DISTANCE_M, ROVER_CENTRE_FRACTIO
 
 BGR = tuple[int, int, int]
 
-_SUPERSAMPLE = 8          # sub-pixels per pixel side when filling shapes
+_SUPERSAMPLE = 8          # sub-pixels per pixel side when filling shapes (a power of 2)
 _SHIFT_BITS = 8           # fixed-point fraction bits given to cv2.fillPoly
 _NOISE_PAD = 48           # the noise bank is this much larger than a frame on each axis
+_NOISE_POOL = 8           # noisy copies of the lit arena kept for the floor's noise (see Renderer)
+_FRESH_MARGIN_PX = 8      # fresh noise this far round every marker and the rover's body
 
 
 @dataclass(frozen=True)
@@ -167,42 +171,67 @@ def _rect(centre, forward, right, length_m: float, width_m: float) -> np.ndarray
     return np.array([c + f - r, c + f + r, c - f + r, c - f - r])
 
 
+def _rect_local(forward_m: float, length_m: float, width_m: float) -> np.ndarray:
+    """`_rect`'s corners in a body's own frame, (along forward, along right), centred forward_m ahead."""
+    f, r = length_m / 2, width_m / 2
+    return np.array([(forward_m + f, -r), (forward_m + f, r), (forward_m - f, r), (forward_m - f, -r)])
+
+
+# A shape to paint: polygons (pixel coordinates) filled together in one colour.
+_Shape = tuple[list[np.ndarray], BGR]
+
+
+def _group(corners: np.ndarray, groups: list[tuple[int, BGR]]) -> list[_Shape]:
+    """Quadrilaterals' corners (N x 4 x 2) split into shapes: [(count, colour), ...] in order."""
+    shapes, i = [], 0
+    for n, bgr in groups:
+        shapes.append((list(corners[i:i + n]), bgr))
+        i += n
+    return shapes
+
+
 def _coverage(polys_px: list[np.ndarray], shape_hw: tuple[int, int]):
     """Fraction of each pixel covered by the union of polygons (pixel coordinates).
 
     Returns (x0, y0, coverage float32) for the window of the frame the polygons touch, clipped to
     the frame, or None when they miss it.
     """
-    allp = np.concatenate(polys_px)
-    x0 = max(int(math.floor(allp[:, 0].min())) - 1, 0)
-    y0 = max(int(math.floor(allp[:, 1].min())) - 1, 0)
-    x1 = min(int(math.ceil(allp[:, 0].max())) + 2, shape_hw[1])
-    y1 = min(int(math.ceil(allp[:, 1].max())) + 2, shape_hw[0])
+    allp = polys_px[0] if len(polys_px) == 1 else np.concatenate(polys_px)
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    x0, y0 = max(math.floor(lo[0]) - 1, 0), max(math.floor(lo[1]) - 1, 0)
+    x1, y1 = min(math.ceil(hi[0]) + 2, shape_hw[1]), min(math.ceil(hi[1]) + 2, shape_hw[0])
     if x1 <= x0 or y1 <= y0:
         return None
     s = _SUPERSAMPLE
     buf = np.zeros(((y1 - y0) * s, (x1 - x0) * s), np.uint8)
     # Sub-pixel k of pixel u has its centre at u - 0.5 + (k + 0.5) / s, so pixel position p maps to
-    # s * (p - origin) + (s - 1) / 2 in the supersampled buffer.
-    scale = float(1 << _SHIFT_BITS)
-    pts = [np.round(((p - (x0, y0)) * s + (s - 1) / 2) * scale).astype(np.int32) for p in polys_px]
+    # s * (p - origin) + (s - 1) / 2 in the supersampled buffer, given to fillPoly in fixed point.
+    one = 1 << _SHIFT_BITS
+    fixed = np.rint((allp - (x0, y0)) * float(s * one) + (s - 1) / 2 * one).astype(np.int32)
+    pts = [fixed] if len(polys_px) == 1 else np.split(fixed, np.cumsum([len(p) for p in polys_px[:-1]]))
     # Anti-aliased edges in the supersampled buffer too: without, an edge moves in steps of 1/8 px.
     cv2.fillPoly(buf, pts, 255, lineType=cv2.LINE_AA, shift=_SHIFT_BITS)
-    small = cv2.resize(buf, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
+    # Box-average each s x s block down to one pixel, in halvings: OpenCV's INTER_AREA has a fast
+    # path for exactly 2:1 and a slow general one (an 8:1 step took 4 times as long as three 2:1
+    # steps). Each halving rounds to 1/255, so a coverage may be 1/255 off the exact block mean.
+    small = buf
+    while small.shape[0] > y1 - y0:
+        small = cv2.resize(small, (small.shape[1] // 2, small.shape[0] // 2), interpolation=cv2.INTER_AREA)
     return x0, y0, small.astype(np.float32) * (1.0 / 255.0)
 
 
 def _paint(img: np.ndarray, polys_px: list[np.ndarray], bgr) -> None:
-    """Blend a colour into img (float32, H x W x 3) over the polygons' coverage, in place."""
-    got = _coverage(polys_px, img.shape[:2])
+    """Blend a colour into img over the polygons' coverage, in place. img is float32 and planar,
+    3 x H x W (B, G, R planes): blending a coverage into planes is several times faster than into
+    interleaved H x W x 3 pixels, where numpy broadcasts over an axis of 3."""
+    got = _coverage(polys_px, img.shape[1:])
     if got is None:
         return
     x0, y0, cov = got
     h, w = cov.shape
-    roi = img[y0:y0 + h, x0:x0 + w]
-    c = cov[:, :, None]
-    roi *= 1.0 - c
-    roi += c * np.asarray(bgr, dtype=np.float32)
+    roi = img[:, y0:y0 + h, x0:x0 + w]
+    roi *= 1.0 - cov
+    roi += cov * np.asarray(bgr, dtype=np.float32)[:, None, None]
 
 
 _TAG_PATTERNS: dict[tuple[str, int], np.ndarray] = {}
@@ -219,26 +248,85 @@ def _tag_pattern(dictionary: str, tag_id: int) -> np.ndarray:
     return _TAG_PATTERNS[key]
 
 
+def _window(polys_px: list[np.ndarray], margin_px: int, shape_hw: tuple[int, int]):
+    """The pixel window (x0, y0, x1, y1) holding the polygons and margin_px more round them (at
+    least the window `_coverage` fills for each of them), clipped to the frame; None if empty."""
+    allp = np.concatenate(polys_px)
+    x0 = max(int(math.floor(allp[:, 0].min())) - max(margin_px, 1), 0)
+    y0 = max(int(math.floor(allp[:, 1].min())) - max(margin_px, 1), 0)
+    x1 = min(int(math.ceil(allp[:, 0].max())) + max(margin_px, 2), shape_hw[1])
+    y1 = min(int(math.ceil(allp[:, 1].max())) + max(margin_px, 2), shape_hw[0])
+    if x1 <= x0 or y1 <= y0:
+        return None
+    return x0, y0, x1, y1
+
+
+def _light_up(albedo: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """The camera's picture of an albedo (float32, planar 3 x H x W) under a light factor (H x W):
+    uint8 H x W x 3."""
+    lit = albedo * light
+    planes = np.clip(np.rint(lit, out=lit), 0, 255, out=lit).astype(np.uint8)
+    return cv2.merge(list(planes))
+
+
 class Renderer:
     """Draws frames of one camera; caches the static part of the last scene it drew.
 
     render(scene, rng) -> 640 x 480 BGR uint8 (the camera's size). rng (numpy Generator) chooses
     the frame's noise; the floor's pattern comes from `seed` and stays put from frame to frame.
+
+    What a frame costs (see benchmarks/bench_render.py): the arena without the rover (floor,
+    obstacles, target, decoys, lit) is drawn once per scene geometry and kept; a frame copies it and
+    draws only the rover, in a window round its body, from the kept unlit floor. The pixels are the
+    ones `reference_frame` computes by drawing everything on one image (a test checks that they are
+    equal, bit for bit).
+
+    Noise: Gaussian, standard deviation camera.noise_sigma, rounded, as a random window into a
+    bank drawn once from `seed`. Round everything the locator measures (the rover and a margin of
+    8 px round it, which holds the locator's refine windows round its markers; each static marker
+    with the same margin) the noise is a fresh window of the bank each frame, chosen by rng. Over
+    the rest (floor and obstacles, where no marker colour can appear) it comes from one of a few
+    noisy copies of the lit arena made once, chosen by the same draw: the same statistics pixel by
+    pixel, but re-used, which saves two full-frame operations a frame.
     """
 
     def __init__(self, look: RoverLook | None = None, camera: Camera | None = None, seed: int = 0):
         self.look = look or RoverLook()
         self.camera = camera or Camera()
         self.seed = seed
-        self._static_key = None
-        self._albedo: np.ndarray | None = None      # float32 H x W x 3, unlit
-        self._lit: np.ndarray | None = None         # uint8 H x W x 3, lit, no rover, no noise
+        self._shape_hw = (self.camera.height_px, self.camera.width_px)
         self._light = self.camera.lighting.factor(self.camera.width_px, self.camera.height_px)
-        self._noise: np.ndarray | None = None
+        self._floors: dict[tuple[float, float], np.ndarray] = {}
+        self._mappings: dict[tuple[float, float], Calibration] = {}
+        self._templates: dict[tuple, tuple[np.ndarray, list[tuple[int, BGR]]]] = {}
+        self._static_key = None
+        self._albedo: np.ndarray | None = None      # float32 3 x H x W (planar), unlit, no rover
+        self._lit: np.ndarray | None = None         # uint8 H x W x 3, lit, no rover, no noise
+        self._fresh: list[tuple[int, int, int, int]] = []   # windows round the static markers
+        self._noise: tuple[np.ndarray, np.ndarray] | None = None
+        self._pool_offsets: np.ndarray | None = None
+        self._pool: list[np.ndarray | None] = []
 
-    # -- static part -------------------------------------------------------------------------------
+    # -- what is drawn -----------------------------------------------------------------------------
+
+    def _mapping(self, arena_w_m: float, arena_h_m: float) -> Calibration:
+        key = (arena_w_m, arena_h_m)
+        got = self._mappings.get(key)
+        if got is None:
+            if len(self._mappings) > 4:
+                self._mappings.clear()
+            got = self._mappings[key] = self.camera.mapping(arena_w_m, arena_h_m)
+        return got
 
     def _floor(self, mapping: Calibration, arena_w_m: float, arena_h_m: float) -> np.ndarray:
+        """The unlit floor (float32, planar 3 x H x W); the same for every scene of one arena size."""
+        key = (arena_w_m, arena_h_m)
+        if key not in self._floors:
+            self._floors.clear()
+            self._floors[key] = self._draw_floor(mapping, arena_w_m, arena_h_m)
+        return self._floors[key]
+
+    def _draw_floor(self, mapping: Calibration, arena_w_m: float, arena_h_m: float) -> np.ndarray:
         cam, look = self.camera, self.look
         rng = np.random.default_rng(self.seed)
         uu, vv = np.meshgrid(np.arange(cam.width_px, dtype=np.float64), np.arange(cam.height_px, dtype=np.float64))
@@ -262,143 +350,199 @@ class Renderer:
         img = img + (mottle + grain)[..., None]
         inside = (x >= 0) & (x <= arena_w_m) & (y >= 0) & (y <= arena_h_m)
         img[~inside] = np.asarray(look.outside_bgr, np.float64)
-        return img.astype(np.float32)
+        return np.ascontiguousarray(img.astype(np.float32).transpose(2, 0, 1))
 
-    def _draw_tag(self, img: np.ndarray, mapping: Calibration, centre, heading_deg: float, tag_id: int) -> None:
+    # A template: a drawing in a marker's or the rover's own frame, as quadrilaterals' corners
+    # (N x 4 x 2: metres along its forward, metres along its right) and how they are painted:
+    # [(number of consecutive quadrilaterals filled together, colour), ...] in drawing order.
+
+    def _template(self, key: tuple) -> tuple[np.ndarray, list[tuple[int, BGR]]]:
+        got = self._templates.get(key)
+        if got is None:
+            got = self._templates[key] = self._make_template(key)
+        return got
+
+    def _make_template(self, key: tuple) -> tuple[np.ndarray, list[tuple[int, BGR]]]:
         look = self.look
-        pattern = _tag_pattern(look.aruco_dictionary, tag_id)
-        cells = pattern.shape[0]
-        cell_m = look.aruco_size_m / cells
-        fwd, right = _forward_right(heading_deg)
-        c = np.asarray(centre, dtype=np.float64)
-        # A white quiet zone one cell wide, so the black border stands out from the body or floor.
-        quiet = _rect(c, fwd, right, look.aruco_size_m + 2 * cell_m, look.aruco_size_m + 2 * cell_m)
-        _paint(img, [mapping.to_pixels(quiet)], (235, 235, 235))
-        polys = []
-        half = look.aruco_size_m / 2
-        for r in range(cells):
-            for k in range(cells):
-                if pattern[r, k]:
-                    a0, a1 = -half + k * cell_m, -half + (k + 1) * cell_m      # along right
-                    b1, b0 = half - r * cell_m, half - (r + 1) * cell_m        # along forward
-                    quad = np.array([c + a0 * right + b1 * fwd, c + a1 * right + b1 * fwd,
-                                     c + a1 * right + b0 * fwd, c + a0 * right + b0 * fwd])
-                    polys.append(mapping.to_pixels(quad))
-        _paint(img, polys, (20, 20, 20))
+        what = key[0]
+        if what == "square":
+            _, size_m, bgr = key
+            return _rect_local(0.0, size_m, size_m)[None], [(1, bgr)]
+        if what == "tag":
+            pattern = _tag_pattern(look.aruco_dictionary, key[1])
+            cells = pattern.shape[0]
+            cell_m = look.aruco_size_m / cells
+            # A white quiet zone one cell wide, so the black border stands out from the body or floor.
+            quads = [_rect_local(0.0, look.aruco_size_m + 2 * cell_m, look.aruco_size_m + 2 * cell_m)]
+            half = look.aruco_size_m / 2
+            for r in range(cells):
+                for k in range(cells):
+                    if pattern[r, k]:
+                        a0, a1 = -half + k * cell_m, -half + (k + 1) * cell_m      # along right
+                        b1, b0 = half - r * cell_m, half - (r + 1) * cell_m        # along forward
+                        quads.append(np.array([(b1, a0), (b1, a1), (b0, a1), (b0, a0)]))
+            return np.array(quads), [(1, (235, 235, 235)), (len(quads) - 1, (20, 20, 20))]
+        # The rover: its body, then its colour squares (back, front) or its tag.
+        _, marker_kind, hidden = key
+        quads = [_rect_local(look.body_offset_m, look.body_length_m, look.body_width_m)]
+        groups: list[tuple[int, BGR]] = [(1, look.body_bgr)]
+        if marker_kind == "aruco":
+            if "tag" not in hidden:
+                tag_quads, tag_groups = self._template(("tag", look.rover_tag_id))
+                quads += list(tag_quads)
+                groups += tag_groups
+        else:
+            back = -look.centre_fraction * look.marker_distance_m
+            for name, u, bgr in (("back", back, look.back_bgr),
+                                 ("front", back + look.marker_distance_m, look.front_bgr)):
+                if name not in hidden:
+                    quads.append(_rect_local(u, look.marker_size_m, look.marker_size_m))
+                    groups.append((1, bgr))
+        return np.array(quads), groups
 
-    def _draw_square(self, img, mapping, centre, size_m: float, bgr, heading_deg: float = 0.0) -> None:
-        fwd, right = _forward_right(heading_deg)
-        _paint(img, [mapping.to_pixels(_rect(centre, fwd, right, size_m, size_m))], bgr)
+    def _place(self, mapping: Calibration, key: tuple, centre, heading_deg: float) -> list[_Shape]:
+        """A template put at centre (arena metres) facing heading_deg: shapes in pixels."""
+        quads, groups = self._template(key)
+        return _group(self._corners(mapping, quads, centre, heading_deg), groups)
 
-    def _build_static(self, scene: Scene) -> None:
-        cam, look = self.camera, self.look
-        mapping = cam.mapping(scene.arena_w_m, scene.arena_h_m)
-        img = self._floor(mapping, scene.arena_w_m, scene.arena_h_m)
+    @staticmethod
+    def _corners(mapping: Calibration, quads: np.ndarray, centre, heading_deg: float) -> np.ndarray:
+        fwd, right = _forward_right(heading_deg)
+        return mapping.to_pixels(np.asarray(centre, dtype=np.float64) + quads @ np.array([fwd, right]))
+
+    def _static_shapes(self, scene: Scene, mapping: Calibration) -> tuple[list[_Shape], list[_Shape]]:
+        """What does not move, in drawing order: (obstacles, markers: decoys then the target)."""
+        look = self.look
         up, right = _forward_right(0.0)
+        boxes: list[_Shape] = []
         for cx, cy, w, h in scene.obstacles:
-            _paint(img, [mapping.to_pixels(_rect((cx, cy), up, right, h, w))], look.obstacle_rim_bgr)
+            boxes.append(([mapping.to_pixels(_rect((cx, cy), up, right, h, w))], look.obstacle_rim_bgr))
             rim = min(0.012, w / 4, h / 4)
-            _paint(img, [mapping.to_pixels(_rect((cx, cy), up, right, h - 2 * rim, w - 2 * rim))], look.obstacle_bgr)
+            boxes.append(([mapping.to_pixels(_rect((cx, cy), up, right, h - 2 * rim, w - 2 * rim))], look.obstacle_bgr))
         squares = {"front": (look.marker_size_m, look.front_bgr), "back": (look.marker_size_m, look.back_bgr),
                    "target": (look.target_size_m, look.target_bgr)}
+        markers: list[_Shape] = []
         for kind, x, y in scene.decoys:
             if isinstance(kind, int):
-                self._draw_tag(img, mapping, (x, y), 0.0, kind)
+                markers += self._place(mapping, ("tag", kind), (x, y), 0.0)
             elif kind in squares:
-                size, bgr = squares[kind]
-                self._draw_square(img, mapping, (x, y), size, bgr)
+                markers += self._place(mapping, ("square", *squares[kind]), (x, y), 0.0)
             else:
                 raise ValueError(f"decoy kind {kind!r}: expected 'front', 'back', 'target' or a tag id")
         if scene.target is not None:
             if scene.marker_kind == "aruco":
-                self._draw_tag(img, mapping, scene.target, 0.0, look.target_tag_id)
+                markers += self._place(mapping, ("tag", look.target_tag_id), scene.target, 0.0)
             else:
-                self._draw_square(img, mapping, scene.target, look.target_size_m, look.target_bgr)
-        self._albedo = img
-        lit = img * self._light[..., None]
-        self._lit = np.clip(np.rint(lit), 0, 255).astype(np.uint8)
+                markers += self._place(mapping, ("square", look.target_size_m, look.target_bgr), scene.target, 0.0)
+        return boxes, markers
+
+    def _rover_shapes(self, scene: Scene, mapping: Calibration) -> list[_Shape]:
+        """The rover in drawing order: its body, then its colour squares or its tag."""
+        x, y, heading = scene.rover  # type: ignore[misc]
+        return self._place(mapping, ("rover", scene.marker_kind, scene.hidden), (x, y), heading)
+
+    def _static_albedo(self, scene: Scene, mapping: Calibration) -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
+        """The unlit arena without the rover, and the windows round its markers."""
+        img = self._floor(mapping, scene.arena_w_m, scene.arena_h_m).copy()
+        boxes, markers = self._static_shapes(scene, mapping)
+        for polys, bgr in boxes + markers:
+            _paint(img, polys, bgr)
+        windows = [_window(polys, _FRESH_MARGIN_PX, self._shape_hw) for polys, _ in markers]
+        return img, [w for w in windows if w is not None]
+
+    def reference_frame(self, scene: Scene) -> np.ndarray:
+        """The scene without noise, drawn the plain way: everything static and the rover painted on
+        one full-frame copy of the floor (a function of the arena's size and `seed` alone), then
+        lit. A few milliseconds; `render` gives the same pixels (with noise_sigma 0, the same
+        frame) from its caches and a window round the rover."""
+        self._check(scene)
+        mapping = self.camera.mapping(scene.arena_w_m, scene.arena_h_m)
+        img = self._floor(mapping, scene.arena_w_m, scene.arena_h_m).copy()
+        boxes, markers = self._static_shapes(scene, mapping)
+        shapes = boxes + markers + (self._rover_shapes(scene, mapping) if scene.rover is not None else [])
+        for polys, bgr in shapes:
+            _paint(img, polys, bgr)
+        return _light_up(img, self._light)
 
     # -- per frame ---------------------------------------------------------------------------------
 
-    def _rover_body(self, scene: Scene, mapping: Calibration):
-        """The rover's centre (arena), heading, forward and right unit vectors, and body corners (pixels)."""
-        look = self.look
-        x, y, heading = scene.rover  # type: ignore[misc]
-        fwd, right = _forward_right(heading)
-        c = np.array([x, y], dtype=np.float64)
-        body = _rect(c + look.body_offset_m * fwd, fwd, right, look.body_length_m, look.body_width_m)
-        return c, heading, fwd, right, mapping.to_pixels(body)
-
-    def render(self, scene: Scene, rng: np.random.Generator) -> np.ndarray:
+    @staticmethod
+    def _check(scene: Scene) -> None:
         if scene.marker_kind not in ("colour", "aruco"):
             raise ValueError(f"marker_kind {scene.marker_kind!r}: expected 'colour' or 'aruco'")
-        cam, look = self.camera, self.look
+
+    def render(self, scene: Scene, rng: np.random.Generator) -> np.ndarray:
+        self._check(scene)
+        cam = self.camera
+        mapping = self._mapping(scene.arena_w_m, scene.arena_h_m)
         key = (scene.arena_w_m, scene.arena_h_m, scene.obstacles, scene.target, scene.marker_kind, scene.decoys)
         if key != self._static_key:
-            self._build_static(scene)
+            self._static_key = None
+            self._albedo, self._fresh = self._static_albedo(scene, mapping)
+            self._lit = _light_up(self._albedo, self._light)
+            self._pool = [None] * _NOISE_POOL
             self._static_key = key
-        assert self._lit is not None and self._albedo is not None
-        frame = self._lit.copy()
-        if scene.rover is not None:
-            self._draw_rover(frame, scene, cam.mapping(scene.arena_w_m, scene.arena_h_m))
-        if cam.noise_sigma > 0:
-            frame = self._add_noise(frame, rng)
+        lit = self._lit
+        assert lit is not None
+        rover = self._rover_patch(scene, mapping) if scene.rover is not None else None
+        if cam.noise_sigma <= 0:
+            frame = lit.copy()
+            if rover is not None:
+                (x0, y0, x1, y1), patch = rover
+                frame[y0:y1, x0:x1] = patch
+            return frame
+        oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, size=2))
+        frame = self._pool_frame((oy * (_NOISE_PAD + 1) + ox) % _NOISE_POOL).copy()
+        plus, minus = self._noise  # type: ignore[misc]
+
+        def fresh(x0: int, y0: int, x1: int, y1: int, clean: np.ndarray) -> None:
+            out = frame[y0:y1, x0:x1]
+            cv2.add(clean, plus[oy + y0:oy + y1, ox + x0:ox + x1], dst=out)
+            cv2.subtract(out, minus[oy + y0:oy + y1, ox + x0:ox + x1], dst=out)
+
+        for x0, y0, x1, y1 in self._fresh:
+            fresh(x0, y0, x1, y1, lit[y0:y1, x0:x1])
+        if rover is not None:
+            (x0, y0, x1, y1), patch = rover
+            m = _FRESH_MARGIN_PX
+            h, w = self._shape_hw
+            gx0, gy0, gx1, gy1 = max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, w), min(y1 + m, h)
+            fresh(gx0, gy0, gx1, gy1, lit[gy0:gy1, gx0:gx1])
+            fresh(x0, y0, x1, y1, patch)
         return frame
 
-    def _draw_rover(self, frame: np.ndarray, scene: Scene, mapping: Calibration) -> None:
-        look = self.look
-        c, heading, fwd, right, body_px = self._rover_body(scene, mapping)
-        # Work on an unlit patch around the rover, then light it and put it into the frame.
-        extent = max(look.body_length_m / 2 + abs(look.body_offset_m), look.body_width_m / 2,
-                     look.aruco_size_m * 0.75) + 0.01
-        box = mapping.to_pixels(_rect(c, fwd, right, 2 * extent, 2 * extent))
-        h_px, w_px = frame.shape[:2]
-        x0 = max(int(math.floor(box[:, 0].min())) - 2, 0)
-        y0 = max(int(math.floor(box[:, 1].min())) - 2, 0)
-        x1 = min(int(math.ceil(box[:, 0].max())) + 3, w_px)
-        y1 = min(int(math.ceil(box[:, 1].max())) + 3, h_px)
-        if x1 <= x0 or y1 <= y0:
-            return
-        patch = self._albedo[y0:y1, x0:x1].copy()   # type: ignore[index]
-        origin = np.array([x0, y0], dtype=np.float64)
-        shifted = _ShiftedMapping(mapping, origin)
-        _paint(patch, [body_px - origin], look.body_bgr)
-        if scene.marker_kind == "aruco":
-            if "tag" not in scene.hidden:
-                self._draw_tag(patch, shifted, c, heading, look.rover_tag_id)  # type: ignore[arg-type]
-        else:
-            d = look.marker_distance_m
-            back = c - look.centre_fraction * d * fwd
-            front = back + d * fwd
-            for name, centre, bgr in (("back", back, look.back_bgr), ("front", front, look.front_bgr)):
-                if name not in scene.hidden:
-                    self._draw_square(patch, shifted, centre, look.marker_size_m, bgr, heading)
-        lit = patch * self._light[y0:y1, x0:x1, None]
-        frame[y0:y1, x0:x1] = np.clip(np.rint(lit), 0, 255).astype(np.uint8)
+    def _rover_patch(self, scene: Scene, mapping: Calibration):
+        """The rover drawn and lit in the smallest window that holds it: ((x0, y0, x1, y1), uint8
+        patch), or None when it is out of sight. Painted on the kept unlit floor exactly as
+        `reference_frame` paints it on the whole frame (window-relative coordinates are exact)."""
+        x, y, heading = scene.rover  # type: ignore[misc]
+        quads, groups = self._template(("rover", scene.marker_kind, scene.hidden))
+        corners = self._corners(mapping, quads, (x, y), heading)
+        box = _window([corners.reshape(-1, 2)], 0, self._shape_hw)
+        if box is None:
+            return None
+        x0, y0, x1, y1 = box
+        patch = self._albedo[:, y0:y1, x0:x1].copy()   # type: ignore[index]
+        for polys, bgr in _group(corners - (x0, y0), groups):
+            _paint(patch, polys, bgr)
+        return box, _light_up(patch, self._light[y0:y1, x0:x1])
 
-    def _add_noise(self, frame: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Gaussian sensor noise from a bank drawn once, cut at a random offset each frame. Kept as
-        its positive and negative parts in uint8, so two saturating byte operations apply it."""
-        h, w = frame.shape[:2]
+    def _pool_frame(self, k: int) -> np.ndarray:
+        """The k-th noisy copy of the lit arena (made when first asked for)."""
         if self._noise is None:
+            h, w = self._shape_hw
             bank_rng = np.random.default_rng((self.seed, 0x5E4))
-            bank = np.rint(bank_rng.normal(0.0, self.camera.noise_sigma,
-                                           size=(h + _NOISE_PAD, w + _NOISE_PAD, 3)))
+            bank = np.rint(bank_rng.normal(0.0, self.camera.noise_sigma, size=(h + _NOISE_PAD, w + _NOISE_PAD, 3)))
             self._noise = (np.clip(bank, 0, 255).astype(np.uint8), np.clip(-bank, 0, 255).astype(np.uint8))
-        oy, ox = rng.integers(0, _NOISE_PAD + 1, size=2)
-        plus, minus = self._noise
-        frame = cv2.add(frame, plus[oy:oy + h, ox:ox + w])
-        return cv2.subtract(frame, minus[oy:oy + h, ox:ox + w])
-
-
-class _ShiftedMapping:
-    """A mapping whose pixel coordinates are relative to a patch's corner."""
-
-    def __init__(self, mapping: Calibration, origin_px: np.ndarray):
-        self._m, self._o = mapping, origin_px
-
-    def to_pixels(self, pts_m) -> np.ndarray:
-        return self._m.to_pixels(pts_m) - self._o
+            self._pool_offsets = bank_rng.integers(0, _NOISE_PAD + 1, size=(_NOISE_POOL, 2))
+        got = self._pool[k]
+        if got is None:
+            h, w = self._shape_hw
+            oy, ox = (int(v) for v in self._pool_offsets[k])  # type: ignore[index]
+            plus, minus = self._noise
+            got = self._pool[k] = cv2.subtract(cv2.add(self._lit, plus[oy:oy + h, ox:ox + w]),
+                                               minus[oy:oy + h, ox:ox + w])
+        return got
 
 
 _RENDERERS: dict[tuple, Renderer] = {}
