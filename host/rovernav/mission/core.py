@@ -122,6 +122,7 @@ class Mission:
         self._start_acked_for: int | None = None   # ... and acknowledged for
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
+        self._map_unsaved = False
         self._resume_leg = False
         self._last_heard_s = 0.0
 
@@ -198,6 +199,7 @@ class Mission:
         if self.done:
             return
         if self._map_changed_at is not None and now_s - self._map_changed_at > MAP_CHECK_S:
+            self._save_map()
             self._map_changed()   # the SCAN_DONE event was lost
         self._advance(now_s)
 
@@ -314,8 +316,7 @@ class Mission:
         reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
                                m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
         changed = self.map.add(reading)
-        if self.map_file is not None:
-            self.map.save(self.map_file)
+        self._map_unsaved = True
         if m.range_mm and self.legs:
             self.current_leg.obstacles_found += 1
         if changed:
@@ -331,6 +332,7 @@ class Mission:
             if self._start_sent_for == self.path_id and self._leg_open():
                 self._arrived()
         elif kind is mg.EventKind.SCAN_DONE:
+            self._save_map()   # once a sweep, not once a reading: the file grows with the map
             if self._map_changed_at is not None:
                 self._map_changed()
         elif kind is mg.EventKind.PATH_ACCEPTED:
@@ -348,7 +350,13 @@ class Mission:
             return
         self._leg_done()
 
+    def _save_map(self) -> None:
+        if self.map_file is not None and self._map_unsaved:
+            self.map.save(self.map_file)
+            self._map_unsaved = False
+
     def _leg_done(self) -> None:
+        self._save_map()
         leg = self.current_leg
         leg.finished_s, leg.reached = self._now, True
         self.on_event(self._now, f"leg {leg.index + 1} reached ({leg.goal[0]:.2f}, {leg.goal[1]:.2f}) m")
@@ -503,6 +511,7 @@ class Mission:
     def _fail(self, why: str, outcome: Outcome = Outcome.FAILED) -> None:
         if self.phase is Phase.FAILED:
             return
+        self._save_map()
         self.error = why
         self.outcome = outcome
         self._set_phase(Phase.FAILED)
