@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import collections
+import dataclasses
 import json
 import math
 
@@ -63,6 +64,13 @@ def test_every_written_file_loads_and_keeps_its_labels(arenas200, tmp_path):
         for o in loaded.obstacles:   # every box on the arena
             assert o.x_m - o.w_m / 2 >= -1e-9 and o.x_m + o.w_m / 2 <= loaded.arena.width_m + 1e-9
             assert o.y_m - o.h_m / 2 >= -1e-9 and o.y_m + o.h_m / 2 <= loaded.arena.height_m + 1e-9
+        assert loaded.walls == arena.scenario.walls and loaded.posts == arena.scenario.posts
+        for w in loaded.walls:       # every wall and post on the arena
+            assert all(-1e-9 <= x <= loaded.arena.width_m + 1e-9 and -1e-9 <= y <= loaded.arena.height_m + 1e-9
+                       for x, y in w.corners())
+        for o in loaded.posts:
+            assert o.radius_m - 1e-9 <= o.x_m <= loaded.arena.width_m - o.radius_m + 1e-9
+            assert o.radius_m - 1e-9 <= o.y_m <= loaded.arena.height_m - o.radius_m + 1e-9
     rows = json.loads((tmp_path / "index.json").read_text())
     assert [r["file"] for r in rows] == [p.name for p in paths]
     assert [(r["family"], r["solvable"], r["band"], r["score"]) for r in rows] == \
@@ -103,9 +111,20 @@ def test_the_unreachable_family_is_enclosed_and_start_at_target_is_within_5_cm(a
         assert 0.02 <= math.dist(a.scenario.start.xy, a.scenario.target.xy) <= 0.05, a.name
 
 
-def _gaps(scenario):
-    """Every axis-aligned gap [m] between two facing boxes, or a box and the arena's wall."""
+def _edges(scenario):
+    """x0, x1, y0, y1 [m] of every box and of every wall along x or y (a wall's square ends are
+    flush with its end points)."""
     edges = [(o.x_m - o.w_m / 2, o.x_m + o.w_m / 2, o.y_m - o.h_m / 2, o.y_m + o.h_m / 2) for o in scenario.obstacles]
+    for w in scenario.walls:
+        assert w.x0_m == w.x1_m or w.y0_m == w.y1_m, f"{scenario.name}: a wall at an angle"
+        xs, ys = [x for x, _ in w.corners()], [y for _, y in w.corners()]
+        edges.append((min(xs), max(xs), min(ys), max(ys)))
+    return edges
+
+
+def _gaps(scenario):
+    """Every axis-aligned gap [m] between two facing boxes or walls, or one of them and the arena's wall."""
+    edges = _edges(scenario)
     W, H = scenario.arena.width_m, scenario.arena.height_m
     gaps = []
     for x0, x1, y0, y1 in edges:
@@ -157,8 +176,8 @@ def test_families_put_unknown_boxes_where_they_say(arenas200):
     for a in of_family(arenas200, "out_and_back"):
         assert (a.scenario.mission.kind, a.scenario.mission.trips) == ("out-and-back", 1)
         assert a.scenario.unknown_obstacles, a.name
-    for family in FAMILY_NAMES:   # every family tests the sonar somewhere
-        assert any(a.scenario.unknown_obstacles for a in of_family(arenas200, family)), family
+    for family in FAMILY_NAMES:   # every family tests the sonar somewhere (an unknown box, wall or post)
+        assert any(a.scenario.unknown_shapes for a in of_family(arenas200, family)), family
 
 
 def _scenario(obstacles, start=(1.0, 0.6), target=(1.0, 1.4)):
@@ -190,6 +209,52 @@ def test_the_metrics_on_arenas_worked_by_hand():
     assert closed.difficulty["narrowest_dimension_m"] == 0.0
     assert "optimal_length_m" not in closed.difficulty
     assert closed.difficulty["known_path_blocked"] is True
+
+
+def test_rooms_are_drawn_with_walls_and_clutter_with_posts(arenas200):
+    for family in ("wall_gap", "corridor", "trap_l", "trap_u", "unreachable"):
+        assert all(a.scenario.walls for a in of_family(arenas200, family)), family
+    assert any(a.scenario.walls for a in of_family(arenas200, "narrow_passage"))       # its thin dividers
+    assert any(a.scenario.posts for a in of_family(arenas200, "clutter"))
+    assert any(not w.known for a in arenas200 for w in a.scenario.walls)
+    assert any(not p.known for a in arenas200 for p in a.scenario.posts)
+    doors = [w for a in of_family(arenas200, "wall_gap") for w in a.scenario.walls if not w.axis_aligned]
+    assert doors   # an open door leaf at an angle
+    for family in ("scattered", "unknown_on_path", "out_and_back"):   # these stay boxes
+        assert not any(a.scenario.walls or a.scenario.posts for a in of_family(arenas200, family)), family
+    # the index counts every obstacle, whatever its shape
+    a = next(a for a in arenas200 if a.scenario.walls and a.scenario.posts == () and a.scenario.obstacles == ())
+    from rovernav.sim.arenas import index_row
+    row = index_row(a)
+    assert row["known_obstacles"] + row["unknown_obstacles"] == len(a.scenario.walls)
+
+
+def test_the_metrics_count_walls_at_an_angle_and_posts():
+    from rovernav.scenario import Post, Wall
+
+    # A corridor 0.5 m wide at 45°, of walls 5 cm thick, along the straight way: as the axis-aligned one.
+    off = 0.275 / math.sqrt(2)
+    walls = (Wall(0.3 - off, 0.3 + off, 1.7 - off, 1.7 + off, 0.05),
+             Wall(0.3 + off, 0.3 - off, 1.7 + off, 1.7 - off, 0.05, known=False))
+    s = Scenario(name="t", arena=Arena(2.0, 2.0), start=Pose(0.6, 0.6), target=Target(1.4, 1.4), mission=Mission(),
+                 obstacles=(), walls=walls)
+    d = measure_scenario(s).difficulty
+    assert d["optimal_length_m"] == pytest.approx(0.8 * math.sqrt(2), abs=1e-6)
+    assert d["closest_obstacle_m"] == pytest.approx(0.25) and d["mean_clearance_m"] == pytest.approx(0.25)
+    assert d["characteristic_dimension_m"] == pytest.approx(0.5) and d["narrowest_dimension_m"] == pytest.approx(0.5)
+    assert d["dispersion"] > 4 and d["known_path_blocked"] is False
+    # A post 0.3 m beside the middle of a straight way.
+    s = _scenario([])
+    s = dataclasses.replace(s, posts=(Post(1.3, 1.0, 0.05, known=False),))
+    d = measure_scenario(s).difficulty
+    # (the path is sampled every 3 cm or less: its point nearest the post is within 1.5 cm of the middle)
+    assert d["closest_obstacle_m"] == pytest.approx(0.25, abs=1e-3)
+    assert d["narrowest_dimension_m"] == pytest.approx(1.0 + 0.25, abs=5e-3)   # from the left wall to the post
+    assert d["dispersion"] > 0
+    # Across the way, the post blocks the known path: the grid of every obstacle has it.
+    s = dataclasses.replace(s, posts=(Post(1.0, 1.0, 0.05, known=False),))
+    m = measure_scenario(s)
+    assert m.solvable and m.difficulty["known_path_blocked"] is True and m.difficulty["detour_ratio"] > 1.0
 
 
 def test_the_family_filter_keeps_only_those_families():

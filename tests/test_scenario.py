@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -254,3 +255,84 @@ def test_a_bad_generated_table_names_the_file_and_the_key(tmp_path, what, breaks
 def test_a_generated_scenario_can_still_be_hashed():
     plain, generated = parse_scenario(GOOD), parse_scenario(GENERATED)
     assert hash(plain) == hash(generated) and plain != generated
+
+
+# --- walls and posts -------------------------------------------------------------------------
+
+WALLS = GOOD + """
+[[walls]]
+x0_m = 0.9
+y0_m = 0.0
+x1_m = 0.9
+y1_m = 0.6
+thickness_m = 0.05
+
+[[walls]]
+x0_m = 1.2
+y0_m = 0.9
+x1_m = 1.6
+y1_m = 1.3
+thickness_m = 0.04
+known = false
+
+[[posts]]
+x_m = 1.5
+y_m = 0.4
+radius_m = 0.05
+known = false
+"""
+
+
+def test_walls_and_posts_load_and_list_with_the_boxes():
+    from rovernav.scenario import Obstacle, Post, Wall
+
+    scenario = parse_scenario(WALLS)
+    assert scenario.walls == (Wall(0.9, 0.0, 0.9, 0.6, 0.05, True), Wall(1.2, 0.9, 1.6, 1.3, 0.04, False))
+    assert scenario.posts == (Post(1.5, 0.4, 0.05, False),)
+    assert scenario.obstacles == parse_scenario(GOOD).obstacles   # the boxes as before
+    assert [o.kind for o in scenario.shapes] == ["box", "box", "wall", "wall", "post"]
+    assert scenario.known_shapes == (scenario.obstacles[0], scenario.walls[0])
+    assert scenario.unknown_shapes == (scenario.obstacles[1], scenario.walls[1], scenario.posts[0])
+    assert isinstance(scenario.shapes[0], Obstacle)
+    # geometry: square ends flush with the end points, exact distances
+    wall = scenario.walls[0]
+    assert sorted(wall.corners()) == sorted([(0.875, 0.0), (0.925, 0.0), (0.925, 0.6), (0.875, 0.6)])
+    assert wall.distance_m(0.9, 0.7) == pytest.approx(0.1) and wall.distance_m(1.0, 0.3) == pytest.approx(0.075)
+    assert wall.distance_m(0.9, 0.3) == 0.0 and wall.axis_aligned and not scenario.walls[1].axis_aligned
+    assert scenario.walls[1].distance_m(1.4 - 0.1, 1.1 + 0.1) == pytest.approx(0.1 * math.sqrt(2) - 0.02)
+    assert scenario.posts[0].distance_m(1.5, 0.6) == pytest.approx(0.15)
+    # files without walls or posts have none; the scenario still hashes (walls and posts included)
+    assert parse_scenario(GOOD).walls == () and parse_scenario(GOOD).posts == ()
+    assert hash(scenario) != hash(parse_scenario(GOOD)) and hash(scenario) == hash(parse_scenario(WALLS))
+    for name in SHARED:
+        assert load_scenario(name).walls == () and load_scenario(name).posts == ()
+
+
+WALL_MISTAKES = [
+    ("zero thickness", lambda t: _replace(t, "thickness_m = 0.05", "thickness_m = 0"), "walls[0].thickness_m", "> 0"),
+    ("text for an end", lambda t: _replace(t, "x1_m = 1.6", 'x1_m = "1.6"'), "walls[1].x1_m", "number"),
+    ("infinite end", lambda t: _replace(t, "y1_m = 1.3", "y1_m = inf"), "walls[1].y1_m", "number"),
+    ("missing end", lambda t: _replace(t, "y0_m = 0.9\n", ""), "walls[1].y0_m", "missing"),
+    ("no length", lambda t: _replace(t, "y1_m = 0.6", "y1_m = 0.0"), "walls[0]", "has no length"),
+    ("unknown wall key", lambda t: _replace(t, "thickness_m = 0.04", "thickness_m = 0.04\nheight_m = 1"),
+     "walls[1].height_m", "not a known key"),
+    ("bad wall known", lambda t: _replace(t, "known = false\n\n[[posts]]", 'known = 0\n\n[[posts]]'),
+     "walls[1].known", "true or false"),
+    ("walls not an array", lambda t: "walls = 3\n" + t[:t.index("[[walls]]")], "walls", "array of tables"),
+    ("negative radius", lambda t: _replace(t, "radius_m = 0.05", "radius_m = -0.05"), "posts[0].radius_m", "> 0"),
+    ("nan post", lambda t: _replace(t, "x_m = 1.5", "x_m = nan"), "posts[0].x_m", "number"),
+    ("unknown post key", lambda t: _replace(t, "radius_m = 0.05", "radius_m = 0.05\nw_m = 0.1"),
+     "posts[0].w_m", "not a known key"),
+    ("missing radius", lambda t: _replace(t, "radius_m = 0.05\n", ""), "posts[0].radius_m", "missing"),
+]
+
+
+@pytest.mark.parametrize("what, breaks, key, says", WALL_MISTAKES, ids=[m[0] for m in WALL_MISTAKES])
+def test_a_bad_wall_or_post_names_the_file_and_the_key(tmp_path, what, breaks, key, says):
+    f = tmp_path / "walls.toml"
+    f.write_text(breaks(WALLS))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(f)
+    message = str(info.value)
+    assert message.startswith(f"{f}: {key} "), message
+    assert says in message

@@ -7,14 +7,24 @@
     [start]     x_m, y_m, heading_deg = 0             (on the arena; 0° = +y, clockwise positive)
     [target]    x_m, y_m                              (on the arena)
     [mission]   kind = "reach" | "out-and-back", trips = 1   (optional table; trips ≥ 1)
-    [[obstacles]]  x_m, y_m (centre), w_m, h_m (size > 0), known = true
+    [[obstacles]]  x_m, y_m (centre), w_m, h_m (size > 0), known = true      (axis-aligned boxes)
+    [[walls]]      x0_m, y0_m, x1_m, y1_m (the centre line's ends, apart), thickness_m (> 0),
+                   known = true                                               (optional)
+    [[posts]]      x_m, y_m (centre), radius_m (> 0), known = true            (optional)
     [generated]    optional: how `rovernav arenas` made the file (see below)
 
 Metres and degrees; origin at the arena's bottom-left corner, x right, y up. `known = false`
 obstacles exist only in the world: the planner learns them through the sonar. Every problem
 raises `ScenarioError` (a ValueError) naming the file and the key, e.g.
 "seed.toml: obstacles[2].w_m must be a number > 0, got -0.1". Unknown keys are refused, so
-a misspelt key cannot be silently ignored.
+a misspelt key cannot be silently ignored. As for boxes, nothing requires a wall or a post to lie
+on the arena (the part off it is simply outside the arena's wall).
+
+A wall is the rectangle swept by its thickness across the segment from (x0_m, y0_m) to
+(x1_m, y1_m): `thickness_m` wide, centred on the segment, with square ends flush with the end
+points (a wall drawn from the arena's edge starts at the edge; where two walls meet in an L,
+extend one by half the thickness to close the outer corner). A post is a round pillar (a
+disk in plan). Boxes, walls and posts are all obstacles: `Scenario.shapes` lists every one.
 
 A generated arena (rovernav.sim.arenas) carries its labels; none of them changes the mission:
 
@@ -37,7 +47,7 @@ import math
 import os
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Union
 
 from .errors import InputError
 
@@ -94,6 +104,84 @@ class Obstacle:
     h_m: float
     known: bool = True
 
+    kind: ClassVar[str] = "box"
+
+    def distance_m(self, x_m: float, y_m: float) -> float:
+        """Distance from the point to the box (0 inside it)."""
+        return math.hypot(max(abs(x_m - self.x_m) - self.w_m / 2, 0.0), max(abs(y_m - self.y_m) - self.h_m / 2, 0.0))
+
+    def describe(self) -> str:
+        return f"box at ({self.x_m:.2f}, {self.y_m:.2f}) m, {self.w_m:.2f} x {self.h_m:.2f} m"
+
+
+@dataclasses.dataclass(frozen=True)
+class Wall:
+    """A straight wall: the rectangle `thickness_m` wide centred on the segment from (x0_m, y0_m)
+    to (x1_m, y1_m), its ends square and flush with those points."""
+
+    x0_m: float
+    y0_m: float
+    x1_m: float
+    y1_m: float
+    thickness_m: float
+    known: bool = True
+
+    kind: ClassVar[str] = "wall"
+
+    @property
+    def length_m(self) -> float:
+        return math.hypot(self.x1_m - self.x0_m, self.y1_m - self.y0_m)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """Whether the wall runs along x or y (it is then an axis-aligned box)."""
+        return self.x0_m == self.x1_m or self.y0_m == self.y1_m
+
+    def frame(self) -> tuple[float, float, float, float, float, float]:
+        """(centre x, centre y, unit vector along x, y, half length, half thickness) [m]."""
+        length = self.length_m
+        ux, uy = (self.x1_m - self.x0_m) / length, (self.y1_m - self.y0_m) / length
+        return ((self.x0_m + self.x1_m) / 2, (self.y0_m + self.y1_m) / 2, ux, uy, length / 2, self.thickness_m / 2)
+
+    def corners(self) -> tuple[tuple[float, float], ...]:
+        """The rectangle's 4 corners [m], in order round it."""
+        cx, cy, ux, uy, a, b = self.frame()
+        return tuple((cx + s * a * ux - t * b * uy, cy + s * a * uy + t * b * ux)
+                     for s, t in ((1, 1), (1, -1), (-1, -1), (-1, 1)))
+
+    def distance_m(self, x_m: float, y_m: float) -> float:
+        """Distance from the point to the wall's rectangle (0 inside it)."""
+        cx, cy, ux, uy, a, b = self.frame()
+        dx, dy = x_m - cx, y_m - cy
+        along, across = dx * ux + dy * uy, -dx * uy + dy * ux
+        return math.hypot(max(abs(along) - a, 0.0), max(abs(across) - b, 0.0))
+
+    def describe(self) -> str:
+        return (f"from ({self.x0_m:.2f}, {self.y0_m:.2f}) to ({self.x1_m:.2f}, {self.y1_m:.2f}) m, "
+                f"{self.thickness_m:.2f} m thick")
+
+
+@dataclasses.dataclass(frozen=True)
+class Post:
+    """A round post (a pillar, a table leg): centre (x_m, y_m), radius_m."""
+
+    x_m: float
+    y_m: float
+    radius_m: float
+    known: bool = True
+
+    kind: ClassVar[str] = "post"
+
+    def distance_m(self, x_m: float, y_m: float) -> float:
+        """Distance from the point to the post (0 inside it)."""
+        return max(math.hypot(x_m - self.x_m, y_m - self.y_m) - self.radius_m, 0.0)
+
+    def describe(self) -> str:
+        return f"at ({self.x_m:.2f}, {self.y_m:.2f}) m, radius {self.radius_m:.3f} m"
+
+
+Shape = Union[Obstacle, Wall, Post]
+
 
 @dataclasses.dataclass(frozen=True)
 class Scenario:
@@ -106,6 +194,8 @@ class Scenario:
     description: str = ""
     version: int = FORMAT_VERSION
     path: Path | None = None
+    walls: tuple[Wall, ...] = ()
+    posts: tuple[Post, ...] = ()
     # The [generated] table of a generated arena, else None (a dict: left out of the hash).
     generated: dict | None = dataclasses.field(default=None, hash=False)
 
@@ -116,6 +206,20 @@ class Scenario:
     @property
     def unknown_obstacles(self) -> tuple[Obstacle, ...]:
         return tuple(o for o in self.obstacles if not o.known)
+
+    @property
+    def shapes(self) -> tuple[Shape, ...]:
+        """Every obstacle of every kind: the boxes, then the walls, then the posts (each has
+        `kind`, `known`, `distance_m(x, y)` and `describe()`)."""
+        return (*self.obstacles, *self.walls, *self.posts)
+
+    @property
+    def known_shapes(self) -> tuple[Shape, ...]:
+        return tuple(o for o in self.shapes if o.known)
+
+    @property
+    def unknown_shapes(self) -> tuple[Shape, ...]:
+        return tuple(o for o in self.shapes if not o.known)
 
 
 # --- finding scenarios -----------------------------------------------------------------------
@@ -210,6 +314,22 @@ class _Reader:
             raise self.fail(name, f"must be a number > 0, got {value!r}")
         return float(value)
 
+    def array(self, doc: dict[str, Any], key: str, allowed: tuple[str, ...]):
+        """The tables of an optional array of tables ([[key]]): (prefix "key[i].", table, known),
+        each checked for unknown keys and its `known` flag (default true)."""
+        values = doc.get(key, [])
+        if not isinstance(values, list):
+            raise self.fail(key, f"must be an array of tables ([[{key}]])")
+        for i, o in enumerate(values):
+            if not isinstance(o, dict):
+                raise self.fail(f"{key}[{i}]", f"must be a table, got {o!r}")
+            prefix = f"{key}[{i}]."
+            self.only(o, prefix, allowed)
+            known = o.get("known", True)
+            if not isinstance(known, bool):
+                raise self.fail(f"{prefix}known", f"must be true or false, got {known!r}")
+            yield prefix, o, known
+
 
 def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> Scenario:
     """Parse scenario TOML text; `source` (a path or label) starts every error message."""
@@ -219,7 +339,7 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML: {exc}") from exc
     r.only(doc, "", ("name", "version", "description", "arena", "start", "target", "mission", "obstacles",
-                     "generated"))
+                     "walls", "posts", "generated"))
 
     if "version" not in doc:
         raise r.fail("version", f"is missing (this reader understands version {FORMAT_VERSION})")
@@ -265,28 +385,30 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
         raise r.fail("mission.trips", f"must be a whole number ≥ 1, got {trips!r}")
     mission = Mission(kind, trips)
 
-    obstacles_v = doc.get("obstacles", [])
-    if not isinstance(obstacles_v, list):
-        raise r.fail("obstacles", "must be an array of tables ([[obstacles]])")
     obstacles = []
-    for i, o in enumerate(obstacles_v):
-        prefix = f"obstacles[{i}]."
-        if not isinstance(o, dict):
-            raise r.fail(f"obstacles[{i}]", f"must be a table, got {o!r}")
-        r.only(o, prefix, ("x_m", "y_m", "w_m", "h_m", "known"))
-        known = o.get("known", True)
-        if not isinstance(known, bool):
-            raise r.fail(f"{prefix}known", f"must be true or false, got {known!r}")
+    for prefix, o, known in r.array(doc, "obstacles", ("x_m", "y_m", "w_m", "h_m", "known")):
         obstacles.append(Obstacle(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
                                   r.number(o, prefix, "w_m", positive=True),
                                   r.number(o, prefix, "h_m", positive=True), known))
+    walls = []
+    for prefix, o, known in r.array(doc, "walls", ("x0_m", "y0_m", "x1_m", "y1_m", "thickness_m", "known")):
+        wall = Wall(*(r.number(o, prefix, k) for k in ("x0_m", "y0_m", "x1_m", "y1_m")),
+                    r.number(o, prefix, "thickness_m", positive=True), known)
+        if not wall.length_m > 0:
+            raise r.fail(prefix[:-1], f"has no length: both ends at ({wall.x0_m}, {wall.y0_m}) "
+                                      "(x0_m, y0_m and x1_m, y1_m must differ)")
+        walls.append(wall)
+    posts = []
+    for prefix, o, known in r.array(doc, "posts", ("x_m", "y_m", "radius_m", "known")):
+        posts.append(Post(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
+                          r.number(o, prefix, "radius_m", positive=True), known))
 
     generated = _generated(r, doc) if "generated" in doc else None
 
     path = Path(source) if not str(source).startswith("<") else None
     return Scenario(name=name, arena=arena, start=start, target=target, mission=mission,
                     obstacles=tuple(obstacles), description=description, version=version, path=path,
-                    generated=generated)
+                    walls=tuple(walls), posts=tuple(posts), generated=generated)
 
 
 def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:

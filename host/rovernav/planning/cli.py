@@ -91,7 +91,7 @@ def run_plan(args: argparse.Namespace) -> int:
         }))
     elif result:
         name = "A*" if args.planner == "astar" else "potential field"
-        known = "all obstacles" if args.all_obstacles else f"{len(scenario.known_obstacles)} known obstacles"
+        known = "all obstacles" if args.all_obstacles else f"{len(scenario.known_shapes)} known obstacles"
         print(f"{scenario.name}: {name} found a path of {result.length_m:.3f} m in {time_ms:.2f} ms "
               f"({grid.nx} × {grid.ny} cells of {grid.resolution_m} m built in {grid_ms:.2f} ms, {known}, "
               f"{result.expansions} expansions, {len(result.cells)} cells → {len(result.waypoints)} waypoints)")

@@ -7,10 +7,13 @@ Cells and coordinates
     them to draw an image). The last column and row may reach past the arena's edge.
 
 Obstacles and layers
-    Obstacles are kept as geometry: axis-aligned boxes (centre, size) and small disks (the
-    points a sonar echo's arc is sampled at, each with a radius covering the arc between
-    samples). From them:
-    `raw`: the cells a box overlaps or a disk's centre lies in (what an obstacle occupies).
+    Obstacles are kept as geometry: axis-aligned boxes (centre, size), walls (oriented
+    rectangles: a segment with a thickness, square ends flush with its end points; a wall along
+    x or y is kept as the box it is), posts (disks of any radius) and small disks (the points a
+    sonar echo's arc is sampled at, each with a radius covering the arc between samples). From
+    them:
+    `raw`: the cells a box, a wall or a post overlaps (with some area, not only an edge) or a
+    sonar disk's centre lies in (what an obstacle occupies).
     `inflated`: the cells the rover's centre must not enter: those whose centre lies within
     `config.inflation_m` (robot radius + sonar margin) of an obstacle, or of the arena's
     wall. The distance is exact (the seed's rule: a cell centre within the robot radius of
@@ -60,6 +63,9 @@ class OccupancyGrid:
         self.xs = (np.arange(self.nx) + 0.5) * res   # cell-centre x [m] of each column
         self.ys = (np.arange(self.ny) + 0.5) * res   # cell-centre y [m] of each row
         self.boxes: list[tuple[float, float, float, float]] = []   # (x, y, w, h) [m]
+        # Oblique walls: (centre x, centre y, unit vector along x, y, half length, half thickness) [m]
+        self.walls: list[tuple[float, float, float, float, float, float]] = []
+        self.posts: list[tuple[float, float, float]] = []   # (x, y, radius) [m]
         self.disks: list[np.ndarray] = []   # groups of disks, each an (n, 3) array of (x, y, radius) [m]
         self.raw = np.zeros((self.ny, self.nx), dtype=np.bool_)
         self.inflated = self.wall_band(self.config.inflation_m)
@@ -76,6 +82,12 @@ class OccupancyGrid:
         for o in scenario.obstacles:
             if all_obstacles or o.known:
                 grid.add_box(o.x_m, o.y_m, o.w_m, o.h_m)
+        for w in getattr(scenario, "walls", ()):
+            if all_obstacles or w.known:
+                grid.add_wall(w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m)
+        for p in getattr(scenario, "posts", ()):
+            if all_obstacles or p.known:
+                grid.add_post(p.x_m, p.y_m, p.radius_m)
         return grid
 
     @classmethod
@@ -97,6 +109,8 @@ class OccupancyGrid:
         other.raw = self.raw.copy()
         other.inflated = self.inflated.copy()
         other.boxes = list(self.boxes)
+        other.walls = list(self.walls)
+        other.posts = list(self.posts)
         other.disks = list(self.disks)
         return other
 
@@ -154,6 +168,29 @@ class OccupancyGrid:
         dy = np.maximum(np.abs(self.ys[rows] - y) - h / 2, 0.0)
         return (rows, cols), np.sqrt(dx[None, :] ** 2 + dy[:, None] ** 2)
 
+    def _wall_local(self, wall: tuple[float, float, float, float, float, float], reach: float
+                    ) -> tuple[tuple[slice, slice], np.ndarray, np.ndarray]:
+        """The window of cells round an oblique wall and their centres in the wall's frame:
+        (window, |along| [m], |across| [m])."""
+        cx, cy, ux, uy, a, b = wall
+        ex, ey = abs(ux) * a + abs(uy) * b, abs(uy) * a + abs(ux) * b   # half extents of the bounding box
+        rows, cols = self._window(cx - ex, cy - ey, cx + ex, cy + ey, reach)
+        dx = self.xs[cols][None, :] - cx
+        dy = self.ys[rows][:, None] - cy
+        return (rows, cols), np.abs(dx * ux + dy * uy), np.abs(dy * ux - dx * uy)
+
+    def _wall_distance(self, wall: tuple[float, float, float, float, float, float], reach: float
+                       ) -> tuple[tuple[slice, slice], np.ndarray]:
+        window, along, across = self._wall_local(wall, reach)
+        a, b = wall[4], wall[5]
+        return window, np.hypot(np.maximum(along - a, 0.0), np.maximum(across - b, 0.0))
+
+    def _post_distance(self, post: tuple[float, float, float], reach: float) -> tuple[tuple[slice, slice], np.ndarray]:
+        x, y, r = post
+        rows, cols = self._window(x - r, y - r, x + r, y + r, reach)
+        d = np.hypot(self.xs[cols][None, :] - x, self.ys[rows][:, None] - y) - r
+        return (rows, cols), np.maximum(d, 0.0)
+
     def _disk_distance(self, disks: np.ndarray, reach: float) -> tuple[tuple[slice, slice], np.ndarray]:
         lo = disks[:, :2].min(axis=0)
         hi = disks[:, :2].max(axis=0)
@@ -167,6 +204,8 @@ class OccupancyGrid:
         """Distance [m] from each cell centre to the nearest obstacle (0 inside one), inf beyond `reach_m`."""
         out = np.full((self.ny, self.nx), np.inf)
         parts = [self._box_distance(b, reach_m) for b in self.boxes]
+        parts += [self._wall_distance(w, reach_m) for w in self.walls]
+        parts += [self._post_distance(p, reach_m) for p in self.posts]
         parts += [self._disk_distance(d, reach_m) for d in self.disks]
         for (rows, cols), d in parts:
             np.minimum(out[rows, cols], d, out=out[rows, cols])
@@ -209,6 +248,63 @@ class OccupancyGrid:
         self.boxes.append(box)
         self.version += 1
         return self._grow(self._box_distance(box, self.config.inflation_m))
+
+    def add_wall(self, x0_m: float, y0_m: float, x1_m: float, y1_m: float, thickness_m: float) -> int:
+        """Add a wall: the rectangle `thickness_m` wide centred on the segment from (x0, y0) to
+        (x1, y1) [m], square ends flush with the end points; returns how many cells it newly
+        inflated. A wall along x or y is the box it covers (add_box); an oblique one is inflated
+        by the exact distance from each cell centre to its rectangle (the distance to the segment
+        minus half the thickness, except off the square ends), and its raw cells are those the
+        rectangle overlaps (a separating-axis test against each cell's square)."""
+        values = (x0_m, y0_m, x1_m, y1_m, thickness_m)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"wall must be finite numbers, got {values!r}")
+        if not thickness_m > 0:
+            raise ValueError(f"wall thickness must be positive, got {thickness_m!r} m")
+        length = math.hypot(x1_m - x0_m, y1_m - y0_m)
+        if not length > 0:
+            raise ValueError(f"wall must have a length, both ends at ({x0_m!r}, {y0_m!r})")
+        if x0_m == x1_m:
+            return self.add_box(x0_m, (y0_m + y1_m) / 2, thickness_m, abs(y1_m - y0_m))
+        if y0_m == y1_m:
+            return self.add_box((x0_m + x1_m) / 2, y0_m, abs(x1_m - x0_m), thickness_m)
+        ux, uy = (x1_m - x0_m) / length, (y1_m - y0_m) / length
+        wall = (float((x0_m + x1_m) / 2), float((y0_m + y1_m) / 2), float(ux), float(uy), float(length / 2),
+                float(thickness_m / 2))
+        h = self.resolution_m / 2
+        # A cell's square and the rectangle overlap unless an axis of either separates them: the
+        # square's axes (x, y: within the rectangle's bounding box) or the rectangle's (along,
+        # across: the square's half extent projected on them is h(|ux| + |uy|)).
+        (rows, cols), along, across = self._wall_local(wall, h)
+        a, b = wall[4], wall[5]
+        ex, ey = abs(ux) * a + abs(uy) * b, abs(uy) * a + abs(ux) * b
+        reach = h * (abs(ux) + abs(uy))
+        inside_x = np.abs(self.xs[cols] - wall[0]) < ex + h
+        inside_y = np.abs(self.ys[rows] - wall[1]) < ey + h
+        overlap = (along < a + reach) & (across < b + reach) & inside_x[None, :] & inside_y[:, None]
+        self.raw[rows, cols] |= overlap
+        self.walls.append(wall)
+        self.version += 1
+        return self._grow(self._wall_distance(wall, self.config.inflation_m))
+
+    def add_post(self, x_m: float, y_m: float, radius_m: float) -> int:
+        """Add a round post (centre, radius [m]); returns how many cells it newly inflated. Its raw
+        cells are those whose square the disk overlaps; the inflation is exact (distance from a
+        cell centre to the post's centre, minus the radius)."""
+        if not all(math.isfinite(v) for v in (x_m, y_m, radius_m)):
+            raise ValueError(f"post must be finite numbers, got {(x_m, y_m, radius_m)!r}")
+        if not radius_m > 0:
+            raise ValueError(f"post radius must be positive, got {radius_m!r} m")
+        post = (float(x_m), float(y_m), float(radius_m))
+        h = self.resolution_m / 2
+        rows, cols = self._window(x_m - radius_m, y_m - radius_m, x_m + radius_m, y_m + radius_m, h)
+        # Nearest point of each cell's square to the centre.
+        dx = np.maximum(np.abs(self.xs[cols] - x_m) - h, 0.0)
+        dy = np.maximum(np.abs(self.ys[rows] - y_m) - h, 0.0)
+        self.raw[rows, cols] |= np.hypot(dx[None, :], dy[:, None]) < radius_m
+        self.posts.append(post)
+        self.version += 1
+        return self._grow(self._post_distance(post, self.config.inflation_m))
 
     def add_disks(self, centres_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, int]:
         """Add small round obstacles (centres [m], one radius [m]); returns (new raw cells, newly inflated count).

@@ -15,8 +15,10 @@ number (i − 1) mod F of the F families asked for, so any count ≥ F covers al
 
 Geometry
     Arenas are 2.0-3.0 m × 1.5-2.2 m (the seed's is 2.36 × 1.75 m), so that missions stay as
-    short as the seed's. Obstacles are axis-aligned boxes: the seed's box sizes, walls and
-    dividers 0.04-0.06 m thick, blocks up to 0.25 m. Every length that depends on the rover
+    short as the seed's. Obstacles: axis-aligned boxes (the seed's box sizes, blocks up to
+    0.25 m), walls ([[walls]]: dividers, corridor walls, traps and enclosures, 0.04-0.06 m thick,
+    the traps' also 0.1 or 0.2 m; along x or y, but for wall_gap's door leaf, open at 70-90°) and
+    round posts ([[posts]], 0.05-0.10 m across, in the clutter family). Every length that depends on the rover
     comes from PlannerConfig: the planner keeps the rover's centre `inflation_m` (robot radius +
     sonar margin, 0.17 m) from obstacles and walls, so a passage up to 2 × inflation_m wide is
     closed, and one up to a cell (0.03 m) wider is open or closed depending on where the cell
@@ -25,7 +27,7 @@ Geometry
     left-right and/or top-bottom at random. Lengths are drawn on a millimetre grid.
 
 Constraints, checked on the scenario as parsed back from its own text
-    every box lies on the arena; start and target are free on the grid of every obstacle
+    every box, wall and post lies on the arena; start and target are free on the grid of every obstacle
     (OccupancyGrid.from_scenario(..., all_obstacles=True).is_free); `solvable` is whether
     `plan` (A*, default PlannerConfig) finds a path with every obstacle known; the unreachable
     family must be unsolvable because obstacles enclose the target (plan raises Unreachable with
@@ -36,16 +38,17 @@ Constraints, checked on the scenario as parsed back from its own text
 Difficulty metrics ([generated.difficulty]), in the spirit of BARN (Perille et al., 2020)
     The path is the clairvoyant optimum: A*'s simplified waypoints with every obstacle known,
     sampled every grid cell (0.03 m) with both ends included; for an unsolvable arena, the
-    straight segment from start to target. Distances are exact, to the boxes and the arena's wall.
+    straight segment from start to target. Distances are exact, to the boxes, walls, posts and the
+    arena's wall.
     closest_obstacle_m          the smallest distance from a path point to an obstacle or the wall
     mean_clearance_m            the mean of that distance over the path points
     dispersion                  from each path point, 16 rays (every 22.5°) of RAY_LENGTH_M,
                                 sampled every RAY_STEP_M: the number of switches between free and
-                                occupied (inside a box) along them, summed over the rays, averaged
+                                occupied (inside an obstacle) along them, summed over the rays, averaged
                                 over the path points; a ray ends at the arena's wall, which is not
                                 counted (open floor: 0; a ray across a thin wall: 2)
     characteristic_dimension_m  from each path point, the free length of the 8 lines through it
-                                (the two opposite rays to the first box or wall, each capped at
+                                (the two opposite rays to the first obstacle or wall, each capped at
                                 RAY_LENGTH_M); the shortest of the 8 is the width of the space the
                                 point stands in; averaged over the path points
     narrowest_dimension_m       the smallest of those widths along the path: the tightest place it
@@ -105,6 +108,7 @@ WALL_THICKNESS_RANGE_M = (0.04, 0.06)
 # The seed's boxes: 0.08 m (small obstacles), 0.15, 0.18, 0.25, 0.30 × 0.15 (out-and-back), 0.20 (Fig. 4.8).
 SEED_BOX_SIZES_M = ((0.08, 0.08), (0.15, 0.15), (0.18, 0.18), (0.20, 0.20), (0.25, 0.25), (0.30, 0.15),
                     (0.15, 0.30))
+POST_DIAMETERS_M = (0.05, 0.06, 0.08, 0.10)   # table legs, pipes, pillars: the clutter family's posts
 KEEP_CLEAR_M = 0.03                  # beyond the inflation: a box keeps the start's and target's cells free
 END_MARGIN_M = 0.06                  # beyond the inflation: start and target from the arena's wall
 NARROW_EXTRA_M = 0.06                # narrow passages: 2 × inflation to 2 × inflation + this
@@ -147,7 +151,8 @@ class _Redraw(Exception):
 
 @dataclasses.dataclass
 class _Box:
-    """An obstacle by its edges [m]; `role` becomes a comment in the file."""
+    """An axis-aligned obstacle by its edges [m]: a box, or a wall (written as [[walls]] along
+    its longer side); `role` becomes a comment in the file."""
 
     x0: float
     x1: float
@@ -155,16 +160,58 @@ class _Box:
     y1: float
     known: bool
     role: str
+    shape: str = "box"          # or "wall"
 
     def distance_to(self, x_m: float, y_m: float) -> float:
         dx = max(self.x0 - x_m, 0.0, x_m - self.x1)
         dy = max(self.y0 - y_m, 0.0, y_m - self.y1)
         return math.hypot(dx, dy)
 
-    def gap_to(self, other: "_Box") -> float:
+    def gap_to(self, other: "_Box | _Post") -> float:
+        if isinstance(other, _Post):
+            return other.gap_to(self)
         dx = max(self.x0 - other.x1, other.x0 - self.x1, 0.0)
         dy = max(self.y0 - other.y1, other.y0 - self.y1, 0.0)
         return math.hypot(dx, dy)
+
+    def on_arena(self, width_m: float, height_m: float) -> bool:
+        return self.x0 >= 0 and self.y0 >= 0 and self.x1 <= width_m and self.y1 <= height_m
+
+
+@dataclasses.dataclass
+class _Post:
+    """A round post [m]."""
+
+    x: float
+    y: float
+    r: float
+    known: bool
+    role: str
+
+    def distance_to(self, x_m: float, y_m: float) -> float:
+        return max(math.hypot(x_m - self.x, y_m - self.y) - self.r, 0.0)
+
+    def gap_to(self, other: "_Box | _Post") -> float:
+        if isinstance(other, _Post):
+            return max(math.hypot(other.x - self.x, other.y - self.y) - self.r - other.r, 0.0)
+        return max(other.distance_to(self.x, self.y) - self.r, 0.0)
+
+    def on_arena(self, width_m: float, height_m: float) -> bool:
+        return (self.x - self.r >= 0 and self.y - self.r >= 0 and self.x + self.r <= width_m
+                and self.y + self.r <= height_m)
+
+
+@dataclasses.dataclass
+class _Seg:
+    """A wall at any angle: the centre line's ends and the thickness [m]."""
+
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    thickness: float
+    known: bool
+    role: str
 
 
 @dataclasses.dataclass
@@ -176,11 +223,13 @@ class _Layout:
     start: tuple[float, float]
     heading_deg: float
     target: tuple[float, float]
-    boxes: list[_Box]
+    boxes: list[_Box]                           # boxes and axis-aligned walls
     note: str                                   # what this arena is, for the description
     kind: str = "reach"
     trips: int = 1
     passage_width_m: float | None = None
+    segs: list[_Seg] = dataclasses.field(default_factory=list)     # walls at an angle
+    posts: list[_Post] = dataclasses.field(default_factory=list)
 
 
 class _Draw:
@@ -233,9 +282,10 @@ class _Draw:
         return _Box(round(cx - w / 2, 6), round(cx + w / 2, 6), round(cy - h / 2, 6), round(cy + h / 2, 6),
                     known, role)
 
-    def fits(self, box: _Box, boxes: Sequence[_Box], ends: Sequence[tuple[float, float]], gap_m: float = 0.02) -> bool:
-        """On the arena, `gap_m` from the other boxes, and clear of the start and the target."""
-        return (box.x0 >= 0 and box.y0 >= 0 and box.x1 <= self.width_m and box.y1 <= self.height_m
+    def fits(self, box: _Box | _Post, boxes: Sequence[_Box | _Post], ends: Sequence[tuple[float, float]],
+             gap_m: float = 0.02) -> bool:
+        """On the arena, `gap_m` from the other boxes (and posts), and clear of the start and the target."""
+        return (box.on_arena(self.width_m, self.height_m)
                 and all(box.gap_to(b) >= gap_m for b in boxes)
                 and all(box.distance_to(*p) > self.clear_m for p in ends))
 
@@ -305,8 +355,9 @@ class _Draw:
         return self.box(round(p[0] + r * ux, 3), round(p[1] + r * uy, 3), w, h, known, role)
 
 
-def _wall(x0: float, x1: float, y0: float, y1: float, known: bool, role: str) -> _Box:
-    return _Box(round(x0, 6), round(x1, 6), round(y0, 6), round(y1, 6), known, role)
+def _wall(x0: float, x1: float, y0: float, y1: float, known: bool, role: str, shape: str = "wall") -> _Box:
+    """An axis-aligned wall by its edges (shape "box" for a block written as a box)."""
+    return _Box(round(x0, 6), round(x1, 6), round(y0, 6), round(y1, 6), known, role, shape)
 
 
 # --- the families, each drawn with the start on the left and the target on the right --------------
@@ -323,13 +374,13 @@ def _scattered(d: _Draw) -> _Layout:
 
 
 def _divider(x0: float, x1: float, gap_lo: float, gap_hi: float, H: float, known: Sequence[bool],
-             role: str) -> list[_Box]:
+             role: str, shape: str = "wall") -> list[_Box]:
     """A full-height wall from x0 to x1 with an opening from gap_lo to gap_hi [m]."""
     parts = []
     if gap_lo > 0:
-        parts.append(_wall(x0, x1, 0.0, gap_lo, known[0], f"{role}, lower part"))
+        parts.append(_wall(x0, x1, 0.0, gap_lo, known[0], f"{role}, lower part", shape))
     if gap_hi < H:
-        parts.append(_wall(x0, x1, gap_hi, H, known[-1], f"{role}, upper part"))
+        parts.append(_wall(x0, x1, gap_hi, H, known[-1], f"{role}, upper part", shape))
     return parts
 
 
@@ -344,19 +395,30 @@ def _wall_gap(d: _Draw) -> _Layout:
     wall_known = d.chance(0.5)
     boxes = _divider(x0, x0 + t, lo, hi, H, (wall_known,), "divider")
     note = "a divider wall with a gap" + ("" if wall_known else " (the wall unknown)")
+    segs: list[_Seg] = []
+    keep_out: list[_Box] = []
     if door:
-        # The door stands open at 90° on the target's side, hinged at one edge of the opening.
+        # The door stands open on the target's side, hinged at one edge of the opening, at 70-90°
+        # from the divider (a wall at an angle: its faces turn the sonar's echoes away).
         leaf = round(gap - t, 6)
-        y0, y1 = (hi - t, hi) if d.chance(0.5) else (lo, lo + t)
+        upper = d.chance(0.5)
+        angle = math.radians(d.whole(70, 90))
+        hinge = (x0 + t, hi - t / 2 if upper else lo + t / 2)
+        tip = (hinge[0] + leaf * math.sin(angle), hinge[1] + (-1 if upper else 1) * leaf * math.cos(angle))
         leaf_known = wall_known and d.chance(0.3)
-        boxes.append(_wall(x0 + t, x0 + t + leaf, y0, y1, leaf_known, "door leaf, open"))
-        note = "a divider wall with an open door" + ("" if wall_known else " (the wall unknown)") + \
-            ("" if leaf_known else ", the door leaf unknown")
+        segs.append(_Seg(round(hinge[0], 6), round(hinge[1], 6), round(tip[0], 6), round(tip[1], 6), t, leaf_known,
+                         "door leaf, open"))
+        # What the leaf covers, so that no box is scattered onto it.
+        keep_out = [_Box(hinge[0] - t, tip[0] + t, min(hinge[1], tip[1]) - t, max(hinge[1], tip[1]) + t, True, "")]
+        note = f"a divider wall with a door open at {round(math.degrees(angle))}°" + \
+            ("" if wall_known else " (the wall unknown)") + ("" if leaf_known else ", the door leaf unknown")
     start = d.point(0, x0 - 0.3)
     target = d.point(x0 + t + (gap if door else 0.0) + 0.3, W)
     if d.chance(0.5):
-        d.scatter(boxes, 1, (start, target), unknown_p=0.5, role="box", near_line_p=0.0)
-    return _Layout(W, H, start, d.heading(start, target), target, boxes, note)
+        placed = boxes + keep_out
+        d.scatter(placed, 1, (start, target), unknown_p=0.5, role="box", near_line_p=0.0)
+        boxes += placed[len(boxes) + len(keep_out):]
+    return _Layout(W, H, start, d.heading(start, target), target, boxes, note, segs=segs)
 
 
 def _corridor(d: _Draw) -> _Layout:
@@ -378,7 +440,7 @@ def _corridor(d: _Draw) -> _Layout:
     if inner - 0.08 >= 2 * inf + 0.06 and d.chance(0.4):
         bx = d.u(x0 + 0.2, x0 + length - 0.2)
         y0, y1 = (y_lo, y_lo + 0.08) if d.chance(0.5) else (y_hi - 0.08, y_hi)
-        boxes.append(_wall(bx - 0.04, bx + 0.04, y0, y1, False, "box against a corridor wall"))
+        boxes.append(_wall(bx - 0.04, bx + 0.04, y0, y1, False, "box against a corridor wall", "box"))
     # Open, the ends face the mouths (the corridor is on the way); closed, they may be anywhere.
     reach = 0.4 if closed else 0.12
     start = d.point(0, x0 - 0.2, yc - reach, yc + reach)
@@ -441,32 +503,43 @@ def _clutter(d: _Draw) -> _Layout:
     (ax, ay), (bx, by) = start, target
     across = np.array([ay - by, bx - ax]) / math.dist(start, target)
     grid = OccupancyGrid(W, H, d.config)
-    boxes: list[_Box] = []
+    items: list[_Box | _Post] = []
+    post_p = d.pick((0.0, 0.3, 0.6))   # how many of them are round posts (table legs, pillars)
     for _ in range(8 * wanted):
-        if len(boxes) == wanted:
+        if len(items) == wanted:
             break
         w, h = d.pick(sizes), d.pick(sizes)
+        post = d.chance(post_p)
+        if post:
+            w = h = d.pick(POST_DIAMETERS_M)
         if d.chance(0.7):   # in a band 0.9 m wide along the way
             along, off = d.rng.uniform(0.1, 0.9), d.rng.uniform(-0.45, 0.45)
             cx = round(ax + along * (bx - ax) + off * across[0], 3)
             cy = round(ay + along * (by - ay) + off * across[1], 3)
         else:
             cx, cy = d.u(0.15 * W + w / 2, 0.85 * W - w / 2), d.u(h / 2, H - h / 2)
-        box = d.box(cx, cy, w, h, d.chance(0.4), "clutter")
-        if not d.fits(box, boxes, (start, target), gap_m=0.01):
+        item = _Post(cx, cy, w / 2, d.chance(0.4), "clutter, post") if post else \
+            d.box(cx, cy, w, h, d.chance(0.4), "clutter")
+        if not d.fits(item, items, (start, target), gap_m=0.01):
             continue
         trial = grid.copy()
-        trial.add_box(cx, cy, w, h)
+        if post:
+            trial.add_post(cx, cy, w / 2)
+        else:
+            trial.add_box(cx, cy, w, h)
         try:   # keep it only if a way through remains
             plan(trial, start, target, simplify=False)
         except NoPathError:
             continue
         grid = trial
-        boxes.append(box)
-    if len(boxes) < 12 or len({b.known for b in boxes}) < 2:
+        items.append(item)
+    if len(items) < 12 or len({b.known for b in items}) < 2:
         raise _Redraw("not dense enough")
+    boxes = [b for b in items if isinstance(b, _Box)]
+    posts = [b for b in items if isinstance(b, _Post)]
+    what = f"{len(boxes)} small boxes" + (f" and {len(posts)} posts" if posts else "")
     return _Layout(W, H, start, d.heading(start, target), target, boxes,
-                   f"dense clutter: {len(boxes)} small boxes, most unknown")
+                   f"dense clutter: {what}, most unknown", posts=posts)
 
 
 def _narrow_passage(d: _Draw) -> _Layout:
@@ -481,7 +554,7 @@ def _narrow_passage(d: _Draw) -> _Layout:
     knowledge = d.pick(("known", "known", "unknown", "mixed"))
     known = {"known": (True, True), "unknown": (False, False), "mixed": (True, False)}[knowledge]
     role = "divider" if t <= WALL_THICKNESS_RANGE_M[1] else "block"
-    boxes = _divider(x0, x0 + t, lo, round(lo + width, 6), H, known, role)
+    boxes = _divider(x0, x0 + t, lo, round(lo + width, 6), H, known, role, "wall" if role == "divider" else "box")
     start = d.point(0, x0 - 0.3)
     target = d.point(x0 + t + 0.3, W)
     kind = "between the divider and the arena's wall" if where != "middle" else "in a divider"
@@ -552,7 +625,7 @@ def _unknown_against_wall(d: _Draw) -> _Layout:
     y_way = (start[1] + target[1]) / 2
     depth = d.u(max(0.08, y_way - d.inflation_m + 0.03), y_way + 0.1)
     cx = d.u(0.35 * W, 0.65 * W)
-    boxes = [_wall(cx - w / 2, cx + w / 2, 0.0, depth, False, "unknown, against the wall on the way")]
+    boxes = [_wall(cx - w / 2, cx + w / 2, 0.0, depth, False, "unknown, against the wall on the way", "box")]
     for _ in range(d.whole(0, 2)):
         w2, h2 = d.pick(SEED_BOX_SIZES_M)
         side = d.pick(("left", "right", "top", "top", "corner"))
@@ -658,15 +731,15 @@ class _Family:
 
 _FAMILY_LIST = (
     _Family("scattered", "3-7 boxes of the seed's sizes near the way, some unknown", _scattered, "solvable"),
-    _Family("wall_gap", "a full-height divider with a gap or an open door; the wall or the door leaf often "
-                        "unknown", _wall_gap, "solvable"),
+    _Family("wall_gap", "a full-height divider wall with a gap or a door open at 70-90°; the wall or the door "
+                        "leaf often unknown", _wall_gap, "solvable"),
     _Family("corridor", "a corridor 0.42-0.60 m wide, open or the only way through; some walls unknown",
             _corridor, "solvable"),
     _Family("trap_l", "an L-shaped dead end facing the start, often unknown", _trap_l, "solvable"),
     _Family("trap_u", "a U-shaped dead end facing the start (the seed's large obstacles), often unknown",
             _trap_u, "solvable"),
-    _Family("clutter", "12-22 small boxes, most unknown, most along the way, as dense as leaves a way",
-            _clutter, "solvable"),
+    _Family("clutter", "12-22 small boxes and round posts, most unknown, most along the way, as dense as "
+                       "leaves a way", _clutter, "solvable"),
     _Family("narrow_passage", "the only passage 2 × inflation to 2 × inflation + 6 cm wide; solvable or not "
                               "by where the grid's cells fall", _narrow_passage, "either"),
     _Family("unknown_on_path", "unknown boxes across the optimal path of the known map", _unknown_on_path,
@@ -706,13 +779,15 @@ def _mirror(layout: _Layout, flip_x: bool, flip_y: bool) -> _Layout:
     def role(text: str) -> str:
         return re.sub(r"[a-z]+", lambda m: swaps.get(m.group(0), m.group(0)), text)
 
-    boxes = [_Box(*sorted((fx(b.x0), fx(b.x1))), *sorted((fy(b.y0), fy(b.y1))), b.known, role(b.role))
+    boxes = [_Box(*sorted((fx(b.x0), fx(b.x1))), *sorted((fy(b.y0), fy(b.y1))), b.known, role(b.role), b.shape)
              for b in layout.boxes]
+    segs = [_Seg(fx(w.x0), fy(w.y0), fx(w.x1), fy(w.y1), w.thickness, w.known, role(w.role)) for w in layout.segs]
+    posts = [_Post(fx(p.x), fy(p.y), p.r, p.known, role(p.role)) for p in layout.posts]
     heading = layout.heading_deg
     heading = -heading if flip_x else heading
     heading = 180.0 - heading if flip_y else heading
     return dataclasses.replace(layout, start=(fx(layout.start[0]), fy(layout.start[1])),
-                               target=(fx(layout.target[0]), fy(layout.target[1])), boxes=boxes,
+                               target=(fx(layout.target[0]), fy(layout.target[1])), boxes=boxes, segs=segs, posts=posts,
                                heading_deg=heading % 360.0 + 0.0)
 
 
@@ -765,6 +840,8 @@ def _toml_text(name: str, layout: _Layout, family: str, seed: int, index: int,
                 out.append(f"{key} = {_num(value)}")
         out.append("")
     for b in layout.boxes:
+        if b.shape == "wall":
+            continue
         out += [f"[[obstacles]]   # {b.role}",
                 f"x_m = {_num((b.x0 + b.x1) / 2)}",
                 f"y_m = {_num((b.y0 + b.y1) / 2)}",
@@ -772,7 +849,33 @@ def _toml_text(name: str, layout: _Layout, family: str, seed: int, index: int,
                 f"h_m = {_num(b.y1 - b.y0)}",
                 f"known = {'true' if b.known else 'false'}",
                 ""]
+    walls = [_centre_line(b) for b in layout.boxes if b.shape == "wall"] + list(layout.segs)
+    for w in walls:
+        out += [f"[[walls]]   # {w.role}",
+                f"x0_m = {_num(w.x0)}",
+                f"y0_m = {_num(w.y0)}",
+                f"x1_m = {_num(w.x1)}",
+                f"y1_m = {_num(w.y1)}",
+                f"thickness_m = {_num(w.thickness)}",
+                f"known = {'true' if w.known else 'false'}",
+                ""]
+    for p in layout.posts:
+        out += [f"[[posts]]   # {p.role}",
+                f"x_m = {_num(p.x)}",
+                f"y_m = {_num(p.y)}",
+                f"radius_m = {_num(p.r)}",
+                f"known = {'true' if p.known else 'false'}",
+                ""]
     return "\n".join(out)
+
+
+def _centre_line(b: _Box) -> _Seg:
+    """An axis-aligned wall as a segment along its longer side (ends flush with its edges)."""
+    if b.x1 - b.x0 >= b.y1 - b.y0:
+        y = (b.y0 + b.y1) / 2
+        return _Seg(b.x0, y, b.x1, y, b.y1 - b.y0, b.known, b.role)
+    x = (b.x0 + b.x1) / 2
+    return _Seg(x, b.y0, x, b.y1, b.x1 - b.x0, b.known, b.role)
 
 
 # --- difficulty -----------------------------------------------------------------------------------
@@ -786,10 +889,40 @@ class ArenaMeasure:
     optimal_path: tuple[tuple[float, float], ...]   # waypoints [m]; () when unsolvable
 
 
+@dataclasses.dataclass(frozen=True)
+class _Shapes:
+    """Every obstacle of a scenario as arrays [m]: axis-aligned boxes (the boxes and the walls
+    along x or y) as (x0, x1, y0, y1); walls at an angle as (centre x, centre y, unit vector
+    along x, y, half length, half thickness); posts as (x, y, radius)."""
+
+    boxes: np.ndarray
+    walls: np.ndarray
+    posts: np.ndarray
+
+
+def _shapes(scenario: Scenario) -> _Shapes:
+    boxes = [(o.x_m - o.w_m / 2, o.x_m + o.w_m / 2, o.y_m - o.h_m / 2, o.y_m + o.h_m / 2) for o in scenario.obstacles]
+    walls = []
+    for w in scenario.walls:
+        cx, cy, ux, uy, a, b = w.frame()
+        if w.axis_aligned:
+            ex, ey = abs(ux) * a + abs(uy) * b, abs(uy) * a + abs(ux) * b
+            boxes.append((cx - ex, cx + ex, cy - ey, cy + ey))
+        else:
+            walls.append((cx, cy, ux, uy, a, b))
+    return _Shapes(np.array(boxes, dtype=np.float64).reshape(-1, 4), np.array(walls, dtype=np.float64).reshape(-1, 6),
+                   np.array([(p.x_m, p.y_m, p.radius_m) for p in scenario.posts], dtype=np.float64).reshape(-1, 3))
+
+
 def _box_edges(scenario: Scenario) -> np.ndarray:
-    """(n, 4) array of x0, x1, y0, y1 [m] of every obstacle."""
-    return np.array([(o.x_m - o.w_m / 2, o.x_m + o.w_m / 2, o.y_m - o.h_m / 2, o.y_m + o.h_m / 2)
-                     for o in scenario.obstacles], dtype=np.float64).reshape(-1, 4)
+    """(n, 4) array of x0, x1, y0, y1 [m] of every box and every wall along x or y."""
+    return _shapes(scenario).boxes
+
+
+def _wall_local(points_x: np.ndarray, points_y: np.ndarray, walls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (any shape, broadcast against a last axis of walls) in each wall's frame: (along, across)."""
+    dx, dy = points_x - walls[:, 0], points_y - walls[:, 1]
+    return dx * walls[:, 2] + dy * walls[:, 3], dy * walls[:, 2] - dx * walls[:, 3]
 
 
 def _sample_polyline(points: Sequence[Sequence[float]], step_m: float) -> np.ndarray:
@@ -802,13 +935,24 @@ def _sample_polyline(points: Sequence[Sequence[float]], step_m: float) -> np.nda
     return np.concatenate(out)
 
 
-def _clearances(points: np.ndarray, boxes: np.ndarray, width_m: float, height_m: float) -> np.ndarray:
-    """Exact distance [m] from each point to the nearest box or the arena's wall."""
+def _clearances(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: float) -> np.ndarray:
+    """Exact distance [m] from each point to the nearest box, wall, post or the arena's wall."""
+    boxes = shapes.boxes
     x, y = points[:, 0], points[:, 1]
     wall = np.maximum(np.minimum.reduce([x, width_m - x, y, height_m - y]), 0.0)
     dx = np.maximum(np.maximum(boxes[None, :, 0] - x[:, None], x[:, None] - boxes[None, :, 1]), 0.0)
     dy = np.maximum(np.maximum(boxes[None, :, 2] - y[:, None], y[:, None] - boxes[None, :, 3]), 0.0)
-    return np.minimum(wall, np.hypot(dx, dy).min(axis=1, initial=np.inf))
+    out = np.minimum(wall, np.hypot(dx, dy).min(axis=1, initial=np.inf))
+    if len(shapes.walls):
+        along, across = _wall_local(x[:, None], y[:, None], shapes.walls)
+        d = np.hypot(np.maximum(np.abs(along) - shapes.walls[:, 4], 0.0),
+                     np.maximum(np.abs(across) - shapes.walls[:, 5], 0.0))
+        out = np.minimum(out, d.min(axis=1))
+    if len(shapes.posts):
+        p = shapes.posts
+        d = np.hypot(x[:, None] - p[:, 0], y[:, None] - p[:, 1]) - p[:, 2]
+        out = np.minimum(out, np.maximum(d, 0.0).min(axis=1))
+    return out
 
 
 def _ray_directions() -> np.ndarray:
@@ -829,8 +973,10 @@ def _slab(p: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple
     return near, far
 
 
-def _ray_lengths(points: np.ndarray, boxes: np.ndarray, width_m: float, height_m: float) -> np.ndarray:
-    """(n, RAY_COUNT): free length [m] from each point along each ray to a box or the wall, at most RAY_LENGTH_M."""
+def _ray_lengths(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: float) -> np.ndarray:
+    """(n, RAY_COUNT): free length [m] from each point along each ray to a box, a wall, a post or
+    the arena's wall, at most RAY_LENGTH_M."""
+    boxes = shapes.boxes
     dirs = _ray_directions()
     px, py = points[:, 0, None, None], points[:, 1, None, None]
     cx, cy = dirs[None, :, 0, None], dirs[None, :, 1, None]
@@ -839,6 +985,26 @@ def _ray_lengths(points: np.ndarray, boxes: np.ndarray, width_m: float, height_m
     enter, leave = np.maximum(near_x, near_y), np.minimum(far_x, far_y)
     hit = np.isfinite(enter) & (leave >= np.maximum(enter, 0.0))
     t_box = np.where(hit, np.maximum(enter, 0.0), np.inf).min(axis=2, initial=np.inf)
+    if len(shapes.walls):   # the slab method in each wall's frame
+        w = shapes.walls
+        lp, lq = _wall_local(px, py, w)
+        ldx, ldy = cx * w[:, 2] + cy * w[:, 3], cy * w[:, 2] - cx * w[:, 3]
+        ldx = np.where(np.abs(ldx) < 1e-12, 0.0, ldx)
+        ldy = np.where(np.abs(ldy) < 1e-12, 0.0, ldy)
+        near_a, far_a = _slab(lp, ldx, -w[:, 4], w[:, 4])
+        near_b, far_b = _slab(lq, ldy, -w[:, 5], w[:, 5])
+        enter, leave = np.maximum(near_a, near_b), np.minimum(far_a, far_b)
+        hit = np.isfinite(enter) & (leave >= np.maximum(enter, 0.0))
+        t_box = np.minimum(t_box, np.where(hit, np.maximum(enter, 0.0), np.inf).min(axis=2))
+    if len(shapes.posts):   # p + t·c meets the circle |p + t·c − centre| = r (c is a unit vector)
+        q = shapes.posts
+        fx, fy = px - q[:, 0], py - q[:, 1]
+        b = fx * cx + fy * cy
+        c = fx * fx + fy * fy - q[:, 2] ** 2
+        disc = b * b - c
+        root = np.sqrt(np.maximum(disc, 0.0))
+        t = np.where(c <= 0.0, 0.0, np.where((disc >= 0.0) & (b <= 0.0), -b - root, np.inf))
+        t_box = np.minimum(t_box, t.min(axis=2))
     with np.errstate(divide="ignore", invalid="ignore"):
         wx = np.where(cx > 0, (width_m - px) / cx, np.where(cx < 0, -px / cx, np.inf))[..., 0]
         wy = np.where(cy > 0, (height_m - py) / cy, np.where(cy < 0, -py / cy, np.inf))[..., 0]
@@ -846,15 +1012,23 @@ def _ray_lengths(points: np.ndarray, boxes: np.ndarray, width_m: float, height_m
                               np.full_like(t_box, RAY_LENGTH_M)])
 
 
-def _dispersion(points: np.ndarray, boxes: np.ndarray, width_m: float, height_m: float) -> float:
+def _dispersion(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: float) -> float:
     """Mean over the points of the free/occupied switches along their rays (see the module's docstring)."""
     step = RAY_STEP_M
     nx, ny = math.ceil(width_m / step), math.ceil(height_m / step)
     occupied = np.zeros((ny, nx), dtype=np.bool_)
-    for x0, x1, y0, y1 in boxes:   # cells whose centre lies in the box
+    for x0, x1, y0, y1 in shapes.boxes:   # cells whose centre lies in the box
         c0, c1 = max(math.ceil(x0 / step - 0.5), 0), math.floor(x1 / step - 0.5) + 1
         r0, r1 = max(math.ceil(y0 / step - 0.5), 0), math.floor(y1 / step - 0.5) + 1
         occupied[r0:max(r1, r0), c0:max(c1, c0)] = True
+    if len(shapes.walls) or len(shapes.posts):   # cells whose centre lies in a wall at an angle or a post
+        centres_x = (np.arange(nx) + 0.5) * step
+        centres_y = (np.arange(ny) + 0.5) * step
+        for w in shapes.walls:
+            along, across = _wall_local(centres_x[None, :, None], centres_y[:, None, None], w[None, :])
+            occupied |= (np.abs(along[..., 0]) <= w[4]) & (np.abs(across[..., 0]) <= w[5])
+        for x, y, r in shapes.posts:
+            occupied |= np.hypot(centres_x[None, :] - x, centres_y[:, None] - y) <= r
     along = np.arange(0.0, RAY_LENGTH_M + step / 2, step)
     dirs = _ray_directions()
     xs = points[:, 0, None, None] + along[None, None, :] * dirs[None, :, 0, None]
@@ -908,16 +1082,16 @@ def measure_scenario(scenario: Scenario, config: PlannerConfig | None = None) ->
         known_blocked = False
     path = optimum.waypoints if optimum is not None else (start, target)
     points = _sample_polyline(path, cfg.resolution_m)
-    boxes = _box_edges(scenario)
+    shapes = _shapes(scenario)
     W, H = scenario.arena.width_m, scenario.arena.height_m
-    clearance = _clearances(points, boxes, W, H)
-    rays = _ray_lengths(points, boxes, W, H)
+    clearance = _clearances(points, shapes, W, H)
+    rays = _ray_lengths(points, shapes, W, H)
     half = RAY_COUNT // 2
     widths = (rays[:, :half] + rays[:, half:]).min(axis=1)   # the narrowest line through each point
     difficulty: dict[str, Any] = {
         "closest_obstacle_m": float(clearance.min()),
         "mean_clearance_m": float(clearance.mean()),
-        "dispersion": _dispersion(points, boxes, W, H),
+        "dispersion": _dispersion(points, shapes, W, H),
         "characteristic_dimension_m": float(widths.mean()),
         "narrowest_dimension_m": float(widths.min()),
     }
@@ -1009,6 +1183,13 @@ def generate_arena(seed: int, index: int, family: str, config: PlannerConfig | N
                or o.y_m + o.h_m / 2 > H + 1e-9 for o in draft.obstacles):
             why = "a box off the arena"
             continue
+        if any(not (-1e-9 <= x <= W + 1e-9 and -1e-9 <= y <= H + 1e-9) for w in draft.walls for x, y in w.corners()):
+            why = "a wall off the arena"
+            continue
+        if any(p.x_m - p.radius_m < -1e-9 or p.x_m + p.radius_m > W + 1e-9 or p.y_m - p.radius_m < -1e-9
+               or p.y_m + p.radius_m > H + 1e-9 for p in draft.posts):
+            why = "a post off the arena"
+            continue
         try:
             measure = measure_scenario(draft, cfg)
         except NoPathError as exc:   # start or target not free
@@ -1058,8 +1239,8 @@ def index_row(arena: GeneratedArena) -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(INDEX_FIELDS)
     row.update(file=arena.file_name, name=arena.name, index=arena.index, seed=arena.seed, family=arena.family,
                solvable=arena.solvable, passage_width_m=arena.passage_width_m, width_m=s.arena.width_m,
-               height_m=s.arena.height_m, mission=s.mission.kind, known_obstacles=len(s.known_obstacles),
-               unknown_obstacles=len(s.unknown_obstacles))
+               height_m=s.arena.height_m, mission=s.mission.kind, known_obstacles=len(s.known_shapes),
+               unknown_obstacles=len(s.unknown_shapes))
     row.update({k: v for k, v in d.items() if k in row})
     return row
 
@@ -1092,14 +1273,14 @@ def write_arenas(arenas: Sequence[GeneratedArena], out_dir: Path | str) -> list[
 
 
 def write_gallery(arenas: Sequence[GeneratedArena], path: Path | str, columns: int = 4) -> Path:
-    """A contact sheet (PNG) of the first GALLERY_COUNT arenas: the border, known boxes grey,
-    unknown boxes hatched red, the start (a green disk of the robot radius, a tick for its heading),
+    """A contact sheet (PNG) of the first GALLERY_COUNT arenas: the border, known obstacles (boxes,
+    walls, posts) grey, unknown ones hatched red, the start (a green disk of the robot radius, a tick for its heading),
     the target (a star), the clairvoyant optimum (blue), and a caption: index, family, solvable,
     band and score. Written atomically; returns the path."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
-    from matplotlib.patches import Circle, Patch, Rectangle
+    from matplotlib.patches import Circle, Patch, Polygon, Rectangle
 
     shown = list(arenas[:GALLERY_COUNT])
     if not shown:
@@ -1113,12 +1294,15 @@ def write_gallery(arenas: Sequence[GeneratedArena], path: Path | str, columns: i
         W, H = s.arena.width_m, s.arena.height_m
         ax = fig.add_subplot(rows, columns, k + 1)
         ax.add_patch(Rectangle((0, 0), W, H, fill=False, lw=2.0, ec="black"))
-        for o in s.obstacles:
-            corner = (o.x_m - o.w_m / 2, o.y_m - o.h_m / 2)
-            if o.known:
-                ax.add_patch(Rectangle(corner, o.w_m, o.h_m, fc="0.55", ec="0.25", lw=0.8))
+        for o in s.shapes:
+            style = dict(fc="0.55", ec="0.25", lw=0.8) if o.known else \
+                dict(fc="#fde0dd", ec="#d62728", lw=1.3, hatch="////")
+            if o.kind == "box":
+                ax.add_patch(Rectangle((o.x_m - o.w_m / 2, o.y_m - o.h_m / 2), o.w_m, o.h_m, **style))
+            elif o.kind == "wall":
+                ax.add_patch(Polygon(o.corners(), closed=True, **style))
             else:
-                ax.add_patch(Rectangle(corner, o.w_m, o.h_m, fc="#fde0dd", ec="#d62728", lw=1.3, hatch="////"))
+                ax.add_patch(Circle((o.x_m, o.y_m), o.radius_m, **style))
         if arena.optimal_path:
             xs, ys = zip(*arena.optimal_path)
             ax.plot(xs, ys, color="#1f5fbf", lw=1.3)

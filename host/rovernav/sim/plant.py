@@ -5,8 +5,16 @@
   speed noise; a differential-drive kinematic model (track 0.13 m).
 - Gyro: an MPU6050's yaw rate with white noise and a slowly drifting bias, left over after the
   start-up calibration.
-- Sonar: an HC-SR04 on a servo: the nearest surface inside its 15-degree cone, range noise, and
-  floor echoes beyond about 0.65 m, as the seed saw.
+- Sonar: an HC-SR04 on a servo: the nearest echo inside its 15-degree cone, range noise, and
+  floor echoes beyond about 0.65 m, as the seed saw. Smooth flat faces (boxes, walls, the arena's
+  wall) reflect the 40 kHz burst like a mirror: a face met more than `sonar_max_incidence_deg`
+  (40°) off its normal sends it away and gives no echo; posts (cylinders) always echo, and so does
+  a corner inside the cone (see rovernav.sim.world). 40° is a modelling choice, not a measured
+  constant: a mirror-like echo returns while the reflected burst still falls on the receiver,
+  which takes a sound lobe spread well beyond the 15° "measuring angle" the makers quote (their
+  detection plots reach about 15-20° either side), and users report canted walls going silent
+  from somewhere about 45°; 40° sits a little on the pessimistic side of that. Set it to 90 for
+  the old model (every ray that meets a surface echoes).
 - Servo: travels at 0.1 s per 60 degrees; the sonar points where the servo is, not where it was
   told to be.
 """
@@ -37,6 +45,8 @@ class PlantConfig:
     sonar_noise_mm: float = 3.0
     sonar_floor_m: float = 0.65       # floor echoes from beyond here
     sonar_max_m: float = 4.0
+    sonar_max_incidence_deg: float = 40.0   # a flat face further off its normal gives no echo (90: always)
+    sonar_rays: int = 7               # rays sampled across the cone
     sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre
     servo_deg_per_s: float = 600.0    # 0.1 s per 60 degrees
 
@@ -96,8 +106,8 @@ class RoverPlant:
         sx = self.x + c.sonar_offset_m * math.sin(h)
         sy = self.y + c.sonar_offset_m * math.cos(h)
         axis = self.heading + self.servo_deg
-        half = c.sonar_cone_deg / 2
-        nearest = min(world.ray_m(sx, sy, axis + a, c.sonar_max_m) for a in np.linspace(-half, half, 7))
+        nearest = world.sonar_m(sx, sy, axis, c.sonar_cone_deg, c.sonar_max_m, c.sonar_max_incidence_deg,
+                                c.sonar_rays)
         if nearest > c.sonar_floor_m:
             # Beyond about 0.65 m the cone reaches the floor: an echo from there, a little random.
             nearest = c.sonar_floor_m + abs(float(self.rng.normal(0.0, 0.05)))

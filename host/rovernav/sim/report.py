@@ -93,7 +93,7 @@ def build_report(sim, wall_time_s: float) -> dict:
                       "replans": sum(g["replans"] for g in group), "legs": [g["index"] for g in group]})
     status = m.last_status
     c = sim.link.counters
-    unknown = [o for o in sc.obstacles if not o.known]
+    unknown = [o for o in _shapes(sc) if not o.known]
     discovered = sum(1 for o in unknown if _echo_on(o, m.echoes, m.grid.config.sonar_offset_m))
     optimal = sim.optimal_length_m()
     speed = cruise_speed_m_s(m.rover_params)
@@ -185,11 +185,21 @@ def fault_figures(sim) -> dict:
     }
 
 
+def _shapes(scenario) -> tuple:
+    """Every obstacle of the scenario: boxes, walls, posts."""
+    return (*scenario.obstacles, *getattr(scenario, "walls", ()), *getattr(scenario, "posts", ()))
+
+
 def _echo_on(obstacle, echoes, offset_m: float, margin_m: float = 0.06) -> bool:
-    """Whether some sonar echo's point lies on (near) this obstacle."""
+    """Whether some sonar echo's point lies on (near) this obstacle: within margin_m of a wall or
+    a post, inside a box grown by margin_m on every side."""
     for e in echoes:
         px, py = e.point(offset_m)
-        if abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m:
+        if getattr(obstacle, "kind", "box") != "box":
+            if obstacle.distance_m(px, py) <= margin_m:
+                return True
+        elif (abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m
+              and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m):
             return True
     return False
 
@@ -212,6 +222,26 @@ class Canvas:
         return np.array([self.pt(x, y) for x, y in xy], np.int32)
 
 
+def _fill(img: np.ndarray, draw, known: bool) -> None:
+    """Paint a shape as the boxes are: known solid grey, unknown light red with a hatch.
+    `draw(mask, colour)` draws the filled shape into a single-channel mask."""
+    mask = np.zeros(img.shape[:2], np.uint8)
+    draw(mask, 255)
+    ys, xs = np.nonzero(mask)
+    if not len(xs):
+        return
+    inside = mask > 0
+    if known:
+        img[inside] = (110, 110, 110)
+        return
+    img[inside] = (150, 150, 200)
+    x0, x1, y0, y1 = xs.min(), xs.max(), ys.min(), ys.max()
+    hatch = np.zeros_like(mask)
+    for k in range(x0 - (y1 - y0), x1 + 1, 8):   # the boxes' hatch: lines at 45°, 8 px apart
+        cv2.line(hatch, (k, y1), (k + (y1 - y0), y0), 255, 1)
+    img[inside & (hatch > 0)] = (90, 90, 160)
+
+
 def draw_arena(canvas: Canvas, sim, grid=None) -> None:
     sc = sim.scenario
     img = canvas.img
@@ -231,6 +261,11 @@ def draw_arena(canvas: Canvas, sim, grid=None) -> None:
             cv2.rectangle(img, p0, p1, (150, 150, 200), -1)
             for k in range(p0[0] - (p1[1] - p0[1]), p1[0], 8):  # hatch: unknown to the planner
                 cv2.line(img, (max(k, p0[0]), p0[1] + max(0, p0[0] - k)), (min(k + (p1[1] - p0[1]), p1[0]), p1[1] - max(0, k + (p1[1] - p0[1]) - p1[0])), (90, 90, 160), 1)
+    for w in getattr(sc, "walls", ()):
+        _fill(img, lambda m, c: cv2.fillPoly(m, [canvas.pts(w.corners())], c, cv2.LINE_AA), w.known)
+    for o in getattr(sc, "posts", ()):
+        centre, r = canvas.pt(o.x_m, o.y_m), max(1, int(round(o.radius_m * canvas.s)))
+        _fill(img, lambda m, c: cv2.circle(m, centre, r, c, -1, cv2.LINE_AA), o.known)
     for e in sim.mission.echoes:
         cv2.circle(img, canvas.pt(*e.point(sim.mission.grid.config.sonar_offset_m)), 3, (0, 0, 200), -1)
     cv2.circle(img, canvas.pt(sc.start.x_m, sc.start.y_m), 7, (0, 150, 0), 2)
@@ -290,6 +325,15 @@ class VideoWriter:
         for o in sc.obstacles:
             color = (200, 200, 200) if o.known else (80, 80, 255)
             cv2.rectangle(img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1)
+        # Walls and posts: the camera's renderer does not draw them (its Scene holds boxes only),
+        # so the overlay draws them filled, known grey, unknown red.
+        for o in getattr(sc, "walls", ()):
+            color = (200, 200, 200) if o.known else (80, 80, 255)
+            cv2.fillPoly(img, [np.array([px(x, y) for x, y in o.corners()], np.int32)], color, cv2.LINE_AA)
+        for o in getattr(sc, "posts", ()):
+            color = (200, 200, 200) if o.known else (80, 80, 255)
+            (u, v), (u1, _) = px(o.x_m, o.y_m), px(o.x_m + o.radius_m, o.y_m)
+            cv2.circle(img, (u, v), max(1, abs(u1 - u)), color, -1, cv2.LINE_AA)
         for e in m.echoes[-60:]:
             cv2.circle(img, px(*e.point(m.grid.config.sonar_offset_m)), 3, (0, 0, 255), -1)
         p = sim.plant
