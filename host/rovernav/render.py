@@ -46,6 +46,8 @@ class Scene:
     """What is in the arena at one instant.
 
     obstacles: boxes as (centre x, centre y, width, height) in metres, axis-aligned.
+    walls: thick segments as (x0, y0, x1, y1, thickness) in metres (square ends, flush with the points).
+    posts: round posts as (centre x, centre y, radius) in metres.
     rover: (x_m, y_m, heading_deg) of the rover centre, or None for an empty arena.
     target: (x_m, y_m) or None.
     marker_kind: "colour" (orange front, green back, yellow target squares) or "aruco" (tags).
@@ -58,6 +60,8 @@ class Scene:
     arena_w_m: float = 2.36
     arena_h_m: float = 1.75
     obstacles: tuple[tuple[float, float, float, float], ...] = ()
+    walls: tuple[tuple[float, float, float, float, float], ...] = ()
+    posts: tuple[tuple[float, float, float], ...] = ()
     rover: tuple[float, float, float] | None = None
     target: tuple[float, float] | None = None
     marker_kind: str = "colour"
@@ -419,6 +423,20 @@ class Renderer:
             boxes.append(([mapping.to_pixels(_rect((cx, cy), up, right, h, w))], look.obstacle_rim_bgr))
             rim = min(0.012, w / 4, h / 4)
             boxes.append(([mapping.to_pixels(_rect((cx, cy), up, right, h - 2 * rim, w - 2 * rim))], look.obstacle_bgr))
+        for x0, y0, x1, y1, t in scene.walls:
+            length = math.hypot(x1 - x0, y1 - y0)
+            fwd = np.array([(x1 - x0) / length, (y1 - y0) / length])
+            side = np.array([fwd[1], -fwd[0]])
+            centre = ((x0 + x1) / 2, (y0 + y1) / 2)
+            boxes.append(([mapping.to_pixels(_rect(centre, fwd, side, length, t))], look.obstacle_rim_bgr))
+            rim = min(0.012, length / 4, t / 4)
+            boxes.append(([mapping.to_pixels(_rect(centre, fwd, side, length - 2 * rim, t - 2 * rim))], look.obstacle_bgr))
+        for cx, cy, r in scene.posts:
+            a = np.linspace(0.0, 2 * math.pi, 24, endpoint=False)
+            rim = min(0.012, r / 4)
+            for radius, colour in ((r, look.obstacle_rim_bgr), (r - rim, look.obstacle_bgr)):
+                ring = np.stack([cx + radius * np.sin(a), cy + radius * np.cos(a)], axis=1)
+                boxes.append(([mapping.to_pixels(ring)], colour))
         squares = {"front": (look.marker_size_m, look.front_bgr), "back": (look.marker_size_m, look.back_bgr),
                    "target": (look.target_size_m, look.target_bgr)}
         markers: list[_Shape] = []
@@ -475,7 +493,8 @@ class Renderer:
         self._check(scene)
         cam = self.camera
         mapping = self._mapping(scene.arena_w_m, scene.arena_h_m)
-        key = (scene.arena_w_m, scene.arena_h_m, scene.obstacles, scene.target, scene.marker_kind, scene.decoys)
+        key = (scene.arena_w_m, scene.arena_h_m, scene.obstacles, scene.walls, scene.posts, scene.target,
+               scene.marker_kind, scene.decoys)
         if key != self._static_key:
             self._static_key = None
             self._albedo, self._fresh = self._static_albedo(scene, mapping)
