@@ -501,3 +501,48 @@ def test_a_blind_rover_crashes_into_an_unknown_wall_and_the_report_names_it(monk
     assert r["outcome"] == "crashed"
     assert r["crash"]["against"].startswith("wall 1 (unknown, from (1.20, 0.00) to (1.20, 1.05) m")
     assert r["crash"]["x_m"] < 1.2
+
+
+# ---------------------------------------------------------------- the unreachable verdict
+
+_WALL_ACROSS = """version = 1
+[arena]
+width_m = 2.36
+height_m = 1.75
+[start]
+x_m = 0.4
+y_m = 0.875
+heading_deg = 90.0
+[target]
+x_m = 2.0
+y_m = 0.875
+"""
+
+
+def _unknown_wall(y0: float, y1: float) -> str:
+    return (f"[[walls]]\nx0_m = 1.2\ny0_m = {y0}\nx1_m = 1.2\ny1_m = {y1}\nthickness_m = 0.04\nknown = false\n")
+
+
+@pytest.mark.mission
+def test_a_gap_one_cell_wider_than_the_rover_needs_is_found_and_driven_through():
+    from rovernav.planning import PlannerConfig
+    from rovernav.scenario import parse_scenario
+
+    gap = 2 * PlannerConfig().inflation_m + PlannerConfig().resolution_m   # 0.37 m
+    lower_top = 0.875 - gap / 2
+    text = _WALL_ACROSS + _unknown_wall(0.0, round(lower_top, 3)) + _unknown_wall(round(lower_top + gap, 3), 1.75)
+    sim = Simulation(parse_scenario(text), SimOptions(seed=1, max_time_s=300))
+    sim.run()
+    r = build_report(sim, 1.0)
+    assert r["outcome"] == "reached" and r["collisions"] == 0
+
+
+@pytest.mark.mission
+def test_a_target_an_unknown_wall_encloses_gets_the_no_path_verdict_after_the_rover_has_looked():
+    from rovernav.scenario import parse_scenario
+
+    sim = Simulation(parse_scenario(_WALL_ACROSS + _unknown_wall(0.0, 1.75)), SimOptions(seed=1, max_time_s=300))
+    sim.run()
+    r = build_report(sim, 1.0)
+    assert r["outcome"] == "no_path" and r["collisions"] == 0 and not r["timed_out"]
+    assert r["obstacles_discovered"] == 1 and r["replans"] >= 1   # the verdict came from what the sonar saw

@@ -26,7 +26,7 @@ from ..link import messages_gen as mg
 from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
 from ..link.requests import RequestTracker
-from ..planning import NoPathError, OccupancyGrid, plan
+from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
@@ -461,7 +461,9 @@ class Mission:
                 try:
                     result = plan(grid, origin, goal, planner=self.planner)
                 except NoPathError as exc:
-                    reason = reason or exc
+                    # The most telling reason: that no route joins them, over a blocked start.
+                    if reason is None or isinstance(exc, Unreachable):
+                        reason = exc
                     continue
                 if grid is not self.grid:
                     self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
