@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from ..scenario import Post   # a post is the same in the scenario and the world: one definition
+
 ROVER_WIDTH_M = 0.15    # the seed's rover: 0.15 m wide, 0.21 m long
 ROVER_LENGTH_M = 0.21
 HALF_DIAGONAL_M = math.hypot(ROVER_WIDTH_M, ROVER_LENGTH_M) / 2
@@ -72,16 +74,6 @@ class Wall:
         cx, cy, ux, uy, a, b = self.frame()
         return [(cx + s * a * ux - t * b * uy, cy + s * a * uy + t * b * ux)
                 for s, t in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
-
-
-@dataclasses.dataclass(frozen=True)
-class Post:
-    """A round post: centre and radius."""
-
-    x_m: float
-    y_m: float
-    radius_m: float
-    known: bool = True
 
 
 def footprint(x_m: float, y_m: float, heading_deg: float) -> np.ndarray:
@@ -222,7 +214,7 @@ class World:
         return cls(scenario.arena.width_m, scenario.arena.height_m,
                    [Box(o.x_m, o.y_m, o.w_m, o.h_m, o.known) for o in scenario.obstacles],
                    [Wall(w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m, w.known) for w in walls],
-                   [Post(p.x_m, p.y_m, p.radius_m, p.known) for p in posts])
+                   list(posts))
 
     # ---------------------------------------------------------------- contact and clearance
 
