@@ -295,3 +295,19 @@ def test_an_enclosed_target_ends_the_mission_with_the_no_path_verdict():
     mission, rover, _ = _setup_with(ScriptedRover, target=(2.0, 1.4), grid=grid)
     _run_until_done(mission, rover, 60)
     assert mission.phase is Phase.FAILED and mission.outcome is Outcome.NO_PATH and "no path" in mission.error
+
+
+def test_results_are_written_whole_and_readable_as_an_ordinary_file(tmp_path):
+    import os
+    import stat
+
+    from rovernav.files import write_atomic
+
+    target = tmp_path / "report.json"
+    target.write_text("old")
+    write_atomic(target, '{"new": true}\n')
+    assert target.read_text() == '{"new": true}\n'
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]   # no temporary file left behind
