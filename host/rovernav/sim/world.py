@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from ..scenario import Post   # a post is the same in the scenario and the world: one definition
+from ..scenario import Post, Wall   # the same in the scenario and the world: one definition each
 
 ROVER_WIDTH_M = 0.15    # the seed's rover: 0.15 m wide, 0.21 m long
 ROVER_LENGTH_M = 0.21
@@ -47,33 +47,6 @@ class Box:
     @property
     def bounds(self) -> tuple[float, float, float, float]:
         return (self.x_m - self.w_m / 2, self.y_m - self.h_m / 2, self.x_m + self.w_m / 2, self.y_m + self.h_m / 2)
-
-
-@dataclasses.dataclass(frozen=True)
-class Wall:
-    """A wall: the rectangle `thickness_m` wide centred on the segment (x0, y0)-(x1, y1), its ends
-    square and flush with the end points."""
-
-    x0_m: float
-    y0_m: float
-    x1_m: float
-    y1_m: float
-    thickness_m: float
-    known: bool = True
-
-    def frame(self) -> tuple[float, float, float, float, float, float]:
-        """(centre x, centre y, unit vector along x, y, half length, half thickness) [m]."""
-        length = math.hypot(self.x1_m - self.x0_m, self.y1_m - self.y0_m)
-        if not (length > 0 and self.thickness_m > 0):
-            raise ValueError(f"a wall needs a length and a thickness > 0, got {self}")
-        return ((self.x0_m + self.x1_m) / 2, (self.y0_m + self.y1_m) / 2, (self.x1_m - self.x0_m) / length,
-                (self.y1_m - self.y0_m) / length, length / 2, self.thickness_m / 2)
-
-    def corners(self) -> list[tuple[float, float]]:
-        """The rectangle's corners, in order round it."""
-        cx, cy, ux, uy, a, b = self.frame()
-        return [(cx + s * a * ux - t * b * uy, cy + s * a * uy + t * b * ux)
-                for s, t in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
 
 
 def footprint(x_m: float, y_m: float, heading_deg: float) -> np.ndarray:
@@ -213,7 +186,7 @@ class World:
         posts = getattr(scenario, "posts", ())
         return cls(scenario.arena.width_m, scenario.arena.height_m,
                    [Box(o.x_m, o.y_m, o.w_m, o.h_m, o.known) for o in scenario.obstacles],
-                   [Wall(w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m, w.known) for w in walls],
+                   list(walls),
                    list(posts))
 
     # ---------------------------------------------------------------- contact and clearance
