@@ -139,6 +139,14 @@ class Bench {
     h.role = static_cast<uint8_t>(Role::Host);
     send(h);
   }
+  /// Fixes streamed, HELLO said, and no sweep every sweep_interval_mm (only the looks before
+  /// moving and before sharp turns): for tests about what the rover does between sweeps.
+  void without_periodic_sweeps() {
+    stream_fixes = true;
+    hello();
+    config(Param::SweepIntervalMm, 0);
+    run_ms(50);
+  }
   void fix_now(int16_t sd_mm = 2) { send(fix_msg(sd_mm)); }
   msg::Fix fix_msg(int16_t sd_mm = 2) const {
     msg::Fix f{};

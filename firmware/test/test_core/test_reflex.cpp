@@ -12,11 +12,8 @@ const core::Waypoint kNorth[] = {{300, 300}, {300, 1400}};
 
 // A rover driving north with its distance-triggered sweeps off, so only the reflex can see.
 void drive_north(Bench& b, bool reflex_on) {
-  b.stream_fixes = true;
-  b.hello();
-  b.config(Param::SweepIntervalMm, 0);
   if (!reflex_on) b.config(Param::ReflexPingMs, 0);
-  b.run_ms(50);
+  b.without_periodic_sweeps();
   b.start_mission(kNorth, 2);
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive && b.plant.y_mm > 500.0f; }, 20000));
 }
@@ -96,10 +93,7 @@ TEST_CASE("without the reflex and without sweeps the same wall is driven into") 
 
 TEST_CASE("a wall beyond the last waypoint does not stop the rover: the goal in front of it is reached") {
   Bench b;
-  b.stream_fixes = true;
-  b.hello();
-  b.config(Param::SweepIntervalMm, 0);
-  b.run_ms(50);
+  b.without_periodic_sweeps();
   const core::Waypoint short_north[] = {{300, 300}, {300, 800}};
   b.set_box(300.0f, 800.0f + 170.0f + 50.0f, 600.0f, 100.0f);   // face 170 mm past the goal
   b.start_mission(short_north, 2);

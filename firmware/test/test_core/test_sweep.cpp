@@ -113,10 +113,7 @@ TEST_CASE("a sonar that never answers costs a timeout per step, and the rover go
 
 TEST_CASE("before a sharp turn on the spot the rover sweeps, unless it has only just swept") {
   Bench b;
-  b.stream_fixes = true;
-  b.hello();
-  b.config(Param::SweepIntervalMm, 0);   // only the looks before moving and before turning
-  b.run_ms(50);
+  b.without_periodic_sweeps();   // only the looks before moving and before turning
   const core::Waypoint corner[] = {{300, 300}, {300, 700}, {800, 700}};   // north 400 mm, then east
   b.start_mission(corner, 3);
   int sweeps = 0;
@@ -132,11 +129,8 @@ TEST_CASE("before a sharp turn on the spot the rover sweeps, unless it has only 
   CHECK(fabsf(at_y[1] - 700.0f) <= 40.0f);   // within the arrival radius of the corner
 
   Bench off;
-  off.stream_fixes = true;
-  off.hello();
-  off.config(Param::SweepIntervalMm, 0);
   off.config(Param::SweepBeforeTurnDeg, 0);
-  off.run_ms(50);
+  off.without_periodic_sweeps();
   off.start_mission(corner, 3);
   REQUIRE(off.run_until([&] { return off.rover.state() == RoverState::Arrived; }, 60000));
   CHECK(off.events(EventKind::ScanDone) == 1);            // only the look before moving
