@@ -454,11 +454,16 @@ void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
 
 void Rover::report_clear(int16_t bearing_cdeg) { send_reading(bearing_cdeg, 0); }
 
-float Rover::reflex_range_mm() const {
+float Rover::drive_speed_mm_s() const {
   const Params& p = params_;
   const float v_mm_s = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
-  const float stop_mm = v_mm_s * static_cast<float>(p.reflex_ping_ms() + kReflexLatencyMs) / 1000.0f;
-  return (stop_mm > 0.0f ? stop_mm : 0.0f) + p.reflex_margin_mm();
+  return v_mm_s > 0.0f ? v_mm_s : 0.0f;
+}
+
+float Rover::reflex_range_mm() const {
+  const Params& p = params_;
+  const float stop_mm = drive_speed_mm_s() * static_cast<float>(p.reflex_ping_ms() + kReflexLatencyMs) / 1000.0f;
+  return stop_mm + p.reflex_margin_mm();
 }
 
 // The forward reflex: while driving, the sonar (pointing ahead between sweeps) pings every
@@ -533,8 +538,7 @@ bool Rover::room_to_turn() const {
 // kBackOffMaxMm at most; then the turn it put off.
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  const float v_mm_s = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
-  back_off_mm_ += v_mm_s * dt_s;
+  back_off_mm_ += drive_speed_mm_s() * dt_s;
   if (room_to_turn() || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
     enter(RoverState::Rotate);
     rotate_checked_ = true;

@@ -118,12 +118,12 @@ class Rover : private RoverFields {
     kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
-    kReflexLatencyMs = 150,
-    kReflexLooks = 6,
+    kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
+    kReflexLooks = 6,           // the directions the reflex's pings cycle through
     kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent
     kSwingMm = 150,             // the rover's corners swing within this of its centre (half-diagonal 129 + margin)
     kBackOffMaxMm = 150,        // backing out stops after this much, cleared or not
-    kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners           // the directions the reflex's pings cycle through     // ping result one step late, motor lag and coasting, in the stopping distance
+    kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
   };
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
@@ -148,6 +148,8 @@ class Rover : private RoverFields {
   uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
   bool blocked() const { return blocked_; }
   float dr_distance_mm() const { return dr_distance_mm_; }
+  /// The speed the rover cruises at (mm/s), from its drive command and speed model.
+  float drive_speed_mm_s() const;
   /// The forward reflex's range from the sensor: stopping distance at cruise speed plus the margin.
   float reflex_range_mm() const;
 

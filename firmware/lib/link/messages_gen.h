@@ -124,7 +124,7 @@ enum class Param : uint8_t {
   ArrivalRadiusMm = 8,  ///< [mm] a waypoint is reached within this distance (seed: 10 px = 36 mm)
   SweepIntervalMm = 9,  ///< [mm] distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)
   SweepStepMs = 10,  ///< [ms] time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)
-  SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE (seed: 0.4 m; floor echoes beyond ~0.65 m)
+  SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m)
   FixTimeoutMs = 12,  ///< [ms] no FIX for this long: dead reckoning
   RadioTimeoutMs = 13,  ///< [ms] no valid frame at all for this long: radio lost
   DrMaxDistanceMm = 14,  ///< [mm] hold after driving this far without a fix
@@ -165,7 +165,7 @@ static const int32_t kParamTable[35][3] ROVERNAV_PROGMEM = {
   {36L, 5L, 1000L},  // 8 arrival_radius_mm
   {300L, 0L, 10000L},  // 9 sweep_interval_mm
   {90L, 20L, 5000L},  // 10 sweep_step_ms
-  {400L, 50L, 4000L},  // 11 sonar_report_mm
+  {600L, 50L, 4000L},  // 11 sonar_report_mm
   {500L, 50L, 60000L},  // 12 fix_timeout_ms
   {1000L, 100L, 60000L},  // 13 radio_timeout_ms
   {1500L, 0L, 100000L},  // 14 dr_max_distance_mm

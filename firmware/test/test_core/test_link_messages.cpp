@@ -229,7 +229,7 @@ TEST_CASE("seed defaults: Kp 30, Ki 3, Kd 5, clamp 130, right bias 0.8, drive 70
   CHECK(p.cone_tol_mm() == doctest::Approx(18.0f));
   CHECK(p.arrival_radius_mm() == doctest::Approx(36.0f));
   CHECK(p.sweep_interval_mm() == doctest::Approx(300.0f));
-  CHECK(p.sonar_report_mm() == 400);
+  CHECK(p.sonar_report_mm() == 600);
 }
 
 TEST_CASE("STATUS goes out every status_period_ms with the state, pose and link counters") {

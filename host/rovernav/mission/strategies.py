@@ -82,9 +82,10 @@ class SeedStrategy:
         self.next_cell = 0
 
     def rover_params(self):
-        # The seed's rover: 9-second sweeps, no look before it first moves or turns, no forward reflex.
-        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SWEEP_AT_START, 0), (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
-                (mg.Param.REFLEX_PING_MS, 0)]
+        # The seed's rover: 9-second sweeps, echoes within 0.4 m, no look before it first moves or
+        # turns, no forward reflex.
+        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SONAR_REPORT_MM, 400), (mg.Param.SWEEP_AT_START, 0),
+                (mg.Param.SWEEP_BEFORE_TURN_DEG, 0), (mg.Param.REFLEX_PING_MS, 0)]
 
     def _raw_path(self, m, start, goal):
         try:
