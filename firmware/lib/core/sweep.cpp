@@ -10,7 +10,8 @@ ROVERNAV_NOINLINE void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to)
   const int32_t steps = (moved + kStepCdeg - 1) / kStepCdeg;
   angle_cdeg_ = to;
   phase_start_ms_ = now_ms;
-  const int32_t wait_ms = (steps > 0 ? steps : 1) * static_cast<int32_t>(step_ms_);
+  const int32_t slew_ms = step_ms_ < kSlewMsPerStep ? static_cast<int32_t>(step_ms_) : static_cast<int32_t>(kSlewMsPerStep);
+  const int32_t wait_ms = static_cast<int32_t>(step_ms_) + (steps > 1 ? (steps - 1) * slew_ms : 0);
   // The HC-SR04 needs about 60 ms between pings for the last echo to die away.
   const int32_t min_gap_ms = kPingTimeoutMs;
   phase_ms_ = static_cast<uint16_t>(wait_ms < min_gap_ms ? min_gap_ms : wait_ms);

@@ -1,7 +1,10 @@
 // The sonar sweep: stopped, the servo steps from -90 to +90 degrees in 15-degree steps, one
-// ping a step. Each step waits for the servo (sweep_step_ms per 15 degrees moved), fires the
-// sonar, and waits for its result (at most kPingTimeoutMs). Nothing waits without a bound:
-// a sonar that never answers costs kPingTimeoutMs a step, not the rover.
+// ping a step. Each step waits for the servo (sweep_step_ms for a 15-degree step: travel and
+// settle), fires the sonar, and waits for its result (at most kPingTimeoutMs). A longer move,
+// such as the slew to -90 degrees that starts a sweep, adds kSlewMsPerStep for each further
+// 15 degrees: an SG90 travels 60 degrees in 0.1 s, and settling is paid once, not per step.
+// Nothing waits without a bound: a sonar that never answers costs kPingTimeoutMs a step, not
+// the rover.
 #pragma once
 #include <stdint.h>
 
@@ -11,7 +14,7 @@ namespace core {
 class Sweep {
  public:
   enum : int16_t { kFirstCdeg = -9000, kLastCdeg = 9000, kStepCdeg = 1500 };
-  enum : uint16_t { kPingTimeoutMs = 60 };
+  enum : uint16_t { kPingTimeoutMs = 60, kSlewMsPerStep = 25 };
 
   struct Echo {
     bool valid;

@@ -4,6 +4,7 @@
 #include "harness.h"
 
 using namespace rovernav;
+using rovernav::core::Sweep;
 using rovernav::test::Bench;
 
 namespace {
@@ -40,7 +41,7 @@ TEST_CASE("a sweep runs at the start and every 300 mm driven, stopped, from -90 
   CHECK(b.events(EventKind::ScanDone) == 4);
 }
 
-TEST_CASE("a sweep takes well under 2.5 s with the default timing (the seed's took 9 s)") {
+TEST_CASE("a sweep takes under 1.5 s with the default timing (the seed's took 9 s)") {
   Bench b;
   b.stream_fixes = true;
   b.start_mission(kNorth, 2);
@@ -49,11 +50,38 @@ TEST_CASE("a sweep takes well under 2.5 s with the default timing (the seed's to
   REQUIRE(b.run_until([&] { return b.rover.state() != RoverState::Scan; }, 10000));
   const uint32_t took = b.now_ms - started;
   MESSAGE("sweep took " << took << " ms");
-  CHECK(took < 2500);
-  CHECK(took > 9 * 60);  // never faster than the HC-SR04 allows
+  CHECK(took < 1500);
+  CHECK(took > 13 * 60);  // 13 pings, never faster than the HC-SR04 allows
 }
 
-TEST_CASE("echoes within 400 mm are reported as OBSTACLE with bearing, range and the rover's pose") {
+TEST_CASE("the slew to -90 degrees waits for the servo's travel, and the settling once") {
+  const uint16_t step_ms = 90;
+  Sweep s;
+  s.start(1000, 0, step_ms);
+  int16_t servo = 0;
+  bool fire = false;
+  uint32_t now = 1000;
+  while (!fire && now < 3000) {
+    s.step(now, false, 0, servo, fire);
+    if (!fire) now += 5;
+  }
+  CHECK(servo == Sweep::kFirstCdeg);
+  // Six 15-degree steps: one step's travel and settling, then five more at the servo's speed.
+  CHECK(now - 1000 == step_ms + 5 * Sweep::kSlewMsPerStep);
+  // A 15-degree step of the sweep itself waits the whole step time.
+  s.step(now + 10, true, 300, servo, fire);
+  const uint32_t moved_at = now + 10;
+  now = moved_at;
+  fire = false;
+  while (!fire && now < 3000) {
+    s.step(now, false, 0, servo, fire);
+    if (!fire) now += 5;
+  }
+  CHECK(servo == Sweep::kFirstCdeg + Sweep::kStepCdeg);
+  CHECK(now - moved_at == step_ms);
+}
+
+TEST_CASE("echoes within the report range are reported as OBSTACLE with bearing, range and the rover's pose") {
   Bench b;
   b.stream_fixes = true;
   b.sonar_range_mm = 250;
