@@ -225,6 +225,19 @@ def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_comple
     assert any("host restarted" in e["text"] for e in r["events"])
 
 
+@pytest.mark.mission
+def test_a_radio_outage_beside_an_unknown_box_ends_without_contact():
+    # An outage trial that once ended against the Figure 4.8 box's corner: the rover's sweep
+    # beside the box was lost on the radio, so the host's map never had the corner. The rover
+    # now sweeps again when the radio comes back, before it moves on.
+    from rovernav.sim.runner import Faults
+
+    seed, start_s, duration_s = 2151, 10.3, 14.8
+
+    r = _run("seed-fig4-8-unknown-obstacle", seed=seed, faults=Faults(link_outages=[(start_s, duration_s)]))
+    assert r["reached"] and r["collisions"] == 0 and not r["crashed"]
+
+
 def test_a_radio_outage_over_the_moment_the_obstacle_is_found_still_ends_without_contact():
     from rovernav.sim.runner import Faults
 

@@ -76,6 +76,7 @@ uint16_t Rover::flags() const {
 
 ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   const uint32_t now = in.now_ms;
+  step_work_ = 0;
   float dt_s = 0.0f;
   if (have_time_) {
     const uint32_t gap_ms = now - last_ms_;
@@ -180,6 +181,7 @@ void Rover::watch_link(uint32_t now) {
     send_event(EventKind::LinkLost, 0);
   } else if (!radio_now_lost && radio_lost_) {
     radio_lost_ = false;
+    look_after_outage_ = mission_;   // what the sonar reported meanwhile was lost: look again
     send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - radio_lost_since_ms_) / 100.0f));
   }
   if (had_fix_ && !dead_reckoning_ && now - last_fix_ms_ > params_.fix_timeout_ms()) {
@@ -360,6 +362,13 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     return;
   }
   if (state_ != RoverState::Rotate && state_ != RoverState::Drive) return;
+  if (look_after_outage_) {
+    // The radio is back: the host's map missed the readings sent while it was down (and may
+    // have sent a path that runs into them). A sweep, reported, before the rover moves on.
+    look_after_outage_ = false;
+    start_sweep(now);
+    return;
+  }
   float l = distance_to(target());
   if (l <= p.arrival_radius_mm()) {
     reached_waypoint();
@@ -635,16 +644,18 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
 // must not set the rover off on its own)? With the radio up the host, whose map knows more,
 // replans after the sweep: the rover holds still and waits for its path. It plans its own
 // detour when the radio is down, or when it trusted the host's path once this leg and its
-// forward reflex stopped it on that path all the same (a host that cannot replan).
+// forward reflex stopped it on that path all the same (a host that cannot replan). On a detour
+// of its own, a sweep that finds the next detour point blocked plans the detour again from here.
 void Rover::replan_locally() {
   blocked_ = false;
   awaiting_host_ = false;
-  if (!mission_ || local_.echoes() == 0 || detour_i_ < detour_n_) return;
+  if (!mission_ || local_.echoes() == 0) return;
   const Waypoint here = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
   const Waypoint next = target();
   const Point a = {here.x_mm, here.y_mm}, b = {next.x_mm, next.y_mm};
   if (!local_.blocks(a, b, static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
-  if (!radio_lost_ && !reflex_after_trust_) {
+  const bool on_own_detour = detour_i_ < detour_n_;
+  if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
     blocked_ = awaiting_host_ = true;
     blocked_since_ms_ = last_ms_;
     return;
@@ -653,6 +664,7 @@ void Rover::replan_locally() {
 }
 
 void Rover::plan_detour() {
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
   const Point a = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
   // The path-staging buffer is the planner's scratch (unless a path is arriving: then the host's
   // new path will do, and the rover waits for it).
@@ -669,6 +681,7 @@ void Rover::plan_detour() {
     }
   }
   if (n == 0) {
+    detour_n_ = detour_i_ = 0;   // a detour it was on goes too
     blocked_ = true;   // stopped; a path from the host (or kBlockedWaitMs of it sending none) ends it
     blocked_since_ms_ = last_ms_;
     send_event(EventKind::Replanned, 0);
@@ -735,6 +748,7 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
 }
 
 void Rover::on_fix(const msg::Fix& m, uint32_t now) {
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkFix);
   PoseFix fix;
   fix.x_mm = m.x_mm;
   fix.y_mm = m.y_mm;

@@ -96,6 +96,7 @@ struct RoverFields {
   uint32_t blocked_since_ms_ = 0;
   uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
   uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
+  uint8_t step_work_ = 0;                     // what this step did (Rover::kWork* bits), for timing it
   float back_off_mm_ = 0.0f;                  // distance backed out so far
 
   // Flags, one bit each.
@@ -106,6 +107,7 @@ struct RoverFields {
   bool reflex_look_ : 1;                      // stopped by the reflex: look (a clear ping) before driving
   bool reflex_waiting_ : 1;                   // a reflex ping's result is still to come
   bool rotate_checked_ : 1;                   // this rotation's start was checked for room to swing
+  bool look_after_outage_ : 1;                // the radio came back mid-mission: sweep before moving on
 };
 
 class Rover : private RoverFields {
@@ -135,6 +137,9 @@ class Rover : private RoverFields {
 
   // Read-only views for tests, the simulator and the shell.
   RoverState state() const { return state_; }
+  /// What the last step did that costs time: kWorkFix (a FIX taken in), kWorkPlanned (the detour planner ran).
+  enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1 };
+  uint8_t step_work() const { return step_work_; }
   uint16_t flags() const;
   FaultCode fault() const { return fault_; }
   const Estimator& estimator() const { return est_; }

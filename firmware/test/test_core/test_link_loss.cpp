@@ -41,6 +41,27 @@ TEST_CASE("radio lost mid-drive: the rover keeps driving on dead reckoning and s
   CHECK(b.events(EventKind::CameraBack) == 1);
 }
 
+TEST_CASE("when the radio comes back mid-mission the rover sweeps before it moves on, and the host hears it") {
+  Bench b;
+  b.stream_fixes = true;
+  b.heartbeats = true;
+  b.start_mission(kLong, 2);
+  no_sweeps(b);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
+  b.run_ms(500);
+  b.radio = false;   // what the rover reports now is lost, and the host's map misses it
+  b.sonar_range_mm = 250;   // something to report from here on
+  b.run_ms(1500);
+  REQUIRE(b.rover.state() == RoverState::Drive);
+  b.said_count = 0;   // count what the host hears from here on
+  b.radio = true;
+  REQUIRE(b.run_until([&] { return b.events(EventKind::LinkBack) == 1; }, 1000));
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Scan; }, 200));
+  CHECK(b.out.left_pwm == 0);
+  REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) >= 1; }, 3000));
+  CHECK(b.count<msg::Obstacle>() >= 13);   // the whole sweep, heard
+}
+
 TEST_CASE("camera lost while heartbeats arrive: flagged as no camera, with an EVENT") {
   Bench b;
   b.stream_fixes = true;
