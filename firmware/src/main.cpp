@@ -2,9 +2,15 @@
 // applies what it asks for to the pins. Everything that touches hardware is here or in lib/hal;
 // every decision is in lib/core, which the native tests and the simulator run unchanged.
 //
-// Nothing here waits without a bound: the gyro read and the sonar ping have time limits in
-// their drivers, serial writes never exceed the room in the TX buffer, and the watchdog resets
-// the board if a loop ever takes longer than 250 ms.
+// Nothing here waits on a sensor: the gyro read has a time limit in its driver, the sonar's
+// echo is timed by an interrupt and collected by a later step, serial writes never exceed the
+// room in the TX buffer, and the watchdog resets the board if a loop ever takes longer than
+// 250 ms.
+//
+// Measurement hooks (for a scope, and for the AVR simulator that times the image): D8 (PB0) is
+// high while a step works; at the end of each step GPIOR0 holds what the step did: bits 0-3 the
+// rover's state, bit 4 a FIX was taken in, bit 5 the sonar was triggered or its result
+// collected, bit 6 the detour planner ran, bit 7 radio bytes came in.
 #include <Arduino.h>
 
 #include "board.h"
@@ -35,9 +41,17 @@ hal::LinkSerial serial_link;
 hal::MpuResult gyro_state = hal::MpuResult::NotStarted;
 uint32_t last_step_ms = 0;
 
-// The sonar's result goes to the core one step after it asked for the ping.
+// A ping the core asked for is triggered after its step; the result, collected by the poll at
+// the start of a later step (the next one, for echoes within 1 m), goes to the core in that step.
 bool sonar_pending = false;
 uint16_t sonar_range_mm = 0;
+
+enum : uint8_t {
+  kDidFix = 1u << 4,
+  kDidSonar = 1u << 5,
+  kDidPlan = 1u << 6,
+  kDidRx = 1u << 7,
+};
 
 core::Inputs in;
 core::Outputs out;
@@ -48,6 +62,7 @@ uint8_t rx[kRxChunk];
 void setup() {
   hal::HwWatchdog::enable();
   hal::StatusLed::begin(true);
+  DDRB = static_cast<uint8_t>(DDRB | _BV(DDB0));   // the step probe (board::kPinStepProbe)
   motors.begin();
   servo.begin(0);
   sonar.begin();
@@ -72,6 +87,16 @@ void loop() {
   const uint32_t now_ms = millis();
   if (now_ms - last_step_ms < kStepMs) return;
   last_step_ms = now_ms;
+  PORTB = static_cast<uint8_t>(PORTB | _BV(PORTB0));
+  uint8_t did = 0;
+
+  uint16_t echo_mm = 0;
+  const hal::SonarResult polled = sonar.poll(micros(), echo_mm);
+  if (polled != hal::SonarResult::Pending && polled != hal::SonarResult::Idle) {
+    sonar_pending = true;
+    sonar_range_mm = polled == hal::SonarResult::Ok ? echo_mm : 0;
+    did |= kDidSonar;
+  }
 
   in.now_ms = now_ms;
   int32_t rate_mdps = 0;
@@ -91,10 +116,17 @@ void loop() {
   servo.write_cdeg(out.servo_cdeg);
   serial_link.write_some(out.tx, out.tx_len);
   if (out.fire_sonar) {
-    uint16_t range_mm = 0;
-    const hal::SonarResult r = sonar.ping(now_ms, range_mm);
-    sonar_pending = true;
-    sonar_range_mm = r == hal::SonarResult::Ok ? range_mm : 0;
+    did |= kDidSonar;
+    if (sonar.trigger(now_ms) != hal::SonarResult::Pending) {
+      sonar_pending = true;   // not sent (too soon, echo still high, no sensor): "nothing" next step
+      sonar_range_mm = 0;
+    }
   }
   hal::StatusLed::set(rover.fault() != FaultCode::None);
+  const uint8_t work = rover.step_work();
+  if (work & core::Rover::kWorkFix) did |= kDidFix;
+  if (work & core::Rover::kWorkPlanned) did |= kDidPlan;
+  if (in.rx_len > 0) did |= kDidRx;
+  GPIOR0 = static_cast<uint8_t>(did | (static_cast<uint8_t>(rover.state()) & 0x0Fu));
+  PORTB = static_cast<uint8_t>(PORTB & ~_BV(PORTB0));
 }

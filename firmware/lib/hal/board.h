@@ -56,6 +56,9 @@ constexpr uint32_t kSerialBaud = 57600;
 // --- Status LED.
 constexpr uint8_t kPinLed = 13;
 
+// --- Step probe: high while a 10 ms step works (a scope on D8, or the AVR simulator, times it).
+constexpr uint8_t kPinStepProbe = 8;   // PB0
+
 // --- Watchdog: the loop must kick it at least this often.
 constexpr uint16_t kWatchdogTimeoutMs = 250;
 
