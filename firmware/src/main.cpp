@@ -67,6 +67,10 @@ void setup() {
   servo.begin(0);
   sonar.begin();
   serial_link.begin(board::kSerialBaud);
+  // A frame delimiter first: a reset may have cut a frame short, and the host must not take
+  // that half frame and our HELLO for one (bad CRC: the new boot id would go unheard).
+  const uint8_t delimiter = 0x00;
+  serial_link.write_some(&delimiter, 1);
   const uint16_t boot_id = hal::BootCounter::increment();
 
   // A gyro that does not answer is not waited for: the core sees no samples and reports
@@ -86,7 +90,9 @@ void loop() {
   hal::HwWatchdog::kick();
   const uint32_t now_ms = millis();
   if (now_ms - last_step_ms < kStepMs) return;
-  last_step_ms = now_ms;
+  // On the 10 ms grid, not 10 ms after whenever this step began: millis() moves in 1.024 ms
+  // ticks, and `last = now` let the period drift to 10.04 ms. Far behind (a stall), resync.
+  last_step_ms = now_ms - last_step_ms < 2 * kStepMs ? last_step_ms + kStepMs : now_ms;
   PORTB = static_cast<uint8_t>(PORTB | _BV(PORTB0));
   uint8_t did = 0;
 

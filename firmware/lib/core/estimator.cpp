@@ -4,6 +4,7 @@
 
 #include "angles.h"
 #include "float_ops.h"
+#include "progmem.h"
 
 namespace rovernav {
 namespace core {
@@ -19,7 +20,7 @@ const float kGateChi2 = 25.0f;
 enum { X = 0, Y = 1, T = 2 };  // the pose q
 enum { XX = 0, XY = 1, XT = 2, YY = 3, YT = 4, TT = 5 };
 // Where entry (row, column) of the symmetric P is stored, by 3 * row + column.
-const uint8_t kIndex[9] = {XX, XY, XT, XY, YY, YT, XT, YT, TT};
+const uint8_t kIndex[9] ROVERNAV_PROGMEM = {XX, XY, XT, XY, YY, YT, XT, YT, TT};
 
 // The sequential scalar updates of the pose q and the full covariance P (row-major, 3x3) by the
 // fix z, seen against h, the pose when its frame was taken; q0 is the pose before the update.
@@ -148,7 +149,7 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   // that a fix failing the gate changes nothing.
   float q[3] = {q_[X], q_[Y], q_[T]};
   float P[9];
-  for (uint8_t i = 0; i < 9; ++i) P[i] = p_[kIndex[i]];
+  for (uint8_t i = 0; i < 9; ++i) P[i] = p_[flash_read_u8(&kIndex[i])];
   const float chi2 = sequential_update(z, h, q_, r_pos, q, P);
   if (chi2 < 0.0f) return FixResult::Rejected;  // a degenerate covariance: not the fix's fault
   if (!(chi2 <= kGateChi2)) {
@@ -164,7 +165,7 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   q_[Y] = q[Y];
   q_[T] = wrap_rad(q[T]);
   for (uint8_t r = 0; r < 3; ++r)
-    for (uint8_t c = r; c < 3; ++c) p_[kIndex[3 * r + c]] = 0.5f * (P[3 * r + c] + P[3 * c + r]);
+    for (uint8_t c = r; c < 3; ++c) p_[flash_read_u8(&kIndex[3 * r + c])] = 0.5f * (P[3 * r + c] + P[3 * c + r]);
   return FixResult::Accepted;
 }
 

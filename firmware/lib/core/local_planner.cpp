@@ -1,13 +1,15 @@
 #include "local_planner.h"
 
+#include "progmem.h"
+
 namespace rovernav {
 namespace core {
 
 namespace {
 
 // The 8 neighbours, as (dx, dy); the opposite of direction k is k ^ 4 in this order.
-const int8_t kDx[8] = {1, 1, 0, -1, -1, -1, 0, 1};
-const int8_t kDy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+const int8_t kDx[8] ROVERNAV_PROGMEM = {1, 1, 0, -1, -1, -1, 0, 1};
+const int8_t kDy[8] ROVERNAV_PROGMEM = {0, 1, 1, 1, 0, -1, -1, -1};
 
 inline bool bit(const uint8_t* bits, uint16_t i) { return (bits[i >> 3] >> (i & 7)) & 1; }
 inline void set_bit(uint8_t* bits, uint16_t i) { bits[i >> 3] = static_cast<uint8_t>(bits[i >> 3] | (1u << (i & 7))); }
@@ -81,8 +83,15 @@ Point LocalPlanner::cell_centre(int16_t ix, int16_t iy) const {
 
 bool LocalPlanner::cell_free(int16_t ix, int16_t iy) const { return !inside(cell_centre(ix, iy)); }
 
-uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out) {
+// The scratch buffer: direction nibbles (0 = not reached; k + 1 = step k leads towards the
+// goal; 9 = the goal), the blocked cells, and two frontier bitsets.
+namespace {
+constexpr uint16_t kBits = (LocalPlanner::kCellCount + 7) / 8;
+}
+
+bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
   ops_ = 0;
+  phase_ = Phase::Idle;
   const int16_t half = static_cast<int16_t>(kCells * kCellMm / 2);
   origin_.x_mm = static_cast<int16_t>((start.x_mm + goal.x_mm) / 2 - half);
   origin_.y_mm = static_cast<int16_t>((start.y_mm + goal.y_mm) / 2 - half);
@@ -90,81 +99,126 @@ uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out
   const int16_t sy = static_cast<int16_t>((start.y_mm - origin_.y_mm) / kCellMm);
   const int16_t gx = static_cast<int16_t>((goal.x_mm - origin_.x_mm) / kCellMm);
   const int16_t gy = static_cast<int16_t>((goal.y_mm - origin_.y_mm) / kCellMm);
-  if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return 0;
-  if (inside(goal)) return 0;
+  if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return false;
+  if (inside(goal)) return false;
+  scratch_ = scratch;
+  start_ = start;
+  goal_ = goal;
+  start_i_ = static_cast<uint16_t>(sy * kCells + sx);
+  goal_i_ = static_cast<uint16_t>(gy * kCells + gx);
+  for (uint16_t i = 0; i < kScratchBytes; ++i) scratch[i] = 0;
+  i_ = 0;
+  phase_ = Phase::Mark;
+  return true;
+}
 
-  // Scratch: direction nibbles (0 = not reached; k + 1 = step k leads towards the goal; 9 = the
-  // goal), the blocked cells, and two frontier bitsets.
-  const uint16_t nbits = (kCellCount + 7) / 8;
-  uint8_t* dir = scratch;
-  uint8_t* blocked = scratch + kCellCount / 2;
-  uint8_t* cur = blocked + nbits;
-  uint8_t* nxt = cur + nbits;
-  for (uint16_t i = 0; i < kCellCount / 2 + 3 * nbits; ++i) scratch[i] = 0;
-  for (int16_t iy = 0; iy < kCells; ++iy)
-    for (int16_t ix = 0; ix < kCells; ++ix)
-      if (!cell_free(ix, iy)) set_bit(blocked, static_cast<uint16_t>(iy * kCells + ix));
-  const uint16_t start_i = static_cast<uint16_t>(sy * kCells + sx);
-  const uint16_t goal_i = static_cast<uint16_t>(gy * kCells + gx);
-  set_nibble(dir, goal_i, 9);
-  set_bit(cur, goal_i);
-
-  // Breadth-first from the goal, one frontier layer at a time; no corner cutting.
-  bool reached = start_i == goal_i;
-  for (uint16_t layer = 0; layer < kCellCount && !reached; ++layer) {
-    bool any = false;
-    for (uint16_t i = 0; i < nbits; ++i) nxt[i] = 0;
-    for (uint16_t c = 0; c < kCellCount; ++c) {
-      ++ops_;
-      if (!bit(cur, c)) continue;
-      const int16_t cx = static_cast<int16_t>(c % kCells), cy = static_cast<int16_t>(c / kCells);
-      for (uint8_t k = 0; k < 8; ++k) {
-        ++ops_;
-        const int16_t nx = static_cast<int16_t>(cx + kDx[k]), ny = static_cast<int16_t>(cy + kDy[k]);
-        if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
-        const uint16_t n = static_cast<uint16_t>(ny * kCells + nx);
-        if (nibble(dir, n) != 0) continue;
-        if (bit(blocked, n) && n != start_i) continue;
-        if ((k & 1) && (bit(blocked, static_cast<uint16_t>(cy * kCells + nx)) ||
-                        bit(blocked, static_cast<uint16_t>(ny * kCells + cx)))) continue;
-        set_nibble(dir, n, static_cast<uint8_t>(((k ^ 4) & 7) + 1));  // from n, step back towards c
-        set_bit(nxt, n);
-        any = true;
-        if (n == start_i) reached = true;
+PlanStatus LocalPlanner::step(Point* out, uint8_t& n_out) {
+  uint8_t* dir = scratch_;
+  uint8_t* blocked = scratch_ + kCellCount / 2;
+  uint8_t* cur = blocked + kBits + (flip_ ? kBits : 0);
+  uint8_t* nxt = blocked + kBits + (flip_ ? 0 : kBits);
+  switch (phase_) {
+    case Phase::Idle:
+      return PlanStatus::NoWay;
+    case Phase::Mark: {
+      // kMarkCells cells a slice: each is tested against every disk.
+      const uint16_t end = i_ + kMarkCells < kCellCount ? static_cast<uint16_t>(i_ + kMarkCells) : static_cast<uint16_t>(kCellCount);
+      for (; i_ < end; ++i_) {
+        const int16_t ix = static_cast<int16_t>(i_ % kCells), iy = static_cast<int16_t>(i_ / kCells);
+        if (!cell_free(ix, iy)) set_bit(blocked, i_);
       }
+      if (i_ < kCellCount) return PlanStatus::Running;
+      set_nibble(dir, goal_i_, 9);
+      set_bit(cur, goal_i_);
+      reached_ = start_i_ == goal_i_;
+      layer_ = 0;
+      phase_ = reached_ ? Phase::Walk : Phase::Search;
+      walk_init_ = true;
+      return PlanStatus::Running;
     }
-    if (!any) break;
-    uint8_t* t = cur;
-    cur = nxt;
-    nxt = t;
+    case Phase::Search: {
+      // One layer of the breadth-first wavefront from the goal a slice; no corner cutting.
+      bool any = false;
+      for (uint16_t i = 0; i < kBits; ++i) nxt[i] = 0;
+      for (uint16_t c = 0; c < kCellCount; ++c) {
+        ++ops_;
+        if (!bit(cur, c)) continue;
+        const int16_t cx = static_cast<int16_t>(c % kCells), cy = static_cast<int16_t>(c / kCells);
+        for (uint8_t k = 0; k < 8; ++k) {
+          ++ops_;
+          const int16_t nx = static_cast<int16_t>(cx + flash_read_i8(&kDx[k])), ny = static_cast<int16_t>(cy + flash_read_i8(&kDy[k]));
+          if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
+          const uint16_t n = static_cast<uint16_t>(ny * kCells + nx);
+          if (nibble(dir, n) != 0) continue;
+          if (bit(blocked, n) && n != start_i_) continue;
+          if ((k & 1) && (bit(blocked, static_cast<uint16_t>(cy * kCells + nx)) ||
+                          bit(blocked, static_cast<uint16_t>(ny * kCells + cx)))) continue;
+          set_nibble(dir, n, static_cast<uint8_t>(((k ^ 4) & 7) + 1));  // from n, step back towards c
+          set_bit(nxt, n);
+          any = true;
+          if (n == start_i_) reached_ = true;
+        }
+      }
+      flip_ = !flip_;
+      ++layer_;
+      if (reached_) {
+        phase_ = Phase::Walk;
+        return PlanStatus::Running;
+      }
+      if (!any || layer_ >= kCellCount) {
+        phase_ = Phase::Idle;
+        return PlanStatus::NoWay;
+      }
+      return PlanStatus::Running;
+    }
+    case Phase::Walk:
+      break;
   }
-  if (!reached) return 0;
-
-  // Walk from the start towards the goal; keep a turning point wherever the straight line from
-  // the last kept point would cross a disk.
-  uint8_t n_out = 0;
-  Point anchor = start;
-  Point prev = start;
-  int16_t x = sx, y = sy;
-  for (uint16_t guard = 0; guard < kCellCount; ++guard) {
-    const uint16_t i = static_cast<uint16_t>(y * kCells + x);
-    const uint8_t d = nibble(dir, i);
-    const bool at_goal = d == 9 || i == goal_i;
-    const Point here = at_goal ? goal : cell_centre(x, y);
-    if (blocks(anchor, here)) {
-      if (n_out >= kMaxDetour - 1) return 0;
-      out[n_out++] = prev;
-      anchor = prev;
+  // Walk from the start towards the goal, kWalkCells cells a slice; keep a turning point
+  // wherever the straight line from the last kept point would cross a disk.
+  if (walk_init_) {
+    walk_init_ = false;
+    n_walk_ = 0;
+    anchor_ = prev_ = start_;
+    i_ = start_i_;
+  }
+  for (uint8_t k = 0; k < kWalkCells; ++k) {
+    const int16_t x = static_cast<int16_t>(i_ % kCells), y = static_cast<int16_t>(i_ / kCells);
+    const uint8_t d = nibble(dir, i_);
+    const bool at_goal = d == 9 || i_ == goal_i_;
+    const Point here = at_goal ? goal_ : cell_centre(x, y);
+    if (blocks(anchor_, here)) {
+      if (n_walk_ >= kMaxDetour - 1 || d == 0) {
+        phase_ = Phase::Idle;
+        return PlanStatus::NoWay;
+      }
+      out[n_walk_++] = prev_;
+      anchor_ = prev_;
     }
     if (at_goal) {
-      out[n_out++] = goal;
-      return n_out;
+      out[n_walk_++] = goal_;
+      n_out = n_walk_;
+      phase_ = Phase::Idle;
+      return PlanStatus::Found;
     }
-    prev = here;
-    x = static_cast<int16_t>(x + kDx[d - 1]);
-    y = static_cast<int16_t>(y + kDy[d - 1]);
+    if (d == 0) {   // off the wavefront: cannot happen on a reached grid
+      phase_ = Phase::Idle;
+      return PlanStatus::NoWay;
+    }
+    prev_ = here;
+    i_ = static_cast<uint16_t>((y + flash_read_i8(&kDy[d - 1])) * kCells + (x + flash_read_i8(&kDx[d - 1])));
   }
-  return 0;
+  return PlanStatus::Running;
+}
+
+uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out) {
+  if (!begin(start, goal, scratch)) return 0;
+  uint8_t n = 0;
+  for (;;) {
+    const PlanStatus st = step(out, n);
+    if (st == PlanStatus::Found) return n;
+    if (st == PlanStatus::NoWay) return 0;
+  }
 }
 
 }  // namespace core

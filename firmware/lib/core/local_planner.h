@@ -10,8 +10,12 @@
 // frontier bitsets,
 // kScratchBytes in all) live in a scratch buffer the caller lends (the Rover lends its idle
 // path-staging buffer), so the planner adds only its echoes to the static RAM.
-// Time: bounded by the grid (every cell enters the frontier once); ops() counts the work so the
-// native tests can estimate the ATmega328P's time.
+// Time: resumable. begin() sets a plan up; each step() does one bounded slice of it (kMarkCells
+// cells tested against the disks, or one layer of the wavefront, or kWalkCells cells of the
+// walk back) and says whether it is still running, found a detour or found none, so the rover
+// keeps its 10 ms step (link, STATUS, STOP) while it plans. plan() runs it to the end at once
+// (tests). ops() counts the work; the Uno's time per slice is measured on the image in the AVR
+// simulator, not estimated from it.
 #pragma once
 #include <stdint.h>
 
@@ -23,9 +27,11 @@ struct Point {
   int16_t y_mm;
 };
 
+enum class PlanStatus : uint8_t { Running, Found, NoWay };
+
 class LocalPlanner {
  public:
-  enum : uint8_t { kCells = 12, kMaxEchoes = 9, kMaxDetour = 4 };
+  enum : uint8_t { kCells = 12, kMaxEchoes = 9, kMaxDetour = 4, kMarkCells = 18, kWalkCells = 3 };
   enum : int16_t { kCellMm = 80 };
   enum : uint16_t {
     kCellCount = kCells * kCells,
@@ -48,6 +54,13 @@ class LocalPlanner {
   /// the goal last) to out and returns how many (1..kMaxDetour), or 0 when there is no way on
   /// the grid. scratch: kScratchBytes bytes the planner may use.
   uint8_t plan(Point start, Point goal, uint8_t* scratch, Point* out);
+  /// The same in slices: begin() returns false when start or goal is off the grid or the goal
+  /// is blocked (no plan); then step() until it returns Found (n_out waypoints in out) or
+  /// NoWay. The scratch buffer must stay untouched until then.
+  bool begin(Point start, Point goal, uint8_t* scratch);
+  PlanStatus step(Point* out, uint8_t& n_out);
+  bool planning() const { return phase_ != Phase::Idle; }
+  void cancel() { phase_ = Phase::Idle; }
   /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests).
   uint32_t ops() const { return ops_; }
 
@@ -60,10 +73,24 @@ class LocalPlanner {
   Point cell_centre(int16_t ix, int16_t iy) const;
   bool line_free(int16_t ax, int16_t ay, int16_t bx, int16_t by) const;
 
+  enum class Phase : uint8_t { Idle, Mark, Search, Walk };
+
   Disk disks_[kMaxEchoes];
   uint8_t n_ = 0;
   Point origin_ = {0, 0};  // the grid's lower-left corner
   mutable uint32_t ops_ = 0;
+  // The plan under way.
+  uint8_t* scratch_ = nullptr;
+  Point start_ = {0, 0}, goal_ = {0, 0};
+  Point anchor_ = {0, 0}, prev_ = {0, 0};   // the walk back: last kept point, last cell
+  uint16_t start_i_ = 0, goal_i_ = 0;
+  uint16_t i_ = 0;                          // Mark: next cell; Walk: the cell reached
+  uint8_t layer_ = 0;
+  uint8_t n_walk_ = 0;
+  Phase phase_ = Phase::Idle;
+  bool flip_ = false;                       // which frontier bitset is the current one
+  bool reached_ = false;
+  bool walk_init_ = false;
 };
 
 }  // namespace core

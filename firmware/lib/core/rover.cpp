@@ -4,6 +4,7 @@
 
 #include "angles.h"
 #include "float_ops.h"
+#include "progmem.h"
 
 namespace rovernav {
 namespace core {
@@ -344,6 +345,10 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     }
     return;
   }
+  if (plan_ahead_dm_ != 0) {   // planning its own detour, a slice a step: holding still
+    continue_detour();
+    return;
+  }
   if (blocked_) {
     // Waiting for the host's new path (or no way round on the rover's grid). If none comes, the
     // host (whose map knows more) holds the path clear: the rover goes on, once trusting it.
@@ -487,11 +492,11 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
   if (period_ms == 0) return false;
   // Ahead, right 15 and 30 degrees, ahead, left 15 and 30: at close range the 15-degree cone is
   // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
-  static const int16_t kLookCdeg[kReflexLooks] = {0, 1500, 3000, 0, -1500, -3000};
+  static const int16_t kLookCdeg[kReflexLooks] ROVERNAV_PROGMEM = {0, 1500, 3000, 0, -1500, -3000};
   if (reflex_waiting_ && in.sonar_valid) {
     reflex_waiting_ = false;
     const uint16_t r = in.sonar_range_mm;
-    const int16_t look = kLookCdeg[reflex_look_i_];
+    const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
     if (r > 0 && reflex_on_path(look, r, l_mm)) {
       if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
@@ -507,7 +512,7 @@ bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
     reflex_waiting_ = false;   // no result came: ping again
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
   }
-  servo_cdeg_ = kLookCdeg[reflex_look_i_];
+  servo_cdeg_ = flash_read_i16(&kLookCdeg[reflex_look_i_]);
   if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {
     out.fire_sonar = true;
     reflex_waiting_ = true;
@@ -562,6 +567,7 @@ void Rover::start_sweep(uint32_t now) {
   reflex_waiting_ = false;   // a ping still out belongs to the reflex, not to the sweep
   ++scan_id_;
   scan_echoes_ = 0;
+  cancel_detour_plan();
   local_.clear();
   sweep_.start(now, servo_cdeg_, params_.sweep_step_ms());
   enter(RoverState::Scan);
@@ -663,34 +669,68 @@ void Rover::replan_locally() {
   plan_detour();
 }
 
+// The rover's own detour, planned over several steps (the wavefront a slice a step), while it
+// holds still and keeps serving the link, STATUS and STOP. Rejoin points 0.9, 0.8, 0.7 and
+// 0.6 m on along the path are tried in turn (the obstacle's depth is unknown).
 void Rover::plan_detour() {
   step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
-  const Point a = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
   // The path-staging buffer is the planner's scratch (unless a path is arriving: then the host's
   // new path will do, and the rover waits for it).
   static_assert(sizeof(stage_) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");
-  uint8_t n = 0;
-  Point detour[LocalPlanner::kMaxDetour];
-  if (!staging_) {
-    // Rejoin the path well past the obstacle (its depth is unknown), but inside the grid.
-    for (uint16_t ahead = 900; ahead >= 600 && n == 0; ahead = static_cast<uint16_t>(ahead - 100)) {
-      const Waypoint g = rejoin_point(static_cast<float>(ahead));
-      const Point goal = {g.x_mm, g.y_mm};
-      if (local_.inside(goal)) continue;
-      n = local_.plan(a, goal, reinterpret_cast<uint8_t*>(stage_), detour);
-    }
-  }
-  if (n == 0) {
-    detour_n_ = detour_i_ = 0;   // a detour it was on goes too
-    blocked_ = true;   // stopped; a path from the host (or kBlockedWaitMs of it sending none) ends it
-    blocked_since_ms_ = last_ms_;
-    send_event(EventKind::Replanned, 0);
+  detour_n_ = detour_i_ = 0;
+  if (staging_) {
+    no_detour();
     return;
   }
-  for (uint8_t i = 0; i < n; ++i) detour_[i] = Waypoint{detour[i].x_mm, detour[i].y_mm};
+  plan_ahead_dm_ = 10;
+  next_detour_goal();
+}
+
+void Rover::next_detour_goal() {
+  const Point a = {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())};
+  while (plan_ahead_dm_ > 6) {
+    --plan_ahead_dm_;
+    const Waypoint goal = rejoin_point(100.0f * static_cast<float>(plan_ahead_dm_));
+    if (local_.inside(goal)) continue;
+    if (local_.begin(a, goal, reinterpret_cast<uint8_t*>(stage_))) return;
+  }
+  plan_ahead_dm_ = 0;
+  no_detour();
+}
+
+// One slice of the detour under way; called each step while plan_ahead_dm_ != 0. A step that
+// has taken in a FIX (the estimator's update is the other heavy job) leaves it to the next.
+void Rover::continue_detour() {
+  if (step_work_ & kWorkFix) return;
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
+  if (staging_) {   // the host's path is arriving: it will do
+    cancel_detour_plan();
+    no_detour();
+    return;
+  }
+  uint8_t n = 0;
+  const PlanStatus st = local_.step(detour_, n);
+  if (st == PlanStatus::Running) return;
+  if (st == PlanStatus::NoWay) {
+    next_detour_goal();
+    return;
+  }
+  plan_ahead_dm_ = 0;
   detour_n_ = n;
   detour_i_ = 0;
   send_event(EventKind::Replanned, n);
+}
+
+void Rover::cancel_detour_plan() {
+  local_.cancel();
+  plan_ahead_dm_ = 0;
+}
+
+void Rover::no_detour() {
+  detour_n_ = detour_i_ = 0;
+  blocked_ = true;   // stopped; a path from the host (or kBlockedWaitMs of it sending none) ends it
+  blocked_since_ms_ = last_ms_;
+  send_event(EventKind::Replanned, 0);
 }
 
 // ---------------------------------------------------------------- messages in
@@ -788,6 +828,10 @@ void Rover::on_fix(const msg::Fix& m, uint32_t now) {
 
 void Rover::on_path(const msg::Path& m, uint8_t seq) {
   const uint8_t id = msg::Path::kId;
+  if (plan_ahead_dm_ != 0) {   // the staging buffer is the planner's scratch; the host's path will do
+    cancel_detour_plan();
+    no_detour();
+  }
   // A repeat of the chunk just taken (its ACK was lost and the host sent it again): ACK again.
   if (m.path_id == stage_id_ && m.first_index == last_chunk_first_ &&
       (staging_ || (path_id_ == m.path_id && path_len_ == m.total))) {
@@ -856,6 +900,7 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
 void Rover::on_stop(const msg::Stop& m, uint8_t seq) {
   ack(msg::Stop::kId, seq);
   stop_sweep();
+  cancel_detour_plan();
   if (state_ != RoverState::Fault) enter(RoverState::Idle);
   mission_ = false;
   send_event(EventKind::Stopped, m.reason);

@@ -22,10 +22,8 @@
 namespace rovernav {
 namespace core {
 
-struct Waypoint {
-  int16_t x_mm;
-  int16_t y_mm;
-};
+// A waypoint is a point of the plane in mm: the host's, or one of the rover's own detour.
+using Waypoint = Point;
 
 /// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
 /// and a base of the Rover's, so that the Rover's constructor sets it as one block
@@ -92,6 +90,7 @@ struct RoverFields {
   LocalPlanner local_;                        // the last sweep's echoes, as obstacle disks
   Waypoint detour_[LocalPlanner::kMaxDetour] = {};  // the rover's own way round them
   uint8_t detour_n_ = 0;
+  uint8_t plan_ahead_dm_ = 0;                 // a detour being planned: to rejoin this far on (100 mm); 0 none
   uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
   uint32_t blocked_since_ms_ = 0;
   uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
@@ -152,6 +151,7 @@ class Rover : private RoverFields {
   float speed_scale() const { return speed_scale_; }
   uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
   bool blocked() const { return blocked_; }
+  bool planning_detour() const { return plan_ahead_dm_ != 0; }
   float dr_distance_mm() const { return dr_distance_mm_; }
   /// The speed the rover cruises at (mm/s), from its drive command and speed model.
   float drive_speed_mm_s() const;
@@ -189,6 +189,10 @@ class Rover : private RoverFields {
   Waypoint rejoin_point(float ahead_mm) const;
   void replan_locally();
   void plan_detour();
+  void next_detour_goal();
+  void continue_detour();
+  void no_detour();
+  void cancel_detour_plan();
   void start_sweep(uint32_t now);
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
   bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;

@@ -8,10 +8,16 @@
 #define ROVERNAV_PROGMEM PROGMEM
 namespace rovernav {
 inline int32_t flash_read_i32(const int32_t* p) { return static_cast<int32_t>(pgm_read_dword(p)); }
+inline int16_t flash_read_i16(const int16_t* p) { return static_cast<int16_t>(pgm_read_word(p)); }
+inline int8_t flash_read_i8(const int8_t* p) { return static_cast<int8_t>(pgm_read_byte(p)); }
+inline uint8_t flash_read_u8(const uint8_t* p) { return pgm_read_byte(p); }
 }  // namespace rovernav
 #else
 #define ROVERNAV_PROGMEM
 namespace rovernav {
 inline int32_t flash_read_i32(const int32_t* p) { return *p; }
+inline int16_t flash_read_i16(const int16_t* p) { return *p; }
+inline int8_t flash_read_i8(const int8_t* p) { return *p; }
+inline uint8_t flash_read_u8(const uint8_t* p) { return *p; }
 }  // namespace rovernav
 #endif
