@@ -65,6 +65,7 @@ class SimOptions:
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
     config: Config | None = None
+    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (sim/uno.py)
 
 
 @dataclasses.dataclass
@@ -95,7 +96,8 @@ class Simulation:
         self.progress = progress or (lambda t, text: None)
         self.to_rover = Channel(options.channel, self.rng, self._outages())
         self.to_host = Channel(options.channel, self.rng, self._outages())
-        self.core = RoverCore(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
+        self.core = None
+        self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
         look = RoverLook.for_vision(self.cfg.vision)
         self.renderer = Renderer(look, Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0),
                                  seed=int(self.rng.integers(2**31)))
@@ -127,6 +129,33 @@ class Simulation:
         self._clairvoyant: OccupancyGrid | None = None
 
     # ---------------------------------------------------------------- set-up
+
+    def _new_core(self, boot_id: int, reset_cause: int):
+        """The rover's firmware: the core through its C ABI, or the Uno image in simavr, which
+        pings the plant's sonar itself. A reset of the Uno keeps its EEPROM (boot counter)."""
+        if self.opt.rover == "native":
+            if self.core is not None:
+                self.core.close()
+            return RoverCore(boot_id=boot_id, reset_cause=reset_cause)
+        if self.opt.rover != "uno":
+            raise ValueError(f"unknown rover {self.opt.rover!r}: native or uno")
+        if self.core is not None:
+            self.core.reset(reset_cause)
+            return self.core
+        from .uno import UnoCore
+        return UnoCore(boot_id=boot_id, reset_cause=reset_cause, sonar=lambda: self.plant.sonar_mm(self.world),
+                       start_ms=int(round(getattr(self, "t", 0.0) * 1000)))
+
+    def uno_timing(self) -> dict | None:
+        """The report's "uno_timing" (None for the native core), with where the worst step was."""
+        if self.opt.rover != "uno":
+            return None
+        timing = self.core.timing()
+        worst = timing.get("worst_step")
+        if worst and self.samples:
+            s = min(self.samples, key=lambda smp: abs(smp.t_s - worst["t_s"]))
+            worst["x_m"], worst["y_m"] = round(s.x_m, 3), round(s.y_m, 3)
+        return timing
 
     def _outages(self) -> list[tuple[float, float]]:
         return [(a, a + d) for a, d in self.opt.faults.link_outages]
@@ -181,8 +210,7 @@ class Simulation:
             if resets and now >= resets[0]:
                 resets.pop(0)
                 self._event(now, "firmware reset: the rover reboots with a new boot id")
-                self.core.close()
-                self.core = RoverCore(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=4)
+                self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=4)
                 self._sonar_pending = None
             if f.gyro_dies_at is not None and now >= f.gyro_dies_at and self.plant.gyro_alive:
                 self.plant.gyro_alive = False
@@ -243,7 +271,8 @@ class Simulation:
         tx_room = max(0, 64 - self.to_host.queued())
         out = self.core.step(int(round(now * 1000)), gyro_rate_mdps=self.plant.gyro_mdps(),
                              sonar_range_mm=self._sonar_pending, rx=rx, tx_room=tx_room)
-        self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar else None
+        # (The Uno image pings the plant itself, through UnoCore's sonar callback.)
+        self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar and self.opt.rover == "native" else None
         if out.tx:
             self.to_host.write(out.tx, now)
         self.plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, STEP_S)

@@ -1,0 +1,532 @@
+"""The Uno image itself as the simulated rover's firmware: `rovernav sim --rover uno`.
+
+`UnoCore` runs build/uno/firmware.elf in simavr (tools/avrsim/unocore.c, loaded from
+build/avrsim/libunocore.so with ctypes) with the simulated world on its pins, and offers the
+same `step()` / `probe()` / `close()` as `rovernav.firmware.RoverCore`, so the simulator's loop
+(runner.py) steps either one:
+
+- `step(now_ms, gyro_rate_mdps=..., rx=...)` hands the MPU-6050 model the yaw rate and the
+  UART the radio's bytes (paced at 57,600 baud), runs the AVR up to cycle now * 16 MHz, and
+  reads back what its pins say: the motor PWM (Timer0/Timer2 compare registers and the port
+  bits when analogWrite has disconnected them), the servo angle (Timer1's pulse width, turned
+  into an angle with board.h's constants), whether TRIG rose (`fire_sonar`), and the bytes
+  the UART sent. `sonar_range_mm` and `tx_room` are ignored: the image pings the HC-SR04
+  model itself (the range comes from the `sonar` callback at the TRIG edge), and its own TX
+  buffer limits what it sends.
+- `probe()` is what the report and the pictures need: the state from the step descriptor the
+  image writes to GPIOR0 (when it has the hook) or from its last STATUS, the pose and its
+  uncertainty from its last STATUS. Never fed back to the rover.
+- `timing()` is the report's "uno_timing": step times per state and per flag from PB0's edges
+  and the GPIOR0 descriptors, the worst step, the period's jitter, the stack's high-water
+  mark, and counters (gyro transactions, pings, UART bytes, how fast the AVR ran).
+
+Time: the AVR's cycle 0 is the simulated time the core was made at; step(now_ms) runs it to
+(now_ms - start_ms) * 16,000 cycles, so its outputs at `now` are what its pins showed at `now`,
+and the plant moves under them for the next 10 ms, as with the native core.
+"""
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import logging
+import math
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+from ..firmware import FirmwareBuildError, Probe, StepOut
+from ..link import messages_gen as mg
+from ..link.framing import FrameDecoder
+
+log = logging.getLogger("rovernav.sim.uno")
+
+ROOT = Path(__file__).resolve().parents[3]
+FIRMWARE = ROOT / "firmware"
+ELF = ROOT / "build" / "uno" / "firmware.elf"
+LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
+HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
+BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
+SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
+
+CLOCK_HZ = 16_000_000
+CYCLES_PER_MS = CLOCK_HZ // 1000
+ABI_VERSION = 1
+STEP_US = 10_000               # the image's step period (main.cpp kStepMs)
+
+# Step descriptor (GPIOR0) bits, written by main.cpp at the end of each step.
+DESC_STATE_MASK = 0x0F
+DESC_FLAGS = {"fix": 0x10, "sonar": 0x20, "replanning": 0x40, "radio_rx": 0x80}
+
+
+class UnoSetupError(FirmwareBuildError):
+    """The image or the harness cannot be built or loaded (a missing Debian package, say)."""
+
+
+class UnoCrashError(RuntimeError):
+    """simavr stopped the AVR core (an illegal instruction, a jump out of the flash)."""
+
+
+# ---------------------------------------------------------------------------- ctypes layout
+
+class _Step(ctypes.Structure):
+    _fields_ = [("rise", ctypes.c_uint64), ("fall", ctypes.c_uint64), ("desc", ctypes.c_uint8),
+                ("has_desc", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 2), ("boot", ctypes.c_uint32)]
+
+
+class _Regs(ctypes.Structure):
+    _fields_ = [("tccr0a", ctypes.c_uint8), ("ocr0a", ctypes.c_uint8), ("ocr0b", ctypes.c_uint8),
+                ("tccr2a", ctypes.c_uint8), ("ocr2a", ctypes.c_uint8), ("ocr2b", ctypes.c_uint8),
+                ("portb", ctypes.c_uint8), ("ddrb", ctypes.c_uint8), ("portd", ctypes.c_uint8),
+                ("ddrd", ctypes.c_uint8), ("tccr1a", ctypes.c_uint8), ("tccr1b", ctypes.c_uint8),
+                ("icr1", ctypes.c_uint16), ("ocr1a", ctypes.c_uint16),
+                ("last_desc", ctypes.c_uint8), ("has_desc", ctypes.c_uint8),
+                ("pings", ctypes.c_uint32), ("echoes", ctypes.c_uint32), ("steps", ctypes.c_uint32)]
+
+
+class _Stats(ctypes.Structure):
+    _fields_ = [("cycle", ctypes.c_uint64), ("skipped_cycles", ctypes.c_uint64), ("skips", ctypes.c_uint64),
+                ("resets", ctypes.c_uint32), ("cpu_state", ctypes.c_int32), ("crash_pc", ctypes.c_uint32),
+                ("uart_bytes_in", ctypes.c_uint32), ("uart_bytes_out", ctypes.c_uint32),
+                ("uart_xoffs", ctypes.c_uint32), ("uart_rx_queued", ctypes.c_uint32),
+                ("twi_addressed", ctypes.c_uint32), ("twi_nacked", ctypes.c_uint32),
+                ("twi_bytes_written", ctypes.c_uint32), ("twi_bytes_read", ctypes.c_uint32),
+                ("twi_whoami_reads", ctypes.c_uint32), ("twi_gyro_reads", ctypes.c_uint32),
+                ("twi_status_fixed", ctypes.c_uint32), ("twi_twint_cleared", ctypes.c_uint32),
+                ("twi_twsto_cleared", ctypes.c_uint32),
+                ("pings", ctypes.c_uint32), ("echoes", ctypes.c_uint32), ("pings_ignored", ctypes.c_uint32),
+                ("paint_start", ctypes.c_uint16), ("ramend", ctypes.c_uint16),
+                ("stack_lowest", ctypes.c_uint16), ("pad", ctypes.c_uint16),
+                ("sim_warnings", ctypes.c_uint32), ("timer_modes_filled", ctypes.c_uint32)]
+
+
+_SONAR_FN = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p)
+
+
+# ---------------------------------------------------------------------------- building
+
+def missing_packages() -> dict[str, str]:
+    """Debian package -> what of it is missing, for the image and the harness."""
+    missing: dict[str, str] = {}
+    for tool, package in (("avr-gcc", "gcc-avr"), ("avr-objcopy", "binutils-avr"), ("gcc", "gcc"),
+                          ("make", "make")):
+        if shutil.which(tool) is None:
+            missing[package] = tool
+    if not Path("/usr/lib/avr/include/avr/io.h").is_file():
+        missing["avr-libc"] = "/usr/lib/avr/include/avr/io.h"
+    if not SIMAVR_HEADER.is_file():
+        missing["libsimavr-dev"] = str(SIMAVR_HEADER)
+    return missing
+
+
+def _newest_mtime(paths) -> float:
+    return max((p.stat().st_mtime for p in paths if p.is_file()), default=0.0)
+
+
+def _firmware_sources() -> list[Path]:
+    return [p for d in ("src", "lib") for p in (FIRMWARE / d).rglob("*")
+            if p.suffix in (".c", ".cpp", ".h", ".S", ".json")]
+
+
+def _run(cmd: list[str], what: str) -> None:
+    result = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise UnoSetupError(f"{what} failed ({' '.join(cmd)}):\n{(result.stdout + result.stderr)[-3000:]}")
+
+
+def ensure_built(elf: Path = ELF) -> tuple[Path, Path]:
+    """Builds the Uno image (tools/build_uno.py) and the harness (make -C tools/avrsim unocore)
+    when they are missing or older than their sources; returns (elf, library).
+
+    A stale image whose rebuild fails (somebody's edit in progress) is used as it is, with a
+    warning; a missing one is an error. Missing Debian packages are named in the error."""
+    missing = missing_packages()
+    need_elf = not elf.is_file()
+    need_lib = not LIBRARY.is_file()
+    if missing and (need_elf or need_lib):
+        raise UnoSetupError("`--rover uno` needs these Debian packages: " +
+                            ", ".join(f"{pkg} ({what})" for pkg, what in sorted(missing.items())) +
+                            f"; install with: sudo apt-get install {' '.join(sorted(missing))}")
+    if elf == ELF and FIRMWARE.is_dir() and (need_elf or _newest_mtime(_firmware_sources()) > elf.stat().st_mtime):
+        try:
+            _run([sys.executable, str(ROOT / "tools" / "build_uno.py")], "building the Uno image")
+        except UnoSetupError:
+            if need_elf:
+                raise
+            log.warning("the Uno image is older than the firmware sources and does not rebuild; "
+                        "running the old %s", elf)
+    if need_lib or HARNESS_SRC.stat().st_mtime > LIBRARY.stat().st_mtime:
+        _run(["make", "-s", "-C", str(ROOT / "tools" / "avrsim"), "unocore"], "building the simavr harness")
+    return elf, LIBRARY
+
+
+_lib: ctypes.CDLL | None = None
+
+
+def load_library() -> ctypes.CDLL:
+    global _lib
+    if _lib is not None:
+        return _lib
+    try:
+        lib = ctypes.CDLL(str(LIBRARY))
+    except OSError as exc:
+        raise UnoSetupError(f"cannot load {LIBRARY}: {exc} (is libsimavr2 installed? "
+                            "sudo apt-get install libsimavr-dev)") from exc
+    P = ctypes.c_void_p
+    lib.unocore_abi_version.restype = ctypes.c_uint32
+    lib.unocore_new.restype = P
+    lib.unocore_new.argtypes = [ctypes.c_char_p, ctypes.c_uint16, ctypes.c_uint16, ctypes.c_uint8,
+                                ctypes.c_uint8, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_uint32]
+    lib.unocore_free.argtypes = [P]
+    lib.unocore_free.restype = None
+    lib.unocore_set_sonar.argtypes = [P, _SONAR_FN, P]
+    lib.unocore_set_sonar.restype = None
+    lib.unocore_set_fast_forward.argtypes = [P, ctypes.c_int]
+    lib.unocore_set_fast_forward.restype = None
+    lib.unocore_set_gyro.argtypes = [P, ctypes.c_int, ctypes.c_int32]
+    lib.unocore_set_gyro.restype = None
+    lib.unocore_rx.argtypes = [P, ctypes.c_char_p, ctypes.c_uint32]
+    lib.unocore_rx.restype = ctypes.c_uint32
+    lib.unocore_tx.argtypes = [P, ctypes.c_char_p, ctypes.c_uint32]
+    lib.unocore_tx.restype = ctypes.c_uint32
+    lib.unocore_run_to.argtypes = [P, ctypes.c_uint64]
+    lib.unocore_run_to.restype = ctypes.c_int
+    lib.unocore_reset.argtypes = [P, ctypes.c_uint8]
+    lib.unocore_reset.restype = None
+    lib.unocore_regs_read.argtypes = [P, ctypes.POINTER(_Regs)]
+    lib.unocore_regs_read.restype = None
+    lib.unocore_steps.argtypes = [P, ctypes.POINTER(_Step), ctypes.c_uint32, ctypes.c_int]
+    lib.unocore_steps.restype = ctypes.c_uint32
+    lib.unocore_stats_read.argtypes = [P, ctypes.POINTER(_Stats)]
+    lib.unocore_stats_read.restype = None
+    lib.unocore_peek.argtypes = [P, ctypes.c_uint16]
+    lib.unocore_peek.restype = ctypes.c_uint8
+    lib.unocore_pc.argtypes = [P]
+    lib.unocore_pc.restype = ctypes.c_uint32
+    if lib.unocore_abi_version() != ABI_VERSION:
+        raise UnoSetupError(f"{LIBRARY} has ABI version {lib.unocore_abi_version()}, expected {ABI_VERSION}: "
+                            "rebuild it (make -C tools/avrsim unocore)")
+    _lib = lib
+    return lib
+
+
+# ---------------------------------------------------------------------------- the image
+
+@dataclasses.dataclass(frozen=True)
+class Board:
+    """The board.h constants the harness needs to read the pins the way the firmware drives them."""
+
+    servo_pulse_min_us: int
+    servo_pulse_max_us: int
+    servo_centre_trim_cdeg: int
+    servo_clockwise_sign: int
+    gyro_z_to_clockwise_sign: int
+    mpu_address: int
+    serial_baud: int
+
+
+def board_constants(path: Path = BOARD_H) -> Board:
+    text = path.read_text(encoding="utf-8")
+
+    def value(name: str) -> int:
+        m = re.search(rf"\b{name}\s*=\s*(-?(?:0x[0-9A-Fa-f]+|\d+))", text)
+        if m is None:
+            raise UnoSetupError(f"{path}: no constant {name}")
+        return int(m.group(1), 0)
+
+    return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
+                 value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
+                 value("kSerialBaud"))
+
+
+def static_ram_end(elf: Path) -> int:
+    """The first SRAM address above .data, .bss and .noinit (where the heap, and the stack's
+    deepest reach, would begin), from the ELF's section headers."""
+    data = elf.read_bytes()
+    if data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
+        raise UnoSetupError(f"{elf} is not a 32-bit little-endian ELF (an AVR image?)")
+    shoff, = struct.unpack_from("<I", data, 0x20)
+    shentsize, shnum, shstrndx = struct.unpack_from("<HHH", data, 0x2E)
+    sections = [struct.unpack_from("<IIIIIIIIII", data, shoff + i * shentsize) for i in range(shnum)]
+    names_off = sections[shstrndx][4]
+
+    def name(sec) -> str:
+        start = names_off + sec[0]
+        return data[start:data.index(b"\0", start)].decode("ascii", "replace")
+
+    end = 0x100  # the 328P's SRAM starts at 0x100
+    for sec in sections:
+        addr, size = sec[3], sec[5]
+        if name(sec) in (".data", ".bss", ".noinit") and 0x800000 <= addr < 0x810000:
+            end = max(end, addr - 0x800000 + size)
+    return end
+
+
+# ---------------------------------------------------------------------------- statistics
+
+def _percentile(sorted_values: list[float], q: float) -> float:
+    """Nearest-rank percentile of an ascending list (q in 0..100)."""
+    if not sorted_values:
+        return math.nan
+    k = max(0, min(len(sorted_values) - 1, math.ceil(q / 100.0 * len(sorted_values)) - 1))
+    return sorted_values[k]
+
+
+def _summary(values_us: list[float]) -> dict:
+    v = sorted(values_us)
+    if not v:
+        return {"count": 0, "median_us": None, "p99_us": None, "max_us": None}
+    n = len(v)
+    median = v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+    return {"count": n, "median_us": round(median, 1), "p99_us": round(_percentile(v, 99), 1),
+            "max_us": round(v[-1], 1)}
+
+
+def _state_name(state: int) -> str:
+    try:
+        return mg.RoverState(state).name.lower()
+    except ValueError:
+        return f"state_{state}"
+
+
+def _flag_names(desc: int) -> list[str]:
+    return [name for name, bit in DESC_FLAGS.items() if desc & bit]
+
+
+# ---------------------------------------------------------------------------- the core
+
+class UnoCore:
+    """The Uno image in simavr, stepped like RoverCore. Not thread-safe."""
+
+    def __init__(self, boot_id: int = 1, reset_cause: int = 1, *, sonar: Callable[[], int] | None = None,
+                 start_ms: int = 0, elf: Path | None = None, fast_forward: bool | None = None):
+        self.elf, _ = ensure_built(elf or ELF)
+        self._lib = load_library()
+        self.board = board_constants()
+        self.static_end = static_ram_end(self.elf)
+        err = ctypes.create_string_buffer(256)
+        handle = self._lib.unocore_new(str(self.elf).encode(), self.static_end, (boot_id - 1) & 0xFFFF,
+                                       reset_cause & 0xFF, self.board.mpu_address, self.board.serial_baud,
+                                       err, len(err))
+        if not handle:
+            raise UnoSetupError(f"simavr: {err.value.decode(errors='replace')}")
+        self._h = handle
+        self._sonar = sonar
+        self._sonar_error: BaseException | None = None
+        self._sonar_cb = _SONAR_FN(self._on_trigger)   # kept: C holds the pointer
+        self._lib.unocore_set_sonar(handle, self._sonar_cb, None)
+        if fast_forward is None:   # ROVERNAV_UNO_FAST_FORWARD=0 turns it off (to check it changes nothing)
+            fast_forward = os.environ.get("ROVERNAV_UNO_FAST_FORWARD", "1") not in ("0", "no", "off")
+        self._lib.unocore_set_fast_forward(handle, int(fast_forward))
+        self.start_ms = start_ms
+        self._regs = _Regs()
+        self._txbuf = ctypes.create_string_buffer(4096)
+        self._pings = 0
+        self._servo_cdeg = 0
+        self._decoder = FrameDecoder()
+        self._status: mg.Status | None = None
+        self.sonar_ranges: list[int] = []
+        self.wall_s = 0.0             # spent inside the AVR simulation
+        self._records: list[tuple[int, int, int, int, int]] = []   # rise, fall, desc, has_desc, boot
+        self.crashed = False
+
+    # -------------------------------------------------------------- the sensors' callbacks
+
+    def _on_trigger(self, _user) -> int:
+        """TRIG rose: the range the HC-SR04 will report (0 = no echo)."""
+        try:
+            mm = int(self._sonar()) if self._sonar is not None else 0
+        except BaseException as exc:  # raised again after the run: C cannot unwind Python
+            self._sonar_error = exc
+            return 0
+        self.sonar_ranges.append(mm)
+        return max(0, min(mm, 0xFFFFFFFF))
+
+    # -------------------------------------------------------------- RoverCore's interface
+
+    def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
+             rx: bytes = b"", tx_room: int = 64, wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+        """Runs the AVR up to now_ms with the gyro reading gyro_rate_mdps (clockwise, None = the
+        chip stops answering) and rx queued for its UART; returns what its pins show at now_ms.
+        sonar_range_mm, tx_room and wheel_ticks are not used (see the module's docstring)."""
+        if self.crashed:
+            return StepOut(0, 0, self._servo_cdeg, False, b"")
+        lib, h = self._lib, self._h
+        alive = gyro_rate_mdps is not None
+        # The chip's Z is counter-clockwise-positive: heading rate = sign * chip rate.
+        lib.unocore_set_gyro(h, int(alive), self.board.gyro_z_to_clockwise_sign * int(gyro_rate_mdps or 0))
+        if rx:
+            lib.unocore_rx(h, bytes(rx), len(rx))
+        target = max(0, now_ms - self.start_ms) * CYCLES_PER_MS
+        started = time.perf_counter()
+        stopped = lib.unocore_run_to(h, target)
+        self.wall_s += time.perf_counter() - started
+        if self._sonar_error is not None:
+            exc, self._sonar_error = self._sonar_error, None
+            raise exc
+        if stopped:
+            self.crashed = True
+            st = self._stats()
+            raise UnoCrashError(f"simavr stopped the AVR at {now_ms / 1000:.3f} s (state {st.cpu_state}, "
+                                f"pc 0x{st.crash_pc:04x}, word 0x{st.crash_pc // 2:04x}); "
+                                f"disassemble with avr-objdump -d {self.elf}")
+        n = lib.unocore_tx(h, self._txbuf, len(self._txbuf))
+        tx = ctypes.string_at(self._txbuf, n)
+        if tx:
+            for frame in self._decoder.feed(tx):
+                if isinstance(frame.message, mg.Status):
+                    self._status = frame.message
+        r = self._regs
+        lib.unocore_regs_read(h, ctypes.byref(r))
+        fired = r.pings != self._pings
+        self._pings = r.pings
+        left, right = self._motors(r)
+        self._servo_cdeg = self._servo(r)
+        return StepOut(left, right, self._servo_cdeg, fired, tx)
+
+    def probe(self) -> Probe:
+        s = self._status
+        r = self._regs
+        state = (r.last_desc & DESC_STATE_MASK) if r.has_desc else (s.state if s else 0)
+        if s is None:
+            return Probe(state, 0, 0, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        # largest eigenvalue of the position covariance, as the core's position_sd_mm()
+        a, d = float(s.sd_x_mm) ** 2, float(s.sd_y_mm) ** 2
+        b = s.corr_xy_permille / 1000.0 * s.sd_x_mm * s.sd_y_mm
+        sd = math.sqrt(max(0.0, 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)))
+        return Probe(state, s.fault, s.flags, s.waypoint_index, 0, float(s.x_mm), float(s.y_mm),
+                     math.radians(s.heading_cdeg / 100.0), sd, 0.0, float(s.dr_distance_mm))
+
+    def reset(self, reset_cause: int) -> None:
+        """A reset of the board (power, button): the EEPROM's boot counter and .noinit survive;
+        the firmware finds reset_cause in MCUSR."""
+        self._lib.unocore_reset(self._h, reset_cause & 0xFF)
+        self._status = None
+        self._decoder = FrameDecoder()
+
+    def close(self) -> None:
+        if getattr(self, "_h", None):
+            self._collect_steps(final=True)
+            self._final_stats = self._stats()
+            self._lib.unocore_free(self._h)
+            self._h = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # interpreter shutdown
+            pass
+
+    # -------------------------------------------------------------- the pins
+
+    @staticmethod
+    def _motors(r: _Regs) -> tuple[int, int]:
+        """Signed PWM per side, as motors.cpp drives the L298N inputs: an input's duty is its
+        OCR value while the timer drives the pin (COMxx1), else 255 or 0 from the port bit."""
+        def duty(tccr: int, com1: int, ocr: int, port: int, ddr: int, bit: int) -> int:
+            if tccr & com1:
+                return ocr
+            return 255 if (ddr & bit) and (port & bit) else 0
+
+        left_back = duty(r.tccr2a, 0x20, r.ocr2b, r.portd, r.ddrd, 1 << 3)    # pin 3, OC2B
+        left_fwd = duty(r.tccr0a, 0x20, r.ocr0b, r.portd, r.ddrd, 1 << 5)     # pin 5, OC0B
+        right_back = duty(r.tccr0a, 0x80, r.ocr0a, r.portd, r.ddrd, 1 << 6)   # pin 6, OC0A
+        right_fwd = duty(r.tccr2a, 0x80, r.ocr2a, r.portb, r.ddrb, 1 << 3)    # pin 11, OC2A
+        return left_fwd - left_back, right_fwd - right_back
+
+    def _servo(self, r: _Regs) -> int:
+        """The angle (cdeg, clockwise from straight ahead) the Timer1 pulse commands: the inverse
+        of servo_timer1.cpp's mapping. Without pulses the servo stays where it was."""
+        prescale = {1: 1, 2: 8, 3: 64, 4: 256, 5: 1024}.get(r.tccr1b & 0x07)
+        if not (r.tccr1a & 0x80) or prescale is None or r.ocr1a == 0:
+            return self._servo_cdeg
+        b = self.board
+        pulse_us = r.ocr1a * prescale / (CLOCK_HZ / 1_000_000)
+        servo_cdeg = (pulse_us - b.servo_pulse_min_us) * 18000.0 / (b.servo_pulse_max_us - b.servo_pulse_min_us)
+        return int(round(b.servo_clockwise_sign * (servo_cdeg - 9000 - b.servo_centre_trim_cdeg)))
+
+    # -------------------------------------------------------------- measurements
+
+    def _stats(self) -> _Stats:
+        if not getattr(self, "_h", None):
+            return self._final_stats
+        s = _Stats()
+        self._lib.unocore_stats_read(self._h, ctypes.byref(s))
+        return s
+
+    def _collect_steps(self, final: bool = False) -> None:
+        buf = (_Step * 4096)()
+        while True:
+            n = self._lib.unocore_steps(self._h, buf, len(buf), int(final))
+            self._records.extend((s.rise, s.fall, s.desc, s.has_desc, s.boot) for s in buf[:n])
+            if n < len(buf):
+                break
+
+    def peek(self, addr: int) -> int:
+        """One byte of the AVR's data space (registers, I/O, SRAM)."""
+        return self._lib.unocore_peek(self._h, addr)
+
+    def stats(self) -> dict:
+        s = self._stats()
+        return {name: getattr(s, name) for name, _ in _Stats._fields_ if name != "pad"}
+
+    def timing(self) -> dict:
+        """The report's "uno_timing" section (times in microseconds of simulated time)."""
+        if getattr(self, "_h", None):
+            self._collect_steps(final=True)
+        s = self._stats()
+        us = 1e6 / CLOCK_HZ
+        records = self._records
+        with_desc = [r for r in records if r[3]]
+        all_us = [(r[1] - r[0]) * us for r in records]
+        by_state: dict[str, list[float]] = {}
+        for r in with_desc:
+            by_state.setdefault(_state_name(r[2] & DESC_STATE_MASK), []).append((r[1] - r[0]) * us)
+        by_flag = {name: [(r[1] - r[0]) * us for r in with_desc if r[2] & bit] for name, bit in DESC_FLAGS.items()}
+        worst = None
+        if records:
+            w = max(records, key=lambda r: r[1] - r[0])
+            worst = {"us": round((w[1] - w[0]) * us, 1), "t_s": round(self.start_ms / 1000 + w[0] / CLOCK_HZ, 4),
+                     "state": _state_name(w[2] & DESC_STATE_MASK) if w[3] else None,
+                     "flags": _flag_names(w[2]) if w[3] else None}
+        periods = [(b[0] - a[0]) * us for a, b in zip(records, records[1:]) if a[4] == b[4]]
+        jitter = sorted(abs(p - STEP_US) for p in periods)
+        simulated_s = s.cycle / CLOCK_HZ
+        lowest = s.stack_lowest
+        painted = s.paint_start and s.paint_start <= s.ramend
+        stack = {"ram_end": f"0x{s.ramend:04X}", "static_end": f"0x{s.paint_start:04X}",
+                 "static_bytes": s.paint_start - 0x100,
+                 "used_bytes": (s.ramend + 1 - lowest) if painted else None,
+                 "margin_bytes": (lowest - s.paint_start) if painted else None,
+                 "lowest_address": f"0x{lowest:04X}" if painted else None}
+        return {
+            "image": str(self.elf.relative_to(ROOT) if self.elf.is_relative_to(ROOT) else self.elf),
+            "clock_hz": CLOCK_HZ,
+            "hooks": {"step_probe_pb0": bool(records), "descriptor_gpior0": bool(with_desc)},
+            "steps": len(records),
+            "step_time": _summary(all_us),
+            "by_state": {k: _summary(v) for k, v in sorted(by_state.items())},
+            "by_flag": {k: _summary(v) for k, v in by_flag.items()},
+            "worst_step": worst,
+            "period_jitter": {"periods": len(periods),
+                              "mean_period_us": round(sum(periods) / len(periods), 1) if periods else None,
+                              "max_abs_us": round(jitter[-1], 1) if jitter else None,
+                              "p99_abs_us": round(_percentile(jitter, 99), 1) if jitter else None},
+            "stack": stack,
+            "gyro": {"addressed": s.twi_addressed, "whoami_reads": s.twi_whoami_reads,
+                     "gyro_reads": s.twi_gyro_reads, "nacked": s.twi_nacked,
+                     "workarounds": {"sla_w_status_fixed": s.twi_status_fixed,
+                                     "twint_cleared": s.twi_twint_cleared,
+                                     "twsto_cleared": s.twi_twsto_cleared}},
+            "sonar": {"pings": s.pings, "echoes": s.echoes, "ignored_while_busy": s.pings_ignored},
+            "uart": {"bytes_in": s.uart_bytes_in, "bytes_out": s.uart_bytes_out, "xoff": s.uart_xoffs},
+            "resets": s.resets,
+            "speed": {"simulated_s": round(simulated_s, 3), "avr_wall_s": round(self.wall_s, 3),
+                      "avr_x_real_time": round(simulated_s / self.wall_s, 2) if self.wall_s > 0 else None,
+                      "idle_fast_forward_share": round(s.skipped_cycles / s.cycle, 3) if s.cycle else None},
+        }

@@ -1,0 +1,1051 @@
+/*
+ * unocore: the rover's Uno image (build/uno/firmware.elf) in simavr, with the simulated world
+ * wired to its pins, as a shared library (build/avrsim/libunocore.so) that the Python
+ * simulator loads with ctypes (host/rovernav/sim/uno.py, `rovernav sim --rover uno`).
+ *
+ * Why a library in the simulator's process and not a subprocess with a byte protocol
+ *   The simulator steps the rover every 10 ms of simulated time, and an HC-SR04 ping needs the
+ *   plant's range at the moment the firmware raises TRIG, which is in the middle of a step.
+ *   In-process, that is one C-to-Python callback; across a pipe it would be a request and a
+ *   reply inside the simulation loop (two context switches per ping, plus two per step). A
+ *   ctypes call costs a microsecond; the AVR simulation of one step costs milliseconds, so the
+ *   interface costs nothing measurable. ctypes releases the GIL while the AVR runs.
+ *
+ * What is wired to what (ATmega328P pins, see firmware/lib/hal/board.h)
+ *   - Motors: the host reads TCCR0A/TCCR2A (are OC0A/OC0B/OC2A/OC2B connected?), OCR0A/B and
+ *     OCR2A/B, and PORTB/PORTD for inputs held HIGH or LOW (analogWrite 0 and 255 disconnect
+ *     the timer), at the end of every step (unocore_regs_read).
+ *   - Servo: TCCR1A/TCCR1B/ICR1/OCR1A, read the same way; the host turns the pulse width into
+ *     an angle with the board.h constants.
+ *   - HC-SR04: a rising edge on TRIG (PC1) asks the host for the range (the plant's sonar
+ *     model, through a callback); 450 us later ECHO (PC0) goes high for 2 * range / 0.343 us,
+ *     or 38 ms when nothing echoes. The pin is driven through the port's pin IRQ, so the
+ *     firmware sees it in PINC and through its pin-change interrupt alike.
+ *   - MPU-6050: a TWI slave at 0x68 with a register file (auto-incrementing register pointer,
+ *     WHO_AM_I 0x68, DEVICE_RESET, SLEEP, FS_SEL) whose GYRO_ZOUT is the host's yaw rate.
+ *   - UART0: bytes from the host enter at the line rate (10 bits at 57,600 baud), and only
+ *     while the UART has room (XON/XOFF); bytes the firmware sends are collected for the host.
+ *   - Measurement hooks of the image, when present: PB0 (D8) high while a 10 ms step works,
+ *     and GPIOR0 written with a step descriptor at its end. Every edge of PB0 is time-stamped
+ *     in CPU cycles; each step record keeps its rise, its fall and its descriptor.
+ *   - Stack: SRAM from the end of .bss/.noinit to RAMEND is painted with a pattern after
+ *     loading (and after every reset); the lowest byte no longer holding it is the stack's
+ *     high-water mark.
+ *
+ * libsimavr 1.6 (Debian) and the TWI master: two bugs, worked round from here
+ *   1. After SLA+W the master reports TWSR 0x28/0x30 (data byte sent, ACK/NACK) instead of
+ *      0x18/0x20 (SLA+W sent, ACK/NACK): 1.6 uses the data-byte codes for the address byte of
+ *      a write. The firmware's driver checks for 0x18 and would give up with a bus error. The
+ *      harness listens to the TWI status IRQ, which simavr raises right after it has written
+ *      TWSR and before it sets TWINT; when the status that follows an SLA+W is 0x28 or 0x30,
+ *      it rewrites TWSR's status bits to 0x18 or 0x20. The firmware polls TWINT, so it only
+ *      ever reads the corrected value.
+ *   2. Writing 1 to TWINT does not clear it: 1.6's TWCR handler clears the TWI interrupt's
+ *      pending state but leaves the TWINT bit as written (1). A driver that starts a bus step
+ *      by writing TWINT=1 and then waits for TWINT to be set again would see it set at once
+ *      and read a stale status. The harness registers a second write hook on TWCR, which
+ *      simavr chains after the TWI module's own: when the value written has TWINT set, it
+ *      clears the bit, as the hardware does. The TWI module sets it again when the bus step
+ *      completes (its status timer raises the interrupt flag). The same hook would clear TWSTO
+ *      if a library left it set after sending the STOP (the hardware clears it; the driver
+ *      waits for that before the next START): Debian's 1.6 clears it itself, and
+ *      twi_twsto_cleared stays 0.
+ *
+ * libsimavr 1.6 and speed: two more things the harness sets right before the image runs
+ *   3. Level-triggered INT0/INT1 polling. simavr's external-interrupt module, in its default
+ *      "strict level triggering", starts a one-cycle timer that reads the port through an
+ *      ioctl every cycle while INT0's or INT1's pin is low, whether or not the interrupt is
+ *      enabled. INT1's pin is PD3, a motor input that is low whenever that motor is not
+ *      reversing: the poll cost half of simavr's time. The image enables neither INT0 nor
+ *      INT1, so the harness turns strict level triggering off for both (after every reset
+ *      too, which turns it back on); a write to EIMSK that enables one of them turns it back
+ *      on for that one.
+ *   4. Phase-correct PWM modes. 1.6's timers lack them (Timer2's WGM 1, which the Arduino
+ *      core's init() selects for pins 3 and 11, and Timer1's 1-3): the timer then runs with a
+ *      TOP of 0 and its overflow timer fires every prescaled tick (every 64 cycles), which is
+ *      harmless to the image (nothing uses Timer2's interrupts) but costs time and defeats the
+ *      fast-forward below. The harness fills those modes in as the phase-and-frequency
+ *      correct mode of the same resolution (TOP 0xFF, 0x1FF, 0x3FF), which simavr models
+ *      with a period of TOP+1 ticks instead of the hardware's 2*TOP: the compare values, which
+ *      are what the harness reads for the motors, are the same.
+ *
+ * Speed: idle fast-forward (exact)
+ *   The firmware spends most of each 10 ms busy-waiting for millis() to move: loop() kicks the
+ *   watchdog, reads millis(), returns; so does the calibration loop. simavr executes every one
+ *   of those instructions, and its WDR costs an ioctl walk plus a cycle-timer re-registration.
+ *   At each WDR the harness compares the complete CPU state (registers, I/O space, SRAM, SREG)
+ *   with its state at the previous WDR. When they are identical, the same WDR was reached on
+ *   the same stack, no cycle timer fired in between, no interrupt is pending, and no I/O
+ *   register with a read or write side effect (TCNTx, UDR0, PINx, TWDR, ...) was touched, the
+ *   iteration in between changed nothing and reads nothing that time changes: every following
+ *   iteration is the same, cycle for cycle, until the next cycle timer (Timer0's overflow for
+ *   millis(), a UART byte, a TWI step, an echo edge, the watchdog) fires. The harness then
+ *   advances the cycle counter by a whole number of iterations, stopping short of that timer
+ *   and of the time the host asked for. Nothing the firmware can observe changes: the timer
+ *   fires at the same cycle, in the same instruction of the same iteration, as without the
+ *   skip, and the WDR that follows re-arms the watchdog. unocore_set_fast_forward(0) turns
+ *   it off (to check that claim, or to profile simavr itself).
+ *
+ * Time: unocore_run_to(cycle) runs the AVR until its cycle counter (continued across resets)
+ * reaches the cycle the host asks for: t_s * 16e6.
+ */
+#define _GNU_SOURCE
+
+#include <inttypes.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "avr_eeprom.h"
+#include "avr_extint.h"
+#include "avr_ioport.h"
+#include "avr_timer.h"
+#include "avr_twi.h"
+#include "avr_uart.h"
+#include "sim_avr.h"
+#include "sim_elf.h"
+#include "sim_interrupts.h"
+#include "sim_io.h"
+#include "sim_irq.h"
+
+#define UNOCORE_API __attribute__((visibility("default")))
+#define UNOCORE_ABI_VERSION 1
+
+/* ATmega328P data-space addresses (datasheet register summary) */
+enum {
+	A_PINB = 0x23, A_DDRB = 0x24, A_PORTB = 0x25,
+	A_PINC = 0x26, A_DDRC = 0x27, A_PORTC = 0x28,
+	A_PIND = 0x29, A_DDRD = 0x2A, A_PORTD = 0x2B,
+	A_GPIOR0 = 0x3E,
+	A_EIMSK = 0x3D,
+	A_TCCR0A = 0x44, A_TCCR0B = 0x45, A_OCR0A = 0x47, A_OCR0B = 0x48,
+	A_MCUSR = 0x54,
+	A_TCCR1A = 0x80, A_TCCR1B = 0x81, A_ICR1L = 0x86, A_ICR1H = 0x87,
+	A_OCR1AL = 0x88, A_OCR1AH = 0x89,
+	A_TCCR2A = 0xB0, A_TCCR2B = 0xB1, A_OCR2A = 0xB3, A_OCR2B = 0xB4,
+	A_TWSR = 0xB9, A_TWDR = 0xBB, A_TWCR = 0xBC,
+};
+enum { TWINT_BIT = 0x80, TWSTO_BIT = 0x10 };
+enum {
+	TW_START_ = 0x08, TW_MT_SLA_ACK_ = 0x18, TW_MT_SLA_NACK_ = 0x20,
+	TW_MT_DATA_ACK_ = 0x28, TW_MT_DATA_NACK_ = 0x30,
+};
+
+#define RING_BYTES 4096u
+#define MAX_IO 256              /* I/O addresses 0x20..0xFF: io index 0..0xDF */
+#define PAINT 0xA5              /* stack paint pattern */
+#define SONAR_ECHO_DELAY_US 450u
+#define SONAR_NO_ECHO_US 38000u
+#define MPU_REGS 128
+
+typedef uint32_t (*unocore_sonar_fn)(void *user);
+
+/* ------------------------------------------------------------------------------ structures
+ * Shared with host/rovernav/sim/uno.py (ctypes); keep the layouts in step. */
+
+typedef struct unocore_step {
+	uint64_t rise;           /* cycle PB0 went high */
+	uint64_t fall;           /* cycle PB0 went low (0: not yet) */
+	uint8_t desc;            /* GPIOR0 written during the step */
+	uint8_t has_desc;
+	uint8_t pad[2];
+	uint32_t boot;           /* resets before this step: periods across a reset are gaps */
+} unocore_step;
+
+typedef struct unocore_regs {
+	uint8_t tccr0a, ocr0a, ocr0b;
+	uint8_t tccr2a, ocr2a, ocr2b;
+	uint8_t portb, ddrb, portd, ddrd;
+	uint8_t tccr1a, tccr1b;
+	uint16_t icr1, ocr1a;
+	uint8_t last_desc, has_desc;   /* the last step descriptor, if any */
+	uint32_t pings;                /* TRIG rising edges so far */
+	uint32_t echoes;               /* echo pulses completed so far */
+	uint32_t steps;                /* PB0 rising edges so far */
+} unocore_regs;
+
+typedef struct unocore_stats {
+	uint64_t cycle;                /* continued across resets */
+	uint64_t skipped_cycles;       /* advanced by the idle fast-forward */
+	uint64_t skips;
+	uint32_t resets;               /* resets after the first boot (watchdog or unocore_reset) */
+	int32_t cpu_state;             /* simavr's cpu_* of the last run */
+	uint32_t crash_pc;
+	uint32_t uart_bytes_in, uart_bytes_out, uart_xoffs, uart_rx_queued;
+	uint32_t twi_addressed, twi_nacked, twi_bytes_written, twi_bytes_read;
+	uint32_t twi_whoami_reads, twi_gyro_reads;
+	uint32_t twi_status_fixed, twi_twint_cleared, twi_twsto_cleared;
+	uint32_t pings, echoes, pings_ignored;
+	uint16_t paint_start, ramend;
+	uint16_t stack_lowest;         /* lowest painted address ever overwritten; ramend+1: none */
+	uint16_t pad;
+	uint32_t sim_warnings;
+	uint32_t timer_modes_filled;
+} unocore_stats;
+
+typedef struct ring {
+	uint8_t buf[RING_BYTES];
+	uint32_t head, len;
+} ring_t;
+
+typedef struct io_hook {
+	void *param;
+	void *c;
+} io_hook_t;
+
+typedef struct unocore {
+	avr_t *avr;
+	elf_firmware_t fw;
+	char error[256];
+
+	uint64_t base;                 /* cycles run before the last reset */
+	uint64_t last_avr_cycle;
+
+	/* UART */
+	avr_irq_t *uart_in;
+	ring_t rx, tx;
+	avr_cycle_count_t cycles_per_byte;
+	avr_cycle_count_t last_feed_cycle;
+	int feed_armed;
+	int uart_ready;
+
+	/* TWI: the MPU-6050 */
+	avr_irq_t *twi_in;
+	uint8_t mpu_addr;
+	int gyro_alive;
+	int32_t gyro_chip_mdps;        /* the chip's frame: counter-clockwise positive */
+	uint8_t regs[MPU_REGS];
+	uint8_t reg_ptr;
+	int selected;                  /* addressed since the last START/STOP */
+	int first_write;               /* the next byte written is the register pointer */
+	int addr_w_status_pending;     /* the next status is the answer to an SLA+W */
+	uint8_t latch[14];             /* sensor registers 0x3B..0x48, latched at SLA+R */
+
+	/* sonar */
+	unocore_sonar_fn sonar_fn;
+	void *sonar_user;
+	avr_irq_t *echo_irq;
+	int trig_level;
+	int echo_busy;                 /* from TRIG until the echo has fallen */
+	uint32_t echo_us;
+
+	/* probe and descriptor */
+	int pb0_level;
+	unocore_step *steps;
+	uint32_t nsteps, capsteps;
+	uint32_t drained;              /* records [0, drained) went to the host */
+	uint8_t last_desc;
+	int has_desc;
+
+	uint8_t eimsk;
+
+	/* stack */
+	uint16_t paint_start;
+	uint16_t stack_lowest;
+
+	/* fast-forward */
+	int ff_enabled;
+	int dirty;
+	uint8_t *snap;
+	uint32_t snap_len;
+	uint8_t snap_sreg[8];
+	int snap_valid;
+	uint32_t snap_pc;
+	int8_t snap_interrupt_state;
+	uint64_t snap_cycle;
+	avr_cycle_timer_slot_p snap_head;
+	avr_cycle_count_t snap_head_when;
+	uint64_t target;               /* never skip past the cycle being run to */
+	io_hook_t orig_r[MAX_IO], orig_w[MAX_IO];
+
+	unocore_stats st;
+	uint32_t pings_total, echoes_total;
+} unocore;
+
+/* ------------------------------------------------------------------------------ logging */
+
+static unsigned g_warnings;
+
+static void sim_logger(avr_t *avr, const int level, const char *fmt, va_list ap)
+{
+	(void)avr;
+	if (level == LOG_WARNING) {
+		g_warnings++;
+		return;
+	}
+	if (level > LOG_ERROR)
+		return;
+	fputs("simavr: ", stderr);
+	vfprintf(stderr, fmt, ap);
+}
+
+static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
+{
+	(void)avr;
+	(void)how_long;
+}
+
+static inline uint64_t now_cycle(const unocore *u) { return u->base + u->avr->cycle; }
+
+/* ------------------------------------------------------------------------------ rings */
+
+static void ring_push(ring_t *r, uint8_t b)
+{
+	if (r->len == RING_BYTES) { /* full: drop the oldest (never happens at 57,600 baud) */
+		r->head = (r->head + 1) % RING_BYTES;
+		r->len--;
+	}
+	r->buf[(r->head + r->len) % RING_BYTES] = b;
+	r->len++;
+}
+
+static uint8_t ring_pop(ring_t *r)
+{
+	uint8_t b = r->buf[r->head];
+	r->head = (r->head + 1) % RING_BYTES;
+	r->len--;
+	return b;
+}
+
+/* ------------------------------------------------------------------------------ UART */
+
+static void uart_output_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	u->st.uart_bytes_out++;
+	ring_push(&u->tx, (uint8_t)value);
+}
+
+static void uart_xon_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	(void)value;
+	((unocore *)param)->uart_ready = 1;
+}
+
+static void uart_xoff_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	if (value) {
+		u->uart_ready = 0;
+		u->st.uart_xoffs++;
+	}
+}
+
+static avr_cycle_count_t feed_timer(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+	(void)avr;
+	unocore *u = param;
+	if (u->rx.len > 0 && u->uart_ready) {
+		uint8_t b = ring_pop(&u->rx);
+		u->last_feed_cycle = when;
+		u->st.uart_bytes_in++;
+		avr_raise_irq(u->uart_in, b);
+	}
+	if (u->rx.len > 0)
+		return when + u->cycles_per_byte;
+	u->feed_armed = 0;
+	return 0;
+}
+
+static void arm_feed_timer(unocore *u)
+{
+	if (u->feed_armed || u->rx.len == 0)
+		return;
+	avr_cycle_count_t due = u->last_feed_cycle + u->cycles_per_byte;
+	avr_cycle_count_t delay = due > u->avr->cycle ? due - u->avr->cycle : 1;
+	avr_cycle_timer_register(u->avr, delay, feed_timer, u);
+	u->feed_armed = 1;
+}
+
+/* ------------------------------------------------------------------------------ MPU-6050 */
+
+enum {
+	MPU_SMPLRT_DIV = 0x19, MPU_CONFIG = 0x1A, MPU_GYRO_CONFIG = 0x1B, MPU_ACCEL_CONFIG = 0x1C,
+	MPU_SENSOR_FIRST = 0x3B, MPU_SENSOR_LAST = 0x48,
+	MPU_PWR_MGMT_1 = 0x6B, MPU_WHO_AM_I = 0x75,
+};
+
+static void mpu_reset_regs(unocore *u)
+{
+	memset(u->regs, 0, sizeof u->regs);
+	u->regs[MPU_PWR_MGMT_1] = 0x40; /* SLEEP after power-up and after DEVICE_RESET */
+	u->regs[MPU_WHO_AM_I] = 0x68;
+	u->reg_ptr = 0;
+}
+
+static int16_t clamp16(int64_t v)
+{
+	return (int16_t)(v > 32767 ? 32767 : v < -32768 ? -32768 : v);
+}
+
+/* The sensor registers, latched when a read transaction addresses the chip (the real chip
+ * reads a burst from one sample). Asleep, the chip does not sample: zeros. */
+static void mpu_latch(unocore *u)
+{
+	memset(u->latch, 0, sizeof u->latch);
+	if (u->regs[MPU_PWR_MGMT_1] & 0x40)
+		return;
+	/* FS_SEL (GYRO_CONFIG bits 4:3): 131, 65.5, 32.8, 16.4 LSB per deg/s = 1310 / 2^fs per 10 */
+	unsigned fs = (u->regs[MPU_GYRO_CONFIG] >> 3) & 3;
+	int64_t num = (int64_t)u->gyro_chip_mdps * 131;
+	int64_t den = 1000LL << fs;    /* counts = mdps * 131 / (1000 * 2^fs) */
+	int64_t counts = (num >= 0 ? num + den / 2 : num - den / 2) / den;
+	int16_t z = clamp16(counts);
+	/* AFS_SEL (ACCEL_CONFIG bits 4:3): 16384 / 2^afs LSB per g; the rover stands level */
+	int16_t one_g = (int16_t)(16384 >> ((u->regs[MPU_ACCEL_CONFIG] >> 3) & 3));
+	u->latch[0x3F - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)one_g >> 8);   /* ACCEL_ZOUT */
+	u->latch[0x40 - MPU_SENSOR_FIRST] = (uint8_t)one_g;
+	int16_t temp = (int16_t)((25.0 - 36.53) * 340.0);                     /* 25 C */
+	u->latch[0x41 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)temp >> 8);
+	u->latch[0x42 - MPU_SENSOR_FIRST] = (uint8_t)temp;
+	u->latch[0x47 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)z >> 8);       /* GYRO_ZOUT */
+	u->latch[0x48 - MPU_SENSOR_FIRST] = (uint8_t)z;
+}
+
+static uint8_t mpu_read(unocore *u)
+{
+	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
+	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
+	if (reg == MPU_WHO_AM_I)
+		u->st.twi_whoami_reads++;
+	if (reg == 0x47)
+		u->st.twi_gyro_reads++;
+	if (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST)
+		return u->latch[reg - MPU_SENSOR_FIRST];
+	return u->regs[reg];
+}
+
+static void mpu_write(unocore *u, uint8_t value)
+{
+	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
+	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
+	if (reg == MPU_WHO_AM_I || (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST))
+		return; /* read-only */
+	if (reg == MPU_PWR_MGMT_1 && (value & 0x80)) {
+		mpu_reset_regs(u); /* DEVICE_RESET: every register to its default, the bit clears */
+		return;
+	}
+	u->regs[reg] = value;
+}
+
+static void twi_answer(unocore *u, uint8_t msg, uint8_t addr, uint8_t data)
+{
+	avr_raise_irq(u->twi_in, avr_twi_irq_msg(msg, addr, data));
+}
+
+/* Everything the TWI master puts on the bus. simavr expects a slave to answer at once, by
+ * raising the TWI input IRQ: an ACK for an address or a written byte, the byte for a read. */
+static void twi_output_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	avr_twi_msg_irq_t v;
+	v.u.v = value;
+	uint8_t msg = v.u.twi.msg, addr = v.u.twi.addr, data = v.u.twi.data;
+	u->dirty = 1;
+
+	if (msg & TWI_COND_STOP) {
+		u->selected = 0;
+		u->addr_w_status_pending = 0;
+	}
+	if (msg & TWI_COND_START) {
+		/* START with an address byte: SLA+R or SLA+W */
+		u->selected = 0;
+		int is_write = (addr & 1) == 0;
+		u->addr_w_status_pending = is_write;
+		if ((addr >> 1) == u->mpu_addr && u->gyro_alive) {
+			u->selected = 1;
+			u->st.twi_addressed++;
+			if (is_write)
+				u->first_write = 1;
+			else
+				mpu_latch(u);
+			twi_answer(u, TWI_COND_ACK, addr, 1);
+		} else {
+			u->st.twi_nacked++; /* nobody answers: the master sees a NACK */
+		}
+		return;
+	}
+	if (!u->selected)
+		return;
+	if (msg & TWI_COND_WRITE) {
+		u->st.twi_bytes_written++;
+		if (u->first_write) {
+			u->reg_ptr = data & (MPU_REGS - 1);
+			u->first_write = 0;
+		} else {
+			mpu_write(u, data);
+		}
+		twi_answer(u, TWI_COND_ACK, addr, 1);
+	} else if (msg & TWI_COND_READ) {
+		u->st.twi_bytes_read++;
+		twi_answer(u, TWI_COND_READ, addr, mpu_read(u));
+	}
+}
+
+/* Workaround 1 (see the top of the file): the status that answers an SLA+W. */
+static void twi_status_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	u->dirty = 1;
+	if (value == TW_START_)
+		return; /* the START's own status comes before the address */
+	if (u->addr_w_status_pending) {
+		u->addr_w_status_pending = 0;
+		uint8_t fixed = value == TW_MT_DATA_ACK_ ? TW_MT_SLA_ACK_
+		              : value == TW_MT_DATA_NACK_ ? TW_MT_SLA_NACK_ : 0;
+		if (fixed) {
+			u->avr->data[A_TWSR] = (uint8_t)((u->avr->data[A_TWSR] & 0x07) | fixed);
+			u->st.twi_status_fixed++;
+		}
+	}
+}
+
+/* Workaround 2 (see the top of the file): chained after the TWI module's TWCR write. */
+static void twcr_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	unocore *u = param;
+	u->dirty = 1;
+	if ((v & TWINT_BIT) && (avr->data[addr] & TWINT_BIT)) {
+		avr->data[addr] &= (uint8_t)~TWINT_BIT;
+		u->st.twi_twint_cleared++;
+	}
+	if ((v & TWSTO_BIT) && (avr->data[addr] & TWSTO_BIT)) {
+		avr->data[addr] &= (uint8_t)~TWSTO_BIT;
+		u->st.twi_twsto_cleared++;
+	}
+}
+
+/* ------------------------------------------------------------------------------ sonar */
+
+static avr_cycle_count_t echo_fall_timer(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+	(void)avr;
+	(void)when;
+	unocore *u = param;
+	avr_raise_irq(u->echo_irq, 0);
+	u->echo_busy = 0;
+	u->echoes_total++;
+	u->dirty = 1;
+	return 0;
+}
+
+static avr_cycle_count_t echo_rise_timer(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+	(void)when;
+	unocore *u = param;
+	avr_raise_irq(u->echo_irq, 1);
+	avr_cycle_timer_register_usec(avr, u->echo_us, echo_fall_timer, u);
+	u->dirty = 1;
+	return 0;
+}
+
+static void trig_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	int level = (value & 1) != 0; /* simavr may flag output changes with AVR_IOPORT_OUTPUT */
+	int rising = level && !u->trig_level;
+	u->trig_level = level;
+	u->dirty = 1;
+	if (!rising)
+		return;
+	u->pings_total++;
+	if (u->echo_busy) { /* the sensor ignores a trigger until its echo has ended */
+		u->st.pings_ignored++;
+		return;
+	}
+	uint32_t range_mm = u->sonar_fn ? u->sonar_fn(u->sonar_user) : 0;
+	/* width_us = 2 * range / 0.343 mm/us; nothing in range: the HC-SR04's ~38 ms time-out */
+	u->echo_us = range_mm ? (uint32_t)(((uint64_t)range_mm * 2000u + 171u) / 343u)
+	                      : SONAR_NO_ECHO_US;
+	if (u->echo_us > SONAR_NO_ECHO_US)
+		u->echo_us = SONAR_NO_ECHO_US;
+	u->echo_busy = 1;
+	avr_cycle_timer_register_usec(u->avr, SONAR_ECHO_DELAY_US, echo_rise_timer, u);
+}
+
+/* ------------------------------------------------------------------------------ step probe */
+
+static void pb0_hook(avr_irq_t *irq, uint32_t value, void *param)
+{
+	(void)irq;
+	unocore *u = param;
+	int level = (value & 1) != 0;
+	if (level == u->pb0_level)
+		return;
+	u->pb0_level = level;
+	u->dirty = 1;
+	uint64_t now = now_cycle(u);
+	if (level) {
+		if (u->nsteps == u->capsteps) {
+			uint32_t cap = u->capsteps ? u->capsteps * 2 : 4096;
+			unocore_step *s = realloc(u->steps, cap * sizeof *s);
+			if (!s)
+				return;
+			u->steps = s;
+			u->capsteps = cap;
+		}
+		unocore_step *s = &u->steps[u->nsteps++];
+		memset(s, 0, sizeof *s);
+		s->rise = now;
+		s->boot = u->st.resets;
+	} else if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0) {
+		u->steps[u->nsteps - 1].fall = now;
+	}
+}
+
+static void gpior0_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	unocore *u = param;
+	avr->data[addr] = v;
+	u->dirty = 1;
+	u->last_desc = v;
+	u->has_desc = 1;
+	/* the descriptor belongs to the step that rose last (written before or after its fall),
+	 * if that step was in this boot */
+	if (u->nsteps > 0 && u->steps[u->nsteps - 1].boot == u->st.resets) {
+		u->steps[u->nsteps - 1].desc = v;
+		u->steps[u->nsteps - 1].has_desc = 1;
+	}
+}
+
+/* ------------------------------------------------------------------------------ stack */
+
+static void stack_paint(unocore *u)
+{
+	avr_t *avr = u->avr;
+	if (u->paint_start == 0 || u->paint_start > avr->ramend)
+		return;
+	/* below the stack pointer only: at reset SP = RAMEND and nothing is on the stack yet */
+	memset(avr->data + u->paint_start, PAINT, (size_t)avr->ramend + 1 - u->paint_start);
+}
+
+static void stack_measure(unocore *u)
+{
+	avr_t *avr = u->avr;
+	if (u->paint_start == 0 || u->paint_start > avr->ramend)
+		return;
+	uint32_t a = u->paint_start;
+	while (a <= avr->ramend && avr->data[a] == PAINT)
+		a++;
+	if (a < u->stack_lowest)
+		u->stack_lowest = (uint16_t)a;
+}
+
+/* ------------------------------------------------------------------------------ fast-forward */
+
+static uint8_t read_wrap(avr_t *avr, avr_io_addr_t addr, void *param)
+{
+	unocore *u = param;
+	u->dirty = 1;
+	io_hook_t *h = &u->orig_r[AVR_DATA_TO_IO(addr)];
+	return ((avr_io_read_t)h->c)(avr, addr, h->param);
+}
+
+static void write_wrap(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	unocore *u = param;
+	u->dirty = 1;
+	io_hook_t *h = &u->orig_w[AVR_DATA_TO_IO(addr)];
+	((avr_io_write_t)h->c)(avr, addr, v, h->param);
+}
+
+/* Every I/O register with a read or write handler gets a wrapper that marks the iteration as
+ * one that touched the outside: such an iteration is never taken as a template to repeat. */
+static void wrap_io_handlers(unocore *u)
+{
+	avr_t *avr = u->avr;
+	for (int i = 0; i < MAX_IO && i < MAX_IOs; i++) {
+		if (avr->io[i].r.c && avr->io[i].r.c != read_wrap) {
+			u->orig_r[i].c = (void *)avr->io[i].r.c;
+			u->orig_r[i].param = avr->io[i].r.param;
+			avr->io[i].r.c = read_wrap;
+			avr->io[i].r.param = u;
+		}
+		if (avr->io[i].w.c && avr->io[i].w.c != write_wrap) {
+			u->orig_w[i].c = (void *)avr->io[i].w.c;
+			u->orig_w[i].param = avr->io[i].w.param;
+			avr->io[i].w.c = write_wrap;
+			avr->io[i].w.param = u;
+		}
+	}
+}
+
+static inline int at_wdr(const avr_t *avr)
+{
+	uint32_t pc = avr->pc;
+	return pc + 1 <= avr->flashend && avr->flash[pc] == 0xA8 && avr->flash[pc + 1] == 0x95;
+}
+
+/* Called with the PC on a WDR, before it executes. */
+static void fast_forward(unocore *u)
+{
+	avr_t *avr = u->avr;
+	avr_cycle_timer_slot_p head = avr->cycle_timers.timer;
+	int same = u->snap_valid && !u->dirty && u->snap_pc == avr->pc && avr->state == cpu_Running &&
+	           u->snap_head == head && head && u->snap_head_when == head->when &&
+	           u->snap_interrupt_state == avr->interrupt_state &&
+	           memcmp(u->snap_sreg, avr->sreg, sizeof u->snap_sreg) == 0 &&
+	           memcmp(u->snap, avr->data, u->snap_len) == 0 &&
+	           !avr_has_pending_interrupts(avr);
+	if (same) {
+		uint64_t period = avr->cycle - u->snap_cycle;
+		avr_cycle_count_t next = head->when;
+		/* whole iterations that end strictly before the next timer and the run target */
+		uint64_t limit_avr = u->target - u->base; /* target in avr->cycle units */
+		if (next > limit_avr)
+			next = limit_avr;
+		if (period > 0 && next > avr->cycle + period) {
+			uint64_t n = (next - avr->cycle - 1) / period;
+			if (n > 0) {
+				avr->cycle += n * period;
+				u->st.skipped_cycles += n * period;
+				u->st.skips++;
+			}
+		}
+		u->snap_cycle = avr->cycle;
+		u->dirty = 0;
+		return;
+	}
+	memcpy(u->snap, avr->data, u->snap_len);
+	memcpy(u->snap_sreg, avr->sreg, sizeof u->snap_sreg);
+	u->snap_pc = avr->pc;
+	u->snap_interrupt_state = avr->interrupt_state;
+	u->snap_cycle = avr->cycle;
+	u->snap_head = head;
+	u->snap_head_when = head ? head->when : 0;
+	u->snap_valid = 1;
+	u->dirty = 0;
+}
+
+/* ------------------------------------------------------------------------------ simavr 1.6 */
+
+/* Workaround 3 (see the top of the file). */
+static void extint_polling_off(unocore *u)
+{
+	for (uint8_t i = 0; i < 2; i++)
+		avr_extint_set_strict_lvl_trig(u->avr, i, (u->eimsk >> i) & 1);
+}
+
+static void eimsk_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+	unocore *u = param;
+	avr->data[addr] = v;
+	u->dirty = 1;
+	if ((v & 3) != (u->eimsk & 3)) {
+		u->eimsk = v;
+		extint_polling_off(u);
+	}
+	u->eimsk = v;
+}
+
+/* Workaround 4 (see the top of the file). */
+static void timer_modes_fill_in(unocore *u)
+{
+	for (avr_io_t *io = u->avr->io_port; io; io = io->next) {
+		if (!io->kind || strcmp(io->kind, "timer") != 0)
+			continue;
+		avr_timer_t *t = (avr_timer_t *)io;
+		int wide = t->r_tcnth != 0;
+		for (int mode = 1; mode <= (wide ? 3 : 1); mode++) {
+			if (t->wgm_op[mode].kind != avr_timer_wgm_none)
+				continue;
+			t->wgm_op[mode].kind = avr_timer_wgm_fc_pwm;
+			t->wgm_op[mode].size = (uint8_t)(7 + mode); /* 8, 9, 10 bits */
+			t->wgm_op[mode].top = avr_timer_wgm_reg_constant;
+			u->st.timer_modes_filled++;
+		}
+	}
+}
+
+/* ------------------------------------------------------------------------------ resets */
+
+/* After a reset of either kind: simavr cleared the cycle timers (the UART feed, the echo),
+ * and possibly the cycle counter. The pins the harness drives go back to idle. */
+static void after_reset(unocore *u, uint64_t cycle_before)
+{
+	avr_t *avr = u->avr;
+	u->base = cycle_before - avr->cycle;
+	u->last_avr_cycle = avr->cycle;
+	u->feed_armed = 0;
+	u->last_feed_cycle = avr->cycle;
+	u->uart_ready = 0;
+	if (u->echo_busy) {
+		u->echo_busy = 0;
+		avr_raise_irq(u->echo_irq, 0);
+	}
+	u->selected = 0;
+	u->addr_w_status_pending = 0;
+	u->snap_valid = 0;
+	u->dirty = 1;
+	if (u->pb0_level) { /* a step cut short by the reset: end it here */
+		u->pb0_level = 0;
+		if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0)
+			u->steps[u->nsteps - 1].fall = cycle_before;
+	}
+	u->st.resets++;
+	u->eimsk = 0;
+	extint_polling_off(u);
+	stack_paint(u);
+	arm_feed_timer(u);
+}
+
+/* ------------------------------------------------------------------------------ API */
+
+UNOCORE_API uint32_t unocore_abi_version(void) { return UNOCORE_ABI_VERSION; }
+
+UNOCORE_API void unocore_free(unocore *u)
+{
+	if (!u)
+		return;
+	if (u->avr)
+		avr_terminate(u->avr);
+	free(u->steps);
+	free(u->snap);
+	free(u);
+}
+
+/*
+ * Loads the ELF. paint_start: the first SRAM address above .data/.bss/.noinit (0: no stack
+ * measurement). boot_counter: the EEPROM's boot counter (the firmware reports it + 1 as its
+ * boot id). mcusr: the reset cause bits the first boot finds in MCUSR. mpu_addr: 7-bit address.
+ * On failure returns NULL and writes why into err.
+ */
+UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uint16_t boot_counter,
+                                 uint8_t mcusr, uint8_t mpu_addr, uint32_t baud,
+                                 char *err, uint32_t errlen)
+{
+	avr_global_logger_set(sim_logger);
+	unocore *u = calloc(1, sizeof *u);
+	if (!u) {
+		snprintf(err, errlen, "out of memory");
+		return NULL;
+	}
+	if (elf_read_firmware(elf_path, &u->fw) != 0 || !u->fw.flash || !u->fw.flashsize) {
+		snprintf(err, errlen, "cannot read an AVR program from %s", elf_path);
+		free(u);
+		return NULL;
+	}
+	if (u->fw.mmcu[0] == '\0')
+		snprintf(u->fw.mmcu, sizeof u->fw.mmcu, "atmega328p");
+	if (u->fw.frequency == 0)
+		u->fw.frequency = 16000000u;
+	u->avr = avr_make_mcu_by_name(u->fw.mmcu);
+	if (!u->avr) {
+		snprintf(err, errlen, "simavr does not know the MCU '%s'", u->fw.mmcu);
+		free(u);
+		return NULL;
+	}
+	avr_t *avr = u->avr;
+	avr_init(avr);
+	avr->log = LOG_WARNING;
+	avr_load_firmware(avr, &u->fw);
+	avr->sleep = no_sleep;
+
+	/* UART0: no console echo, no usleep when the firmware polls */
+	uint32_t flags = 0;
+	if (avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags) != 0) {
+		snprintf(err, errlen, "MCU %s has no UART0", u->fw.mmcu);
+		unocore_free(u);
+		return NULL;
+	}
+	uint32_t uctl = AVR_IOCTL_UART_GETIRQ('0');
+	u->uart_in = avr_io_getirq(avr, uctl, UART_IRQ_INPUT);
+	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUTPUT), uart_output_hook, u);
+	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUT_XON), uart_xon_hook, u);
+	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUT_XOFF), uart_xoff_hook, u);
+	u->cycles_per_byte = ((uint64_t)avr->frequency * 10u + baud - 1) / baud;
+
+	/* TWI */
+	u->twi_in = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT);
+	avr_irq_t *twi_out = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_OUTPUT);
+	avr_irq_t *twi_status = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_STATUS);
+	if (!u->twi_in || !twi_out || !twi_status) {
+		snprintf(err, errlen, "MCU %s has no TWI", u->fw.mmcu);
+		unocore_free(u);
+		return NULL;
+	}
+	avr_irq_register_notify(twi_out, twi_output_hook, u);
+	avr_irq_register_notify(twi_status, twi_status_hook, u);
+	avr_register_io_write(avr, A_TWCR, twcr_write_hook, u);
+	avr_register_io_write(avr, A_EIMSK, eimsk_write_hook, u);
+	extint_polling_off(u);
+	timer_modes_fill_in(u);
+	u->mpu_addr = mpu_addr;
+	u->gyro_alive = 1;
+	mpu_reset_regs(u);
+
+	/* pins */
+	u->echo_irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN0);
+	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN1),
+	                        trig_hook, u);
+	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_PIN0),
+	                        pb0_hook, u);
+	avr_register_io_write(avr, A_GPIOR0, gpior0_write_hook, u);
+
+	/* EEPROM boot counter, little-endian at address 0 */
+	uint8_t ee[2] = { (uint8_t)boot_counter, (uint8_t)(boot_counter >> 8) };
+	avr_eeprom_desc_t d = { .ee = ee, .offset = 0, .size = 2 };
+	avr_ioctl(avr, AVR_IOCTL_EEPROM_SET, &d);
+
+	avr->data[A_MCUSR] = mcusr;
+
+	u->paint_start = paint_start;
+	u->stack_lowest = (uint16_t)(avr->ramend + 1);
+	stack_paint(u);
+
+	u->snap_len = (uint32_t)avr->ramend + 1;
+	u->snap = malloc(u->snap_len);
+	if (!u->snap) {
+		snprintf(err, errlen, "out of memory");
+		unocore_free(u);
+		return NULL;
+	}
+	wrap_io_handlers(u);
+	u->ff_enabled = 1;
+	u->last_avr_cycle = avr->cycle;
+	u->base = 0 - (uint64_t)avr->cycle; /* the host's cycle 0 is now */
+	return u;
+}
+
+UNOCORE_API void unocore_set_sonar(unocore *u, unocore_sonar_fn fn, void *user)
+{
+	u->sonar_fn = fn;
+	u->sonar_user = user;
+}
+
+UNOCORE_API void unocore_set_fast_forward(unocore *u, int on) { u->ff_enabled = on != 0; }
+
+/* chip_mdps: the MPU-6050's Z rate in its own frame (counter-clockwise positive), in
+ * millidegrees per second; alive 0: the chip stops answering its address. */
+UNOCORE_API void unocore_set_gyro(unocore *u, int alive, int32_t chip_mdps)
+{
+	u->gyro_alive = alive != 0;
+	u->gyro_chip_mdps = chip_mdps;
+}
+
+UNOCORE_API uint32_t unocore_rx(unocore *u, const uint8_t *data, uint32_t len)
+{
+	uint32_t n = 0;
+	for (; n < len && u->rx.len < RING_BYTES; n++)
+		ring_push(&u->rx, data[n]);
+	arm_feed_timer(u);
+	return n;
+}
+
+UNOCORE_API uint32_t unocore_tx(unocore *u, uint8_t *out, uint32_t max)
+{
+	uint32_t n = 0;
+	while (n < max && u->tx.len > 0)
+		out[n++] = ring_pop(&u->tx);
+	return n;
+}
+
+/* Runs until the cycle counter reaches `cycle`. Returns 0, or 1 when the AVR crashed or
+ * stopped (it will not run again). */
+UNOCORE_API int unocore_run_to(unocore *u, uint64_t cycle)
+{
+	avr_t *avr = u->avr;
+	u->target = cycle;
+	int state = avr->state;
+	while (u->base + avr->cycle < cycle) {
+		if (u->ff_enabled && at_wdr(avr))
+			fast_forward(u);
+		uint64_t before = u->base + avr->cycle;
+		state = avr_run(avr);
+		if (state == cpu_Crashed || state == cpu_Done || state == cpu_Stopped) {
+			u->st.crash_pc = avr->pc;
+			break;
+		}
+		if (avr->pc == avr->reset_pc) {
+			/* A watchdog reset: simavr restarted the core at its reset vector (nothing else
+			 * jumps to 0), and may have zeroed its cycle counter. Nothing has run since. */
+			stack_measure(u);
+			after_reset(u, avr->cycle < u->last_avr_cycle ? before : u->base + avr->cycle);
+		}
+		u->last_avr_cycle = avr->cycle;
+	}
+	u->st.cpu_state = state;
+	return state == cpu_Crashed || state == cpu_Done || state == cpu_Stopped;
+}
+
+/* A reset by the host (power cycle, reset button): MCUSR = mcusr; EEPROM and .noinit kept. */
+UNOCORE_API void unocore_reset(unocore *u, uint8_t mcusr)
+{
+	avr_t *avr = u->avr;
+	uint64_t before = now_cycle(u);
+	stack_measure(u);
+	avr_reset(avr);
+	avr->data[A_MCUSR] = mcusr;
+	after_reset(u, before);
+}
+
+UNOCORE_API void unocore_regs_read(unocore *u, unocore_regs *r)
+{
+	const uint8_t *d = u->avr->data;
+	r->tccr0a = d[A_TCCR0A];
+	r->ocr0a = d[A_OCR0A];
+	r->ocr0b = d[A_OCR0B];
+	r->tccr2a = d[A_TCCR2A];
+	r->ocr2a = d[A_OCR2A];
+	r->ocr2b = d[A_OCR2B];
+	r->portb = d[A_PORTB];
+	r->ddrb = d[A_DDRB];
+	r->portd = d[A_PORTD];
+	r->ddrd = d[A_DDRD];
+	r->tccr1a = d[A_TCCR1A];
+	r->tccr1b = d[A_TCCR1B];
+	r->icr1 = (uint16_t)(d[A_ICR1L] | d[A_ICR1H] << 8);
+	r->ocr1a = (uint16_t)(d[A_OCR1AL] | d[A_OCR1AH] << 8);
+	r->last_desc = u->last_desc;
+	r->has_desc = (uint8_t)u->has_desc;
+	r->pings = u->pings_total;
+	r->echoes = u->echoes_total;
+	r->steps = u->nsteps;
+}
+
+/* Copies up to max step records not yet handed out. Without `final`, the last record stays
+ * (its descriptor may still come); with it, the last one goes too once PB0 has fallen. */
+UNOCORE_API uint32_t unocore_steps(unocore *u, unocore_step *out, uint32_t max, int final)
+{
+	uint32_t n = 0;
+	uint32_t end = final ? u->nsteps : (u->nsteps > 0 ? u->nsteps - 1 : 0);
+	while (n < max && u->drained < end && u->steps[u->drained].fall != 0)
+		out[n++] = u->steps[u->drained++];
+	if (u->drained > 0 && u->drained + 1 >= u->nsteps) { /* keep the array short */
+		uint32_t keep = u->nsteps - u->drained;
+		memmove(u->steps, u->steps + u->drained, keep * sizeof *u->steps);
+		u->nsteps = keep;
+		u->drained = 0;
+	}
+	return n;
+}
+
+UNOCORE_API void unocore_stats_read(unocore *u, unocore_stats *s)
+{
+	stack_measure(u);
+	u->st.cycle = now_cycle(u);
+	u->st.uart_rx_queued = u->rx.len;
+	u->st.pings = u->pings_total;
+	u->st.echoes = u->echoes_total;
+	u->st.paint_start = u->paint_start;
+	u->st.ramend = u->avr->ramend;
+	u->st.stack_lowest = u->stack_lowest;
+	u->st.sim_warnings = g_warnings;
+	*s = u->st;
+}
+
+/* Raw access for tests and diagnostics. */
+UNOCORE_API uint8_t unocore_peek(unocore *u, uint16_t addr)
+{
+	return addr <= u->avr->ramend ? u->avr->data[addr] : 0;
+}
+
+UNOCORE_API uint32_t unocore_pc(unocore *u) { return u->avr->pc; }
