@@ -36,12 +36,13 @@ ROVERNAV_NOINLINE float sequential_update(const float* z, const float* h, const 
     const float* pj = P + 3 * j;
     const float sj = pj[j] + (j == T ? kFixHeadingVar : r_pos);
     if (!(sj > 0.0f)) return -1.0f;
-    chi2 += v * v / sj;
+    const float inv_sj = 1.0f / sj;   // one division, not four (28 us each on the Uno)
+    chi2 += v * v * inv_sj;
     // P -= k P[j], k = P[., j] / sj. Row j goes last: the other rows need it unchanged.
     for (uint8_t i = 1; i <= 3; ++i) {
       const uint8_t r = static_cast<uint8_t>(j + i < 3 ? j + i : j + i - 3);
       float* row = P + 3 * r;
-      const float k = row[j] / sj;
+      const float k = row[j] * inv_sj;
       q[r] += k * v;
       for (uint8_t c = 0; c < 3; ++c) row[c] -= k * pj[c];
     }
