@@ -15,16 +15,21 @@ void no_sweeps(Bench& b) {
   b.config(Param::SweepIntervalMm, 0);
   b.run_ms(20);
 }
-}  // namespace
 
-TEST_CASE("radio lost mid-drive: the rover keeps driving on dead reckoning and says so") {
-  Bench b;
+// Fixes and heartbeats streaming, no periodic sweeps, the rover half a second into its drive.
+void driving_with_radio(Bench& b) {
   b.stream_fixes = true;
   b.heartbeats = true;
   b.start_mission(kLong, 2);
   no_sweeps(b);
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
   b.run_ms(500);
+}
+}  // namespace
+
+TEST_CASE("radio lost mid-drive: the rover keeps driving on dead reckoning and says so") {
+  Bench b;
+  driving_with_radio(b);
   b.radio = false;
   b.run_ms(1500);
   CHECK(b.rover.state() == RoverState::Drive);
@@ -43,12 +48,7 @@ TEST_CASE("radio lost mid-drive: the rover keeps driving on dead reckoning and s
 
 TEST_CASE("when the radio comes back mid-mission the rover sweeps before it moves on, and the host hears it") {
   Bench b;
-  b.stream_fixes = true;
-  b.heartbeats = true;
-  b.start_mission(kLong, 2);
-  no_sweeps(b);
-  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
-  b.run_ms(500);
+  driving_with_radio(b);
   b.radio = false;   // what the rover reports now is lost, and the host's map misses it
   b.sonar_range_mm = 250;   // something to report from here on
   b.run_ms(1500);
