@@ -254,11 +254,18 @@ def render_cpp(d: dict) -> str:
         out.extend(dec or ["    (void)p;\n"])
         out.append("  }\n};\n\n")
     out.append("}  // namespace msg\n\n")
-    out.append("/// Payload size of message `id`, or -1 if no message has that id.\n"
-               "inline int16_t payload_size(uint8_t id) {\n  switch (id) {\n")
+    # A table in flash, searched: the compiler turns a switch over these ids into a lookup table
+    # in the Uno's SRAM.
+    out.append("/// Message ids and payload sizes, in flash.\n"
+               f"static const uint8_t kPayloadSizes[{len(d['messages'])}][2] ROVERNAV_PROGMEM = {{\n")
     for m in d["messages"]:
-        out.append(f"    case 0x{m['id']:02X}: return {payload_size(m)};\n")
-    out.append("    default: return -1;\n  }\n}\n\n}  // namespace rovernav\n")
+        out.append(f"  {{0x{m['id']:02X}, {payload_size(m)}}},  // {m['name']}\n")
+    out.append("};\n\n")
+    out.append("/// Payload size of message `id`, or -1 if no message has that id.\n"
+               "inline int16_t payload_size(uint8_t id) {\n"
+               "  for (uint8_t i = 0; i < sizeof kPayloadSizes / sizeof kPayloadSizes[0]; ++i) {\n"
+               "    if (flash_read_u8(&kPayloadSizes[i][0]) == id) return flash_read_u8(&kPayloadSizes[i][1]);\n"
+               "  }\n  return -1;\n}\n\n}  // namespace rovernav\n")
     return "".join(out)
 
 
