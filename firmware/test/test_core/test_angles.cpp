@@ -1,0 +1,37 @@
+// The angle helpers against the C library, over the whole plane.
+#include <doctest/doctest.h>
+#include <math.h>
+
+#include "angles.h"
+
+using namespace rovernav::core;
+
+TEST_CASE("fast_atan2 is within 1.2e-5 rad of atan2 in every direction and at every scale") {
+  double worst = 0.0;
+  int checked = 0;
+  const float scales[] = {1e-3f, 0.37f, 1.0f, 250.0f, 3.3e4f};
+  for (float scale : scales) {
+    for (int i = 0; i < 3600; ++i) {   // every 0.1 degree, plus an offset that hits no axis exactly
+      const double a = (i + 0.37) * (2.0 * M_PI / 3600.0);
+      const float y = static_cast<float>(scale * sin(a)), x = static_cast<float>(scale * cos(a));
+      const double err = fabs(static_cast<double>(fast_atan2(y, x)) - atan2(static_cast<double>(y), static_cast<double>(x)));
+      const double wrapped = err > M_PI ? 2.0 * M_PI - err : err;   // -pi and pi are one direction
+      if (wrapped > worst) worst = wrapped;
+      ++checked;
+    }
+  }
+  MESSAGE("worst error " << worst << " rad over " << checked << " directions");
+  CHECK(worst <= 1.2e-5);
+}
+
+TEST_CASE("fast_atan2 on the axes, at the origin and on the diagonals") {
+  const float q = static_cast<float>(M_PI / 4.0);
+  CHECK(fast_atan2(0.0f, 0.0f) == 0.0f);
+  CHECK(fast_atan2(0.0f, 5.0f) == 0.0f);
+  CHECK(fast_atan2(5.0f, 0.0f) == doctest::Approx(2 * q).epsilon(1e-6));
+  CHECK(fast_atan2(-5.0f, 0.0f) == doctest::Approx(-2 * q).epsilon(1e-6));
+  CHECK(fast_atan2(0.0f, -5.0f) == doctest::Approx(4 * q).epsilon(1e-6));
+  CHECK(fast_atan2(1.0f, 1.0f) == doctest::Approx(q).epsilon(2e-5));
+  CHECK(fast_atan2(-1.0f, -1.0f) == doctest::Approx(-3 * q).epsilon(2e-5));
+  CHECK(bearing_rad(0.0f, 0.0f, 10.0f, 0.0f) == doctest::Approx(2 * q).epsilon(1e-6));   // +x is 90 degrees clockwise from +y
+}
