@@ -5,6 +5,7 @@
 // pasting them back in.
 #pragma once
 #include <math.h>
+#include <stdint.h>
 
 #include "noinline.h"
 
@@ -19,6 +20,27 @@ inline ROVERNAV_NOINLINE float sqrt_or_zero(float v) { return v > 0.0f ? sqrtf(v
 
 /// v clamped to [lo, hi].
 inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/// A motor command: v rounded and clamped to -255..255.
+inline ROVERNAV_NOINLINE int16_t clamp_pwm(float v) {
+  if (v > 255.0f) return 255;
+  if (v < -255.0f) return -255;
+  return static_cast<int16_t>(lroundf(v));
+}
+
+/// v rounded into 0..65535 (0 for NaN), for the wire.
+inline ROVERNAV_NOINLINE uint16_t saturate_u16(float v) {
+  if (!(v > 0.0f)) return 0;
+  if (v > 65535.0f) return 65535;
+  return static_cast<uint16_t>(lroundf(v));
+}
+
+/// v rounded into -32768..32767, for the wire.
+inline ROVERNAV_NOINLINE int16_t saturate_i16(float v) {
+  if (v > 32767.0f) return 32767;
+  if (v < -32768.0f) return -32768;
+  return static_cast<int16_t>(lroundf(v));
+}
 
 }  // namespace core
 }  // namespace rovernav

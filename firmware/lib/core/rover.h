@@ -1,4 +1,5 @@
-// The rover's autonomy, hardware-free: one step function from Inputs to Outputs.
+// The rover's autonomy, hardware-free: one step function from Inputs to Outputs, one mode
+// (RoverState), its work split by concern into a file each (see rover.cpp's head).
 //
 // It holds the waypoint list the host sent, rotates towards the next waypoint with the gyro
 // PID, drives holding the heading inside the tolerance cone atan(cone_tol_mm / L), sweeps the
@@ -32,81 +33,90 @@ using Waypoint = Point;
 /// one-bit fields without initialisers (value-initialisation clears them): a byte each would
 /// cost the Uno's static RAM.
 struct RoverFields {
-  TxQueue tx_;
-  Estimator est_;
-  HeadingPid pid_;
-  Sweep sweep_;
-
-  uint32_t boot_id_ = 0;
-  uint16_t reset_cause_ = 0;
+  // the mode (rover.cpp): one RoverState; the mission; the step's heavy jobs
+  RoverState state_ = RoverState::Idle;
+  bool mission_ = false;
+  uint8_t step_work_ = 0;                     // the heavy jobs this step did (Rover::kWork* bits)
+  uint16_t held_sonar_mm_ = 0;                // a sonar result put off to the next step (see step())
+  uint32_t last_ms_ = 0;
   bool booted_ = false;
   bool have_time_ = false;
-  uint32_t last_ms_ = 0;
 
+  // link (link_in.cpp, link_out.cpp): frames out, the host's HELLO, the path and its assembly
+  TxQueue tx_;
+  uint32_t boot_id_ = 0;
+  uint16_t reset_cause_ = 0;
+  bool schema_ok_ = false;
+  uint8_t camera_ = 0;                        // CameraState from HEARTBEAT
+  uint32_t last_status_ms_ = 0;
   Waypoint path_[kMaxWaypoints] = {};
   uint8_t path_len_ = 0;
   uint16_t path_id_ = 0;
-  Waypoint stage_[kMaxWaypoints] = {};
+  uint8_t wp_ = 0;                            // the waypoint being approached
+  Waypoint stage_[kMaxWaypoints] = {};        // a path arriving in chunks (else the detour planner's scratch)
   uint8_t stage_total_ = 0;
   uint8_t stage_count_ = 0;
   uint16_t stage_id_ = 0;
   bool staging_ = false;
   uint8_t last_chunk_first_ = 0xFF;
-  uint8_t wp_ = 0;
 
-  RoverState state_ = RoverState::Idle;
-  bool mission_ = false;
+  // failsafe (failsafe.cpp): the gyro's and the radio's watchdogs, faults
   FaultCode fault_ = FaultCode::None;
   uint32_t gyro_last_ms_ = 0;
   uint32_t gyro_good_since_ms_ = 0;
   bool gyro_good_run_ = false;
   float rate_dps_ = 0.0f;
-
   uint32_t last_rx_ms_ = 0;
   uint32_t last_fix_ms_ = 0;
   uint32_t radio_lost_since_ms_ = 0;
   bool radio_lost_ = false;
   bool dead_reckoning_ = false;
   bool had_fix_ = false;
-  bool schema_ok_ = false;
-  uint8_t camera_ = 0;  // CameraState from HEARTBEAT
 
+  // odometry (odometry.cpp): the estimate, dead reckoning, the speed model's calibration
+  Estimator est_;
   float dr_distance_mm_ = 0.0f;
-  float sweep_distance_mm_ = 0.0f;
-  float min_distance_mm_ = 0.0f;
-  int16_t left_cmd_ = 0;
-  int16_t right_cmd_ = 0;
-  int16_t servo_cdeg_ = 0;
-  uint32_t last_status_ms_ = 0;
-  uint16_t scan_id_ = 0;
-  uint8_t scan_echoes_ = 0;
-
   float speed_scale_ = 1.0f;
   bool calib_anchor_ = false;
   uint32_t drive_since_ms_ = 0;
   int16_t calib_x_mm_ = 0, calib_y_mm_ = 0;  // the fix calibration measures from
   float calib_model_mm_ = 0.0f;              // the model's distance since that fix
 
-  LocalPlanner local_;                        // the last sweep's echoes, as obstacle disks
-  Waypoint detour_[LocalPlanner::kMaxDetour] = {};  // the rover's own way round them
-  uint8_t detour_n_ = 0;
-  uint8_t plan_ahead_dm_ = 0;                 // a detour being planned: to rejoin this far on (100 mm); 0 none
-  uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
-  uint32_t blocked_since_ms_ = 0;
-  uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
-  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
-  uint8_t step_work_ = 0;                     // what this step did (Rover::kWork* bits), for timing it
+  // motion (mode_rotate.cpp, mode_drive.cpp): the heading PID, the commands, backing out
+  HeadingPid pid_;
+  float min_distance_mm_ = 0.0f;
+  int16_t left_cmd_ = 0;
+  int16_t right_cmd_ = 0;
   float back_off_mm_ = 0.0f;                  // distance backed out so far
 
-  // Flags, one bit each.
-  bool blocked_ : 1;                          // stopped: waiting for the host's path
-  bool awaiting_host_ : 1;                    // ... after a sweep found the leg blocked
-  bool trusted_host_ : 1;                     // the host sent no new path once this leg: it holds it clear
-  bool reflex_after_trust_ : 1;               // ... and the reflex stopped the rover on it all the same
-  bool reflex_look_ : 1;                      // stopped by the reflex: look (a clear ping) before driving
-  bool reflex_waiting_ : 1;                   // a reflex ping's result is still to come
-  bool rotate_checked_ : 1;                   // this rotation's start was checked for room to swing
-  bool look_after_outage_ : 1;                // the radio came back mid-mission: sweep before moving on
+  // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
+  Sweep sweep_;
+  float sweep_distance_mm_ = 0.0f;
+  int16_t servo_cdeg_ = 0;
+  uint16_t scan_id_ = 0;
+  uint8_t scan_echoes_ = 0;
+  uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
+  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
+
+  // the detour (detour.cpp): Blocked, Planning, and the rover's own way round
+  LocalPlanner local_;                        // the last sweep's echoes, as obstacle disks
+  Waypoint detour_[LocalPlanner::kMaxDetour] = {};
+  uint8_t detour_n_ = 0;
+  uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
+  uint8_t plan_ahead_dm_ = 0;                 // Planning: the detour rejoins the path this far on (100 mm)
+  uint32_t blocked_since_ms_ = 0;
+
+  // Flags, one bit each, by concern.
+  bool sonar_held_ : 1;                       // mode: held_sonar_mm_ is waiting for this step
+  bool pick_target_ : 1;                      // mode: wp_ is to be chosen afresh (closest_target) when the step has time
+  bool put_off_ : 1;                          // mode: this step put a job off: the next takes no FIX (kWorkReserved)
+  bool look_after_outage_ : 1;                // failsafe: the radio came back mid-mission: sweep before moving on
+  bool rotate_checked_ : 1;                   // motion: this rotation's start was checked for room to swing
+  bool reflex_look_ : 1;                      // reflex: it stopped the rover: look (a clear ping) before driving
+  bool reflex_waiting_ : 1;                   // reflex: a ping's result is still to come
+  bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
+  bool trusted_host_ : 1;                     // detour: the host sent no new path once this leg: it holds it clear
+  bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
 };
 
 class Rover : private RoverFields {
@@ -136,8 +146,12 @@ class Rover : private RoverFields {
 
   // Read-only views for tests, the simulator and the shell.
   RoverState state() const { return state_; }
-  /// What the last step did that costs time: kWorkFix (a FIX taken in), kWorkPlanned (the detour planner ran).
-  enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1 };
+  /// The heavy jobs the last step did: kWorkFix (a FIX taken in), kWorkPlanned (the detour
+  /// planner ran), kWorkOther (a sonar result taken in, a sweep ended, a waypoint chosen afresh);
+  /// kWorkReserved: the step was kept for a job the one before put off (it took no FIX). A step
+  /// does one heavy job and puts the others off (see step()).
+  enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1, kWorkOther = 1u << 2, kWorkReserved = 1u << 3 };
+  enum : uint8_t { kWorkHeavy = kWorkFix | kWorkPlanned | kWorkOther };
   uint8_t step_work() const { return step_work_; }
   uint16_t flags() const;
   FaultCode fault() const { return fault_; }
@@ -150,8 +164,8 @@ class Rover : private RoverFields {
   uint16_t tx_dropped() const { return tx_.dropped(); }
   float speed_scale() const { return speed_scale_; }
   uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
-  bool blocked() const { return blocked_; }
-  bool planning_detour() const { return plan_ahead_dm_ != 0; }
+  bool blocked() const { return state_ == RoverState::Blocked; }
+  bool planning_detour() const { return state_ == RoverState::Planning; }
   float dr_distance_mm() const { return dr_distance_mm_; }
   /// The speed the rover cruises at (mm/s), from its drive command and speed model.
   float drive_speed_mm_s() const;
@@ -159,51 +173,64 @@ class Rover : private RoverFields {
   float reflex_range_mm() const;
 
  private:
-  // link
+  // rover.cpp: the step, the mode, helpers of every mode
+  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
+  void enter(RoverState s);
+  Point here_mm() const;
+  Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
+  float distance_to(Waypoint w) const;
+  float error_to_deg(Waypoint w) const;
+  float cone_deg(float distance_mm) const;
+  uint8_t closest_target() const;
+  float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
+  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
+  // link_in.cpp
   void handle_frame(const Frame& f, uint32_t now);
   void on_fix(const msg::Fix& m, uint32_t now);
   void on_path(const msg::Path& m, uint8_t seq);
   void on_start(const msg::Start& m, uint8_t seq);
   void on_stop(const msg::Stop& m, uint8_t seq);
   void on_config(const msg::Config& m, uint8_t seq);
+  // link_out.cpp
+  void ack(uint8_t msg_id, uint8_t seq);
+  void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
   void send_hello();
   void send_event(EventKind kind, uint16_t arg);
   void send_status();
-  void ack(uint8_t msg_id, uint8_t seq);
-  void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
-  // motion
+  void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
+  void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
+  void report_clear(int16_t bearing_cdeg);
+  // failsafe.cpp
   void update_gyro(const Inputs& in, uint32_t now);
-  void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
   void watch_link(uint32_t now);
-  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
-  void enter(RoverState s);
   void raise_fault(FaultCode code);
+  // odometry.cpp
+  void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
+  void calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r);
+  // mode_scan.cpp
+  void start_sweep(uint32_t now);
   void stop_sweep();  // ends a sweep and points the sonar ahead
-  void reached_waypoint();
-  float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
-  uint8_t closest_target() const;
-  Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
-  float distance_to(Waypoint w) const;
-  float error_to_deg(Waypoint w) const;
+  void mode_scan(const Inputs& in, uint32_t now, Outputs& out);
+  // mode_rotate.cpp
+  bool mode_rotate(float err, float l, float dt_s, Outputs& out);
+  bool room_to_turn() const;
+  void back_off(float dt_s, Outputs& out);
+  // mode_drive.cpp
+  void mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_t now, Outputs& out);
+  bool reached_waypoint(float& l, float& err);
+  void pose_command(float rho_mm, Outputs& out);
+  // reflex.cpp
+  bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
+  bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;
+  // detour.cpp
   void remember_echo(int16_t bearing_cdeg, uint16_t range_mm);
   Waypoint rejoin_point(float ahead_mm) const;
   void replan_locally();
+  bool mode_blocked(uint32_t now);
   void plan_detour();
   void next_detour_goal();
   void continue_detour();
   void no_detour();
-  void cancel_detour_plan();
-  void start_sweep(uint32_t now);
-  bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
-  bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;
-  bool room_to_turn() const;
-  void back_off(float dt_s, Outputs& out);
-  void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
-  void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
-  void report_clear(int16_t bearing_cdeg);
-  void pose_command(float rho_mm, Outputs& out);
-  float cone_deg(float distance_mm) const;
-  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
 
   Params params_ = {};
   FrameDecoder decoder_;

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x1D259221UL;
+static const uint32_t kSchemaHash = 0x602A5112UL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -32,6 +32,8 @@ enum class RoverState : uint8_t {
   Hold = 5,  ///< stopped safely: position too uncertain to go on; resumes on fixes
   Fault = 6,  ///< stopped by a fault (see fault code); motors off
   BackOff = 7,  ///< backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners
+  Blocked = 8,  ///< stopped: the last sweep found the leg blocked; waiting for the host's new path (or, with none, for the rover's own detour or the host's word that the leg is clear)
+  Planning = 9,  ///< stopped: planning its own detour round what the sweep saw, a slice every step
 };
 
 /// Bits of STATUS.flags.
@@ -530,23 +532,28 @@ struct Event {
 
 }  // namespace msg
 
+/// Message ids and payload sizes, in flash.
+static const uint8_t kPayloadSizes[12][2] ROVERNAV_PROGMEM = {
+  {0x01, 12},  // hello
+  {0x02, 5},  // heartbeat
+  {0x03, 11},  // fix
+  {0x04, 37},  // path
+  {0x05, 2},  // start
+  {0x06, 1},  // stop
+  {0x07, 5},  // config
+  {0x10, 45},  // status
+  {0x11, 14},  // obstacle
+  {0x12, 2},  // ack
+  {0x13, 5},  // nack
+  {0x14, 11},  // event
+};
+
 /// Payload size of message `id`, or -1 if no message has that id.
 inline int16_t payload_size(uint8_t id) {
-  switch (id) {
-    case 0x01: return 12;
-    case 0x02: return 5;
-    case 0x03: return 11;
-    case 0x04: return 37;
-    case 0x05: return 2;
-    case 0x06: return 1;
-    case 0x07: return 5;
-    case 0x10: return 45;
-    case 0x11: return 14;
-    case 0x12: return 2;
-    case 0x13: return 5;
-    case 0x14: return 11;
-    default: return -1;
+  for (uint8_t i = 0; i < sizeof kPayloadSizes / sizeof kPayloadSizes[0]; ++i) {
+    if (flash_read_u8(&kPayloadSizes[i][0]) == id) return flash_read_u8(&kPayloadSizes[i][1]);
   }
+  return -1;
 }
 
 }  // namespace rovernav

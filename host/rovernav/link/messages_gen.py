@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x1D259221
+SCHEMA_HASH = 0x602A5112
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -43,6 +43,10 @@ class RoverState(enum.IntEnum):
     """stopped by a fault (see fault code); motors off"""
     BACK_OFF = 7
     """backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners"""
+    BLOCKED = 8
+    """stopped: the last sweep found the leg blocked; waiting for the host's new path (or, with none, for the rover's own detour or the host's word that the leg is clear)"""
+    PLANNING = 9
+    """stopped: planning its own detour round what the sweep saw, a slice every step"""
 
 class StatusFlag(enum.IntFlag):
     """Bits of STATUS.flags."""

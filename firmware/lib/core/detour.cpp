@@ -1,0 +1,147 @@
+// Blocked and Planning: what the last sweep saw, kept as obstacle disks (LocalPlanner); whether
+// the leg runs into it; waiting for the host's new path, or planning the rover's own detour, a
+// slice a step, when the radio is down or the host's path proved blocked.
+#include "rover.h"
+
+#include <math.h>
+#include "angles.h"
+#include "float_ops.h"
+
+namespace rovernav {
+namespace core {
+
+void Rover::remember_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+  // What the sonar saw, as the host's map marks it: the echo's arc (the obstacle may stand
+  // anywhere across the cone at that range), as one disk round the point on the beam's axis
+  // wide enough for the arc, plus the clearance the host plans with. Nothing is assumed behind it.
+  const Params& p = params_;
+  const float h = est_.heading_rad();
+  const float b = h + cdeg_to_rad(bearing_cdeg);
+  const float r = static_cast<float>(range_mm);
+  const float off = p.sonar_offset_mm();
+  Point c;
+  c.x_mm = saturate_i16(est_.x_mm() + off * sinf(h) + r * sinf(b));
+  c.y_mm = saturate_i16(est_.y_mm() + off * cosf(h) + r * cosf(b));
+  local_.add(c, saturate_u16(p.clearance_mm() + r * tanf(p.sonar_half_cone_rad())));
+}
+
+Waypoint Rover::rejoin_point(float ahead_mm) const {
+  // The point `ahead_mm` along the rest of the path: from the rover to path_[wp_], then on.
+  Waypoint from = here_mm();
+  float left = ahead_mm;
+  for (uint8_t i = wp_; i < path_len_; ++i) {
+    const Waypoint to = path_[i];
+    const float seg = length(static_cast<float>(to.x_mm - from.x_mm), static_cast<float>(to.y_mm - from.y_mm));
+    if (seg >= left && seg > 0.0f) {
+      const float f = left / seg;
+      Waypoint w = {saturate_i16(from.x_mm + f * static_cast<float>(to.x_mm - from.x_mm)),
+                    saturate_i16(from.y_mm + f * static_cast<float>(to.y_mm - from.y_mm))};
+      return w;
+    }
+    left -= seg;
+    from = to;
+  }
+  return path_[path_len_ - 1];
+}
+
+// After a sweep: does the leg run into what the sonar saw (by more than the sonar's placement
+// margin: the host plans with the full clearance, and an echo off a face it already keeps clear of
+// must not set the rover off on its own)? With the radio up the host, whose map knows more,
+// replans after the sweep: the rover holds still and waits for its path. It plans its own
+// detour when the radio is down, or when it trusted the host's path once this leg and its
+// forward reflex stopped it on that path all the same (a host that cannot replan). On a detour
+// of its own, a sweep that finds the next detour point blocked plans the detour again from here.
+void Rover::replan_locally() {
+  awaiting_host_ = false;
+  if (!mission_ || local_.echoes() == 0) return;
+  if (!local_.blocks(here_mm(), target(), static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
+  const bool on_own_detour = detour_i_ < detour_n_;
+  if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
+    awaiting_host_ = true;
+    enter(RoverState::Blocked);
+    blocked_since_ms_ = last_ms_;
+    return;
+  }
+  plan_detour();
+}
+
+// Blocked: returns true when the wait is over and the rover goes on along the leg.
+bool Rover::mode_blocked(uint32_t now) {
+  // Waiting for the host's new path (or no way round on the rover's grid). If none comes, the
+  // host (whose map knows more) holds the path clear: the rover goes on, once trusting it.
+  if (awaiting_host_ && radio_lost_) {
+    awaiting_host_ = false;
+    plan_detour();   // the radio went down while it waited: no path will come
+    return false;
+  }
+  if (radio_lost_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
+  awaiting_host_ = false;
+  trusted_host_ = true;
+  enter(RoverState::Rotate);
+  return true;
+}
+
+// The rover's own detour, planned over several steps (the wavefront a slice a step), while it
+// holds still and keeps serving the link, STATUS and STOP. Rejoin points 0.9, 0.8, 0.7 and
+// 0.6 m on along the path are tried in turn (the obstacle's depth is unknown).
+void Rover::plan_detour() {
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
+  // The path-staging buffer is the planner's scratch (unless a path is arriving: then the host's
+  // new path will do, and the rover waits for it).
+  static_assert(sizeof(stage_) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");
+  detour_n_ = detour_i_ = 0;
+  if (staging_) {
+    no_detour();
+    return;
+  }
+  enter(RoverState::Planning);
+  plan_ahead_dm_ = 10;
+  next_detour_goal();
+}
+
+void Rover::next_detour_goal() {
+  const Point a = here_mm();
+  while (plan_ahead_dm_ > 6) {
+    --plan_ahead_dm_;
+    const Waypoint goal = rejoin_point(100.0f * static_cast<float>(plan_ahead_dm_));
+    if (local_.inside(goal)) continue;
+    if (local_.begin(a, goal, reinterpret_cast<uint8_t*>(stage_))) return;
+  }
+  plan_ahead_dm_ = 0;
+  no_detour();
+}
+
+// One slice of the detour under way; called each step in Planning. A step that
+// has done another heavy job (a FIX taken in, say) leaves it to the next.
+void Rover::continue_detour() {
+  if (step_work_ & kWorkHeavy) {
+    put_off_ = true;
+    return;
+  }
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
+  if (staging_) {   // the host's path is arriving: it will do
+    no_detour();
+    return;
+  }
+  uint8_t n = 0;
+  const PlanStatus st = local_.step(detour_, n);
+  if (st == PlanStatus::Running) return;
+  if (st == PlanStatus::NoWay) {
+    next_detour_goal();
+    return;
+  }
+  detour_n_ = n;
+  detour_i_ = 0;
+  enter(RoverState::Rotate);
+  send_event(EventKind::Replanned, n);
+}
+
+void Rover::no_detour() {
+  detour_n_ = detour_i_ = 0;
+  enter(RoverState::Blocked);   // a path from the host (or kBlockedWaitMs of it sending none) ends it
+  blocked_since_ms_ = last_ms_;
+  send_event(EventKind::Replanned, 0);
+}
+
+}  // namespace core
+}  // namespace rovernav

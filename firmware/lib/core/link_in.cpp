@@ -1,0 +1,173 @@
+// Frames from the host: HELLO, HEARTBEAT, FIX (into the estimator), PATH (assembled from its
+// chunks, acknowledged one by one, replacing the path held only when complete), START, STOP and
+// CONFIG. A FIX costs the Uno about 1.8 ms: at most one is taken a step (see Rover::step).
+#include "rover.h"
+
+#include "float_ops.h"
+
+namespace rovernav {
+namespace core {
+
+ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
+  switch (f.msg_id) {
+    case msg::Hello::kId: {
+      msg::Hello m{};
+      decode_message(f, m);
+      if (m.role == static_cast<uint8_t>(Role::Host)) {
+        schema_ok_ = m.schema_hash == kSchemaHash;
+        send_hello();
+      }
+      break;
+    }
+    case msg::Heartbeat::kId: {
+      msg::Heartbeat m{};
+      decode_message(f, m);
+      camera_ = m.camera;
+      break;
+    }
+    case msg::Fix::kId: {
+      msg::Fix m{};
+      decode_message(f, m);
+      on_fix(m, now);
+      break;
+    }
+    case msg::Path::kId: {
+      msg::Path m{};
+      decode_message(f, m);
+      on_path(m, f.seq);
+      break;
+    }
+    case msg::Start::kId: {
+      msg::Start m{};
+      decode_message(f, m);
+      on_start(m, f.seq);
+      break;
+    }
+    case msg::Stop::kId: {
+      msg::Stop m{};
+      decode_message(f, m);
+      on_stop(m, f.seq);
+      break;
+    }
+    case msg::Config::kId: {
+      msg::Config m{};
+      decode_message(f, m);
+      on_config(m, f.seq);
+      break;
+    }
+    default:
+      break;  // a rover-to-host message echoed back: valid, not for us
+  }
+}
+
+void Rover::on_fix(const msg::Fix& m, uint32_t now) {
+  if (step_work_ & (kWorkFix | kWorkReserved)) return;   // one FIX a step, none in a reserved one (see step())
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkFix);
+  PoseFix fix;
+  fix.x_mm = m.x_mm;
+  fix.y_mm = m.y_mm;
+  fix.heading_cdeg = m.heading_cdeg;
+  fix.sd_mm = m.sd_mm;
+  fix.taken_ms = now - m.age_ms - kLinkDelayMs;
+  const FixResult r = est_.update(fix, now);
+  if (r == FixResult::Rejected) return;
+  last_fix_ms_ = now;
+  had_fix_ = true;
+  if (dead_reckoning_) {
+    dead_reckoning_ = false;
+    send_event(EventKind::CameraBack, saturate_u16(est_.last_innovation_mm()));
+  }
+  dr_distance_mm_ = 0.0f;
+  calibrate_speed(m, now, r);
+}
+
+void Rover::on_path(const msg::Path& m, uint8_t seq) {
+  const uint8_t id = msg::Path::kId;
+  if (state_ == RoverState::Planning) no_detour();   // the staging buffer is the planner's scratch; the host's path will do
+  // A repeat of the chunk just taken (its ACK was lost and the host sent it again): ACK again.
+  if (m.path_id == stage_id_ && m.first_index == last_chunk_first_ &&
+      (staging_ || (path_id_ == m.path_id && path_len_ == m.total))) {
+    ack(id, seq);
+    return;
+  }
+  if (m.total > kMaxWaypoints) return nack(id, seq, NackReason::TooManyWaypoints, kMaxWaypoints);
+  if (m.total == 0) return nack(id, seq, NackReason::BadValue, 2);
+  if (m.count == 0 || m.count > kWaypointsPerChunk || m.first_index + m.count > m.total)
+    return nack(id, seq, NackReason::BadValue, 4);
+  for (uint8_t i = 0; i < m.count; ++i) {
+    if (m.x_mm[i] < 0 || m.y_mm[i] < 0) return nack(id, seq, NackReason::BadValue, static_cast<uint16_t>(m.first_index + i));
+  }
+  const bool continues = staging_ && m.path_id == stage_id_ && m.total == stage_total_;
+  if (m.first_index == 0 && !continues) {
+    staging_ = true;
+    stage_id_ = m.path_id;
+    stage_total_ = m.total;
+    stage_count_ = 0;
+  } else if (!continues || m.first_index != stage_count_) {
+    return nack(id, seq, NackReason::OutOfOrder, continues ? stage_count_ : 0);
+  }
+  for (uint8_t i = 0; i < m.count; ++i) {
+    stage_[m.first_index + i].x_mm = m.x_mm[i];
+    stage_[m.first_index + i].y_mm = m.y_mm[i];
+  }
+  stage_count_ = static_cast<uint8_t>(stage_count_ + m.count);
+  last_chunk_first_ = m.first_index;
+  ack(id, seq);
+  if (stage_count_ < stage_total_) return;
+
+  // Complete: it replaces the path held, and a running mission follows it at once (from the
+  // nearest leg's end, chosen in a step with time for it).
+  step_work_ = static_cast<uint8_t>(step_work_ | kWorkOther);
+  staging_ = false;
+  for (uint8_t i = 0; i < stage_total_; ++i) path_[i] = stage_[i];
+  path_len_ = stage_total_;
+  path_id_ = stage_id_;
+  detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
+  awaiting_host_ = trusted_host_ = reflex_after_trust_ = false;
+  send_event(EventKind::PathAccepted, path_id_);
+  if (mission_ && est_.initialised()) {
+    pick_target_ = true;
+    if (state_ == RoverState::Drive || state_ == RoverState::Rotate || state_ == RoverState::Blocked)
+      enter(RoverState::Rotate);
+  }
+}
+
+void Rover::on_start(const msg::Start& m, uint8_t seq) {
+  const uint8_t id = msg::Start::kId;
+  if (!schema_ok_) return nack(id, seq, NackReason::SchemaMismatch, 0);
+  if (fault_ != FaultCode::None) return nack(id, seq, NackReason::Faulted, static_cast<uint16_t>(fault_));
+  if (path_len_ == 0) return nack(id, seq, NackReason::NoPath, 0);
+  if (m.path_id != path_id_) return nack(id, seq, NackReason::PathIdMismatch, path_id_);
+  if (!est_.initialised()) return nack(id, seq, NackReason::NoFix, 0);
+  ack(id, seq);
+  if (mission_) return;  // already running this path
+  mission_ = true;
+  wp_ = 0;
+  pick_target_ = true;
+  // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
+  // Look before the first turn: something beside the rover would be hit by its corners as it turns.
+  if (params_.sweep_at_start()) {
+    start_sweep(last_ms_);
+  } else {
+    enter(RoverState::Rotate);
+  }
+}
+
+void Rover::on_stop(const msg::Stop& m, uint8_t seq) {
+  ack(msg::Stop::kId, seq);
+  stop_sweep();
+  if (state_ != RoverState::Fault) enter(RoverState::Idle);
+  mission_ = false;
+  send_event(EventKind::Stopped, m.reason);
+}
+
+void Rover::on_config(const msg::Config& m, uint8_t seq) {
+  switch (params_.set(m.param, m.value)) {
+    case SetResult::Ok: return ack(msg::Config::kId, seq);
+    case SetResult::UnknownParam: return nack(msg::Config::kId, seq, NackReason::UnknownParam, m.param);
+    case SetResult::OutOfRange: return nack(msg::Config::kId, seq, NackReason::ParamOutOfRange, m.param);
+  }
+}
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,130 @@
+// Drive: from waypoint to waypoint without stopping where the next leg runs straight on (the
+// seed stopped at every grid cell), by the tolerance cone or the moving-to-a-pose law.
+#include "rover.h"
+
+#include <math.h>
+#include "angles.h"
+#include "float_ops.h"
+
+namespace rovernav {
+namespace core {
+
+// Drive: towards the target holding the heading with the gyro PID inside the tolerance cone
+// atan(cone_tol_mm / L) (or steered by the pose law), the reflex watching ahead, a sweep every
+// sweep_interval_mm; back to Rotate outside the cone or once moving away from the target.
+void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_t now, Outputs& out) {
+  const Params& p = params_;
+  if (reflex(in, now, l, out)) return;
+
+  if (p.pose_law()) {
+    if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+      start_sweep(now);
+      return;
+    }
+    // Too far off (the goal behind the rover): turn on the spot first, as the seed would.
+    if (fabsf(err) > kPoseMaxErrorDeg) {
+      enter(RoverState::Rotate);
+      return;
+    }
+    pose_command(l, out);
+    return;
+  }
+
+  // Drive: stop and re-rotate outside the cone, or once we are moving away from the waypoint.
+  if (fabsf(err) > cone_deg(l) || l > min_distance_mm_ + static_cast<float>(kGrowMarginMm)) {
+    enter(RoverState::Rotate);
+    return;
+  }
+  if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+    start_sweep(now);
+    return;
+  }
+  if (l < min_distance_mm_) min_distance_mm_ = l;
+  const float u = heading_command(err, dt_s);
+  const float base = p.drive_pwm();
+  out.left_pwm = clamp_pwm(base + u);
+  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+}
+
+// The target was reached: on to the next. Returns false when this step is done with motion (the
+// mission arrived, a sweep began, or the nearest leg is to be chosen first); otherwise l and err
+// are the new target's distance and heading error (computed once: each is a square root or an
+// arctangent, 100-150 us on the Uno).
+bool Rover::reached_waypoint(float& l, float& err) {
+  if (detour_i_ < detour_n_) {
+    // A point of the rover's own detour: on to the next, or back onto the host's path.
+    if (++detour_i_ >= detour_n_) {
+      detour_n_ = detour_i_ = 0;
+      pick_target_ = true;
+    }
+    enter(RoverState::Rotate);
+    if (pick_target_) return false;
+    l = distance_to(target());
+    err = error_to_deg(target());
+    return true;
+  }
+  send_event(EventKind::WaypointReached, wp_);
+  if (wp_ + 1 >= path_len_) {
+    enter(RoverState::Arrived);
+    send_event(EventKind::Arrived, wp_);
+    return false;
+  }
+  ++wp_;
+  // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
+  l = distance_to(target());
+  err = error_to_deg(target());
+  const float turn_deg = fabsf(err);
+  if (state_ == RoverState::Drive && (params_.pose_law() || turn_deg <= cone_deg(l))) {
+    min_distance_mm_ = l;
+    return true;
+  }
+  // A sharp turn on the spot swings the rover's corners wider than its sides: look round first,
+  // unless it has only just done so (the sweep then hands over to the rotation).
+  const float look_deg = params_.sweep_before_turn_deg();
+  if (look_deg > 0.0f && turn_deg > look_deg && sweep_distance_mm_ >= static_cast<float>(kTurnLookAfterMm)) {
+    start_sweep(last_ms_);
+    return false;
+  }
+  enter(RoverState::Rotate);
+  pid_.reset();
+  return true;
+}
+
+// The moving-to-a-pose law (Russo 2024, eq. 2.3-2.6, with alpha the bearing from the rover to
+// the goal): rho, alpha, beta in the usual counter-clockwise frame from our clockwise headings,
+// v = K_rho rho, omega = K_alpha alpha + K_beta beta; v through the speed model to a forward
+// command, omega to a wheel difference. The goal heading at a waypoint is its next leg's.
+void Rover::pose_command(float rho_mm, Outputs& out) {
+  const Params& p = params_;
+  const Waypoint w = target();
+  float goal_cw = est_.heading_rad();
+  const bool in_detour = detour_i_ < detour_n_;
+  if (!in_detour && wp_ + 1 < path_len_) {
+    goal_cw = bearing_rad(w.x_mm, w.y_mm, path_[wp_ + 1].x_mm, path_[wp_ + 1].y_mm);
+  } else if (!in_detour && wp_ > 0) {
+    goal_cw = bearing_rad(path_[wp_ - 1].x_mm, path_[wp_ - 1].y_mm, w.x_mm, w.y_mm);
+  } else {
+    goal_cw = bearing_rad(est_.x_mm(), est_.y_mm(), w.x_mm, w.y_mm);
+  }
+  // Counter-clockwise from +x: theta = pi/2 - clockwise-from-+y.
+  const float theta = 0.5f * kPi - est_.heading_rad();
+  const float theta_goal = 0.5f * kPi - goal_cw;
+  const float alpha = wrap_rad(fast_atan2(static_cast<float>(w.y_mm) - est_.y_mm(), static_cast<float>(w.x_mm) - est_.x_mm()) - theta);
+  const float beta = wrap_rad(-alpha - theta + theta_goal);
+  const float v_max = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  // Slow down for the last waypoint only: the others are passed through at speed.
+  const bool last = !in_detour && wp_ + 1 >= path_len_;
+  float v = last ? p.pose_k_rho() * rho_mm : v_max;
+  if (v > v_max) v = v_max;
+  const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s
+  const float per_pwm = p.speed_mm_s_per_pwm() * speed_scale_;
+  float base = per_pwm > 0.0f ? static_cast<float>(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
+  const float floor_pwm = static_cast<float>(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
+  if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
+  const float u = -omega_ccw * kDegPerRad * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
+  out.left_pwm = clamp_pwm(base + u);
+  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+}
+
+}  // namespace core
+}  // namespace rovernav

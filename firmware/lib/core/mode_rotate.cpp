@@ -1,0 +1,77 @@
+// Rotate and BackOff: turning on the spot with the gyro PID, and backing straight out first
+// when the last sweep saw something within reach of the rover's swinging corners.
+#include "rover.h"
+
+#include <math.h>
+#include "float_ops.h"
+
+namespace rovernav {
+namespace core {
+
+namespace {
+// Rotation counts as done when also this slow (deg/s), so the rover does not coast past it.
+const float kRotateSettledDps = 10.0f;
+}  // namespace
+
+// Rotate: the gyro PID turns the rover on the spot towards the target. Returns false once it
+// faces it (then Drive, in this same step), true while it turns or has gone to back off first.
+bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
+  const Params& p = params_;
+  const float out_max = p.pid_out_max_pwm();
+  servo_cdeg_ = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
+  if (!rotate_checked_) {
+    rotate_checked_ = true;
+    if (fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn()) {
+      enter(RoverState::BackOff);
+      return true;
+    }
+  }
+  // The pose law steers while it drives: it only needs to face roughly the right way.
+  // Rotate until well inside the cone the drive will hold: far from the waypoint the cone
+  // atan(cone_tol / L) is narrower than rotate_done (0.6 degrees at 1.7 m), and a rotation
+  // that stopped between the two would hand over to a drive that hands straight back.
+  float done_deg = p.pose_law() ? 0.5f * kPoseMaxErrorDeg : p.rotate_done_deg();
+  if (!p.pose_law()) {
+    const float half_cone = 0.5f * cone_deg(l);
+    if (half_cone < done_deg) done_deg = half_cone;
+  }
+  if (fabsf(err) <= done_deg && fabsf(rate_dps_) < kRotateSettledDps) {
+    enter(RoverState::Drive);
+    return false;
+  }
+  float u = heading_command(err, dt_s);
+  // Lift the command over the motors' dead band, or small errors never close.
+  if (fabsf(u) > 0.5f) {
+    float lifted = fabsf(u) + static_cast<float>(p.motor_deadband_pwm());
+    if (!(lifted < out_max)) lifted = out_max;
+    u = u > 0.0f ? lifted : -lifted;
+  }
+  out.left_pwm = clamp_pwm(u);
+  out.right_pwm = clamp_pwm(-u);
+  return true;
+}
+
+// Whether the last sweep saw nothing within reach of the corners as the rover turns on the spot.
+bool Rover::room_to_turn() const {
+  const Point c = here_mm();
+  return !local_.within(c, saturate_u16(params_.clearance_mm()), kSwingMm);
+}
+
+// Backing out: straight back, holding the heading, the way the rover came (the only ground it
+// knows is clear behind it), until its corners can swing clear of what the sweep saw, or for
+// kBackOffMaxMm at most; then the turn it put off.
+void Rover::back_off(float dt_s, Outputs& out) {
+  const Params& p = params_;
+  back_off_mm_ += drive_speed_mm_s() * dt_s;
+  if (room_to_turn() || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
+    enter(RoverState::Rotate);
+    rotate_checked_ = true;
+    return;
+  }
+  const float u = heading_command(0.0f, dt_s);   // hold the heading: damp any turn
+  out.left_pwm = clamp_pwm(-p.drive_pwm() + u);
+  out.right_pwm = clamp_pwm(-p.drive_pwm() - u * p.right_bias());
+}
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,51 @@
+// Scan: stopped, the sonar swept from -90 to +90 degrees (Sweep), every reading reported.
+#include "rover.h"
+
+namespace rovernav {
+namespace core {
+
+void Rover::start_sweep(uint32_t now) {
+  reflex_waiting_ = false;   // a ping still out belongs to the reflex, not to the sweep
+  ++scan_id_;
+  scan_echoes_ = 0;
+  enter(RoverState::Scan);   // ends a detour being planned
+  local_.clear();
+  sweep_.start(now, servo_cdeg_, params_.sweep_step_ms());
+}
+
+void Rover::stop_sweep() {
+  sweep_ = Sweep();
+  servo_cdeg_ = 0;
+}
+
+// Scan: one step of the sweep; each ping's result reported (an echo within sonar_report_mm, or
+// "nothing there" for the host to clear the cone); at the end, the leg checked against what it saw.
+void Rover::mode_scan(const Inputs& in, uint32_t now, Outputs& out) {
+  const Params& p = params_;
+  if (step_work_ & kWorkFix) {   // the sweep goes on next step (a result that came is held)
+    put_off_ = true;
+    return;
+  }
+  int16_t servo = servo_cdeg_;
+  bool fire = false;
+  const Sweep::Echo echo = sweep_.step(now, in.sonar_valid, in.sonar_range_mm, servo, fire);
+  servo_cdeg_ = servo;
+  out.fire_sonar = fire;
+  if (echo.valid) {
+    step_work_ = static_cast<uint8_t>(step_work_ | kWorkOther);
+    if (echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
+      report_echo(echo.bearing_cdeg, echo.range_mm);
+    } else {
+      report_clear(echo.bearing_cdeg);   // nothing within the report range: the host clears the cone
+    }
+  }
+  if (!sweep_.running()) {
+    send_event(EventKind::ScanDone, scan_echoes_);
+    sweep_distance_mm_ = 0.0f;
+    enter(RoverState::Rotate);
+    replan_locally();
+  }
+}
+
+}  // namespace core
+}  // namespace rovernav

@@ -1,0 +1,80 @@
+// The forward reflex: between sweeps, while driving, the sonar pings ahead and to the sides;
+// an echo on the rover's way within its stopping distance stops it in that step.
+#include "rover.h"
+
+#include <math.h>
+#include "angles.h"
+#include "progmem.h"
+
+namespace rovernav {
+namespace core {
+
+float Rover::reflex_range_mm() const {
+  const Params& p = params_;
+  const float stop_mm = drive_speed_mm_s() * static_cast<float>(p.reflex_ping_ms() + kReflexLatencyMs) / 1000.0f;
+  return stop_mm + p.reflex_margin_mm();
+}
+
+// The forward reflex: while driving, the sonar (pointing ahead between sweeps) pings every
+// reflex_ping_ms; an echo on the path nearer than the stopping distance plus the margin stops
+// the motors in that step, is reported, and a sweep follows (then the rover's detour or the
+// host's new path). Returns whether it stopped the rover. An echo from beyond the waypoint
+// being approached (by more than the robot's radius) is no threat to this leg: the goal in
+// front of a wall is reached, not refused.
+bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
+  const Params& p = params_;
+  const uint16_t period_ms = p.reflex_ping_ms();
+  if (period_ms == 0) return false;
+  // Ahead, right 15 and 30 degrees, ahead, left 15 and 30: at close range the 15-degree cone is
+  // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
+  static const int16_t kLookCdeg[kReflexLooks] ROVERNAV_PROGMEM = {0, 1500, 3000, 0, -1500, -3000};
+  if (reflex_waiting_ && in.sonar_valid) {
+    reflex_waiting_ = false;
+    const uint16_t r = in.sonar_range_mm;
+    const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
+    reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
+    if (r > 0 && reflex_on_path(look, r, l_mm)) {
+      if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
+      reflex_look_ = true;
+      start_sweep(now);
+      report_echo(look, r);
+      send_event(EventKind::Reflex, r);
+      out.left_pwm = out.right_pwm = 0;
+      return true;
+    }
+    if (look == 0) reflex_look_ = false;   // clear straight ahead
+  } else if (reflex_waiting_ && static_cast<uint16_t>(now - reflex_fired_ms_) >= Sweep::kPingTimeoutMs) {
+    reflex_waiting_ = false;   // no result came: ping again
+    reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
+  }
+  servo_cdeg_ = flash_read_i16(&kLookCdeg[reflex_look_i_]);
+  if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {
+    out.fire_sonar = true;
+    reflex_waiting_ = true;
+    reflex_fired_ms_ = static_cast<uint16_t>(now);
+  }
+  // After a reflex stop the rover looks before it goes: no creeping up on what stopped it, a few
+  // millimetres a ping.
+  if (reflex_look_) {
+    out.left_pwm = out.right_pwm = 0;
+    return true;
+  }
+  return false;
+}
+
+// Whether an echo at bearing look_cdeg and range_mm may lie on the rover's way: nearer than the
+// reflex range, no further to the side than the robot radius wherever in the cone it came
+// from, and not beyond the waypoint being approached (by more than the robot radius).
+bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const {
+  const Params& p = params_;
+  const float r = static_cast<float>(range_mm);
+  const float look = fabsf(cdeg_to_rad(look_cdeg));
+  if (r * cosf(look) > reflex_range_mm()) return false;   // the stopping range, measured along the way
+  const float nearest_side = look - p.sonar_half_cone_rad();
+  const float lateral_mm = nearest_side > 0.0f ? r * sinf(nearest_side) : 0.0f;
+  if (lateral_mm > p.robot_radius_mm()) return false;
+  return r * cosf(look) + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
+}
+
+}  // namespace core
+}  // namespace rovernav
