@@ -100,7 +100,10 @@ class Probe:
 
 
 def _sources() -> list[Path]:
-    return [p for d in ("lib/core", "lib/link", "abi") for p in (FIRMWARE / d).glob("*") if p.suffix in (".cpp", ".h")]
+    """What the library is built from: a newer one (or a new file: CMake globs the directories
+    with CONFIGURE_DEPENDS) rebuilds it."""
+    return [FIRMWARE / "CMakeLists.txt"] + [
+        p for d in ("lib/core", "lib/link", "abi") for p in (FIRMWARE / d).glob("*") if p.suffix in (".cpp", ".h")]
 
 
 def build_library(force: bool = False) -> Path:
