@@ -797,7 +797,7 @@ class UnoCore:
         """uno_timing["profile"]: where the steps' cycles go (see unocore.c, "Profile").
 
         For each kind of step (all, fix, sonar, replanning, radio_rx, no_flags: by the GPIOR0
-        descriptor; worst_1pct: the longest 1 % of all steps):
+        descriptor; worst_1pct: the longest 1 % of all steps; worst_step: the longest one):
         - `steps`, `mean_step_us`; `counted_share` (cycles counted / cycles between PB0's edges:
           1.0 when nothing is missed) and `named_share` (the share of those inside a named function);
         - `functions`: the top 15 of the main line by self cycles (at PCs inside the function),
@@ -831,10 +831,23 @@ class UnoCore:
         for k, name in enumerate(PROF_KINDS):
             out["kinds"][name] = self._profile_kind(kinds[name], info.steps[k], info.step_cycles[k],
                                                     info.attributed[k])
-        # the worst 1 % of all steps, from the longest steps the harness kept
+        # the worst 1 % of all steps, and the single worst, from the longest steps the harness kept
         n_all = info.steps[0]
         n_worst = max(1, math.ceil(n_all / 100)) if n_all else 0
-        chosen = sorted(worst, key=lambda w: (-w[0], w[1]))[:n_worst]
+        ranked = sorted(worst, key=lambda w: (-w[0], w[1]))
+        out["kinds"]["worst_1pct"] = self._profile_chosen(info, ranked[:n_worst], n_worst)
+        out["kinds"]["worst_step"] = self._profile_chosen(info, ranked[:1], 1 if n_all else 0)
+        # the shadow call stack's health: frames open when a step ended (main's code raises
+        # and lowers PB0, so 0 when every call met its return), calls too deep to follow
+        out["open_frames_at_step_end"] = info.open_frames
+        if info.depth_lost:
+            out["calls_too_deep"] = info.depth_lost
+        return out
+
+    def _profile_chosen(self, info, chosen: list, wanted: int) -> dict:
+        """_profile_kind over some of the longest steps the harness kept (their own counts)."""
+        import numpy as np
+
         nf, nfn = info.nfuncs, info.nctx * info.nfuncs
         cyc, cal, inc = (np.zeros((info.nctx, nf)) for _ in range(3))
         ecal, einc = np.zeros((nf, nf)), np.zeros((nf, nf))
@@ -852,18 +865,12 @@ class UnoCore:
         w = self._profile_kind((cyc, cal, inc, ecal, einc), len(chosen), sum(c[0] for c in chosen),
                                float(cyc.sum()))
         if chosen:
-            w["threshold_us"] = round(chosen[-1][0] * us, 1)
+            w["threshold_us"] = round(chosen[-1][0] * 1e6 / CLOCK_HZ, 1)
             w["flags"] = {flag: sum(1 for c in chosen if c[2] is not None and c[2] & bit)
                           for flag, bit in DESC_FLAGS.items()}
-        if len(chosen) < n_worst:
+        if len(chosen) < wanted:
             w["note"] = f"only the {len(chosen)} longest steps were kept (worst_cap)"
-        out["kinds"]["worst_1pct"] = w
-        # the shadow call stack's health: frames open when a step ended (main's code raises
-        # and lowers PB0, so 0 when every call met its return), calls too deep to follow
-        out["open_frames_at_step_end"] = info.open_frames
-        if info.depth_lost:
-            out["calls_too_deep"] = info.depth_lost
-        return out
+        return w
 
     def _profile_kind(self, arrays, steps: int, step_cycles: int, attributed: float) -> dict:
         import numpy as np

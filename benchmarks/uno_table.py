@@ -1,0 +1,118 @@
+"""The README's Uno table: each shared scenario run by the native core and by the Uno image.
+
+    python benchmarks/uno_table.py [--seeds 1 2 3] [--jobs 2] [--json FILE]
+    python benchmarks/uno_table.py --arenas DIR [--sample K] --seeds 1     # arenas nobody tuned for
+
+The Uno image (build/uno/firmware.elf, built if missing) runs in simavr with the simulated world on
+its pins (`rovernav sim SCENARIO --rover uno`). For each scenario, over the seeds, it prints both
+outcomes, the median mission times and their difference, and the image's own step times measured
+in AVR cycles (the largest median, p99 and worst step of any seed, with what the worst step did),
+the period's jitter and the stack's use and margin. It exits 1 if any seed's outcomes differ, a
+step passes 5 ms, the jitter 1 ms, or the stack margin falls under 256 bytes: the figures issue
+12 asks of the image. One seed's mission time swings by a few seconds with any change to the
+rover (the runs are chaotic), hence the median over seeds.
+"""
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+SCENARIOS = ["seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles", "out-and-back"]
+STEP_LIMIT_US = 5000.0
+JITTER_LIMIT_MS = 1.0
+STACK_MARGIN_MIN = 256
+
+
+def run_one(scenario: str, rover: str, seed: int) -> dict:
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.report import build_report
+    from rovernav.sim.runner import SimOptions, Simulation
+
+    started = time.monotonic()
+    sim = Simulation(load_scenario(scenario), SimOptions(seed=seed, rover=rover, max_time_s=1500))
+    sim.run()
+    report = build_report(sim, time.monotonic() - started)
+    report.pop("events", None)
+    if rover == "uno":
+        report["uno_timing"] = sim.uno_timing()
+    return report
+
+
+def outcome(r: dict) -> str:
+    return f"{'reached' if r['reached'] else 'NOT reached'}, {r['collisions']} collisions, {r['mission_time_s']:.1f} s"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--scenarios", nargs="+", default=SCENARIOS, help="names or files (default: the four shared)")
+    ap.add_argument("--arenas", type=Path, help="instead, the arena files (*.toml) of this folder (`rovernav arenas`)")
+    ap.add_argument("--sample", type=int, help="with --arenas: only K of them, evenly spaced in name order")
+    ap.add_argument("--json", type=Path, help="write every run's report here")
+    args = ap.parse_args(argv)
+    if args.arenas is not None:
+        files = sorted(args.arenas.glob("*.toml"))
+        if not files:
+            ap.error(f"--arenas {args.arenas}: no *.toml arena files there")
+        if args.sample:
+            files = [files[i * len(files) // args.sample] for i in range(min(args.sample, len(files)))]
+        args.scenarios = [str(f) for f in files]
+    jobs = [(sc, rover, seed) for sc in args.scenarios for seed in args.seeds for rover in ("uno", "native")]
+    results: dict[tuple, dict] = {}
+    t0 = time.monotonic()
+    with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        futures = {pool.submit(run_one, *job): job for job in jobs}
+        for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
+            sc, rover, seed = futures[fut]
+            r = fut.result()
+            results[(sc, rover, seed)] = r
+            print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
+                  file=sys.stderr, flush=True)
+    failures = []
+    med = statistics.median
+    print("| scenario | native | Uno image | Uno step: median / p99 / worst (what the worst did) | jitter | stack used / spare |")
+    print("|---|---|---|---|---|---|")
+    for sc in args.scenarios:
+        nat = [results[(sc, "native", s)] for s in args.seeds]
+        uno = [results[(sc, "uno", s)] for s in args.seeds]
+        timing = [r["uno_timing"] for r in uno]
+        worst = max((t["worst_step"] for t in timing), key=lambda w: w["us"])
+        jitter_ms = max(t["period_jitter"]["max_abs_us"] for t in timing) / 1000
+        used = max(t["stack"]["used_bytes"] for t in timing)
+        margin = min(t["stack"]["margin_bytes"] for t in timing)
+        times = lambda rs: [r["mission_time_s"] for r in rs if r["reached"] and r["mission_time_s"] is not None]
+        t_nat, t_uno = (med(times(rs)) if times(rs) else None for rs in (nat, uno))
+        ok = lambda rs: sum(1 for r in rs if r["reached"] and r["collisions"] == 0)
+        did = ", ".join(worst["flags"] or []) or "nothing flagged"
+        dt = f" ({100 * (t_uno - t_nat) / t_nat:+.1f} %)" if t_nat and t_uno else ""
+        fmt = lambda t: f"{t:.1f} s" if t is not None else "no time"
+        print(f"| {Path(sc).stem} | {ok(nat)}/{len(nat)} reached, 0 collisions, {fmt(t_nat)} | {ok(uno)}/{len(uno)} reached, "
+              f"0 collisions, {fmt(t_uno)}{dt} | "
+              f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
+              f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
+              f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used} / {margin} B |")
+        for s_, a_, b_ in zip(args.seeds, nat, uno):
+            if (a_["reached"], a_["collisions"]) != (b_["reached"], b_["collisions"]):
+                failures.append(f"{sc} seed {s_}: outcomes differ")
+        if worst["us"] > STEP_LIMIT_US:
+            failures.append(f"{sc}: worst step {worst['us'] / 1000:.2f} ms > 5 ms")
+        if jitter_ms > JITTER_LIMIT_MS:
+            failures.append(f"{sc}: jitter {jitter_ms:.2f} ms > 1 ms")
+        if margin < STACK_MARGIN_MIN:
+            failures.append(f"{sc}: stack margin {margin} B < 256 B")
+    print(f"\n({time.monotonic() - t0:.0f} s for {len(jobs)} runs, {args.jobs} at a time)")
+    if args.json:
+        args.json.write_text(json.dumps({f"{sc}/{rv}/{seed}": r for (sc, rv, seed), r in results.items()}, indent=1))
+    for f in failures:
+        print("FAIL:", f, file=sys.stderr)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
