@@ -9,9 +9,10 @@
     rovernav link-check --port PORT       say HELLO to a rover and watch what it sends
     rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
 
-Errors a user can cause (a missing port, a rover built from another protocol, no answer)
-end with a one-line message and exit status 2, not a traceback; a mission that could not
-reach its goal ends with exit status 1.
+Errors a user can cause (a bad flag or file, a missing port, a rover built from another
+protocol, no answer) end with a one-line message and exit status 2, not a traceback; a mission
+that could not reach its goal ends with exit status 1; an internal error with 3 (see
+rovernav.validate, which every entry point checks its input with).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import sys
 import time
 
 from . import __version__
+from .validate import EXIT_CODES, ArgParser, input_file, port_spec, seconds
 
 log = logging.getLogger("rovernav")
 
@@ -132,22 +134,22 @@ def add_run_parser(sub) -> None:
                                    "yellow marker in view and the map starts empty. Ctrl-C stops the rover.")
     p.add_argument("--port", default="", help="serial port of the radio, e.g. /dev/ttyUSB0 or COM4 (or [link] port)")
     p.add_argument("--camera", default="", help="camera index (0) or a video file (or [camera] source)")
-    p.add_argument("--config", help="rovernav TOML configuration")
+    p.add_argument("--config", type=input_file, help="rovernav TOML configuration")
     p.add_argument("--scenario", help="scenario file: arena, start, target, known obstacles")
     p.add_argument("--map", help="learned map (JSON) to load at the start and save at the end")
     p.set_defaults(func=_cmd_run)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="rovernav",
+    parser = ArgParser(
+        prog="rovernav", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Guide a small rover through a partially unknown arena from an overhead camera. "
                     "The rover (Arduino Uno firmware) follows waypoints on its own; this host sends it "
                     "camera fixes and global paths over a framed, CRC-checked serial link.",
-        epilog="Run `rovernav COMMAND --help` for a command's options.")
+        epilog="Run `rovernav COMMAND --help` for a command's options.\n\n" + EXIT_CODES)
     parser.add_argument("--version", action="version", version=f"rovernav {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the link does")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgParser)
 
     p = sub.add_parser("protocol", help="list the link protocol's messages and parameters",
                        description="Print every message (id, direction, size on the wire, fields) and every "
@@ -175,17 +177,20 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "
                                    "were built from the same protocol definition), then print every message "
                                    "the rover sends for a few seconds, and the link's error counters.")
-    p.add_argument("--port", required=True,
+    p.add_argument("--port", required=True, type=port_spec,
                    help="serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@57600")
-    p.add_argument("--seconds", type=float, default=3.0, help="how long to listen after the HELLO (default 3)")
-    p.add_argument("--timeout", type=float, default=3.0, help="how long to wait for the rover's HELLO (default 3 s)")
+    p.add_argument("--seconds", type=seconds(3600.0), default=3.0,
+                   help="how long to listen after the HELLO, 0 to 3600 (default 3)")
+    p.add_argument("--timeout", type=seconds(600.0, positive=True), default=3.0,
+                   help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)")
     p.set_defaults(func=_cmd_link_check)
 
     p = sub.add_parser("demo", help="run the Uno firmware in an AVR simulator and talk to it",
                        description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "
                                    "port on a pseudo-terminal, and run link-check against it: the host and the "
                                    "very firmware the Uno runs, with no hardware.")
-    p.add_argument("--seconds", type=float, default=3.0, help="how long to listen after the HELLO (default 3)")
+    p.add_argument("--seconds", type=seconds(3600.0), default=3.0,
+                   help="how long to listen after the HELLO, 0 to 3600 (default 3)")
     p.set_defaults(func=_cmd_demo)
     return parser
 
@@ -199,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     from .errors import MissionFailed, RovernavError
+    from .validate import internal_error
 
     try:
         return args.func(args)
@@ -211,6 +217,16 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"rovernav {args.command}: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        print(f"rovernav {args.command}: out of memory: the input asks for more than this machine has "
+              "(a smaller arena, a coarser resolution or a shorter run)", file=sys.stderr)
+        return 2
+    except OSError as exc:   # a file or device the user named (the message names it)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"rovernav {args.command}: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:   # noqa: BLE001 - the last line of defence: one line, not a traceback
+        return internal_error(args.command, exc, args.verbose)
 
 
 if __name__ == "__main__":
