@@ -52,8 +52,14 @@ def test_a_bad_value_names_its_section_and_key(data, words):
 
 
 def test_unreadable_files_are_refused_clearly(tmp_path):
-    with pytest.raises(ConfigError, match="not found"):
+    with pytest.raises(ConfigError, match="missing.toml: no such configuration file"):
         load_config(tmp_path / "missing.toml")
+    with pytest.raises(ConfigError, match="is a folder, not a configuration file"):
+        load_config(tmp_path)
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b"[camera]\nsource = \"c\xe1mara\"\n")
+    with pytest.raises(ConfigError, match="not a UTF-8 text file"):
+        load_config(latin)
     bad = tmp_path / "bad.toml"
     bad.write_text("[arena\nwidth_m = 2")
     with pytest.raises(ConfigError, match="not valid TOML"):

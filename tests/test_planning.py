@@ -7,6 +7,8 @@ scipy's csgraph on a larger grid.
 from __future__ import annotations
 
 import argparse
+
+from rovernav.validate import ArgParser
 import heapq
 import json
 import math
@@ -656,9 +658,13 @@ known = false
 # --- the command ------------------------------------------------------------------------------------
 
 def run_cli(argv, capsys):
-    parser = argparse.ArgumentParser(prog="rovernav")
-    add_plan_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(argv)
+    parser = ArgParser(prog="rovernav")
+    add_plan_parser(parser.add_subparsers(dest="command", parser_class=ArgParser))
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:   # a flag refused: one line on stderr, status 2
+        out, err = capsys.readouterr()
+        return exc.code, out, err
     code = args.func(args)
     out, err = capsys.readouterr()
     return code, out, err
@@ -674,10 +680,10 @@ def test_plan_prints_json_and_exits_0_when_a_path_is_found(capsys):
     assert doc["length_m"] > math.dist((0.3, 0.3), (2.0, 1.4)) and doc["time_ms"] >= 0
 
 
-def test_plan_exits_2_with_the_reason_when_there_is_no_path(capsys):
+def test_plan_exits_1_with_the_reason_when_there_is_no_path(capsys):
     code, out, err = run_cli(["plan", "seed-large-obstacles", "--planner", "potential", "--json"], capsys)
     doc = json.loads(out)
-    assert code == 2 and doc["found"] is False and doc["waypoints"] == [] and doc["length_m"] is None
+    assert code == 1 and doc["found"] is False and doc["waypoints"] == [] and doc["length_m"] is None
     assert doc["reason"].startswith("trapped in a local minimum at")
     assert doc["reason"] in err
 
@@ -691,7 +697,7 @@ def test_plan_exits_2_on_a_bad_scenario_file(tmp_path, capsys):
     code, _, err = run_cli(["plan", "no-such-scenario"], capsys)
     assert code == 2 and "no scenario named 'no-such-scenario'" in err
     code, _, err = run_cli(["plan", "seed-small-obstacles", "--resolution", "0"], capsys)
-    assert code == 2 and "resolution_m must be > 0" in err
+    assert code == 2 and "argument --resolution: '0': must be a number >= 0.001 and <= 1" in err
 
 
 def test_plan_prints_waypoints_and_draws_a_picture(tmp_path, capsys):

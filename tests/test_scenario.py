@@ -123,9 +123,19 @@ MISTAKES = [
      "obstacles[0].colour", "not a known key"),
     ("unknown top key", lambda t: "speed = 3\n" + t, "speed", "not a known key"),
     ("bad mission", lambda t: _replace(t, '"out-and-back"', '"explore"'), "mission.kind", "reach, out-and-back"),
-    ("zero trips", lambda t: _replace(t, "trips = 3", "trips = 0"), "mission.trips", "≥ 1"),
+    ("zero trips", lambda t: _replace(t, "trips = 3", "trips = 0"), "mission.trips", "from 1 to 1000"),
     ("other version", lambda t: _replace(t, "version = 1", "version = 2"), "version", "understands version 1"),
     ("no version", lambda t: _replace(t, "version = 1\n", ""), "version", "missing"),
+    # issue 13: sizes that would exhaust memory or time, shapes off the arena, a start in a box
+    ("a 1 km arena", lambda t: _replace(t, "width_m = 2.0", "width_m = 1000.0"), "arena.width_m", "at most 100 m"),
+    ("a billion trips", lambda t: _replace(t, "trips = 3", "trips = 1000000000"), "mission.trips", "from 1 to 1000"),
+    ("infinite size", lambda t: _replace(t, "width_m = 2.0", "width_m = inf"), "arena.width_m", "must be a number"),
+    ("NaN position", lambda t: _replace(t, "x_m = 0.3", "x_m = nan"), "start.x_m", "must be a number"),
+    ("obstacle off the arena", lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 9.0\ny_m = 0.7"),
+     "obstacles[0]", "lies outside the arena"),
+    ("start in a box", lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 0.3\ny_m = 0.3"), "start", "is inside obstacles[0]"),
+    ("target in a box", lambda t: _replace(t, "x_m = 0.5\ny_m = 1.0", "x_m = 1.7\ny_m = 1.2"), "target",
+     "is inside obstacles[1]"),
 ]
 
 

@@ -16,12 +16,14 @@ or a value of the wrong type or out of range, raises ConfigError naming it
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from .errors import InputError
 from .link import messages_gen as mg
+from .validate import MAX_ARENA_M, MAX_TRIPS, check_number, read_text_file
 
 
 class ConfigError(InputError):
@@ -81,10 +83,16 @@ def _typed(section: str, key: str, value: Any, want: type, where: str) -> Any:
         value = str(value)
     if not isinstance(value, want) or isinstance(value, bool) and want is not bool:
         raise ConfigError(f"{where}[{section}] {key} = {value!r} should be {want.__name__}")
+    if want is float and not math.isfinite(value):
+        raise ConfigError(f"{where}[{section}] {key} = {value!r} should be a finite number")
+    if want is str and (len(value) > 4096 or any(ord(c) < 32 for c in value)):
+        raise ConfigError(f"{where}[{section}] {key}: a string of {len(value)} characters, or with control characters")
     return value
 
 
-def _section(cls, section: str, table: Any, where: str, checks: dict | None = None):
+def _section(cls, section: str, table: Any, where: str, limits: dict | None = None):
+    """A section's dataclass from its table. `limits`: key -> (lo, hi, lo_open) for numbers, or a
+    set of the allowed values."""
     if not isinstance(table, dict):
         raise ConfigError(f"{where}[{section}] should be a table")
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -94,8 +102,16 @@ def _section(cls, section: str, table: Any, where: str, checks: dict | None = No
             raise ConfigError(f"{where}[{section}] has no key {key!r} (known: {', '.join(fields)})")
         want = type(getattr(cls(), key))
         kwargs[key] = _typed(section, key, value, want, where)
-        if checks and key in checks and not checks[key](kwargs[key]):
-            raise ConfigError(f"{where}[{section}] {key} = {value!r} is out of range")
+        rule = (limits or {}).get(key)
+        if isinstance(rule, (set, frozenset)):
+            if kwargs[key] not in rule:
+                raise ConfigError(f"{where}[{section}] {key} = {value!r} must be one of {', '.join(map(str, sorted(rule)))}")
+        elif rule is not None:
+            lo, hi, lo_open = rule
+            try:
+                check_number(f"{where}[{section}] {key}", kwargs[key], lo, hi, lo_open=lo_open)
+            except InputError as exc:
+                raise ConfigError(str(exc)) from None
     return cls(**kwargs)
 
 
@@ -104,20 +120,19 @@ def config_from_dict(data: dict, where: str = "") -> Config:
     from .planning import PlannerConfig
     from .vision.config import VisionConfig
 
-    positive = lambda v: v > 0  # noqa: E731
     known = {"arena", "link", "camera", "vision", "planner", "sonar", "mission", "rover"}
     for name in data:
         if name not in known:
             raise ConfigError(f"{where}unknown section [{name}] (known: {', '.join(sorted(known))})")
     arena = _section(ArenaConfig, "arena", data.get("arena", {}), where,
-                     {"width_m": positive, "height_m": positive})
+                     {"width_m": (0.0, MAX_ARENA_M, True), "height_m": (0.0, MAX_ARENA_M, True)})
     link = _section(LinkConfig, "link", data.get("link", {}), where,
-                    {"baud": lambda v: v in (9600, 19200, 38400, 57600, 115200)})
-    camera = _section(CameraConfig, "camera", data.get("camera", {}), where, {"fps": positive})
-    sonar = _section(SonarConfig, "sonar", data.get("sonar", {}), where, {"offset_m": lambda v: 0 <= v < 1})
+                    {"baud": frozenset((9600, 19200, 38400, 57600, 115200))})
+    camera = _section(CameraConfig, "camera", data.get("camera", {}), where, {"fps": (0.0, 120.0, True)})
+    sonar = _section(SonarConfig, "sonar", data.get("sonar", {}), where, {"offset_m": (0.0, 0.5, False)})
     mission = _section(MissionConfig, "mission", data.get("mission", {}), where,
-                       {"trips": lambda v: 0 <= v <= 1000, "heartbeat_hz": positive,
-                        "fix_sd_mm": lambda v: 1 <= v <= 255})
+                       {"trips": (0, MAX_TRIPS, False), "heartbeat_hz": (0.0, 50.0, True),
+                        "fix_sd_mm": (1, 255, False)})
     try:
         vision = VisionConfig.from_dict(data.get("vision", {}))
     except ValueError as exc:
@@ -140,7 +155,24 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         if not spec.min <= value <= spec.max:
             raise ConfigError(f"{where}[rover] {key} = {value} is outside [{spec.min}, {spec.max}] ({spec.unit})")
         rover[by_name[key]] = value
+    _check_pose_gains(rover, where)
     return Config(arena, link, camera, sonar, mission, vision, planner, rover)
+
+
+def _check_pose_gains(rover: dict, where: str) -> None:
+    """The moving-to-a-pose gains the rover would run with (the file's over the defaults) must be
+    stable, by the rule `rovernav pose` applies: a rover must not be sent gains the study refuses."""
+    from .study.pose import PoseGains
+
+    keys = (mg.Param.POSE_K_RHO_X1000, mg.Param.POSE_K_ALPHA_X1000, mg.Param.POSE_K_BETA_X1000)
+    if not any(k in rover for k in keys):
+        return
+    k_rho, k_alpha, k_beta = (rover.get(k, mg.PARAMS[k].default) / 1000.0 for k in keys)
+    try:
+        PoseGains(k_rho=k_rho, k_alpha=k_alpha, k_beta=k_beta)
+    except ValueError as exc:
+        raise ConfigError(f"{where}[rover] pose_k_rho_x1000, pose_k_alpha_x1000, pose_k_beta_x1000 "
+                          f"({k_rho:g}, {k_alpha:g}, {k_beta:g}): {exc}") from None
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -149,9 +181,13 @@ def load_config(path: str | Path | None) -> Config:
         return config_from_dict({})
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(f"configuration file {path} not found") from None
+        text = read_text_file(path, "configuration file")
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+    if len(text) > 1_000_000:
+        raise ConfigError(f"{path}: {len(text):,} characters is not a configuration file (the limit is 1,000,000)")
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     return config_from_dict(data, where=f"{path}: ")

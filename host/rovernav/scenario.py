@@ -50,11 +50,16 @@ from pathlib import Path
 from typing import Any, ClassVar, Union
 
 from .errors import InputError
+from .validate import MAX_ARENA_M, MAX_TRIPS, read_text_file, show
 
 FORMAT_VERSION = 1
 MISSION_KINDS = ("reach", "out-and-back")
 DIFFICULTY_BANDS = ("easy", "medium", "hard")
 DEFAULT_SCENARIO = "out-and-back"
+
+
+# A shape's centre or a wall's end may sit this far outside the arena (a wall along its edge).
+_EDGE_M = 0.05
 
 
 class ScenarioError(InputError):
@@ -249,8 +254,11 @@ def scenario_names() -> list[str]:
 def resolve_scenario(name_or_path: str | os.PathLike[str]) -> Path:
     """The file for a shared scenario's name, or the given path when it names a file."""
     candidate = Path(name_or_path)
-    if candidate.is_file():
-        return candidate
+    try:
+        if candidate.exists() and not candidate.is_dir():
+            return candidate   # a file, or a device or pipe that read_text_file refuses by name
+    except (OSError, ValueError) as exc:
+        raise ScenarioError(f"{show(candidate)}: {getattr(exc, 'strerror', None) or exc}") from None
     text = str(name_or_path)
     if candidate.suffix != ".toml" and "/" not in text and os.sep not in text:
         shared = scenario_dir() / f"{text}.toml"
@@ -265,9 +273,11 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
     """Load and validate a scenario by shared name or path."""
     path = resolve_scenario(name_or_path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from exc
+        text = read_text_file(path, "scenario file")
+    except InputError as exc:
+        raise ScenarioError(str(exc)) from None
+    if len(text) > 10_000_000:
+        raise ScenarioError(f"{path}: {len(text):,} characters is not a scenario file (the limit is 10,000,000)")
     return parse_scenario(text, source=path)
 
 
@@ -357,6 +367,9 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
     r.only(arena_t, "arena.", ("width_m", "height_m"))
     arena = Arena(r.number(arena_t, "arena.", "width_m", positive=True),
                   r.number(arena_t, "arena.", "height_m", positive=True))
+    for key, side in (("width_m", arena.width_m), ("height_m", arena.height_m)):
+        if side > MAX_ARENA_M:
+            raise r.fail(f"arena.{key}", f"= {side:g} m: an arena's side is at most {MAX_ARENA_M:g} m")
 
     def on_arena(table: dict[str, Any], prefix: str) -> tuple[float, float]:
         x = r.number(table, prefix, "x_m")
@@ -381,8 +394,8 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
     if kind not in MISSION_KINDS:
         raise r.fail("mission.kind", f"must be one of {', '.join(MISSION_KINDS)}, got {kind!r}")
     trips = mission_t.get("trips", 1)
-    if isinstance(trips, bool) or not isinstance(trips, int) or trips < 1:
-        raise r.fail("mission.trips", f"must be a whole number ≥ 1, got {trips!r}")
+    if isinstance(trips, bool) or not isinstance(trips, int) or not 1 <= trips <= MAX_TRIPS:
+        raise r.fail("mission.trips", f"must be a whole number from 1 to {MAX_TRIPS}, got {trips!r}")
     mission = Mission(kind, trips)
 
     obstacles = []
@@ -402,6 +415,24 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
     for prefix, o, known in r.array(doc, "posts", ("x_m", "y_m", "radius_m", "known")):
         posts.append(Post(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
                           r.number(o, prefix, "radius_m", positive=True), known))
+
+    # Every shape on the arena (its centre, a wall's ends); the start and the target in the open.
+    def within(prefix: str, points) -> None:
+        for x, y in points:
+            if not (-_EDGE_M <= x <= arena.width_m + _EDGE_M and -_EDGE_M <= y <= arena.height_m + _EDGE_M):
+                raise r.fail(prefix, f"lies outside the arena ({x:g}, {y:g} m; the arena is "
+                                     f"{arena.width_m:g} x {arena.height_m:g} m)")
+    for i, o in enumerate(obstacles):
+        within(f"obstacles[{i}]", [(o.x_m, o.y_m)])
+    for i, w in enumerate(walls):
+        within(f"walls[{i}]", [(w.x0_m, w.y0_m), (w.x1_m, w.y1_m)])
+    for i, p in enumerate(posts):
+        within(f"posts[{i}]", [(p.x_m, p.y_m)])
+    for what, (x, y) in (("start", (start.x_m, start.y_m)), ("target", (target.x_m, target.y_m))):
+        for kind, shapes in (("obstacles", obstacles), ("walls", walls), ("posts", posts)):
+            for i, shape in enumerate(shapes):
+                if shape.distance_m(x, y) <= 0.0:
+                    raise r.fail(what, f"({x:g}, {y:g}) m is inside {kind}[{i}] ({shape.describe()})")
 
     generated = _generated(r, doc) if "generated" in doc else None
 

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x602A5112UL;
+static const uint32_t kSchemaHash = 0x448CF00BUL;
 enum : uint8_t {
   kMaxPayload = 56,
   kMaxRawFrame = 61,  // header + payload + CRC
@@ -123,7 +123,7 @@ enum class Param : uint8_t {
   RightBiasPermille = 5,  ///< [per mille] scale on the right motor's correction, which is the stronger one (seed: 0.8)
   DrivePwm = 6,  ///< [PWM] forward drive command (seed: 70)
   ConeTolMm = 7,  ///< [mm] tolerance cone half-width: re-rotate when |heading error| > atan(cone_tol_mm / L) (seed: 5 px = 18 mm)
-  ArrivalRadiusMm = 8,  ///< [mm] a waypoint is reached within this distance (seed: 10 px = 36 mm)
+  ArrivalRadiusMm = 8,  ///< [mm] a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)
   SweepIntervalMm = 9,  ///< [mm] distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)
   SweepStepMs = 10,  ///< [ms] time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)
   SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m)
@@ -164,7 +164,7 @@ static const int32_t kParamTable[35][3] ROVERNAV_PROGMEM = {
   {800L, 500L, 1500L},  // 5 right_bias_permille
   {70L, 0L, 255L},  // 6 drive_pwm
   {18L, 1L, 1000L},  // 7 cone_tol_mm
-  {36L, 5L, 1000L},  // 8 arrival_radius_mm
+  {36L, 5L, 300L},  // 8 arrival_radius_mm
   {300L, 0L, 10000L},  // 9 sweep_interval_mm
   {90L, 20L, 5000L},  // 10 sweep_step_ms
   {600L, 50L, 4000L},  // 11 sonar_report_mm

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x602A5112
+SCHEMA_HASH = 0x448CF00B
 MAX_PAYLOAD = 56
 MAX_RAW_FRAME = 61
 MAX_WAYPOINTS = 32
@@ -217,7 +217,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.RIGHT_BIAS_PERMILLE: ParamSpec(5, 'right_bias_permille', 'per mille', 800, 500, 1500, "scale on the right motor's correction, which is the stronger one (seed: 0.8)"),
     Param.DRIVE_PWM: ParamSpec(6, 'drive_pwm', 'PWM', 70, 0, 255, 'forward drive command (seed: 70)'),
     Param.CONE_TOL_MM: ParamSpec(7, 'cone_tol_mm', 'mm', 18, 1, 1000, 'tolerance cone half-width: re-rotate when |heading error| > atan(cone_tol_mm / L) (seed: 5 px = 18 mm)'),
-    Param.ARRIVAL_RADIUS_MM: ParamSpec(8, 'arrival_radius_mm', 'mm', 36, 5, 1000, 'a waypoint is reached within this distance (seed: 10 px = 36 mm)'),
+    Param.ARRIVAL_RADIUS_MM: ParamSpec(8, 'arrival_radius_mm', 'mm', 36, 5, 300, "a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)"),
     Param.SWEEP_INTERVAL_MM: ParamSpec(9, 'sweep_interval_mm', 'mm', 300, 0, 10000, 'distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)'),
     Param.SWEEP_STEP_MS: ParamSpec(10, 'sweep_step_ms', 'ms', 90, 20, 5000, 'time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)'),
     Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 4000, 'echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m)'),

@@ -38,6 +38,8 @@ import math
 import cv2
 import numpy as np
 
+from ..validate import check_grid
+
 
 @dataclasses.dataclass(frozen=True)
 class SensorModel:
@@ -75,6 +77,7 @@ class SonarMap:
     def __init__(self, width_m: float, height_m: float, resolution_m: float, sonar_offset_m: float,
                  model: SensorModel = SensorModel(), known: np.ndarray | None = None):
         self.width_m, self.height_m, self.resolution_m = float(width_m), float(height_m), float(resolution_m)
+        check_grid(self.width_m, self.height_m, self.resolution_m, "the sonar map's arena")
         self.nx = max(1, int(math.ceil(self.width_m / resolution_m - 1e-9)))
         self.ny = max(1, int(math.ceil(self.height_m / resolution_m - 1e-9)))
         self.xs = (np.arange(self.nx) + 0.5) * resolution_m

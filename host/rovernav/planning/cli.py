@@ -4,8 +4,8 @@
     rovernav plan seed-large-obstacles --planner potential --all-obstacles --json
     rovernav plan path/to/arena.toml --resolution 0.05 --plot path.png
 
-Exit status 0 when a path is found, 2 when there is none (the reason on stderr) and 2 for a
-scenario that cannot be loaded.
+Exit status 0 when a path is found, 1 when there is none (the reason on stderr), 2 for input
+that cannot be used (a scenario, a flag, a grid too large to build).
 """
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ import json
 import sys
 import time
 
+from ..validate import MAX_GRID_CELLS, number, output_file
+
 
 def add_plan_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     """Register the `plan` command on a parser's subparsers; its handler returns the exit status."""
@@ -21,8 +23,8 @@ def add_plan_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentPar
         "plan", help="plan a path from a scenario's start to its target",
         description="Build the scenario's occupancy grid (obstacles inflated by the robot radius plus the "
                     "sonar margin), plan from the start to the target, and print the simplified waypoints "
-                    "[m], the path's length and the time taken. Exit status 0 when a path is found, 2 when "
-                    "there is none or the scenario cannot be loaded.")
+                    "[m], the path's length and the time taken. Exit status 0 when a path is found, 1 when "
+                    "there is none, 2 when the scenario or a flag cannot be used.")
     p.add_argument("scenario", metavar="SCENARIO",
                    help="a shared scenario's name (e.g. seed-small-obstacles) or the path of a scenario file")
     p.add_argument("--planner", choices=("astar", "potential"), default="astar",
@@ -31,9 +33,10 @@ def add_plan_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentPar
                    help="plan around every obstacle, not only those marked known = true")
     p.add_argument("--json", action="store_true",
                    help='print {"found", "waypoints", "length_m", "time_ms", "planner", "reason"} as JSON')
-    p.add_argument("--resolution", type=float, metavar="M", default=None,
-                   help="grid cell size in metres (default 0.03)")
-    p.add_argument("--plot", metavar="FILE.png", default=None,
+    p.add_argument("--resolution", type=number(0.001, 1.0), metavar="M", default=None,
+                   help="grid cell size in metres, 0.001 to 1 (default 0.03); the grid may have at most "
+                        f"{MAX_GRID_CELLS:,} cells")
+    p.add_argument("--plot", metavar="FILE.png", default=None, type=output_file(".png"),
                    help="also draw the grid, the obstacles (raw and inflated) and the path into a PNG")
     p.set_defaults(func=run_plan)
     return p
@@ -99,5 +102,5 @@ def run_plan(args: argparse.Namespace) -> int:
             print(f"  {i:3d}  x {x:6.3f} m  y {y:6.3f} m")
     if result is None:
         print(f"rovernav plan: {scenario.name}: no path: {reason}", file=sys.stderr)
-        return 2
+        return 1
     return 0

@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from ..validate import check_grid
+
 from .config import PlannerConfig
 from .segment import polyline_clear, segment_clear
 
@@ -54,6 +56,7 @@ class OccupancyGrid:
         if not (width_m > 0 and height_m > 0 and math.isfinite(width_m) and math.isfinite(height_m)):
             raise ValueError(f"arena size must be positive, got {width_m!r} × {height_m!r} m")
         self.config = config or PlannerConfig()
+        check_grid(width_m, height_m, self.config.resolution_m)   # before any array is allocated
         self.width_m = float(width_m)
         self.height_m = float(height_m)
         self.resolution_m = self.config.resolution_m
