@@ -1,9 +1,12 @@
 """Writing results so that a reader never sees half a file or a stale one mixed with a new one."""
 from __future__ import annotations
 
+import json
+import math
 import os
 import tempfile
 from pathlib import Path
+from typing import Any
 
 
 def write_atomic(path: Path, data: str | bytes) -> None:
@@ -23,3 +26,41 @@ def write_atomic(path: Path, data: str | bytes) -> None:
         except OSError:
             pass
         raise
+
+
+def strict_json_value(value: Any) -> Any:
+    """`value` with every NaN or infinity replaced by None (and numpy scalars and arrays by Python
+    values), so that json.dumps(..., allow_nan=False) accepts it: JSON has no NaN, and other
+    languages' parsers refuse it."""
+    if isinstance(value, dict):
+        return {k: strict_json_value(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json_value(v) for v in value]
+    if hasattr(value, "tolist") and callable(value.tolist):   # numpy scalar or array
+        return strict_json_value(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def strict_json(value: Any, indent: int | None = 2) -> str:
+    """Strict JSON text of `value` (undefined numbers as null), with a final newline."""
+    return json.dumps(strict_json_value(value), indent=indent, allow_nan=False) + "\n"
+
+
+def write_json_atomic(path: Path, value: Any) -> None:
+    """Strict JSON, written atomically."""
+    write_atomic(path, strict_json(value))
+
+
+def remove_stale(folder: Path, names: tuple[str, ...]) -> list[str]:
+    """Delete the files `names` of a previous run from `folder` (before a new run writes there), so
+    that an interrupted or failed run never leaves the old results beside the new. Returns what
+    was removed."""
+    removed = []
+    for name in names:
+        path = Path(folder) / name
+        if path.is_file() or path.is_symlink():
+            path.unlink()
+            removed.append(name)
+    return removed

@@ -41,6 +41,10 @@ SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
 
 
+# Frames handled in one tick at most: the rest wait for the next (at 57,600 baud about 100 frames
+# arrive a second; a flood on a faster line must not starve the heartbeat and the deadlines).
+MAX_FRAMES_PER_TICK = 256
+
 class Phase(enum.Enum):
     HELLO = "hello"            # waiting for the rover's HELLO
     CONFIGURE = "configure"    # sending parameters
@@ -182,7 +186,9 @@ class Mission:
         self._now = now_s
         if self._phase_since is None:
             self._phase_since = self._last_heard_s = now_s
-        while not self.done:
+        for _ in range(MAX_FRAMES_PER_TICK):   # a flood cannot hold one tick forever
+            if self.done:
+                break
             frame = self.link.recv(timeout_s=0)
             if frame is None:
                 break

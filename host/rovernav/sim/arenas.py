@@ -95,6 +95,7 @@ import numpy as np
 
 from ..errors import InputError, RovernavError
 from ..files import write_atomic
+from ..validate import output_file
 from ..planning import NoPathError, OccupancyGrid, PlannerConfig, PlanResult, Unreachable, plan
 from ..scenario import Scenario, parse_scenario
 
@@ -1382,7 +1383,7 @@ def add_arenas_parser(sub) -> None:
     p.add_argument("--out", default="out/arenas", metavar="DIR", help="output folder (default out/arenas)")
     p.add_argument("--family", default=None, metavar="F[,F...]",
                    help="only these families (comma-separated; default all)")
-    p.add_argument("--picture", default=None, metavar="FILE",
+    p.add_argument("--picture", default=None, metavar="FILE", type=output_file(".png", ".jpg"),
                    help=f"where to write the contact sheet of the first {GALLERY_COUNT} arenas "
                         "(default DIR/gallery.png)")
     p.set_defaults(func=cmd_arenas)

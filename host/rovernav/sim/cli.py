@@ -7,25 +7,10 @@ import sys
 import time
 from pathlib import Path
 
+from ..validate import MAX_SIM_TIME_S, input_file, number, out_dir, seconds, time_window
 
-def _window(text: str) -> tuple[float, float]:
-    try:
-        start, duration = (float(v) for v in text.split(":"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected START:DURATION in seconds, e.g. 20:10") from None
-    if start < 0 or duration <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: START must be >= 0 and DURATION > 0")
-    return start, duration
-
-
-def _time(text: str) -> float:
-    try:
-        t = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a time in seconds") from None
-    if t < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: a time must be >= 0")
-    return t
+# What a run writes into its folder (and a new run there first removes).
+RESULT_FILES = ("report.json", "summary.png", "video.mp4", "comparison.json")
 
 
 def add_sim_parser(sub) -> None:
@@ -41,29 +26,32 @@ def add_sim_parser(sub) -> None:
                "same world and prints them side by side.")
     p.add_argument("scenario", nargs="?", default="out-and-back",
                    help="a scenario name (see scenarios/) or a scenario file (default: out-and-back)")
-    p.add_argument("--out", type=Path, default=Path("out/sim"), help="output folder (default out/sim)")
-    p.add_argument("--seed", type=int, default=1, help="random seed: noise, light, drops (default 1)")
+    p.add_argument("--out", type=out_dir, default=Path("out/sim"),
+                   help="output folder (default out/sim); a run first removes the previous run's results there")
+    p.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=1,
+                   help="random seed, 0 to 2^32-1: noise, light, drops (default 1)")
     p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav")
-    p.add_argument("--drive-mode", choices=("rotate_drive", "pose_law", "both"), default="rotate_drive",
+    p.add_argument("--drive-mode", choices=("rotate_drive", "pose_law", "both"), default=None,
                    help="how the rover drives between waypoints: the seed's rotate-then-drive, or the "
                         "moving-to-a-pose law (arcs, a heading at each waypoint); both runs each and says "
-                        "which was faster")
+                        "which was faster (default: the configuration's [rover] drive_mode, else rotate_drive)")
     p.add_argument("--no-video", action="store_true", help="skip the video (faster)")
-    p.add_argument("--config", help="a rovernav TOML configuration (vision, planner, rover parameters)")
-    p.add_argument("--max-time", type=float, default=900.0, help="give up after this many simulated seconds")
-    p.add_argument("--camera-fps", type=float, default=30.0, help="camera frame rate (default 30)")
+    p.add_argument("--config", type=input_file, help="a rovernav TOML configuration (vision, planner, rover parameters)")
+    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=900.0,
+                   help=f"give up after this many simulated seconds, up to {MAX_SIM_TIME_S:g} (default 900)")
+    p.add_argument("--camera-fps", type=number(1.0, 120.0), default=30.0, help="camera frame rate, 1 to 120 (default 30)")
     p.add_argument("--no-host-replan", action="store_true",
                    help="the host never replans: only the rover's own detours get it round obstacles")
-    p.add_argument("--link-outage", type=_window, action="append", default=[], metavar="START:DURATION",
+    p.add_argument("--link-outage", type=time_window, action="append", default=[], metavar="START:DURATION",
                    help="no bytes either way on the radio for DURATION seconds from START (repeatable)")
-    p.add_argument("--camera-outage", type=_window, action="append", default=[], metavar="START:DURATION",
+    p.add_argument("--camera-outage", type=time_window, action="append", default=[], metavar="START:DURATION",
                    help="the camera delivers nothing (or see --camera-outage-kind) for a while (repeatable)")
     p.add_argument("--camera-outage-kind", choices=("no_frames", "no_markers"), default="no_frames")
-    p.add_argument("--host-restart", type=_time, action="append", default=[], metavar="T",
+    p.add_argument("--host-restart", type=seconds(), action="append", default=[], metavar="T",
                    help="restart the host process state at T seconds (repeatable)")
-    p.add_argument("--firmware-reset", type=_time, action="append", default=[], metavar="T",
+    p.add_argument("--firmware-reset", type=seconds(), action="append", default=[], metavar="T",
                    help="reset the rover's firmware at T seconds (repeatable)")
-    p.add_argument("--gyro-dies", type=_time, metavar="T", help="the gyro stops answering at T seconds")
+    p.add_argument("--gyro-dies", type=seconds(), metavar="T", help="the gyro stops answering at T seconds")
     p.add_argument("--rover", choices=("native", "uno"), default="native",
                    help="the rover's firmware: native (default) steps the firmware core through its C ABI, "
                         "built for this machine; uno runs the Uno image itself (build/uno/firmware.elf, "
@@ -81,7 +69,7 @@ def add_sim_parser(sub) -> None:
                         "PC (exact, not sampled), interrupt handlers apart, and follows CALL and RET for inclusive "
                         "times and callers. Writes uno_timing[\"profile\"] to report.json: for all steps, the steps "
                         "with a FIX, with sonar, with the detour planner, with radio bytes, with none of those, and "
-                        "the worst 1 %%: the top 15 functions with their share of the step time, microseconds and "
+                        "the worst 1 %% and the worst step: the top 15 functions with their share of the step time, microseconds and "
                         "calls per step, the interrupts, and the float and integer library routines with their "
                         "callers. Prints the top 10 for the steps with a FIX. Off by default: the AVR simulation "
                         "runs about a third slower")
@@ -92,7 +80,7 @@ def add_sim_parser(sub) -> None:
 def cmd_sim(args: argparse.Namespace) -> int:
     from ..config import load_config
     from ..scenario import ScenarioError, load_scenario
-    from ..files import write_atomic
+    from ..files import remove_stale, write_json_atomic
     from ..firmware import FirmwareBuildError
     from .report import VideoWriter, build_report, summary_picture, write_report
     from .runner import Faults, SimOptions, Simulation
@@ -107,13 +95,16 @@ def cmd_sim(args: argparse.Namespace) -> int:
         return 2
     config = load_config(args.config) if args.config else None
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
-    modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]
+    modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]   # None: the config's
     runs = [(st, mode) for st in strategies for mode in modes]
+    if len(runs) > 1:
+        remove_stale(args.out, ("comparison.json",))
     reports = []
     for strategy, mode in runs:
         name = strategy if len(modes) == 1 else (mode if len(strategies) == 1 else f"{strategy}-{mode}")
         out = args.out / name if len(runs) > 1 else args.out
         out.mkdir(parents=True, exist_ok=True)
+        remove_stale(out, RESULT_FILES)   # never the last run's results beside this one's
         faults = Faults(link_outages=args.link_outage, camera_outages=args.camera_outage,
                         camera_outage_kind=args.camera_outage_kind, host_restarts=args.host_restart,
                         firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
@@ -132,15 +123,16 @@ def cmd_sim(args: argparse.Namespace) -> int:
             else:
                 print(f"[{_strategy} {t:7.2f} s] {text}", flush=True)
 
-        if not args.quiet:
-            print(f"simulating {scenario.name} with the {strategy} strategy, {mode} (seed {args.seed}) ...", flush=True)
         try:
             sim = Simulation(scenario, opts, frame_sink=video, progress=progress)
         except FirmwareBuildError as exc:
             if video is not None:
-                video.close()
+                video.close(keep=False)
             print(f"rovernav sim: {exc}", file=sys.stderr)
             return 2
+        if not args.quiet:
+            print(f"simulating {scenario.name} with the {strategy} strategy, {sim.drive_mode} (seed {args.seed}) ...",
+                  flush=True)
         if args.profile:
             try:
                 sim.core.enable_profile()   # before the first step: the image has not run yet
@@ -149,9 +141,19 @@ def cmd_sim(args: argparse.Namespace) -> int:
                 return 2
         try:
             sim.run()
-        finally:
+        except BaseException:
+            # Ctrl-C or an error mid-run: no half video; a report that says the run was cut short.
             if video is not None:
-                video.close()
+                video.close(keep=False)
+            try:
+                cut = build_report(sim, time.monotonic() - started)
+                cut.update(outcome="interrupted", interrupted=True, reached=False)
+                write_report(cut, out / "report.json")
+            except Exception:   # noqa: BLE001 - the report is a courtesy; the original error matters
+                pass
+            raise
+        if video is not None:
+            video.close()
         report = build_report(sim, time.monotonic() - started)
         if args.rover == "uno":
             report["uno_timing"] = sim.uno_timing()
@@ -170,7 +172,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if len(modes) > 1 and done:
             best = min(done, key=lambda r: r["mission_time_s"])
             print(f"faster: {best['strategy']} / {best['drive_mode']} ({best['mission_time_s']:.1f} s)")
-        write_atomic(args.out / "comparison.json", json.dumps(reports, indent=2, allow_nan=False) + "\n")
+        write_json_atomic(args.out / "comparison.json", reports)
     return 0 if all(r["reached"] and r["collisions"] == 0 for r in reports) else 1
 
 

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..link import messages_gen as mg
-from ..files import write_atomic
+from ..files import write_atomic, write_json_atomic
 from .world import footprint
 
 TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
@@ -101,7 +102,7 @@ def build_report(sim, wall_time_s: float) -> dict:
         "scenario": sc.name,
         "scenario_meta": getattr(sc, "generated", None),
         "strategy": sim.opt.strategy,
-        "drive_mode": sim.opt.drive_mode,
+        "drive_mode": sim.drive_mode,
         "seed": sim.opt.seed,
         "reached": reached,
         "outcome": sim.outcome,
@@ -294,7 +295,10 @@ def summary_picture(sim, report: dict, path: Path) -> None:
                  f"{t['index']}: {t['time_s']:.0f} s, {t['replans']} replans" for t in report["trips"])]
     for i, line in enumerate(lines):
         cv2.putText(footer, line, (10, 25 + 28 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
-    cv2.imwrite(str(path), np.vstack([img, footer]))
+    ok, png = cv2.imencode(".png", np.vstack([img, footer]))
+    if not ok:
+        raise RuntimeError("OpenCV could not encode the summary picture")
+    write_atomic(Path(path), png.tobytes())
 
 
 class VideoWriter:
@@ -302,7 +306,10 @@ class VideoWriter:
     sonar hits, heading; written at the camera's rate."""
 
     def __init__(self, path: Path, fps: float):
-        self.path = path
+        self.path = Path(path)
+        # Frames go to a hidden partial file, renamed into place by finish(): a run cut short
+        # leaves no half video under the real name.
+        self.partial = self.path.with_name(f".{self.path.stem}.partial{self.path.suffix}")
         self.fps = fps
         self.writer = None
         self.frames = 0
@@ -355,17 +362,23 @@ class VideoWriter:
         cv2.putText(img, text, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
         if self.writer is None:
             fourcc = cv2.VideoWriter_fourcc(*"mp4v")
-            self.writer = cv2.VideoWriter(str(self.path), fourcc, self.fps, (w, h))
+            self.writer = cv2.VideoWriter(str(self.partial), fourcc, self.fps, (w, h))
             if not self.writer.isOpened():
                 raise RuntimeError(f"cannot write video {self.path} (OpenCV has no mp4v encoder here)")
         self.writer.write(img)
         self.frames += 1
 
-    def close(self) -> None:
+    def close(self, keep: bool = True) -> None:
+        """Ends the video: moved to its name when `keep`, deleted otherwise (a run that failed)."""
         if self.writer is not None:
             self.writer.release()
+            self.writer = None
+            if keep:
+                os.replace(self.partial, self.path)
+            else:
+                self.partial.unlink(missing_ok=True)
 
 
 def write_report(report: dict, path: Path) -> None:
     """report.json: strict JSON (undefined values are null), written atomically."""
-    write_atomic(path, json.dumps(report, indent=2, allow_nan=False) + "\n")
+    write_json_atomic(path, report)

@@ -60,7 +60,7 @@ class SimOptions:
     frame_drop: float = 0.02
     max_time_s: float = 900.0
     host_replan: bool = True
-    drive_mode: str = "rotate_drive"  # or "pose_law": the rover's DRIVE_MODE parameter
+    drive_mode: str | None = None     # "rotate_drive" or "pose_law" (the rover's DRIVE_MODE); None: the config's
     channel: ChannelConfig = ChannelConfig()
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
@@ -88,10 +88,19 @@ class Simulation:
         self.opt = options
         self.cfg = options.config or config_from_dict({"arena": {"width_m": scenario.arena.width_m,
                                                                  "height_m": scenario.arena.height_m}})
+        cfg_mode = self.cfg.rover.get(mg.Param.DRIVE_MODE)
+        # What the rover is told, and what the report says: the flag, else the configuration.
+        self.drive_mode = options.drive_mode or (mg.DriveMode(cfg_mode).name.lower() if cfg_mode is not None
+                                                 else "rotate_drive")
         self.rng = np.random.default_rng(options.seed)
         self.world = World.from_scenario(scenario)
         s = scenario.start
         self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, options.plant, self.rng)
+        if self.world.collides(self.plant.x, self.plant.y, self.plant.heading):
+            from ..scenario import ScenarioError   # `rovernav plan` refuses such a start too
+            raise ScenarioError(f"{scenario.path or scenario.name}: start ({s.x_m:g}, {s.y_m:g}) m, heading "
+                                f"{s.heading_deg:g} deg: the rover would stand on "
+                                f"{self.world.touching(self.plant.x, self.plant.y, self.plant.heading)}")
         self.frame_sink = frame_sink
         self.progress = progress or (lambda t, text: None)
         self.to_rover = Channel(options.channel, self.rng, self._outages())
@@ -168,9 +177,9 @@ class Simulation:
         sc = self.scenario
         trips = self.cfg.mission.trips or sc.mission.trips
         legs = trips * (2 if sc.mission.kind == "out-and-back" else 1)
-        params = list(self.cfg.rover_params())
-        if self.opt.drive_mode != "rotate_drive":
-            params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.opt.drive_mode.upper()])))
+        params = [(p, v) for p, v in self.cfg.rover_params() if p != mg.Param.DRIVE_MODE]
+        if self.drive_mode != "rotate_drive" or mg.Param.DRIVE_MODE in self.cfg.rover:
+            params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.drive_mode.upper()])))
         mission = Mission(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
                           legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
                           heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,

@@ -76,7 +76,8 @@ from typing import Any, Callable, Iterable
 
 from .. import __version__
 from ..errors import InputError
-from ..files import write_atomic
+from ..files import strict_json_value, write_atomic
+from ..validate import MAX_SIM_TIME_S, number, out_dir, seconds
 
 log = logging.getLogger("rovernav.sim.trials")
 
@@ -225,9 +226,7 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
         report["outcome"] = "hung"
         report["error"] = stopped
     write_report(report, out / "report.json")
-    picture = out / ".summary.tmp.png"   # cv2 picks the format from the name's ending
-    summary_picture(sim, report, picture)
-    os.replace(picture, out / "summary.png")
+    summary_picture(sim, report, out / "summary.png")   # written atomically
     row = row_from_report(report, Path(scenario_path).stem)
     row["wall_time_s"] = round(time.monotonic() - started, 2)
     row["report"] = str(out / "report.json")
@@ -339,20 +338,6 @@ def failure_reason(row: dict) -> str | None:
 
 def _round(value: float | None, digits: int) -> float | None:
     return None if value is None else round(value, digits)
-
-
-def strict_json_value(value: Any) -> Any:
-    """`value` with every NaN or infinity replaced by None (and numpy scalars by Python ones), so
-    that json.dumps(..., allow_nan=False) accepts it."""
-    if isinstance(value, dict):
-        return {k: strict_json_value(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [strict_json_value(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):   # numpy scalar
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 # ---------------------------------------------------------------- running the jobs
@@ -738,22 +723,23 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
     p.add_argument("arenas_dir", type=Path, metavar="ARENAS_DIR", help="a folder of arena files (*.toml)")
     p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav",
                    help="which strategy to run (default rovernav)")
-    p.add_argument("--seeds", type=int, default=1, metavar="K", help="simulator seeds 1..K per arena (default 1)")
-    p.add_argument("--sample", type=int, metavar="K",
+    p.add_argument("--seeds", type=number(1, 1000, integer=True), default=1, metavar="K",
+                   help="simulator seeds 1..K per arena, K from 1 to 1000 (default 1)")
+    p.add_argument("--sample", type=number(1, 100_000, integer=True), metavar="K",
                    help="only K arenas, a fixed choice: the families take turns for one more arena each "
                         "until K are chosen, and each family's arenas are taken evenly spaced through their "
                         "sorted names (positions floor(i*n/k))")
-    p.add_argument("--out", type=Path, default=Path("out/trials"), metavar="DIR", help="output folder (default out/trials)")
+    p.add_argument("--out", type=out_dir, default=Path("out/trials"), metavar="DIR", help="output folder (default out/trials)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=os.cpu_count() or 1, metavar="N",
+    where.add_argument("--workers", type=number(0, 256, integer=True), default=os.cpu_count() or 1, metavar="N",
                        help="local dask worker processes (default: one per CPU, here %(default)s); 0 = --serial")
     where.add_argument("--serial", action="store_true", help="run in this process, one run after another (no dask)")
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="use the dask cluster at ADDRESS (e.g. tcp://10.0.0.5:8786); its workers must see "
                             "ARENAS_DIR and --out at the same paths")
-    p.add_argument("--max-time", type=float, default=DEFAULT_MAX_TIME_S, metavar="S",
+    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=DEFAULT_MAX_TIME_S, metavar="S",
                    help=f"simulated seconds before a run is stopped as a timeout (default {DEFAULT_MAX_TIME_S:g})")
-    p.add_argument("--run-timeout", type=float, default=DEFAULT_RUN_TIMEOUT_S, metavar="S",
+    p.add_argument("--run-timeout", type=seconds(MAX_SIM_TIME_S, positive=True), default=DEFAULT_RUN_TIMEOUT_S, metavar="S",
                    help=f"wall-clock seconds before a run is stopped as hung (default {DEFAULT_RUN_TIMEOUT_S:g})")
     p.add_argument("--fail-on", default=",".join(DEFAULT_FAIL_ON), metavar="LIST",
                    help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
