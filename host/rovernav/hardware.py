@@ -4,37 +4,110 @@ The same Mission as in the simulator, fed by OpenCV's VideoCapture (a camera ind
 file) and the rover's serial radio. The target and the known obstacles come from a scenario
 file when one is given; otherwise the target is the yellow marker the camera sees and the map
 starts empty, and the start is where the rover stands.
+
+Every input (the configuration, the scenario, the port spec, the camera source, the learned
+map to load and the place to save it) is read and checked before the camera or the port is
+opened, so a bad one ends the command with a one-line error naming the file and key (exit 2)
+and touches no device. Ctrl-C stops the rover, saves the map (atomically: the file on disk is
+the old map or the new one, never half of either) and exits with status 130.
 """
 from __future__ import annotations
 
 import logging
+import os
+import stat
 import sys
 import time
 from pathlib import Path
 
 from .config import load_config
-from .errors import CameraError
-from .link.errors import LinkError
+from .errors import CameraError, InputError, MapFileError
+from .link.errors import LinkError, PortSpecError
 from .link.link import Link
 from .link.transport import SerialTransport, parse_serial_spec
 from .mission import Detection, Mission, MissionFailed, Phase
+from .mission.learned_map import check_map_path, read_map_file
 from .planning import OccupancyGrid
+from .validate import MAX_SIM_TIME_S, check_number
 
 log = logging.getLogger("rovernav.run")
 
+#: Highest camera index accepted (OpenCV numbers devices from 0).
+MAX_CAMERA_INDEX = 999
 
-def open_camera(source: str):
+
+def camera_source(source: object) -> int | str:
+    """A camera index or an existing video file, or InputError naming the value (nothing is opened)."""
+    text = source if isinstance(source, str) else ""
+    if not text.strip():
+        raise InputError("no camera: give --camera (an index such as 0, or a video file) or set [camera] source")
+    if any(ord(c) < 32 or ord(c) == 127 for c in text):
+        raise InputError(f"camera source {text!r}: control characters in it")
+    stripped = text.strip()
+    if stripped.isascii() and stripped.isdigit():
+        if len(stripped.lstrip("0")) > 3 or int(stripped) > MAX_CAMERA_INDEX:   # a few digits: int() is cheap
+            shown = f"{text[:12]!r}{'...' if len(text) > 12 else ''}"
+            raise InputError(f"camera index {shown} is past {MAX_CAMERA_INDEX}: give a camera index such as 0, "
+                             "or a video file")
+        return int(stripped)
+    path = Path(text)
+    if not path.exists():
+        raise InputError(f"camera source {text!r}: no such file (give a camera index such as 0, or a video file)")
+    if path.is_dir():
+        raise InputError(f"camera source {text!r}: is a folder (give a camera index such as 0, or a video file)")
+    return text
+
+
+def open_camera(source: str | int):
     import cv2
 
-    src: int | str = int(source) if source.isdigit() else source
-    if isinstance(src, str) and not Path(src).exists():
-        raise CameraError(f"camera source {source!r}: no such file (give a camera index such as 0, or a video file)")
+    src = camera_source(source) if isinstance(source, str) else source
+    try:   # OpenCV's own warnings about a missing device would add lines to our one-line error
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    except AttributeError:
+        pass
     cap = cv2.VideoCapture(src)
     if not cap.isOpened():
-        raise CameraError(f"cannot open camera {source!r}: no such device or unreadable video")
+        raise CameraError(f"cannot open camera {str(source)!r}: no such device or unreadable video")
     cap.set(cv2.CAP_PROP_FRAME_WIDTH, 640)
     cap.set(cv2.CAP_PROP_FRAME_HEIGHT, 480)
     return cap
+
+
+#: Largest configuration or scenario file read (a TOML file of a few kilobytes in practice).
+MAX_TOML_BYTES = 1024 * 1024
+
+
+def _plain_file(path: str | None, what: str) -> None:
+    """InputError for a path that names a device, a pipe or a huge file, which reading whole
+    would hang on or fill memory with (/dev/zero, a FIFO). A missing path is left to its loader
+    (a scenario may be given by name)."""
+    if not path:
+        return
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{path}: is a folder, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{path}: not a regular file (a device or a pipe), not a {what}")
+    if st.st_size > MAX_TOML_BYTES:
+        raise InputError(f"{path}: {st.st_size:,} bytes; a {what} is at most {MAX_TOML_BYTES:,}")
+
+
+def _serial_port(port: str, cfg, config_path: str | None) -> tuple[str, int]:
+    """(device, baud) from --port or the configuration's [link] port; PortSpecError naming where it came from."""
+    spec = port or cfg.link.port
+    if not isinstance(spec, str) or not spec.strip():
+        raise PortSpecError("no serial port: give --port or set [link] port in the configuration")
+    try:
+        name, baud = parse_serial_spec(spec)
+    except PortSpecError as exc:
+        if port:
+            raise PortSpecError(f"--port: {exc}") from None
+        raise PortSpecError(f"{config_path}: [link] port: {exc}") from None
+    return name, (baud if "@" in spec else cfg.link.baud)
 
 
 def run_hardware(port: str, camera: str, config_path: str | None, scenario_path: str | None,
@@ -42,84 +115,125 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
     from .scenario import load_scenario
     from .vision import Locator
 
+    # ---- 1. every input, before any device is opened
+    max_time_s = check_number("max_time_s", max_time_s, 0.0, MAX_SIM_TIME_S, lo_open=True)
+    _plain_file(config_path, "configuration file")
+    _plain_file(scenario_path, "scenario file")
     cfg = load_config(config_path)
-    port = port or cfg.link.port
-    if not port:
-        raise LinkError("no serial port: give --port or set [link] port in the configuration")
+    name, baud = _serial_port(port, cfg, config_path)
+    source = camera_source(camera or cfg.camera.source)
     scenario = load_scenario(scenario_path) if scenario_path else None
     arena_w, arena_h = (scenario.arena.width_m, scenario.arena.height_m) if scenario else \
         (cfg.arena.width_m, cfg.arena.height_m)
+    grid = OccupancyGrid.from_scenario(scenario, cfg.planner) if scenario is not None else \
+        OccupancyGrid(arena_w, arena_h, cfg.planner)
+    map_file = map_path or cfg.mission.map or None
+    readings = None
+    if map_file:
+        check_map_path(map_file)
+        if Path(map_file).exists():
+            readings = read_map_file(map_file, grid)
     locator = Locator(cfg.vision, arena_w, arena_h)
-    cap = open_camera(camera or cfg.camera.source)
-    name, baud = parse_serial_spec(port)
-    transport = SerialTransport(name, baud if "@" in port else cfg.link.baud)
-    link = Link(transport)
-
-    # Where are we and where to? From the scenario, or from the first frames.
-    first = None
-    deadline = time.monotonic() + 5.0
-    while time.monotonic() < deadline:
-        ok, frame = cap.read()
-        if not ok:
-            raise CameraError(f"camera {camera!r} delivered no frame")
-        first = locator.locate(frame, time.monotonic())
-        if first.rover is not None and (scenario is not None or first.target is not None):
-            break
-    if first is None or first.rover is None:
-        raise CameraError(f"the camera does not see the rover: {first.reason if first else 'no frame'}")
-    if scenario is not None:
-        grid = OccupancyGrid.from_scenario(scenario, cfg.planner)
-        start, target = (scenario.start.x_m, scenario.start.y_m), (scenario.target.x_m, scenario.target.y_m)
-        trips = cfg.mission.trips or scenario.mission.trips
-        legs = trips * (2 if scenario.mission.kind == "out-and-back" else 1)
-    else:
-        if first.target is None:
-            raise CameraError("no target marker in view and no --scenario to say where to go")
-        grid = OccupancyGrid(arena_w, arena_h, cfg.planner)
-        start, target = first.rover[:2], first.target
-        legs = cfg.mission.trips or 1
 
     def say(t: float, text: str) -> None:
         print(f"[{t:7.2f} s] {text}", flush=True)
 
-    mission = Mission(link, grid, start, target, legs=legs, rover_params=cfg.rover_params(),
-                      fix_sd_mm=cfg.mission.fix_sd_mm, heartbeat_hz=cfg.mission.heartbeat_hz, on_event=say)
-    map_file = map_path or cfg.mission.map
-    if map_file and Path(map_file).exists():
-        say(0.0, f"loaded {mission.load_map(map_file)} sonar echoes from {map_file}")
-    t0 = time.monotonic()
+    # ---- 2. the devices
+    cap = open_camera(source)
+    transport = link = None
+    mission: Mission | None = None
+    interrupted = False
     try:
-        while not mission.done and time.monotonic() - t0 < max_time_s:
-            ok, frame = cap.read()
-            now = time.monotonic() - t0
-            if ok:
-                det = locator.locate(frame, now)
-                if det.rover is not None:
-                    mission.on_detection(Detection(now, *det.rover), now)
-                else:
-                    mission.on_detection(Detection(now, None, None, None, det.reason), now)
-            mission.tick(now)
-            if mission.phase is Phase.HELLO and now > 5.0:
-                raise LinkError(f"no HELLO from the rover on {name}: is it powered, flashed, and on this port "
-                                f"at {transport.baud if hasattr(transport, 'baud') else 57600} baud?")
-    except KeyboardInterrupt:
-        say(time.monotonic() - t0, "interrupted: stopping the rover")
-    finally:
-        from .link import messages_gen as mg
+        transport = SerialTransport(name, baud)
+        link = Link(transport)
 
+        # Where are we and where to? From the scenario, or from the first frames.
+        first = None
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            ok, frame = cap.read()
+            if not ok:
+                raise CameraError(f"camera {str(source)!r} delivered no frame")
+            first = locator.locate(frame, time.monotonic())
+            if first.rover is not None and (scenario is not None or first.target is not None):
+                break
+        if first is None or first.rover is None:
+            raise CameraError(f"the camera does not see the rover: {first.reason if first else 'no frame'}")
+        if scenario is not None:
+            start, target = (scenario.start.x_m, scenario.start.y_m), (scenario.target.x_m, scenario.target.y_m)
+            trips = cfg.mission.trips or scenario.mission.trips
+            legs = trips * (2 if scenario.mission.kind == "out-and-back" else 1)
+        else:
+            if first.target is None:
+                raise CameraError("no target marker in view and no --scenario to say where to go")
+            start, target = first.rover[:2], first.target
+            legs = cfg.mission.trips or 1
+
+        mission = Mission(link, grid, start, target, legs=legs, rover_params=cfg.rover_params(),
+                          fix_sd_mm=cfg.mission.fix_sd_mm, heartbeat_hz=cfg.mission.heartbeat_hz, on_event=say)
+        if readings is not None:
+            say(0.0, f"loaded {mission.map.replay(readings)} sonar readings from {map_file}")
+        t0 = time.monotonic()
         try:
-            link.send(mg.Stop(reason=mg.StopReason.OPERATOR))
-        except LinkError:
-            pass
-        if map_file:
-            mission.save_map(map_file)
-        cap.release()
-        transport.close()
+            while not mission.done and time.monotonic() - t0 < max_time_s:
+                ok, frame = cap.read()
+                now = time.monotonic() - t0
+                if ok:
+                    det = locator.locate(frame, now)
+                    if det.rover is not None:
+                        mission.on_detection(Detection(now, *det.rover), now)
+                    else:
+                        mission.on_detection(Detection(now, None, None, None, det.reason), now)
+                mission.tick(now)
+                if mission.phase is Phase.HELLO and now > 5.0:
+                    raise LinkError(f"no HELLO from the rover on {name}: is it powered, flashed, and on this port "
+                                    f"at {baud} baud?")
+        except KeyboardInterrupt:
+            interrupted = True
+            say(time.monotonic() - t0, "interrupted: stopping the rover")
+    finally:
+        ending_with = sys.exc_info()[1]   # an error already on its way out is the one to report
+        try:
+            if link is not None:
+                from .link import messages_gen as mg
+                try:
+                    link.send(mg.Stop(reason=mg.StopReason.OPERATOR))
+                except LinkError:
+                    pass
+        finally:
+            try:
+                if mission is not None and map_file:
+                    _save_map(mission, map_file, quiet=ending_with is not None)
+            finally:
+                cap.release()
+                if transport is not None:
+                    transport.close()
+    if interrupted:
+        _summary(mission)
+        raise KeyboardInterrupt
     if mission.phase is Phase.FAILED:
         if mission.cause is not None:
             raise mission.cause   # the rover cannot be used (e.g. another protocol definition): exit 2
         raise MissionFailed(mission.error or "mission failed")
+    _summary(mission)
+    return 0 if mission.phase is Phase.DONE else 1
+
+
+def _save_map(mission: Mission, map_file: str, quiet: bool) -> None:
+    """Save the learned map (atomically: the old file stays whole if this fails or is interrupted).
+    A failure is a one-line MapFileError; when the run is already ending with another error
+    (quiet), that one is kept and this one only printed."""
+    try:
+        mission.save_map(map_file)
+    except OSError as exc:
+        error = MapFileError(f"{map_file}: could not save the learned map: {exc.strerror or exc}")
+        if quiet:
+            print(f"rovernav run: {error}", file=sys.stderr)
+            return
+        raise error from None
+
+
+def _summary(mission: Mission) -> None:
     done = sum(1 for t in mission.legs if t.reached)
     print(f"{done} of {mission.legs_asked} legs reached; {mission.replans} replans; "
           f"{len(mission.echoes)} sonar echoes folded into the map", file=sys.stderr)
-    return 0 if mission.phase is Phase.DONE else 1

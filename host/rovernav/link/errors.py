@@ -1,7 +1,7 @@
 """The link's exceptions: catch LinkError for anything the radio or the rover did wrong."""
 from __future__ import annotations
 
-from ..errors import RovernavError
+from ..errors import InputError, RovernavError
 
 
 class LinkError(RovernavError):
@@ -18,6 +18,12 @@ class LinkClosed(LinkError):
 
 class PortError(LinkError):
     """A port could not be opened: missing, busy, or not a serial device."""
+
+
+class PortSpecError(PortError, InputError):
+    """A port or transport spec that cannot name anything (blank, control characters, an unknown
+    scheme, a bad baud rate): an input error, refused before any device is touched. Also a
+    ValueError, as the transport layer's argument errors have always been."""
 
 
 class ProtocolError(LinkError):

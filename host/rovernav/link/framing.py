@@ -133,7 +133,8 @@ class Frame:
 class FrameDecoder:
     """Turns a byte stream into frames; counts and drops everything else.
 
-    feed() may be given any slice of the stream: a byte, a partial frame, several frames.
+    feed() may be given any slice of the stream: a byte, a partial frame, several frames. It
+    holds at most MAX_ENCODED_BODY bytes between calls, whatever it is fed.
     """
 
     def __init__(self) -> None:
@@ -146,12 +147,14 @@ class FrameDecoder:
         pos = 0
         while pos < len(data):
             end = data.find(0, pos)
-            chunk = data[pos:] if end < 0 else data[pos:end]
+            stop = len(data) if end < 0 else end
             if not self._overlong:
-                self._buf += chunk
-                if len(self._buf) > MAX_ENCODED_BODY:
+                # never holds more than MAX_ENCODED_BODY bytes, however long the run without a delimiter
+                if len(self._buf) + (stop - pos) > MAX_ENCODED_BODY:
                     self._overlong = True
                     self._buf.clear()
+                else:
+                    self._buf += data[pos:stop]
             if end < 0:
                 break
             frame = self._finish()

@@ -8,8 +8,15 @@
     handshake(boot_id)         exchange HELLOs and check both ends share one protocol definition
 
 Frames that arrive while request() or handshake() waits for their answer are kept, in order,
-and returned by later recv() calls: nothing the rover says is lost. Corrupt or unknown frames
+and returned by later recv() calls: nothing the rover says is lost, up to MAX_PENDING_FRAMES
+kept unread. Past that (a peer flooding the line while nobody calls recv) the oldest are
+dropped and counted in `pending_dropped`, so memory stays bounded. Corrupt or unknown frames
 are dropped and counted in `counters` (the decoder's, named as on the rover).
+
+Every wait respects its timeout, also under a continuous flood of bytes: after a deadline the
+Link reads on only what had already arrived, for at most _LATE_POLLS reads and _LATE_POLL_S
+seconds. A timeout that is NaN, infinite, negative or longer than MAX_TIMEOUT_S raises
+InputError (also a ValueError).
 
 Threads: send() may be called from any thread (e.g. a thread streaming fixes). The receiving
 calls (recv, messages, request, handshake) serialise on one lock, so a recv() in another
@@ -26,19 +33,28 @@ from collections.abc import Callable, Iterator
 from types import TracebackType
 
 from .. import __version__
+from ..validate import check_number
 from .errors import LinkTimeout, Nacked, SchemaMismatch
 from .framing import DecoderCounters, Frame, FrameDecoder, encode_frame
 from .messages_gen import SCHEMA_HASH, Hello, Nack, Role
 from .requests import RequestTracker
 from .schema import Message
-from .transport import DEFAULT_BAUD, Transport
+from .transport import DEFAULT_BAUD, MAX_TIMEOUT_S, Transport, check_timeout
 
 log = logging.getLogger("rovernav.link")
 
 #: Largest read from the transport at once, in bytes.
 READ_CHUNK_BYTES = 4096
-#: Reads allowed after a deadline to collect bytes that had already arrived.
+#: Reads allowed after a deadline to collect bytes that had already arrived ...
 _LATE_POLLS = 256
+#: ... and for at most this long [s], so a line that never runs dry cannot hold a wait.
+_LATE_POLL_S = 0.05
+#: Frames kept for recv() before the oldest are dropped: six seconds of a 57,600-baud line
+#: carrying nothing but the shortest frames (9 bytes), about 2 MB of Python objects. A
+#: mission calls recv() many times a second, so only a flood with nobody reading gets here.
+MAX_PENDING_FRAMES = 4096
+#: Most re-sends request() will make.
+MAX_RETRIES = 100
 
 
 def version_word(version: str) -> int:
@@ -65,11 +81,12 @@ class Link:
         """hello_resend_s: how often handshake() repeats its HELLO while waiting [s]
         (an Uno resets when its port is opened and misses what is sent during boot)."""
         self.transport = transport
-        self.hello_resend_s = hello_resend_s
+        self.hello_resend_s = check_number("hello_resend_s", hello_resend_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
         #: The rover's HELLO from the last successful handshake(), else None.
         self.peer_hello: Hello | None = None
         self._decoder = FrameDecoder()
         self._pending: collections.deque[Frame] = collections.deque()
+        self._pending_dropped = 0
         self._next_seq = 0
         self._tx_frames = 0
         self._tx_bytes = 0
@@ -98,6 +115,11 @@ class Link:
     def rx_bytes(self) -> int:
         """Bytes read from the transport, garbage included."""
         return self._rx_bytes
+
+    @property
+    def pending_dropped(self) -> int:
+        """Valid frames dropped unread because MAX_PENDING_FRAMES were already waiting for recv()."""
+        return self._pending_dropped
 
     # ------------------------------------------------------------ sending
 
@@ -159,10 +181,8 @@ class Link:
         answer to an earlier attempt is accepted. Other frames arriving meanwhile are queued
         for recv().
         """
-        if timeout_s <= 0:
-            raise ValueError(f"timeout_s must be positive, got {timeout_s}")
-        if retries < 0:
-            raise ValueError(f"retries must be >= 0, got {retries}")
+        check_number("timeout_s (seconds)", timeout_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
+        retries = int(check_number("retries", retries, 0, MAX_RETRIES, integer=True))
         tracker = RequestTracker(resend_s=timeout_s, max_tries=retries + 1)
         with self._rx_lock:
             pending = tracker.sent(message, self.send(message), time.monotonic())
@@ -189,9 +209,13 @@ class Link:
         Sends our HELLO (role host, SCHEMA_HASH, our version) every hello_resend_s seconds
         until the rover's HELLO arrives or timeout_s seconds [s] pass. Returns the rover's
         HELLO (also kept as .peer_hello). Raises SchemaMismatch if its schema hash differs,
-        LinkTimeout if none came. Other frames arriving meanwhile are queued for recv().
+        LinkTimeout if none came, also while other frames or junk bytes keep arriving. Other
+        frames arriving meanwhile are queued for recv() (at most MAX_PENDING_FRAMES, then the
+        oldest are dropped and counted in pending_dropped). InputError for a timeout that is
+        not a finite number of seconds in (0, MAX_TIMEOUT_S].
         """
-        ours = host_hello(boot_id)
+        check_number("timeout_s (seconds)", timeout_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
+        ours = host_hello(int(check_number("boot_id", boot_id, integer=True)))
 
         def is_rover_hello(frame: Frame) -> bool:
             return isinstance(frame.message, Hello) and frame.message.role == Role.ROVER
@@ -236,35 +260,46 @@ class Link:
 
     @staticmethod
     def _deadline(timeout_s: float | None) -> float | None:
+        timeout_s = check_timeout("timeout_s", timeout_s)
         if timeout_s is None:
             return None
-        if timeout_s < 0:
-            raise ValueError(f"timeout_s must be None or >= 0 seconds, got {timeout_s}")
         return time.monotonic() + timeout_s
+
+    def _keep(self, frame: Frame) -> None:
+        """Queue a frame for recv(), dropping the oldest when MAX_PENDING_FRAMES are waiting."""
+        if len(self._pending) >= MAX_PENDING_FRAMES:
+            self._pending.popleft()
+            if self._pending_dropped == 0:
+                log.warning("%d frames from %s are waiting unread; dropping the oldest from now on",
+                            MAX_PENDING_FRAMES, self.transport)
+            self._pending_dropped += 1
+        self._pending.append(frame)
 
     def _await(self, wanted: Callable[[Frame], bool], deadline: float | None) -> Frame | None:
         """Read until a frame with wanted(frame) arrives (returned) or the deadline passes (None).
 
         Every other frame read meanwhile, including those behind the wanted one in the same
         read, is queued for recv() in arrival order. Once the deadline has passed it still
-        reads what has already arrived (up to _LATE_POLLS reads, so a transport that never
-        runs dry cannot hold it forever): a frame whose bytes are all there is not missed.
+        reads what has already arrived (up to _LATE_POLLS reads and _LATE_POLL_S seconds, so a
+        transport that never runs dry cannot hold it): a frame whose bytes are all there is
+        not missed.
         """
         late_polls = 0
         while True:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            now = time.monotonic()
+            left = None if deadline is None else max(0.0, deadline - now)
             found = None
             frames, got_bytes = self._read_frames(left)
             for frame in frames:
                 if found is None and wanted(frame):
                     found = frame
                 else:
-                    self._pending.append(frame)
+                    self._keep(frame)
             if found is not None:
                 return found
             if left == 0.0:
                 late_polls += 1
-                if not got_bytes or late_polls > _LATE_POLLS:
+                if not got_bytes or late_polls > _LATE_POLLS or now - deadline > _LATE_POLL_S:
                     return None
 
     def _read_frames(self, timeout_s: float | None) -> tuple[list[Frame], bool]:

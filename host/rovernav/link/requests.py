@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..validate import check_number
 from .messages_gen import Ack, Nack
 from .schema import Message
 
@@ -33,12 +34,8 @@ class RequestTracker:
     """
 
     def __init__(self, resend_s: float, max_tries: int) -> None:
-        if not resend_s > 0:
-            raise ValueError(f"resend_s must be > 0 seconds, got {resend_s!r}")
-        if max_tries < 1:
-            raise ValueError(f"max_tries must be >= 1, got {max_tries!r}")
-        self.resend_s = resend_s
-        self.max_tries = max_tries
+        self.resend_s = check_number("resend_s (seconds)", resend_s, 0.0, None, lo_open=True)
+        self.max_tries = check_number("max_tries", max_tries, 1, None, integer=True)
         self._by_seq: dict[int, Pending] = {}
         self._pending: list[Pending] = []
 
@@ -60,7 +57,11 @@ class RequestTracker:
 
     def resent(self, pending: Pending, seq: int, now_s: float, count: bool = True) -> None:
         """`pending` went out again under `seq`; `count=False` does not count the attempt
-        (the mission's rule while the rover is silent: it is carrying on alone)."""
+        (the mission's rule while the rover is silent: it is carrying on alone). A request
+        keeps each sequence number once, so its list never passes 256 however often it is
+        re-sent."""
+        if seq in pending.seqs:
+            pending.seqs.remove(seq)
         pending.seqs.append(seq)
         pending.last_sent_s = now_s
         if count:

@@ -20,6 +20,16 @@ Pick a transport from a string with open_transport():
     pty://                     PtyTransport: a pseudo-terminal; another program opens .peer_name
     /dev/ttyUSB0, COM4         SerialTransport at 57,600 baud 8N1
     /dev/ttyUSB0@115200        ... at another baud rate
+
+A spec that cannot name anything (blank, control characters, longer than MAX_SPEC_CHARS, an
+unknown scheme such as tcp:// or loop://x, a baud rate outside MIN_BAUD..MAX_BAUD) raises
+PortSpecError (an InputError and a PortError) before any device is touched; a port that
+cannot be opened (missing, busy, not a serial device) raises PortError. Bad arguments to
+read() (a NaN, infinite or negative timeout) raise InputError.
+
+Nothing here grows without bound: a read returns at most MAX_READ_BYTES, and the in-process
+queues hold at most QUEUE_CAPACITY_BYTES (a writer then waits for the reader, as on a pty,
+and raises LinkTimeout if nobody reads).
 """
 from __future__ import annotations
 
@@ -32,12 +42,35 @@ import threading
 import time
 from types import TracebackType
 
-from .errors import LinkClosed, LinkTimeout, PortError
+from ..validate import check_number
+from .errors import LinkClosed, LinkTimeout, PortError, PortSpecError
 
 log = logging.getLogger("rovernav.link")
 
 #: The radio's line rate (3DR 433 MHz telemetry radio) and the Uno's serial speed.
 DEFAULT_BAUD = 57600
+#: Baud rates a spec may ask for: the slowest standard rate to the fastest USB-serial chips'.
+MIN_BAUD, MAX_BAUD = 50, 4_000_000
+#: Longest spec accepted (a device path; PATH_MAX is 4096 on Linux, 260 on Windows).
+MAX_SPEC_CHARS = 1024
+#: Largest single read: a larger max_bytes is allowed and reads at most this much (a short
+#: read is normal), so no caller can make a read allocate without limit.
+MAX_READ_BYTES = 1 << 20
+#: Longest wait a read accepts [s] (None waits without limit); a longer or non-finite one is
+#: refused rather than handed to select(), which would overflow.
+MAX_TIMEOUT_S = 86_400.0
+#: Bytes an in-process queue (loop://, a pipe) holds before its writer must wait for the reader:
+#: three minutes of a 57,600-baud line, far more than any reader falls behind by.
+QUEUE_CAPACITY_BYTES = 1 << 20
+
+
+def check_timeout(name: str, timeout_s: float | None, hi: float = MAX_TIMEOUT_S) -> float | None:
+    """`timeout_s` if it is None or a finite number of seconds in [0, hi]; else InputError naming it."""
+    if timeout_s is None:
+        return None
+    if type(timeout_s) in (int, float) and 0 <= timeout_s <= hi:   # the common case, cheaply
+        return timeout_s
+    return check_number(f"{name} (seconds)", timeout_s, 0.0, hi)
 
 
 class Transport(abc.ABC):
@@ -70,12 +103,11 @@ class Transport(abc.ABC):
         received. Raises LinkClosed if this transport is closed, or the other end has gone
         and everything it sent has been read.
         """
-        if max_bytes < 1:
-            raise ValueError(f"max_bytes must be at least 1, got {max_bytes}")
-        if timeout_s is not None and timeout_s < 0:
-            raise ValueError(f"timeout_s must be None or >= 0 seconds, got {timeout_s}")
+        if type(max_bytes) is not int or max_bytes < 1:
+            max_bytes = int(check_number("max_bytes", max_bytes, 1, None, integer=True))
+        timeout_s = check_timeout("timeout_s", timeout_s)
         self._check_open()
-        return self._read(max_bytes, timeout_s)
+        return self._read(min(max_bytes, MAX_READ_BYTES), timeout_s)
 
     def close(self) -> None:
         """Release the port; safe to call more than once."""
@@ -115,24 +147,38 @@ class Transport(abc.ABC):
 # ------------------------------------------------------------------ in-process transports
 
 class _ByteQueue:
-    """A thread-safe, unbounded byte buffer that one side writes and the other reads.
+    """A thread-safe byte buffer of at most `capacity` bytes that one side writes and the other reads.
 
     Once shut, writes are refused and reads drain what is left, then report the end.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, capacity: int = QUEUE_CAPACITY_BYTES) -> None:
         self._buf = bytearray()
         self._cond = threading.Condition()
+        self.capacity = capacity
         self.shut = False
 
-    def put(self, data: bytes) -> bool:
-        """Append data; False (and nothing appended) if the queue is shut."""
+    def __len__(self) -> int:
+        return len(self._buf)
+
+    def put(self, data: bytes, timeout_s: float | None) -> int | None:
+        """Append data, waiting up to timeout_s (None: without limit) for the reader to make room.
+        Returns the bytes left unwritten (0: all of it) or None if the queue is shut. A write
+        that fits the capacity goes in whole, never interleaved with another writer's."""
+        view = memoryview(data)
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
         with self._cond:
-            if self.shut:
-                return False
-            self._buf += data
-            self._cond.notify_all()
-            return True
+            while view:
+                need = min(len(view), self.capacity)
+                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                if not self._cond.wait_for(lambda: self.shut or self.capacity - len(self._buf) >= need, left):
+                    return len(view)
+                if self.shut:
+                    return None
+                self._buf += view[:need]
+                view = view[need:]
+                self._cond.notify_all()
+            return 0
 
     def take(self, max_bytes: int, timeout_s: float | None, is_closed) -> bytes | None:
         """Up to max_bytes, waiting at most timeout_s for the first byte.
@@ -147,6 +193,7 @@ class _ByteQueue:
             if self._buf:
                 out = bytes(self._buf[:max_bytes])
                 del self._buf[:max_bytes]
+                self._cond.notify_all()   # a writer may be waiting for room
                 return out
             return None if self.shut else b""
 
@@ -157,15 +204,29 @@ class _ByteQueue:
 
 
 class _QueueTransport(Transport):
-    """Reads from one _ByteQueue and writes to another (the same one for a loopback)."""
+    """Reads from one _ByteQueue and writes to another (the same one for a loopback).
 
-    def __init__(self, name: str, rx: _ByteQueue, tx: _ByteQueue) -> None:
+    A write waits up to write_timeout_s for the reader to make room in a full queue, then
+    raises LinkTimeout (as a pty does when nobody reads its other end).
+    """
+
+    def __init__(self, name: str, rx: _ByteQueue, tx: _ByteQueue, write_timeout_s: float = 1.0) -> None:
         super().__init__(name)
         self._rx, self._tx = rx, tx
+        self._write_timeout_s = check_timeout("write_timeout_s", write_timeout_s)
+
+    @property
+    def buffered(self) -> int:
+        """Bytes waiting to be read at this end."""
+        return len(self._rx)
 
     def _write(self, data: bytes) -> None:
-        if not self._tx.put(data):
+        left = self._tx.put(data, self._write_timeout_s)
+        if left is None:
             raise LinkClosed(f"{self.name}: the other end is closed")
+        if left:
+            raise LinkTimeout(f"{self.name}: nobody is reading the other end; {left} bytes not written after "
+                              f"{self._write_timeout_s:g} s ({self._tx.capacity} bytes are buffered)")
 
     def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
         data = self._rx.take(max_bytes, timeout_s, lambda: self._closed)
@@ -181,25 +242,34 @@ class _QueueTransport(Transport):
 
 
 class LoopbackTransport(_QueueTransport):
-    """What is written is read back, in order. Thread-safe; for tests."""
+    """What is written is read back, in order. Thread-safe; for tests. Holds at most
+    capacity_bytes unread (then a write waits write_timeout_s for a reader, then LinkTimeout)."""
 
-    def __init__(self) -> None:
-        queue = _ByteQueue()
-        super().__init__("loop://", queue, queue)
+    def __init__(self, capacity_bytes: int = QUEUE_CAPACITY_BYTES, write_timeout_s: float = 1.0) -> None:
+        queue = _ByteQueue(_check_capacity(capacity_bytes))
+        super().__init__("loop://", queue, queue, write_timeout_s)
 
 
 class PipeTransport(_QueueTransport):
     """One end of an in-process, thread-safe byte pipe. Make both ends with PipeTransport.pair().
 
-    Writes never block (the buffer is unbounded). Closing either end makes the other end's
-    writes raise LinkClosed and its reads raise LinkClosed once the remaining bytes are read.
+    Each direction holds at most capacity_bytes unread: a write into a full pipe waits up to
+    write_timeout_s for the reader, then raises LinkTimeout. Closing either end makes the other
+    end's writes raise LinkClosed and its reads raise LinkClosed once the remaining bytes are read.
     """
 
     @classmethod
-    def pair(cls, name: str = "pipe") -> tuple["PipeTransport", "PipeTransport"]:
+    def pair(cls, name: str = "pipe", capacity_bytes: int = QUEUE_CAPACITY_BYTES,
+             write_timeout_s: float = 1.0) -> tuple["PipeTransport", "PipeTransport"]:
         """Two connected ends: bytes written to a are read from b, and the other way round."""
-        a_to_b, b_to_a = _ByteQueue(), _ByteQueue()
-        return cls(f"{name}:a", b_to_a, a_to_b), cls(f"{name}:b", a_to_b, b_to_a)
+        capacity_bytes = _check_capacity(capacity_bytes)
+        a_to_b, b_to_a = _ByteQueue(capacity_bytes), _ByteQueue(capacity_bytes)
+        return (cls(f"{name}:a", b_to_a, a_to_b, write_timeout_s),
+                cls(f"{name}:b", a_to_b, b_to_a, write_timeout_s))
+
+
+def _check_capacity(capacity_bytes: int) -> int:
+    return int(check_number("capacity_bytes", capacity_bytes, 1, 1 << 30, integer=True))
 
 
 # ------------------------------------------------------------------ pseudo-terminal
@@ -216,6 +286,7 @@ class PtyTransport(Transport):
     """
 
     def __init__(self, write_timeout_s: float = 1.0) -> None:
+        write_timeout_s = check_number("write_timeout_s (seconds)", write_timeout_s, 0.0, MAX_TIMEOUT_S)
         try:
             import termios
             import tty
@@ -341,9 +412,11 @@ class SerialTransport(Transport):
     def __init__(self, port: str, baud: int = DEFAULT_BAUD, write_timeout_s: float = 1.0) -> None:
         import serial
         if not isinstance(port, str) or not port.strip():
-            raise ValueError(f"serial port name must be a non-empty string, got {port!r}")
-        if not isinstance(baud, int) or isinstance(baud, bool) or baud <= 0:
-            raise ValueError(f"baud rate must be a positive integer, got {baud!r}")
+            raise PortSpecError(f"serial port name must be a non-empty string, got {port!r}")
+        _check_characters(port, port)
+        if not isinstance(baud, int) or isinstance(baud, bool) or not MIN_BAUD <= baud <= MAX_BAUD:
+            raise PortSpecError(f"baud rate must be an integer from {MIN_BAUD} to {MAX_BAUD:,}, got {baud!r}")
+        write_timeout_s = check_timeout("write_timeout_s", write_timeout_s)
         super().__init__(port)
         self._read_timeout_s: float | None = 0.0
         try:
@@ -354,9 +427,12 @@ class SerialTransport(Transport):
         except serial.SerialException as exc:
             self._closed = True
             raise PortError(f"cannot open serial port {port!r}: {_why(exc)}. {_describe_ports()}") from None
-        except ValueError as exc:  # pyserial rejects a setting, e.g. a baud rate the OS lacks
+        except (ValueError, OverflowError) as exc:  # pyserial rejects a setting, e.g. a baud rate the OS lacks
             self._closed = True
             raise PortError(f"cannot configure serial port {port!r} at {baud} baud: {exc}") from None
+        except OSError as exc:  # pyserial wraps most; an ioctl or flock may not be
+            self._closed = True
+            raise PortError(f"cannot open serial port {port!r}: {_why(exc)}. {_describe_ports()}") from None
         self.baud = baud
         log.debug("opened %s at %d baud", port, baud)
 
@@ -406,6 +482,8 @@ def _why(exc: BaseException) -> str:
     code = getattr(exc, "errno", None)
     if code == errno.ENOENT or "FileNotFoundError" in str(exc):
         return "no such port"
+    if code in (errno.ENOTTY, errno.EISDIR) or "Inappropriate ioctl" in str(exc) or "Is a directory" in str(exc):
+        return "not a serial port (it exists, but is not a terminal device)"
     if code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK) or "lock" in str(exc).lower():
         return "the port is busy: another program (a serial monitor, another rovernav) has it open"
     if code == errno.EACCES or "PermissionError" in str(exc) or "Access is denied" in str(exc):
@@ -417,37 +495,62 @@ def _why(exc: BaseException) -> str:
 
 # ------------------------------------------------------------------ by name
 
+_SPEC_HELP = "give loop://, pty:// or a serial port such as /dev/ttyUSB0, /dev/ttyUSB0@57600 or COM4"
+
+
+def _check_characters(text: str, spec: str) -> None:
+    if len(text) > MAX_SPEC_CHARS:
+        raise PortSpecError(f"transport spec of {len(text):,} characters ({spec[:40]!r}...): "
+                            f"at most {MAX_SPEC_CHARS} are accepted")
+    bad = next((c for c in text if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        raise PortSpecError(f"control character {bad!r} in transport spec {spec!r}: {_SPEC_HELP}")
+
+
+def check_spec(spec: str) -> str:
+    """`spec` without surrounding blanks, or PortSpecError (nothing is opened): not a string,
+    blank, control characters or too long."""
+    if not isinstance(spec, str):
+        raise PortSpecError(f"transport spec must be a string, got {spec!r}: {_SPEC_HELP}")
+    if not spec.strip():
+        raise PortSpecError(f"empty transport spec {spec!r}: {_SPEC_HELP}")
+    _check_characters(spec, spec)
+    return spec.strip()
+
+
 def parse_serial_spec(spec: str) -> tuple[str, int]:
-    """Split "PORT" or "PORT@BAUD" into (port, baud); ValueError naming a bad spec."""
+    """Split "PORT" or "PORT@BAUD" into (port, baud); PortSpecError (a ValueError) naming a bad spec."""
+    spec = check_spec(spec)
+    if "://" in spec:
+        raise PortSpecError(f"{spec!r} is not a serial port: give one such as /dev/ttyUSB0, /dev/ttyUSB0@57600 or COM4")
     port, sep, baud_text = spec.rpartition("@")
     if not sep:
         return spec, DEFAULT_BAUD
-    if not port:
-        raise ValueError(f"no port name before '@' in transport spec {spec!r}")
-    try:
-        baud = int(baud_text, 10)
-    except ValueError:
-        raise ValueError(f"bad baud rate {baud_text!r} in transport spec {spec!r}") from None
-    if baud <= 0:
-        raise ValueError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: must be positive")
+    if not port.strip():
+        raise PortSpecError(f"no port name before '@' in transport spec {spec!r}: {_SPEC_HELP}")
+    if not (baud_text.isascii() and baud_text.isdigit()) or len(baud_text) > 9:
+        raise PortSpecError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: "
+                            f"want PORT@BAUD with BAUD an integer from {MIN_BAUD} to {MAX_BAUD:,}")
+    baud = int(baud_text, 10)
+    if not MIN_BAUD <= baud <= MAX_BAUD:
+        raise PortSpecError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: must be from {MIN_BAUD} "
+                            f"to {MAX_BAUD:,} (a port whose name has '@' in it needs its baud added: NAME@57600)")
     return port, baud
 
 
 def open_transport(spec: str) -> Transport:
     """Open a transport from a string: "loop://", "pty://", "PORT" or "PORT@BAUD".
 
-    Raises ValueError for a malformed spec and PortError for a port that cannot be opened,
-    both naming the value at fault.
+    Raises PortSpecError (an InputError, also a ValueError) for a malformed spec, before
+    anything is opened, and PortError for a port that cannot be opened, both naming the value
+    at fault.
     """
-    if not isinstance(spec, str) or not spec.strip():
-        raise ValueError(f"empty transport spec {spec!r}: give loop://, pty:// or a serial port name")
-    spec = spec.strip()
+    spec = check_spec(spec)
     if "://" in spec:
         if spec == "loop://":
             return LoopbackTransport()
         if spec == "pty://":
             return PtyTransport()
-        raise ValueError(f"unknown transport {spec!r}: expected loop://, pty://, "
-                         f"or a serial port such as /dev/ttyUSB0@57600 or COM4")
+        raise PortSpecError(f"unknown transport {spec!r}: {_SPEC_HELP}")
     port, baud = parse_serial_spec(spec)
     return SerialTransport(port, baud)

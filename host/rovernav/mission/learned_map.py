@@ -14,12 +14,22 @@ each reading as the rover reported it: its pose estimate when it pinged, the ser
 the heading (clockwise positive), the range from the sensor (null: no echo within max_range_m)
 and the one-sigma of its position. Reloading replays them, so a later mission or a restarted
 host has the same map as the one that saved it. Version 1 files (echoes only) are read too.
+
+A file is read strictly, and refused with a one-line MapFileError naming the file, the entry
+and the key before anything is replayed: a regular UTF-8 file of at most MAX_MAP_BYTES,
+JSON with exactly these keys (no NaN or infinity anywhere), at most MAX_MAP_READINGS
+readings, each value a finite number within what the link can carry (positions within
++-32.767 m, and within ARENA_MARGIN_M of the arena the map is loaded into; angles within
++-360 degrees; ranges in (0, 4] m; sd_m in [0, 65.535] m), and no more replay work than
+MAX_REPLAY_CELLS (readings x grid cells).
 """
 from __future__ import annotations
 
 import dataclasses
 import json
 import math
+import os
+import stat
 from pathlib import Path
 
 from ..errors import MapFileError
@@ -28,7 +38,24 @@ from ..mapping import SonarMap, SonarReading
 from ..planning import OccupancyGrid
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
+#: Readings a file may hold: a long mission sweeps a few thousand; replaying this many takes
+#: about 20 s on the 2.4 x 1.8 m arena.
 MAX_MAP_READINGS = 200_000
+#: Bytes a map file may have: MAX_MAP_READINGS as this module writes them (about 190 bytes
+#: each) with room to spare; checked before the file is read.
+MAX_MAP_BYTES = 64 * 1024 * 1024
+#: Replay work allowed, readings x cells of the grid they are replayed into (each reading
+#: compares the whole grid): a few seconds. Only a large map on a very large arena meets it.
+MAX_REPLAY_CELLS = 4_000_000_000
+#: How far outside the arena a reading's position may be (a pose estimate that strayed off
+#: the edge) before the file is taken for a map of another arena [m].
+ARENA_MARGIN_M = 2.0
+#: What the link can carry (OBSTACLE: i16 mm positions, i16 centidegrees, u16 mm sd) and the
+#: sonar's reach.
+MAX_POSITION_M = 32.767
+MAX_ANGLE_DEG = 360.0
+MAX_RANGE_M = 4.0
+MAX_SD_M = 65.535
 
 
 @dataclasses.dataclass
@@ -109,47 +136,169 @@ class LearnedMap:
 
     def load(self, path: str | Path) -> int:
         """Replay a saved map's readings; returns how many. MapFileError (naming the file, the entry
-        and the key) for anything that is not a valid map."""
-        readings = read_map_file(path)
+        and the key) for anything that is not a valid map of this arena; nothing is replayed then."""
+        return self.replay(read_map_file(path, self.grid))
+
+    def replay(self, readings: list[SonarReading]) -> int:
+        """Fold readings in (e.g. those read_map_file returned); returns how many."""
         for r in readings:
             self.sonar.update(r)
         self._apply()
         return len(readings)
 
 
-def read_map_file(path: str | Path) -> list[SonarReading]:
-    """The readings of a map file, validated."""
+def _shown(path: str | Path) -> str:
+    """The file's name for a one-line message (control characters escaped)."""
+    text = str(path)
+    return repr(text) if any(ord(c) < 32 or ord(c) == 127 for c in text) else text
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def check_map_path(path: str | Path) -> Path:
+    """A map file the run may write at its end: not blank, not a folder or a device, in a folder
+    that exists and can be written to. MapFileError otherwise (checked before a run starts,
+    so it does not fail at its end)."""
+    text = str(path)
+    if not text.strip():
+        raise MapFileError("an empty map file name")
+    path = Path(path)
+    name = _shown(path)
+    if path.is_dir() or text.endswith(("/", "\\")):
+        raise MapFileError(f"{name}: is a folder, not a map file")
+    if path.exists() and not path.is_file():
+        raise MapFileError(f"{name}: not a regular file, so no map can be saved there")
+    folder = path.parent
+    if not folder.is_dir():
+        raise MapFileError(f"{name}: no folder {_shown(folder)} to save the learned map in")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise MapFileError(f"{name}: the folder {_shown(folder)} cannot be written to, so the learned map "
+                           "could not be saved")
+    return path
+
+
+def _read_bounded(path: Path, name: str) -> str:
+    """The text of a regular UTF-8 file of at most MAX_MAP_BYTES (size checked before reading)."""
+    def cannot(exc: Exception) -> MapFileError:
+        if isinstance(exc, FileNotFoundError):
+            return MapFileError(f"{name}: no such map file")
+        if isinstance(exc, IsADirectoryError):
+            return MapFileError(f"{name}: is a folder, not a map file")
+        # ValueError: a NUL in the name
+        return MapFileError(f"{name}: cannot read the map file: {getattr(exc, 'strerror', None) or exc}")
+
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise MapFileError(f"cannot read map {path}: {exc}") from None
-    if not isinstance(data, dict) or data.get("format") != MAP_FORMAT or data.get("version") not in (1, 2):
-        raise MapFileError(f"{path} is not a rovernav map (want format {MAP_FORMAT!r}, version 1 or 2)")
-    key = "echoes" if data["version"] == 1 else "readings"
-    raw = data.get(key)
+        st = os.stat(path)
+    except (OSError, ValueError) as exc:
+        raise cannot(exc) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise MapFileError(f"{name}: is a folder, not a map file")
+    if not stat.S_ISREG(st.st_mode):
+        raise MapFileError(f"{name}: not a regular file (a device or a pipe), so not a map file")
+    if st.st_size > MAX_MAP_BYTES:
+        raise MapFileError(f"{name}: {st.st_size:,} bytes; a map file is at most {MAX_MAP_BYTES:,} "
+                           f"({MAX_MAP_READINGS:,} readings)")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_MAP_BYTES + 1)
+    except (OSError, ValueError) as exc:
+        raise cannot(exc) from None
+    if len(data) > MAX_MAP_BYTES:   # it grew while we looked
+        raise MapFileError(f"{name}: more than {MAX_MAP_BYTES:,} bytes; a map file is at most that")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MapFileError(f"{name}: not a UTF-8 text file (byte {exc.start}), so not a map file") from None
+
+
+def read_map_file(path: str | Path, grid: OccupancyGrid | None = None) -> list[SonarReading]:
+    """The readings of a map file, validated (see the module docstring); with `grid`, also
+    against the arena they will be replayed into. MapFileError, one line naming the file, the
+    entry and the key, for anything else."""
+    name = _shown(path)
+    text = _read_bounded(Path(path), name)
+    if not text.strip():
+        raise MapFileError(f"{name}: is empty, not a rovernav map")
+    try:
+        data = json.loads(text)   # NaN and Infinity parse, and are refused below where they stand
+    except RecursionError:
+        raise MapFileError(f"{name}: not a rovernav map: JSON nested too deeply") from None
+    except ValueError as exc:   # JSONDecodeError, or an integer of thousands of digits
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if "digits" in why and not isinstance(exc, json.JSONDecodeError):
+            why = "a number with thousands of digits"
+        raise MapFileError(f"{name}: not a rovernav map: not valid JSON ({why})") from None
+    if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
+        raise MapFileError(f"{name} is not a rovernav map (want a JSON object with \"format\": {MAP_FORMAT!r}, "
+                           f"\"version\": 1 or 2)")
+    version = data.get("version")
+    if isinstance(version, bool) or version not in (1, 2):
+        raise MapFileError(f"{name}: a rovernav map of version {_short(version)}; this rovernav reads versions 1 and 2")
+    key = "echoes" if version == 1 else "readings"
+    extra = sorted(str(k) for k in data if k not in ("format", "version", key))
+    if extra:
+        raise MapFileError(f"{name}: unknown key{'s' if len(extra) > 1 else ''} "
+                           f"{', '.join(_short(k) for k in extra[:5])} in a version {version} map "
+                           f"(it has format, version and {key})")
+    if key not in data:
+        raise MapFileError(f"{name}: no {key!r} list in a version {version} map")
+    raw = data[key]
     if not isinstance(raw, list):
-        raise MapFileError(f"{path}: {key!r} must be a list")
+        raise MapFileError(f"{name}: {key!r} must be a list, got {type(raw).__name__}")
     if len(raw) > MAX_MAP_READINGS:
-        raise MapFileError(f"{path}: {len(raw)} {key}; at most {MAX_MAP_READINGS} are read")
+        raise MapFileError(f"{name}: {len(raw):,} {key}; at most {MAX_MAP_READINGS:,} are read")
+    if grid is not None:
+        cells = int(grid.raw.size)
+        if len(raw) * cells > MAX_REPLAY_CELLS:
+            raise MapFileError(f"{name}: {len(raw):,} {key} on a grid of {cells:,} cells is more replay work than "
+                               f"allowed; at most {MAX_REPLAY_CELLS // cells:,} on this arena")
+    names = [f.name for f in dataclasses.fields(SonarReading)]
+    wanted = names if version == 2 else names[:5]
     out = []
     for i, e in enumerate(raw):
-        where = f"{path}: {key}[{i}]"
+        where = f"{name}: {key}[{i}]"
         if not isinstance(e, dict):
-            raise MapFileError(f"{where} must be an object")
-        if data["version"] == 1:
-            e = {**e, "max_range_m": 0.4, "sd_m": 0.0}
-        names = [f.name for f in dataclasses.fields(SonarReading)]
-        if sorted(e) != sorted(names):
-            raise MapFileError(f"{where} must have exactly the keys {', '.join(names)}")
-        for k in names:
-            v = e[k]
-            if k == "range_m" and v is None:
+            raise MapFileError(f"{where} must be an object with the keys {', '.join(wanted)}, "
+                               f"got {type(e).__name__}")
+        if sorted(e) != sorted(wanted):
+            raise MapFileError(f"{where} must have exactly the keys {', '.join(wanted)}")
+        v: dict[str, float | None] = {}
+        for k in wanted:
+            value = e[k]
+            if k == "range_m" and value is None and version == 2:
+                v[k] = None
                 continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise MapFileError(f"{where}.{k} must be a finite number, got {v!r}")
-        if e["range_m"] is not None and not 0 < e["range_m"] <= 4.0:
-            raise MapFileError(f"{where}.range_m must be in (0, 4] m or null, got {e['range_m']!r}")
-        if not 0 < e["max_range_m"] <= 4.0 or e["sd_m"] < 0:
-            raise MapFileError(f"{where}: max_range_m must be in (0, 4] m and sd_m >= 0")
-        out.append(SonarReading(**{k: (None if e[k] is None else float(e[k])) for k in names}))
+            try:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise TypeError
+                number = float(value)
+            except (TypeError, OverflowError):
+                number = math.nan
+            if not math.isfinite(number):
+                raise MapFileError(f"{where}.{k} must be a finite number, got {_short(value)}")
+            v[k] = number
+        if version == 1:
+            v["max_range_m"], v["sd_m"] = 0.4, 0.0
+        for k in ("x_m", "y_m"):
+            if abs(v[k]) > MAX_POSITION_M:   # type: ignore[arg-type]
+                raise MapFileError(f"{where}.{k} must be within +-{MAX_POSITION_M} m, got {_short(e[k])}")
+        for k in ("heading_deg", "bearing_deg"):
+            if abs(v[k]) > MAX_ANGLE_DEG:   # type: ignore[arg-type]
+                raise MapFileError(f"{where}.{k} must be within +-{MAX_ANGLE_DEG:g} degrees, got {_short(e[k])}")
+        if v["range_m"] is not None and not 0 < v["range_m"] <= MAX_RANGE_M:
+            raise MapFileError(f"{where}.range_m must be in (0, {MAX_RANGE_M:g}] m or null, got {_short(e['range_m'])}")
+        if not 0 < v["max_range_m"] <= MAX_RANGE_M:   # type: ignore[operator]
+            raise MapFileError(f"{where}.max_range_m must be in (0, {MAX_RANGE_M:g}] m, got {_short(e['max_range_m'])}")
+        if not 0 <= v["sd_m"] <= MAX_SD_M:   # type: ignore[operator]
+            raise MapFileError(f"{where}.sd_m must be in [0, {MAX_SD_M}] m, got {_short(e['sd_m'])}")
+        if grid is not None:
+            x, y = v["x_m"], v["y_m"]
+            if not (-ARENA_MARGIN_M <= x <= grid.width_m + ARENA_MARGIN_M      # type: ignore[operator]
+                    and -ARENA_MARGIN_M <= y <= grid.height_m + ARENA_MARGIN_M):   # type: ignore[operator]
+                raise MapFileError(f"{where}: the rover at ({x:g}, {y:g}) m is more than {ARENA_MARGIN_M:g} m outside "
+                                   f"the {grid.width_m:g} x {grid.height_m:g} m arena: a map of another arena?")
+        out.append(SonarReading(**v))   # type: ignore[arg-type]
     return out

@@ -1,0 +1,790 @@
+"""Issue 13: hostile input to the link, the transports, the learned map, `rovernav run` and
+`rovernav demo`. Every bad input is a one-line InputError/LinkError (exit 2), never a
+traceback; a flood of frames or junk bytes never grows memory without bound and never
+stretches a wait past its timeout; nothing half-written is left on disk."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rovernav import cli, files
+from rovernav.errors import InputError, MapFileError
+from rovernav.link import link as link_mod
+from rovernav.link import messages_gen as mg
+from rovernav.link.errors import LinkClosed, LinkError, LinkTimeout, PortError, PortSpecError
+from rovernav.link.framing import MAX_ENCODED_BODY, FrameDecoder, encode_frame
+from rovernav.link.link import MAX_PENDING_FRAMES, Link
+from rovernav.link.requests import RequestTracker
+from rovernav.link.transport import (
+    MAX_READ_BYTES, LoopbackTransport, PipeTransport, PtyTransport, open_transport, parse_serial_spec,
+)
+from rovernav.mapping import SonarReading
+from rovernav.mission.learned_map import (
+    MAX_MAP_BYTES, MAX_MAP_READINGS, LearnedMap, check_map_path, read_map_file,
+)
+from rovernav.planning import OccupancyGrid, PlannerConfig
+
+needs_pty = pytest.mark.skipif(os.name != "posix", reason="pseudo-terminals are POSIX only")
+
+ROVER_HELLO = mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=7, firmware_version=0x0100, role=mg.Role.ROVER,
+                       max_waypoints=32)
+#: How far past its timeout a wait may end on a loaded test machine [s]
+SLACK_S = 0.4
+
+
+class Flooder:
+    """A thread writing `burst` into a transport end as fast as it will take it, until stopped."""
+
+    def __init__(self, end, burst: bytes) -> None:
+        self.end, self.burst = end, burst
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        while not self.stop.is_set():
+            try:
+                self.end.write(self.burst)
+            except LinkTimeout:   # the reader's queue is full: it is bounded
+                continue
+            except LinkError:
+                return
+
+    def __enter__(self) -> "Flooder":
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        self.end.close()
+        self.thread.join(3)
+
+
+@pytest.fixture
+def host_and_flood_end():
+    a, b = PipeTransport.pair()
+    host = Link(a)
+    yield host, b
+    host.close()
+    b.close()
+
+
+def status_burst(count: int = 256) -> bytes:
+    return b"".join(encode_frame(mg.Ack(msg_id=mg.Config.ID, seq=i & 0xFF), i & 0xFF) for i in range(count))
+
+
+def assert_bounded(host: Link) -> None:
+    assert host.pending <= MAX_PENDING_FRAMES
+    assert len(host._decoder._buf) <= MAX_ENCODED_BODY
+    assert host.transport.buffered <= host.transport._rx.capacity
+
+
+# ------------------------------------------------------------------ case 3: floods and timeouts
+
+def test_handshake_under_a_flood_of_valid_non_hello_frames_times_out_in_time_with_bounded_memory(
+        host_and_flood_end, monkeypatch):
+    monkeypatch.setattr(link_mod, "MAX_PENDING_FRAMES", 64)   # the cap, met quickly
+    host, end = host_and_flood_end
+    with Flooder(end, status_burst()):
+        started = time.monotonic()
+        with pytest.raises(LinkTimeout, match="no HELLO"):
+            host.handshake(boot_id=1, timeout_s=0.4)
+        took = time.monotonic() - started
+        assert 0.4 <= took < 0.4 + SLACK_S
+        assert host.pending == 64 and host.pending_dropped > 0
+        assert host.counters.frames_ok > 64
+        assert_bounded(host)
+
+
+def test_handshake_under_a_flood_with_the_real_cap_keeps_at_most_max_pending_frames(host_and_flood_end):
+    host, end = host_and_flood_end
+    with Flooder(end, status_burst()):
+        with pytest.raises(LinkTimeout):
+            host.handshake(boot_id=1, timeout_s=0.6)
+        assert_bounded(host)
+
+
+def test_handshake_finds_the_rovers_hello_inside_a_flood(host_and_flood_end):
+    host, end = host_and_flood_end
+    burst = status_burst(200) + encode_frame(ROVER_HELLO, 0) + status_burst(200)
+    with Flooder(end, burst):
+        started = time.monotonic()
+        hello = host.handshake(boot_id=1, timeout_s=2.0)
+        assert time.monotonic() - started < 2.0
+        assert hello.boot_id == 7 and host.peer_hello == hello
+        assert_bounded(host)
+
+
+@pytest.mark.parametrize("junk", [b"\x55" * 4096, bytes(range(1, 256)) * 16, b"\x00" * 4096,
+                                  b"\x02\x01\x00" * 1000])
+def test_handshake_under_a_flood_of_junk_bytes_times_out_in_time_with_bounded_buffers(host_and_flood_end, junk):
+    host, end = host_and_flood_end
+    with Flooder(end, junk):
+        started = time.monotonic()
+        with pytest.raises(LinkTimeout):
+            host.handshake(boot_id=1, timeout_s=0.3)
+        assert time.monotonic() - started < 0.3 + SLACK_S
+        assert host.pending == 0
+        assert_bounded(host)
+
+
+def test_request_under_a_flood_times_out_in_time(host_and_flood_end):
+    host, end = host_and_flood_end
+    with Flooder(end, status_burst()):   # ACKs, but none for what we ask
+        started = time.monotonic()
+        with pytest.raises(LinkTimeout, match="STOP"):
+            host.request(mg.Stop(), timeout_s=0.15, retries=1)
+        assert time.monotonic() - started < 0.3 + SLACK_S
+        assert_bounded(host)
+
+
+def test_recv_with_a_timeout_returns_in_time_under_a_flood_of_junk(host_and_flood_end):
+    host, end = host_and_flood_end
+    with Flooder(end, b"\x55" * 4096):
+        started = time.monotonic()
+        assert host.recv(timeout_s=0.2) is None
+        assert time.monotonic() - started < 0.2 + SLACK_S
+
+
+BAD_TIMEOUTS = [math.nan, math.inf, -math.inf, -1.0, -1e-9, 1e300, 10**400, True, "1", None]
+
+
+@pytest.mark.parametrize("timeout_s", BAD_TIMEOUTS)
+def test_handshake_refuses_a_timeout_that_is_not_finite_and_positive(timeout_s):
+    with Link(LoopbackTransport()) as link:
+        started = time.monotonic()
+        with pytest.raises(InputError, match="timeout_s"):
+            link.handshake(boot_id=1, timeout_s=timeout_s)
+        assert time.monotonic() - started < 0.1
+        assert link.tx_frames == 0   # refused before anything was sent
+
+
+@pytest.mark.parametrize("timeout_s", [t for t in BAD_TIMEOUTS if t is not None])
+def test_recv_request_and_read_refuse_a_bad_timeout(timeout_s):
+    with Link(LoopbackTransport()) as link:
+        with pytest.raises(InputError, match="timeout_s"):
+            link.recv(timeout_s=timeout_s)
+        with pytest.raises(InputError, match="timeout_s"):
+            link.request(mg.Stop(), timeout_s=timeout_s)
+        with pytest.raises(InputError, match="timeout_s"):
+            link.transport.read(10, timeout_s)
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"retries": math.nan}, "retries"), ({"retries": 10**9}, "retries"), ({"retries": 1.5}, "retries"),
+])
+def test_request_refuses_bad_retries(kwargs, words):
+    with Link(LoopbackTransport()) as link:
+        with pytest.raises(InputError, match=words):
+            link.request(mg.Stop(), timeout_s=0.1, **kwargs)
+
+
+@pytest.mark.parametrize("resend", [0, -1, math.nan, math.inf])
+def test_a_link_refuses_a_bad_hello_resend_interval(resend):
+    with pytest.raises(InputError, match="hello_resend_s"):
+        Link(LoopbackTransport(), hello_resend_s=resend)
+
+
+@pytest.mark.parametrize("max_bytes", [0, -5, 1.5, math.nan, "10", None])
+def test_read_refuses_a_bad_max_bytes(max_bytes):
+    with LoopbackTransport() as t:
+        with pytest.raises(InputError, match="max_bytes"):
+            t.read(max_bytes, 0)
+
+
+def test_a_huge_max_bytes_reads_at_most_max_read_bytes():
+    with LoopbackTransport(capacity_bytes=2 * MAX_READ_BYTES) as t:
+        t.write(b"x" * (MAX_READ_BYTES + 10))
+        assert len(t.read(10**15, 0)) == MAX_READ_BYTES
+
+
+def test_the_decoder_holds_at_most_one_frame_of_bytes_however_long_the_run_without_a_delimiter():
+    d = FrameDecoder()
+    for _ in range(50):
+        assert d.feed(b"\x55" * 100_000) == []
+        assert len(d._buf) <= MAX_ENCODED_BODY
+    frames = d.feed(b"\x00" + encode_frame(mg.Stop(), 3))
+    assert [f.seq for f in frames] == [3] and d.counters.overlong == 1
+
+
+def test_a_loopback_nobody_reads_refuses_more_than_its_capacity_within_its_write_timeout():
+    with LoopbackTransport(capacity_bytes=1000, write_timeout_s=0.1) as t:
+        t.write(b"a" * 1000)
+        started = time.monotonic()
+        with pytest.raises(LinkTimeout, match="nobody is reading"):
+            t.write(b"b")
+        assert time.monotonic() - started < 0.1 + SLACK_S
+        assert t.buffered == 1000
+
+
+def test_a_pipe_writer_waits_for_room_and_then_everything_arrives_in_order():
+    a, b = PipeTransport.pair(capacity_bytes=64, write_timeout_s=2.0)
+    data = bytes(range(256)) * 40
+    got = bytearray()
+
+    def reader():
+        while len(got) < len(data):
+            got.extend(b.read(50, 1.0))
+
+    t = threading.Thread(target=reader)
+    t.start()
+    a.write(data)   # 160 times the capacity: waits for the reader, never grows past 64 bytes
+    t.join(5)
+    assert bytes(got) == data
+    a.close()
+    b.close()
+
+
+def test_an_unanswered_request_resent_forever_keeps_at_most_256_sequence_numbers():
+    t = RequestTracker(resend_s=0.1, max_tries=3)
+    p = t.sent(mg.Stop(), seq=0, now_s=0.0)
+    for i in range(1, 10_000):
+        t.resent(p, i & 0xFF, now_s=i * 0.1, count=False)
+    assert len(p.seqs) == 256 and len(set(p.seqs)) == 256 and p.seqs[-1] == 9_999 & 0xFF
+    assert t.answer(mg.Ack(msg_id=mg.Stop.ID, seq=5)) is p
+
+
+@pytest.mark.parametrize("resend_s, max_tries", [(math.nan, 1), (math.inf, 1), (1, 1.5), (1, math.nan)])
+def test_a_request_tracker_refuses_non_finite_limits(resend_s, max_tries):
+    with pytest.raises(InputError):
+        RequestTracker(resend_s=resend_s, max_tries=max_tries)
+
+
+# ------------------------------------------------------------------ case 2: transport specs
+
+@pytest.mark.parametrize("spec, shown", [
+    ("", "empty transport spec"), ("   ", "empty transport spec"), ("\t", "empty transport spec"),
+    ("COM4\tx", "control character"),
+    ("loop://x", "unknown transport 'loop://x'"), ("pty://?", "unknown transport 'pty://?'"),
+    ("tcp://rover:1", "unknown transport"), ("/dev/ttyUSB0\n", "control character"),
+    ("/dev/tty\x00USB0", "control character"), ("COM4\x7f", "control character"),
+    ("/dev/ttyUSB0@", "bad baud rate ''"), ("/dev/ttyUSB0@9" * 3, "bad baud rate"),
+    ("/dev/ttyUSB0@1", "bad baud rate '1'"), ("/dev/ttyUSB0@99999999999", "bad baud rate"),
+    ("/dev/ttyUSB0@5_7600", "bad baud rate"), ("/dev/ttyUSB0@ 57600", "bad baud rate"),
+    ("/dev/ttyUSB0@٥٧٦٠٠", "bad baud rate"), ("@57600", "no port name"), ("x" * 5000, "at most 1024"),
+    (None, "must be a string"), (57600, "must be a string"), (b"/dev/ttyUSB0", "must be a string"),
+])
+def test_a_bad_transport_spec_is_a_one_line_input_error_naming_it(spec, shown):
+    with pytest.raises(PortSpecError) as info:
+        open_transport(spec)  # type: ignore[arg-type]
+    message = str(info.value)
+    assert shown in message and "\n" not in message
+    assert isinstance(info.value, InputError) and isinstance(info.value, LinkError)
+    assert isinstance(info.value, ValueError)   # as the transport's argument errors always were
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/null"), reason="needs /dev/null")
+@pytest.mark.parametrize("spec", ["/dev/null", "/dev/null@115200", "/"])
+def test_a_port_that_exists_but_is_not_a_serial_port_is_a_port_error_saying_so(spec):
+    with pytest.raises(PortError, match="not a serial port") as info:
+        open_transport(spec)
+    assert "\n" not in str(info.value)
+
+
+def test_a_run_refuses_a_loopback_or_pty_spec_as_a_serial_port():
+    for spec in ("loop://", "pty://"):
+        with pytest.raises(PortSpecError, match="not a serial port"):
+            parse_serial_spec(spec)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["link-check", "--port", "loop://x"], "unknown transport 'loop://x'"),
+    (["link-check", "--port", "pty://?"], "unknown transport 'pty://?'"),
+    (["link-check", "--port", "/dev/ttyUSB0@0"], "bad baud rate '0'"),
+    (["link-check", "--port", "/dev/null", "--timeout", "0.2"], "not a serial port"),
+    (["link-check", "--port", "", "--timeout", "0.2"], "empty port"),
+    (["link-check", "--port", "loop://", "--timeout", "nan"], "--timeout"),
+])
+def test_link_check_answers_a_bad_port_in_one_line_with_exit_2(argv, words, capsys):
+    if "/dev/null" in argv and not os.path.exists("/dev/null"):
+        pytest.skip("needs /dev/null")
+    try:
+        rc = cli.main(argv)
+    except SystemExit as exc:   # argparse's own refusals
+        rc = exc.code
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and words in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+_NASTY_SPECS = ["loop://", "pty://", "loop:// ", " pty://", "loop:///", "LOOP://", "://", "@", "@@", "a@b@c",
+                "/dev/ttyNOPE@57600@", "COM0", "\\\\.\\COM300", ".", "/", "..@9600", "\x1b[2J", "\u202e"]
+
+
+def _safe(spec) -> bool:
+    """Not a real terminal device: never open (and reconfigure) one of this machine's ttys."""
+    if not isinstance(spec, str):
+        return True
+    name = spec.strip().rpartition("@")[0] or spec.strip()
+    try:
+        import stat
+        return not (os.path.exists(name) and stat.S_ISCHR(os.stat(name).st_mode) and name != "/dev/null")
+    except (OSError, ValueError):
+        return True
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(
+    st.text(max_size=40), st.sampled_from(_NASTY_SPECS),
+    st.builds(lambda a, b: f"{a}@{b}", st.text(max_size=12), st.text(max_size=12)),
+    st.builds(lambda a, b: f"{a}://{b}", st.text(max_size=8), st.text(max_size=8)),
+    st.builds(lambda n: f"/dev/ttyROVERNAV_NONE@{n}", st.integers(-10**12, 10**12)),
+    st.none(), st.integers(), st.floats(), st.binary(max_size=10),
+))
+def test_any_transport_spec_opens_or_raises_only_an_input_or_link_error(spec):
+    if not _safe(spec):
+        return
+    try:
+        t = open_transport(spec)  # type: ignore[arg-type]
+    except (InputError, LinkError) as exc:
+        assert "\n" not in str(exc) and str(exc)
+        return
+    t.close()
+    assert isinstance(t, (LoopbackTransport, PtyTransport))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.binary(max_size=300), max_size=20))
+def test_any_bytes_on_the_line_give_frames_or_counted_drops_never_an_exception(chunks):
+    with Link(LoopbackTransport()) as link:
+        for chunk in chunks:
+            link.transport.write(chunk)
+            while link.recv(timeout_s=0) is not None:
+                pass
+            assert len(link._decoder._buf) <= MAX_ENCODED_BODY
+
+
+# ------------------------------------------------------------------ case 1: learned-map files
+
+def grid() -> OccupancyGrid:
+    return OccupancyGrid(2.4, 1.8, PlannerConfig())
+
+
+def reading(**kw) -> dict:
+    r = {"x_m": 1.0, "y_m": 0.9, "heading_deg": 90.0, "bearing_deg": 0.0, "range_m": 0.25,
+         "max_range_m": 0.4, "sd_m": 0.003}
+    r.update(kw)
+    return r
+
+
+def map_text(readings, **top) -> str:
+    doc = {"format": "rovernav-map", "version": 2, "readings": readings}
+    doc.update(top)
+    return json.dumps(doc)
+
+
+BAD_MAPS = [
+    ("empty", b"", "is empty"),
+    ("blank", b"  \n", "is empty"),
+    ("truncated", map_text([reading()])[:30].encode(), "not valid JSON"),
+    ("not json", b"hello, map", "not valid JSON"),
+    ("not utf-8", b'{"format": "rovernav-map\xff\xfe"}', "not a UTF-8 text file"),
+    ("utf-16", map_text([]).encode("utf-16"), "not a UTF-8 text file"),
+    ("a list", b"[]", "not a rovernav map"),
+    ("another format", json.dumps({"format": "geojson", "version": 2, "readings": []}).encode(), "not a rovernav map"),
+    ("version 3", map_text([], version=3).encode(), "version 3"),
+    ("version true", map_text([], version=True).encode(), "version True"),
+    ("version nan", map_text([], version=math.nan).encode(), "version nan"),
+    ("no readings", json.dumps({"format": "rovernav-map", "version": 2}).encode(), "no 'readings'"),
+    ("a grid", map_text([], grid=[[0, 1], [1, 0]], width=2).encode(), "unknown keys 'grid', 'width'"),
+    ("readings not a list", map_text({"0": reading()}).encode(), "must be a list"),
+    ("a reading not an object", map_text([[1, 2, 3]]).encode(), "readings[0] must be an object"),
+    ("a key missing", map_text([reading(), {"x_m": 1}]).encode(), "readings[1] must have exactly the keys"),
+    ("a key too many", map_text([{**reading(), "z_m": 0}]).encode(), "exactly the keys"),
+    ("NaN", map_text([reading(x_m=math.nan)]).encode(), "readings[0].x_m must be a finite number"),
+    ("Infinity", map_text([reading(sd_m=math.inf)]).encode(), "sd_m must be a finite number"),
+    ("1e999", map_text([reading()]).replace('"y_m": 0.9', '"y_m": 1e999').encode(), "y_m must be a finite"),
+    ("a string", map_text([reading(heading_deg="90")]).encode(), "heading_deg must be a finite number"),
+    ("a bool", map_text([reading(bearing_deg=True)]).encode(), "bearing_deg must be a finite number"),
+    ("a 5000-digit integer", map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 5000).encode(),
+     "thousands of digits"),
+    ("a 400-digit integer", map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 400).encode(),
+     "x_m must be a finite number"),
+    ("far off the arena", map_text([reading(x_m=40.0)]).encode(), "readings[0].x_m must be within"),
+    ("another arena", map_text([reading(x_m=9.0, y_m=7.0)]).encode(), "a map of another arena"),
+    ("a crazy angle", map_text([reading(heading_deg=1e6)]).encode(), "heading_deg must be within"),
+    ("range too long", map_text([reading(range_m=40.0)]).encode(), "range_m must be in (0, 4]"),
+    ("range zero", map_text([reading(range_m=0)]).encode(), "range_m must be in"),
+    ("max range zero", map_text([reading(max_range_m=0)]).encode(), "max_range_m must be in"),
+    ("negative sd", map_text([reading(sd_m=-0.1)]).encode(), "sd_m must be in"),
+    ("nested deep", b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+    ("v1 with a null range", json.dumps({"format": "rovernav-map", "version": 1, "echoes": [
+        {k: v for k, v in reading(range_m=None).items() if k not in ("max_range_m", "sd_m")}]}).encode(),
+     "echoes[0].range_m must be a finite number"),
+]
+
+
+@pytest.mark.parametrize("content, words", [(c, w) for _, c, w in BAD_MAPS], ids=[i for i, _, _ in BAD_MAPS])
+def test_a_bad_map_file_is_one_map_file_error_naming_the_file_and_nothing_is_replayed(tmp_path, content, words):
+    path = tmp_path / "learned.json"
+    path.write_bytes(content)
+    lm = LearnedMap(grid())
+    with pytest.raises(MapFileError) as info:
+        lm.load(path)
+    message = str(info.value)
+    assert words in message and str(path) in message and "\n" not in message
+    assert lm.readings == []
+
+
+def test_a_map_file_larger_than_its_limit_is_refused_before_it_is_read(tmp_path):
+    path = tmp_path / "huge.json"
+    with open(path, "wb") as f:
+        f.truncate(MAX_MAP_BYTES + 1)   # sparse: costs no disk
+    with pytest.raises(MapFileError, match="a map file is at most"):
+        read_map_file(path)
+
+
+def test_more_readings_than_the_limit_are_refused_before_any_is_checked(tmp_path):
+    path = tmp_path / "many.json"
+    path.write_text(map_text([0] * (MAX_MAP_READINGS + 1)))
+    with pytest.raises(MapFileError, match="at most 200,000 are read"):
+        read_map_file(path)
+
+
+def test_more_replay_work_than_allowed_on_a_huge_arena_is_refused(tmp_path, monkeypatch):
+    from rovernav.mission import learned_map
+
+    monkeypatch.setattr(learned_map, "MAX_REPLAY_CELLS", 10 * grid().raw.size)
+    path = tmp_path / "m.json"
+    path.write_text(map_text([reading()] * 11))
+    with pytest.raises(MapFileError, match="more replay work than allowed; at most 10 on this arena"):
+        read_map_file(path, grid())
+
+
+@pytest.mark.parametrize("make", ["folder", "device", "fifo", "missing"])
+def test_a_map_path_that_is_not_a_regular_file_is_refused(tmp_path, make):
+    if make == "folder":
+        path = tmp_path / "dir.json"
+        path.mkdir()
+        words = "is a folder"
+    elif make == "device":
+        if not os.path.exists("/dev/zero"):
+            pytest.skip("needs /dev/zero")
+        path, words = Path("/dev/zero"), "not a regular file"
+    elif make == "fifo":
+        if not hasattr(os, "mkfifo"):
+            pytest.skip("needs mkfifo")
+        path = tmp_path / "pipe.json"
+        os.mkfifo(path)
+        words = "not a regular file"
+    else:
+        path, words = tmp_path / "nope.json", "no such map file"
+    with pytest.raises(MapFileError, match=words):
+        read_map_file(path)
+
+
+@pytest.mark.parametrize("where, words", [("nodir/map.json", "no folder"), ("", "empty map file name"),
+                                          (".", "is a folder")])
+def test_a_map_file_that_could_not_be_saved_is_refused_before_the_run(tmp_path, monkeypatch, where, words):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(MapFileError, match=words):
+        check_map_path(where)
+
+
+def test_a_good_map_still_loads_and_version_1_too(tmp_path):
+    lm = LearnedMap(grid())
+    lm.add(SonarReading(1.0, 0.9, 90.0, 0.0, 0.25, 0.4, 0.003))
+    lm.add(SonarReading(1.0, 0.9, 90.0, 30.0, None, 0.4, 0.003))
+    lm.save(tmp_path / "m.json")
+    assert LearnedMap(grid()).load(tmp_path / "m.json") == 2
+    (tmp_path / "v1.json").write_text(json.dumps({"format": "rovernav-map", "version": 1, "echoes": [
+        {"x_m": 1, "y_m": 0.9, "heading_deg": 90, "bearing_deg": 0, "range_m": 0.25}]}))
+    assert LearnedMap(grid()).load(tmp_path / "v1.json") == 1
+
+
+_json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=10),
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
+    max_leaves=20)
+_number = st.one_of(st.floats(), st.integers(), st.none(), st.booleans(), st.text(max_size=3))
+_near_readings = st.fixed_dictionaries({k: _number for k in reading()})
+_near_maps = st.fixed_dictionaries({
+    "format": st.sampled_from(["rovernav-map", "x"]), "version": st.sampled_from([1, 2, 2.0, 3, "2", None]),
+    "readings": st.lists(st.one_of(_near_readings, _json_values), max_size=5)})
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(
+    st.binary(max_size=200),
+    _json_values.map(lambda v: json.dumps(v).encode()),
+    _near_maps.map(lambda v: json.dumps(v).encode()),
+))
+def test_any_map_file_content_loads_or_raises_only_a_map_file_error(tmp_path, content):
+    path = tmp_path / "fuzz.json"
+    path.write_bytes(content)
+    lm = LearnedMap(grid())
+    try:
+        n = lm.load(path)
+    except MapFileError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        assert lm.readings == []
+        return
+    assert n == len(lm.readings)
+    assert all(math.isfinite(v) for r in lm.readings for v in (r.x_m, r.y_m, r.heading_deg, r.sd_m))
+
+
+# ------------------------------------------------------------------ cases 1 and 4: `rovernav run`
+
+@pytest.fixture
+def no_devices(monkeypatch):
+    """`rovernav run` must refuse its input before it opens any device: opening one fails the test."""
+    from rovernav import hardware
+
+    opened: list[str] = []
+
+    def camera(source):
+        opened.append(f"camera {source}")
+        raise AssertionError("the camera was opened before the input was checked")
+
+    def serial(*args, **kw):
+        opened.append(f"port {args}")
+        raise AssertionError("the port was opened before the input was checked")
+
+    monkeypatch.setattr(hardware, "open_camera", camera)
+    monkeypatch.setattr(hardware, "SerialTransport", serial)
+    return opened
+
+
+def run_cli(argv, capsys) -> tuple[int, str]:
+    try:
+        rc = cli.main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    return rc, capsys.readouterr().err.strip()
+
+
+@pytest.mark.parametrize("content, words", [(c, w) for _, c, w in BAD_MAPS[:12]], ids=[i for i, _, _ in BAD_MAPS[:12]])
+def test_run_with_a_bad_map_fails_in_one_line_before_any_device_is_opened(tmp_path, capsys, no_devices,
+                                                                           content, words):
+    bad = tmp_path / "bad.json"
+    bad.write_bytes(content)
+    rc, err = run_cli(["run", "--port", "/dev/null", "--map", str(bad)], capsys)
+    assert rc == 2 and no_devices == []
+    assert err.startswith("rovernav run: ") and words in err and str(bad) in err and len(err.splitlines()) == 1
+    assert bad.read_bytes() == content   # the bad file is left as it was
+
+
+@pytest.mark.parametrize("make, words", [("folder", "is a folder"), ("nodir", "no folder"),
+                                         ("device", "not a regular file")])
+def test_run_with_a_map_path_it_cannot_use_fails_before_any_device_is_opened(tmp_path, capsys, no_devices,
+                                                                             make, words):
+    path = {"folder": tmp_path, "nodir": tmp_path / "no" / "map.json", "device": Path("/dev/zero")}[make]
+    if make == "device" and not path.exists():
+        pytest.skip("needs /dev/zero")
+    rc, err = run_cli(["run", "--port", "/dev/null", "--map", str(path)], capsys)
+    assert rc == 2 and no_devices == [] and words in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("toml, words", [
+    ('[arena]\nwidth_m = -1\n', "width_m"),
+    ('[link]\nbaud = 12345\n', "baud"),
+    ('[link]\nport = "loop://"\n', "[link] port"),
+    ('[link]\nport = "/dev/ttyUSB0@1"\n', "[link] port"),
+    ('[camera]\nsource = "no-such-video.mp4"\n', "no-such-video.mp4"),
+    ('[mission]\nmap = "no/such/folder/map.json"\n', "no folder"),
+    ('[[[', "TOML"),
+])
+def test_run_with_a_bad_configuration_fails_in_one_line_naming_it_before_any_device_is_opened(
+        tmp_path, capsys, no_devices, toml, words):
+    cfg = tmp_path / "rover.toml"
+    cfg.write_text(toml)
+    rc, err = run_cli(["run", "--port", "/dev/null", "--config", str(cfg)] if "port" not in toml else
+                      ["run", "--config", str(cfg)], capsys)
+    assert rc == 2 and no_devices == [], err
+    assert words in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    if "baud" in words or "width_m" in words or "[link]" in words:
+        assert str(cfg) in err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["run", "--port", "/dev/null", "--scenario", "no-such-scenario.toml"], "no-such-scenario"),
+    (["run", "--port", "/dev/null", "--camera", "99999999"], "camera index"),
+    (["run", "--port", "/dev/null", "--camera", "missing.mp4"], "no such file"),
+    (["run", "--port", "loop://x"], "not a serial port"),
+    (["run", "--port", "/dev/ttyUSB0@fast"], "bad baud rate 'fast'"),
+])
+def test_run_with_a_bad_scenario_camera_or_port_fails_before_any_device_is_opened(capsys, no_devices, argv, words,
+                                                                                 tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    rc, err = run_cli(argv, capsys)
+    assert rc == 2 and no_devices == [], err
+    assert words in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("flag, make, words", [
+    ("--config", "device", "not a regular file"), ("--scenario", "device", "not a regular file"),
+    ("--scenario", "fifo", "not a regular file"), ("--scenario", "folder", "is a folder"),
+    ("--config", "huge", "a configuration file is at most"),
+])
+def test_run_refuses_a_config_or_scenario_that_is_a_device_a_pipe_or_huge_without_reading_it(
+        tmp_path, capsys, no_devices, flag, make, words):
+    if make == "device":
+        if not os.path.exists("/dev/zero"):
+            pytest.skip("needs /dev/zero")
+        path = Path("/dev/zero")   # read whole, it would never end
+    elif make == "fifo":
+        if not hasattr(os, "mkfifo"):
+            pytest.skip("needs mkfifo")
+        path = tmp_path / "pipe.toml"
+        os.mkfifo(path)             # read, it would wait for a writer for ever
+    elif make == "folder":
+        path = tmp_path
+    else:
+        path = tmp_path / "huge.toml"
+        with open(path, "wb") as f:
+            f.truncate(1 << 30)
+    rc, err = run_cli(["run", "--port", "/dev/null", flag, str(path)], capsys)
+    assert rc == 2 and no_devices == [] and words in err and len(err.splitlines()) == 1, err
+
+
+class FakeCamera:
+    """Frames for ever; Ctrl-C (KeyboardInterrupt) at frame `interrupt_at`."""
+
+    def __init__(self, interrupt_at: int) -> None:
+        self.frames, self.interrupt_at, self.released = 0, interrupt_at, False
+
+    def read(self):
+        import numpy as np
+
+        self.frames += 1
+        if self.frames == self.interrupt_at:
+            raise KeyboardInterrupt
+        time.sleep(0.005)
+        return True, np.zeros((48, 64, 3), np.uint8)
+
+    def release(self) -> None:
+        self.released = True
+
+
+class FakeLocator:
+    def __init__(self, *args) -> None:
+        pass
+
+    def locate(self, frame, t):
+        from rovernav.vision.locator import RoverPose, TargetPosition
+
+        return SimpleNamespace(rover=RoverPose(0.5, 0.5, 0.0), target=TargetPosition(1.8, 1.2), reason=None)
+
+
+@pytest.fixture
+def fake_rig(monkeypatch):
+    """`rovernav run` with a fake camera and locator, its port one end of a pipe (the rover's end returned)."""
+    from rovernav import hardware, vision
+
+    host_end, rover_end = PipeTransport.pair("radio")
+    camera = FakeCamera(interrupt_at=25)
+    monkeypatch.setattr(hardware, "open_camera", lambda source: camera)
+    monkeypatch.setattr(hardware, "SerialTransport", lambda name, baud: host_end)
+    monkeypatch.setattr(vision, "Locator", FakeLocator)
+    yield camera, host_end, Link(rover_end)
+    rover_end.close()
+
+
+def test_ctrl_c_stops_the_rover_saves_the_map_whole_and_exits_130(tmp_path, capsys, fake_rig):
+    camera, host_end, rover = fake_rig
+    lm = LearnedMap(grid())
+    lm.add(SonarReading(1.0, 0.9, 90.0, 0.0, 0.25, 0.4, 0.003))
+    lm.save(tmp_path / "map.json")
+    rc, err = run_cli(["run", "--port", "/dev/ttyFAKE", "--map", str(tmp_path / "map.json")], capsys)
+    assert rc == 130 and "interrupted" in err
+    assert camera.released and host_end.closed
+    said = []
+    with pytest.raises(LinkClosed):   # everything the host sent, then the end of the line
+        while True:
+            frame = rover.recv(timeout_s=0)
+            if frame is not None:
+                said.append(frame.message)
+    assert mg.Stop(reason=mg.StopReason.OPERATOR) in said   # the rover was told to stop
+    assert len(read_map_file(tmp_path / "map.json")) == 1    # the map is whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.json"]   # no temporary file left
+
+
+def test_ctrl_c_while_the_map_is_being_saved_leaves_the_old_map_whole(tmp_path, capsys, fake_rig, monkeypatch):
+    camera, host_end, rover = fake_rig
+    old = map_text([reading()]) + "\n"
+    (tmp_path / "map.json").write_text(old)
+
+    def interrupted_replace(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(files.os, "replace", interrupted_replace)
+    rc, err = run_cli(["run", "--port", "/dev/ttyFAKE", "--map", str(tmp_path / "map.json")], capsys)
+    assert rc == 130
+    assert (tmp_path / "map.json").read_text() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.json"]
+    assert camera.released and host_end.closed
+
+
+def test_a_new_map_file_is_written_at_the_end_of_an_interrupted_run(tmp_path, capsys, fake_rig):
+    rc, _ = run_cli(["run", "--port", "/dev/ttyFAKE", "--map", str(tmp_path / "new.json")], capsys)
+    assert rc == 130
+    assert read_map_file(tmp_path / "new.json") == []
+
+
+# ------------------------------------------------------------------ case 5: `rovernav demo`
+
+def test_demo_without_the_avr_toolchain_is_one_line_exit_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))   # no avr-gcc, no make, no simavr
+    rc, err = run_cli(["demo", "--seconds", "0"], capsys)
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert "AVR toolchain" in err and "apt-get install" in err
+
+
+def test_demo_without_make_is_one_line_exit_2(capsys, monkeypatch):
+    from rovernav import demo
+
+    real_which = demo.shutil.which
+    monkeypatch.setattr(demo.shutil, "which", lambda name: None if name == "make" else real_which(name))
+    monkeypatch.setattr(demo, "check_tools", demo.check_tools)
+    if demo.subprocess.run([demo.sys.executable, "tools/build_uno.py", "--check-tools"], cwd=demo.ROOT,
+                           capture_output=True).returncode != 0:
+        pytest.skip("the AVR toolchain is missing here (the previous test covers that)")
+    rc, err = run_cli(["demo", "--seconds", "0"], capsys)
+    assert rc == 2 and "make" in err and len(err.splitlines()) == 1, err
+
+
+def test_demo_without_simavr_is_one_line_exit_2(tmp_path, capsys, monkeypatch):
+    from rovernav import demo
+
+    monkeypatch.setattr(demo, "SIMAVR_HEADER", tmp_path / "sim_avr.h")
+    monkeypatch.setattr(demo, "ROOT", tmp_path)   # no bridge built either
+    (tmp_path / "tools").mkdir()
+    (tmp_path / "tools" / "build_uno.py").write_text("import sys\nsys.exit(0)\n")
+    real_which = demo.shutil.which
+    monkeypatch.setattr(demo.shutil, "which", lambda name: "/usr/bin/make" if name == "make" else real_which(name))
+    rc, err = run_cli(["demo", "--seconds", "0"], capsys)
+    assert rc == 2 and "simavr" in err and len(err.splitlines()) == 1, err
+
+
+def test_a_simulator_that_cannot_load_libsimavr_is_one_line(tmp_path, monkeypatch):
+    from rovernav import demo
+
+    bridge = tmp_path / "build" / "avrsim" / "rovernav_avrsim"
+    bridge.parent.mkdir(parents=True)
+    bridge.write_text("#!/bin/sh\necho 'rovernav_avrsim: error while loading shared libraries: libsimavr.so.1: "
+                      "cannot open shared object file' >&2\nexit 127\n")
+    bridge.chmod(0o755)
+    monkeypatch.setattr(demo, "ROOT", tmp_path)
+    with pytest.raises(demo.DemoError) as info:
+        demo.start_avrsim(tmp_path / "firmware.elf")
+    assert "libsimavr" in str(info.value) and "apt-get install libsimavr-dev" in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_a_failed_build_is_one_line_with_its_last_line(monkeypatch):
+    from rovernav import demo
+
+    with pytest.raises(demo.DemoError) as info:
+        demo._run([demo.sys.executable, "-c", "import sys; print('compiling'); sys.exit('rover.cpp:1: error: boom')"],
+                  "building the Uno image")
+    assert str(info.value).startswith("building the Uno image failed: rover.cpp:1: error: boom")
+    assert "\n" not in str(info.value)
+    with pytest.raises(demo.DemoError, match="no-such-tool-xyz is not installed"):
+        demo._run(["no-such-tool-xyz"], "building")
