@@ -18,7 +18,7 @@ import numpy as np
 from ..planning import OccupancyGrid, PlanResult, plan
 from ..planning.planner import warm_up
 from ..planning.segment import polyline_clear
-from .pose import REPORT_P0, REPORT_P1
+from .pose import REPORT_P0, REPORT_P1, save_figure
 
 REPORT_P2 = (10_870.0, 25_670.0)           # eq. 3.1 [m]
 MAP_WIDTH_M = 50_000.0                     # the report's map: about 50 km × 35 km
@@ -149,5 +149,7 @@ def plot_crater_plan(cmap: CraterMap, result: PlanResult | None, path: str,
     ax.set_title(f"Crater map ({cmap.scale_m:g} m/pixel) and reference path")
     ax.legend(loc="lower right")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=110)   # atomically: never half a PNG
+    finally:
+        plt.close(fig)

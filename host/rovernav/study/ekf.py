@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .pose import wrap_angle
+from .pose import save_figure, wrap_angle
 
 
 # --- the models ------------------------------------------------------------------------------
@@ -234,7 +234,11 @@ def nees_monte_carlo(n_runs: int = 20, seed: int = 0, scenario: LocalisationScen
     """Run the scenario `n_runs` times (independent noise) and check the filter's NEES."""
     from scipy.stats import chi2
 
-    seeds = np.random.SeedSequence(seed).spawn(n_runs)
+    if isinstance(n_runs, bool) or not isinstance(n_runs, (int, np.integer)) or n_runs < 1:
+        raise ValueError(f"n_runs must be a whole number of runs >= 1, got {n_runs!r}")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie strictly between 0 and 1, got {confidence!r}")
+    seeds = np.random.SeedSequence(seed).spawn(int(n_runs))
     runs = [run_localisation(scenario, np.random.default_rng(s)) for s in seeds]
     values = np.array([r.ekf_nees if which == "ekf" else r.dr_nees for r in runs])[:, 1:]
     per_step = values.mean(axis=0)
@@ -292,5 +296,7 @@ def plot_localisation(run: LocalisationRun, path: str, nees_check: NeesCheck | N
             ax.axhline(b, color="m", ls=":", lw=1)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=100)   # atomically: never half a PNG
+    finally:
+        plt.close(fig)
