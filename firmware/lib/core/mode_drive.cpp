@@ -111,7 +111,7 @@ void Rover::pose_command(float rho_mm, Outputs& out) {
   const float theta_goal = 0.5f * kPi - goal_cw;
   const float alpha = wrap_rad(fast_atan2(static_cast<float>(w.y_mm) - est_.y_mm(), static_cast<float>(w.x_mm) - est_.x_mm()) - theta);
   const float beta = wrap_rad(-alpha - theta + theta_goal);
-  const float v_max = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  const float v_max = drive_speed_mm_s();
   // Slow down for the last waypoint only: the others are passed through at speed.
   const bool last = !in_detour && wp_ + 1 >= path_len_;
   float v = last ? p.pose_k_rho() * rho_mm : v_max;
