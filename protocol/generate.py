@@ -87,6 +87,22 @@ def load(path: Path = DEFINITION) -> dict:
                 raise DefinitionError(f"message {name}.{f['name']}: count must be an integer >= 2")
         if payload_size(m) > proto["max_payload"]:
             raise DefinitionError(f"message {name}: payload {payload_size(m)} bytes > max_payload {proto['max_payload']}")
+    sig = d.get("signing")
+    if not isinstance(sig, dict):
+        raise DefinitionError("[signing] is missing")
+    for key in ("flag", "counter_bytes", "tag_bytes", "epoch_unix_s", "persist_period_s", "reset_margin_ms",
+                "host_to_rover", "rover_to_host"):
+        if not isinstance(sig.get(key), int) or isinstance(sig.get(key), bool) or sig[key] < 0:
+            raise DefinitionError(f"[signing].{key} must be a non-negative integer")
+    if not 0 < sig["tag_bytes"] <= 8 or not 0 < sig["counter_bytes"] <= 8:
+        raise DefinitionError("[signing]: tag_bytes and counter_bytes must be 1..8 (a SipHash tag is 8 bytes)")
+    if sig["flag"] & proto["version"] or not 0 < sig["flag"] < 256:
+        raise DefinitionError("[signing].flag must be a byte whose bits are free in [protocol].version")
+    for name in sig.get("unsigned", []):
+        if name not in seen_names:
+            raise DefinitionError(f"[signing].unsigned: no message {name!r}")
+    if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > 64:
+        raise DefinitionError("a signed frame of max_payload bytes would pass 64 bytes on the wire")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -106,6 +122,13 @@ def load(path: Path = DEFINITION) -> dict:
     return d
 
 
+def max_encoded_frame(body_payload: int) -> int:
+    """Bytes on the wire of a frame whose payload (and signature) is `body_payload` bytes: the
+    header, the CRC, COBS's overhead and the delimiter."""
+    raw = HEADER_BYTES + body_payload + CRC_BYTES
+    return raw + (raw + 253) // 254 + 1
+
+
 def schema_hash(d: dict) -> int:
     """CRC-32 (the zlib polynomial) of everything that changes the meaning of bytes on the wire.
 
@@ -122,6 +145,7 @@ def schema_hash(d: dict) -> int:
         "enums": [{"name": e["name"], "values": [[v["name"], v["value"]] for v in e["values"]]}
                   for e in d.get("enums", [])],
         "params": [[p["id"], p["name"], p["unit"], p["min"], p["max"]] for p in d.get("params", [])],
+        "signing": {k: v for k, v in d["signing"].items()},
     }
     text = json.dumps(canon, sort_keys=True, separators=(",", ":"))
     return binascii.crc32(text.encode()) & 0xFFFFFFFF
@@ -189,6 +213,19 @@ def render_cpp(d: dict) -> str:
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
            f"enum : uint8_t {{\n  kMaxPayload = {p['max_payload']},\n  kMaxRawFrame = {max_raw},  // header + payload + CRC\n"
            f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']}\n}};\n\n"]
+    sig = d["signing"]
+    by_name = {m["name"]: m["id"] for m in d["messages"]}
+    out.append("// Signed frames ([signing] in protocol/messages.toml).\n"
+               f"enum : uint8_t {{\n  kSignFlag = 0x{sig['flag']:02X},\n  kSignCounterBytes = {sig['counter_bytes']},\n"
+               f"  kSignTagBytes = {sig['tag_bytes']},\n  kSignHostToRover = {sig['host_to_rover']},\n"
+               f"  kSignRoverToHost = {sig['rover_to_host']},\n"
+               f"  kMaxSignedRawFrame = {max_raw + sig['counter_bytes'] + sig['tag_bytes']}  // a signed frame, CRC included\n}};\n"
+               f"static const uint32_t kSignEpochUnixS = {sig['epoch_unix_s']}UL;\n"
+               f"static const uint32_t kSignResetMarginMs = {sig['reset_margin_ms']}UL;\n"
+               f"static const uint16_t kSignPersistPeriodS = {sig['persist_period_s']};\n"
+               "/// Whether a rover with a key takes host message `id` unsigned.\n"
+               "inline bool may_be_unsigned(uint8_t id) {\n  return "
+               + " || ".join(f"id == 0x{by_name[n]:02X}" for n in sig.get("unsigned", [])) + ";\n}\n\n")
     for e in d.get("enums", []):
         out.append(f"/// {e.get('doc', '')}\n")
         if e.get("bitmask"):
@@ -279,6 +316,18 @@ def render_py(d: dict) -> str:
            "from .schema import FieldSpec, Message, ParamSpec\n\n",
            f"PROTOCOL_VERSION = {p['version']}\n",
            f"SCHEMA_HASH = 0x{d['schema_hash']:08X}\n",
+           "# Signed frames ([signing] in protocol/messages.toml)\n",
+           f"SIGN_FLAG = 0x{d['signing']['flag']:02X}\n",
+           f"SIGN_COUNTER_BYTES = {d['signing']['counter_bytes']}\n",
+           f"SIGN_TAG_BYTES = {d['signing']['tag_bytes']}\n",
+           f"SIGN_EPOCH_UNIX_S = {d['signing']['epoch_unix_s']}\n",
+           f"SIGN_PERSIST_PERIOD_S = {d['signing']['persist_period_s']}\n",
+           f"SIGN_RESET_MARGIN_MS = {d['signing']['reset_margin_ms']}\n",
+           f"SIGN_HOST_TO_ROVER = {d['signing']['host_to_rover']}\n",
+           f"SIGN_ROVER_TO_HOST = {d['signing']['rover_to_host']}\n",
+           "SIGN_UNSIGNED_IDS = frozenset({" + ", ".join(
+               f"0x{m['id']:02X}" for m in d["messages"] if m["name"] in d["signing"].get("unsigned", [])) + "})\n",
+           f"MAX_SIGNED_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES + d['signing']['counter_bytes'] + d['signing']['tag_bytes']}\n",
            f"MAX_PAYLOAD = {p['max_payload']}\n",
            f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",
            f"MAX_WAYPOINTS = {p['max_waypoints']}\n",

@@ -8,13 +8,30 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x448CF00BUL;
+static const uint32_t kSchemaHash = 0x064D3551UL;
 enum : uint8_t {
-  kMaxPayload = 56,
-  kMaxRawFrame = 61,  // header + payload + CRC
+  kMaxPayload = 45,
+  kMaxRawFrame = 50,  // header + payload + CRC
   kMaxWaypoints = 32,
   kWaypointsPerChunk = 8
 };
+
+// Signed frames ([signing] in protocol/messages.toml).
+enum : uint8_t {
+  kSignFlag = 0x80,
+  kSignCounterBytes = 6,
+  kSignTagBytes = 6,
+  kSignHostToRover = 1,
+  kSignRoverToHost = 2,
+  kMaxSignedRawFrame = 62  // a signed frame, CRC included
+};
+static const uint32_t kSignEpochUnixS = 1767225600UL;
+static const uint32_t kSignResetMarginMs = 60000UL;
+static const uint16_t kSignPersistPeriodS = 60;
+/// Whether a rover with a key takes host message `id` unsigned.
+inline bool may_be_unsigned(uint8_t id) {
+  return id == 0x01;
+}
 
 /// Which end of the link sent a HELLO.
 enum class Role : uint8_t {
