@@ -24,7 +24,7 @@ import sys
 import time
 
 from . import __version__
-from .validate import EXIT_CODES, ArgParser, input_file, port_spec, seconds
+from .validate import EXIT_CODES, ArgParser, input_file, output_file, port_spec, seconds
 
 log = logging.getLogger("rovernav")
 
@@ -115,6 +115,15 @@ def talk_to_rover(link, seconds: float, hello_timeout_s: float, listening_note: 
           f"{c.unknown_id} unknown id, {c.malformed} malformed; sent {link.tx_frames} frames")
 
 
+def _cmd_keygen(args: argparse.Namespace) -> int:
+    from .link.keys import write_key_file
+
+    write_key_file(args.out, force=args.force)
+    print(f"wrote a new 128-bit link key to {args.out} (mode 0600); keep it secret, and give the same file "
+          "to the host that commands this rover ([link] key_file in its configuration)")
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
@@ -184,6 +193,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=seconds(600.0, positive=True), default=3.0,
                    help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)")
     p.set_defaults(func=_cmd_link_check)
+
+    p = sub.add_parser("keygen", help="make a new key for signed frames",
+                       description="Write a new random 128-bit key for the link's signed frames (SipHash-2-4 "
+                                   "tags, protocol/messages.toml [signing]) to FILE, readable by its owner only "
+                                   "(mode 0600). An existing file is not replaced unless --force is given. "
+                                   "(Signing is being built: the rover's side is still to come.)")
+    p.add_argument("--out", type=output_file(".key"), default="link.key", metavar="FILE",
+                   help="the key file to write, ending in .key (default link.key)")
+    p.add_argument("--force", action="store_true", help="replace an existing key file")
+    p.set_defaults(func=_cmd_keygen)
 
     p = sub.add_parser("demo", help="run the Uno firmware in an AVR simulator and talk to it",
                        description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "

@@ -155,7 +155,7 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
     def parse(text: str) -> Path:
         path = Path(text)
         if not text.strip() or text.endswith(("/", "\\")) or _kind(path) == "dir":
-            raise argparse.ArgumentTypeError(f"{text!r}: a file name is needed (e.g. out/picture{suffixes[0]}), "
+            raise argparse.ArgumentTypeError(f"{text!r}: a file name is needed (e.g. out/name{suffixes[0]}), "
                                              "not a folder")
         if suffixes and path.suffix.lower() not in suffixes:
             raise argparse.ArgumentTypeError(f"{text!r}: the file name must end in {' or '.join(suffixes)}")

@@ -15,18 +15,32 @@ at the next 0x00 after garbage, and counts what it drops exactly as the rover's 
     unknown_id  a well-formed frame whose message id we do not know
 
 Checks run in that order; an empty frame (two delimiters in a row) is not counted.
+
+Signed frames ([signing] in protocol/messages.toml; the rover's side is still to come): the
+version byte carries SIGN_FLAG, and a counter and a SipHash-2-4 tag follow the payload. A
+decoder given a Verifier checks them after the CRC and counts what it refuses:
+
+    bad_tag     the tag is not the key's for this frame and direction (forged, altered, reflected)
+    replayed    the counter is not above the last accepted one (a replay, or reordered)
+    unsigned    an unsigned frame where the Verifier requires signatures (HELLO excepted)
+    unverified  a signed frame and no key to check it with
 """
 from __future__ import annotations
 
 import dataclasses
+import hmac
+import time
 
-from .messages_gen import MAX_RAW_FRAME, MESSAGES, PROTOCOL_VERSION
+from .messages_gen import (MAX_SIGNED_RAW_FRAME, MESSAGES, PROTOCOL_VERSION, SIGN_COUNTER_BYTES, SIGN_EPOCH_UNIX_S,
+                           SIGN_FLAG, SIGN_TAG_BYTES, SIGN_UNSIGNED_IDS)
 from .schema import Message
+from .siphash import KEY_BYTES, siphash24
 
 HEADER_BYTES = 3
 CRC_BYTES = 2
-#: Longest COBS-encoded body (without the delimiter) a valid frame can have.
-MAX_ENCODED_BODY = MAX_RAW_FRAME + (MAX_RAW_FRAME + 253) // 254
+SIGNATURE_BYTES = SIGN_COUNTER_BYTES + SIGN_TAG_BYTES
+#: Longest COBS-encoded body (without the delimiter) a valid frame, signed or not, can have.
+MAX_ENCODED_BODY = MAX_SIGNED_RAW_FRAME + (MAX_SIGNED_RAW_FRAME + 253) // 254
 #: Longest frame on the wire, delimiter included. The rover's buffers are sized for it.
 MAX_FRAME = MAX_ENCODED_BODY + 1
 assert MAX_FRAME <= 64, "a frame must fit the Uno's 64-byte serial buffer"
@@ -96,13 +110,59 @@ def cobs_decode(data: bytes) -> bytes | None:
     return bytes(out)
 
 
-def encode_frame(message: Message, seq: int) -> bytes:
-    """The bytes to send for message with sequence number seq (0..255), delimiter included."""
+def frame_tag(key: bytes, direction: int, signed_part: bytes) -> bytes:
+    """The tag of a signed frame: the first SIGN_TAG_BYTES bytes of SipHash-2-4 under `key` of
+    the direction byte and everything from the version byte to the counter."""
+    return siphash24(key, bytes((direction,)) + signed_part).to_bytes(8, "little")[:SIGN_TAG_BYTES]
+
+
+class Signer:
+    """Signs the frames one end sends: its key, its direction (SIGN_HOST_TO_ROVER for the host)
+    and its counter, the milliseconds since SIGN_EPOCH_UNIX_S or one more than the last, whichever
+    is larger (no state to keep across restarts; `jump_past` after a rover says where it stands)."""
+
+    def __init__(self, key: bytes, direction: int, clock=time.time):
+        if len(key) != KEY_BYTES:
+            raise ValueError(f"a link key is {KEY_BYTES} bytes, got {len(key)}")
+        self.key, self.direction, self._clock = bytes(key), direction, clock
+        self.last_counter = 0
+
+    def next_counter(self) -> int:
+        now_ms = int((self._clock() - SIGN_EPOCH_UNIX_S) * 1000)
+        self.last_counter = max(self.last_counter + 1, now_ms)
+        if self.last_counter >= 1 << (8 * SIGN_COUNTER_BYTES):
+            raise OverflowError("the signing counter has run out of range")
+        return self.last_counter
+
+    def jump_past(self, counter: int) -> None:
+        """Counters from now on are above `counter` (a rover's minimum after a reset)."""
+        self.last_counter = max(self.last_counter, counter)
+
+
+def encode_frame(message: Message, seq: int, signer: Signer | None = None) -> bytes:
+    """The bytes to send for message with sequence number seq (0..255), delimiter included;
+    signed (a counter and a tag before the CRC) when a Signer is given."""
     if not 0 <= seq <= 0xFF:
         raise ValueError(f"sequence number {seq} is not a byte")
-    body = bytes((PROTOCOL_VERSION, message.ID, seq)) + message.pack()
+    if signer is None:
+        body = bytes((PROTOCOL_VERSION, message.ID, seq)) + message.pack()
+    else:
+        body = bytes((PROTOCOL_VERSION | SIGN_FLAG, message.ID, seq)) + message.pack()
+        body += signer.next_counter().to_bytes(SIGN_COUNTER_BYTES, "little")
+        body += frame_tag(signer.key, signer.direction, body)
     body += crc16(body).to_bytes(2, "little")
     return cobs_encode(body) + b"\x00"
+
+
+class Verifier:
+    """Checks the signed frames one end receives: the key, the sender's direction byte, and the
+    last counter accepted. `require`: refuse unsigned frames (but SIGN_UNSIGNED_IDS)."""
+
+    def __init__(self, key: bytes, direction: int, require: bool = True):
+        if len(key) != KEY_BYTES:
+            raise ValueError(f"a link key is {KEY_BYTES} bytes, got {len(key)}")
+        self.key, self.direction, self.require = bytes(key), direction, require
+        self.last_counter = -1
 
 
 @dataclasses.dataclass
@@ -114,10 +174,15 @@ class DecoderCounters:
     overlong: int = 0
     unknown_id: int = 0
     malformed: int = 0
+    bad_tag: int = 0
+    replayed: int = 0
+    unsigned: int = 0
+    unverified: int = 0
 
     @property
     def dropped(self) -> int:
-        return self.bad_crc + self.overlong + self.unknown_id + self.malformed
+        return (self.bad_crc + self.overlong + self.unknown_id + self.malformed + self.bad_tag + self.replayed
+                + self.unsigned + self.unverified)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,6 +193,7 @@ class Frame:
     seq: int
     payload: bytes
     message: Message
+    counter: int | None = None   # a signed frame's counter (its tag checked), else None
 
 
 class FrameDecoder:
@@ -137,8 +203,9 @@ class FrameDecoder:
     holds at most MAX_ENCODED_BODY bytes between calls, whatever it is fed.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, verifier: Verifier | None = None) -> None:
         self.counters = DecoderCounters()
+        self.verifier = verifier
         self._buf = bytearray()
         self._overlong = False
 
@@ -180,8 +247,9 @@ class FrameDecoder:
             self.counters.bad_crc += 1
             return None
         version, msg_id, seq = raw[0], raw[1], raw[2]
-        payload = raw[HEADER_BYTES:-CRC_BYTES]
-        if version != PROTOCOL_VERSION:
+        signed = version == PROTOCOL_VERSION | SIGN_FLAG
+        payload = raw[HEADER_BYTES:-CRC_BYTES - (SIGNATURE_BYTES if signed else 0)]
+        if version != PROTOCOL_VERSION and not signed or len(raw) < HEADER_BYTES + CRC_BYTES + (SIGNATURE_BYTES if signed else 0):
             self.counters.malformed += 1
             return None
         cls = MESSAGES.get(msg_id)
@@ -191,5 +259,24 @@ class FrameDecoder:
         if len(payload) != cls.STRUCT.size:
             self.counters.malformed += 1
             return None
+        counter = None
+        v = self.verifier
+        if signed:
+            if v is None:
+                self.counters.unverified += 1
+                return None
+            end = len(raw) - CRC_BYTES
+            signed_part, tag = raw[:end - SIGN_TAG_BYTES], raw[end - SIGN_TAG_BYTES:end]
+            if not hmac.compare_digest(tag, frame_tag(v.key, v.direction, signed_part)):
+                self.counters.bad_tag += 1
+                return None
+            counter = int.from_bytes(signed_part[-SIGN_COUNTER_BYTES:], "little")
+            if counter <= v.last_counter:
+                self.counters.replayed += 1
+                return None
+            v.last_counter = counter
+        elif v is not None and v.require and msg_id not in SIGN_UNSIGNED_IDS:
+            self.counters.unsigned += 1
+            return None
         self.counters.frames_ok += 1
-        return Frame(msg_id, seq, payload, cls.unpack(payload))
+        return Frame(msg_id, seq, payload, cls.unpack(payload), counter)
