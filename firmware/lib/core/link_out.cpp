@@ -25,7 +25,7 @@ void Rover::nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail
 }
 
 void Rover::send_hello() {
-  msg::Hello h;
+  msg::Hello h{};   // signing 0: this rover holds no key yet (issue 14)
   h.schema_hash = kSchemaHash;
   h.boot_id = boot_id_;
   h.firmware_version = kFirmwareVersion;

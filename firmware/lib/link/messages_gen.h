@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x064D3551UL;
+static const uint32_t kSchemaHash = 0x6790BF82UL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -225,12 +225,15 @@ namespace msg {
 
 /// Sent by each end at start and answered by the other. Carries the schema hash: ends built from different definitions refuse to start a mission. (both)
 struct Hello {
-  enum : uint8_t { kId = 0x01, kPayloadSize = 12 };
+  enum : uint8_t { kId = 0x01, kPayloadSize = 19 };
   uint32_t schema_hash;  ///< CRC-32 of the canonical protocol definition
   uint32_t boot_id;  ///< changes at every reset (rover) or start (host)
   uint16_t firmware_version;  ///< major * 256 + minor of the sender's software
   uint8_t role;  ///< [enum role] host or rover
   uint8_t max_waypoints;  ///< waypoints the sender can hold in a path (host: 0)
+  uint8_t signing;  ///< bit 0: the sender holds a link key and refuses unsigned commands ([signing])
+  uint32_t min_counter_lo;  ///< the least signing counter the sender accepts next, low 32 bits (0: any)
+  uint16_t min_counter_hi;  ///< ... and its high 16 bits
   /// Writes kPayloadSize bytes to p.
   void encode(uint8_t* p) const {
     le::put_u32(p + 0, schema_hash);
@@ -238,6 +241,9 @@ struct Hello {
     le::put_u16(p + 8, firmware_version);
     le::put_u8(p + 10, role);
     le::put_u8(p + 11, max_waypoints);
+    le::put_u8(p + 12, signing);
+    le::put_u32(p + 13, min_counter_lo);
+    le::put_u16(p + 17, min_counter_hi);
   }
   /// Reads kPayloadSize bytes from p.
   void decode(const uint8_t* p) {
@@ -246,6 +252,9 @@ struct Hello {
     firmware_version = le::get_u16(p + 8);
     role = le::get_u8(p + 10);
     max_waypoints = le::get_u8(p + 11);
+    signing = le::get_u8(p + 12);
+    min_counter_lo = le::get_u32(p + 13);
+    min_counter_hi = le::get_u16(p + 17);
   }
 };
 
@@ -551,7 +560,7 @@ struct Event {
 
 /// Message ids and payload sizes, in flash.
 static const uint8_t kPayloadSizes[12][2] ROVERNAV_PROGMEM = {
-  {0x01, 12},  // hello
+  {0x01, 19},  // hello
   {0x02, 5},  // heartbeat
   {0x03, 11},  // fix
   {0x04, 37},  // path

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x064D3551
+SCHEMA_HASH = 0x6790BF82
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -266,13 +266,16 @@ class Hello(Message):
     ID: ClassVar[int] = 0x01
     NAME: ClassVar[str] = 'hello'
     DIRECTION: ClassVar[str] = 'both'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IIHBB')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IIHBBBIH')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('schema_hash', 'u32', 0, '', 'CRC-32 of the canonical protocol definition'),
         FieldSpec('boot_id', 'u32', 0, '', 'changes at every reset (rover) or start (host)'),
         FieldSpec('firmware_version', 'u16', 0, '', "major * 256 + minor of the sender's software"),
         FieldSpec('role', 'u8', 0, 'enum role', 'host or rover'),
         FieldSpec('max_waypoints', 'u8', 0, '', 'waypoints the sender can hold in a path (host: 0)'),
+        FieldSpec('signing', 'u8', 0, '', 'bit 0: the sender holds a link key and refuses unsigned commands ([signing])'),
+        FieldSpec('min_counter_lo', 'u32', 0, '', 'the least signing counter the sender accepts next, low 32 bits (0: any)'),
+        FieldSpec('min_counter_hi', 'u16', 0, '', '... and its high 16 bits'),
     )
 
     schema_hash: int = 0
@@ -280,6 +283,9 @@ class Hello(Message):
     firmware_version: int = 0
     role: int = 0
     max_waypoints: int = 0
+    signing: int = 0
+    min_counter_lo: int = 0
+    min_counter_hi: int = 0
 
 
 @dataclasses.dataclass
