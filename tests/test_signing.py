@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import stat
+import time
 
 import pytest
 from hypothesis import given, settings
@@ -153,3 +154,82 @@ def test_a_key_file_others_can_read_or_that_is_not_a_key_is_refused(tmp_path):
         load_key_file(path)
     with pytest.raises(KeyFileError, match="no such key file"):
         load_key_file(tmp_path / "missing.key")
+
+
+# ---------------------------------------------------------------- the host's Link with a key
+
+import threading  # noqa: E402
+
+from rovernav.link.errors import SigningMismatch  # noqa: E402
+from rovernav.link.link import Link  # noqa: E402
+from rovernav.link.transport import PipeTransport  # noqa: E402
+
+
+def _rover_answering(end, signing: int, min_counter: int = 0):
+    """A stand-in rover end: answers the first HELLO it hears with its own, then keeps every frame
+    the host sends (decoded with the key, when the rover has one)."""
+    got, decoder = [], FrameDecoder(Verifier(KEY, H2R) if signing else None)
+
+    def run():
+        answered = False
+        while True:
+            try:
+                data = end.read(256, timeout_s=0.05)
+            except Exception:   # noqa: BLE001 - the host closed its end: the test is over
+                return
+            for frame in decoder.feed(data):
+                got.append(frame)
+                if isinstance(frame.message, mg.Hello) and not answered:
+                    answered = True
+                    end.write(encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=7, role=mg.Role.ROVER,
+                                                    max_waypoints=32, signing=signing,
+                                                    min_counter_lo=min_counter & 0xFFFFFFFF,
+                                                    min_counter_hi=min_counter >> 32), 0))
+    threading.Thread(target=run, daemon=True).start()
+    return got, decoder
+
+
+def test_a_host_with_a_key_signs_every_command_after_the_rovers_minimum_counter():
+    host_end, rover_end = PipeTransport.pair()
+    minimum = 5 * 10**12   # far beyond the clock: the host's counter must jump past it
+    got, decoder = _rover_answering(rover_end, signing=1, min_counter=minimum)
+    link = Link(host_end, key=KEY)
+    hello = link.handshake(boot_id=1, timeout_s=2.0)
+    assert hello.signing == 1
+    link.send(mg.Stop(reason=1))
+    deadline = time.monotonic() + 2
+    while not any(isinstance(f.message, mg.Stop) for f in got) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    stop = next(f for f in got if isinstance(f.message, mg.Stop))
+    assert stop.counter is not None and stop.counter >= minimum   # signed, and past the rover's minimum
+    assert got[0].message.signing == 1 and got[0].counter is None   # our HELLO: unsigned, saying we sign
+    link.close()
+
+
+def test_a_host_with_a_key_refuses_a_rover_that_says_it_has_none():
+    host_end, rover_end = PipeTransport.pair()
+    _rover_answering(rover_end, signing=0)
+    with pytest.raises(SigningMismatch, match="holds no link key"):
+        Link(host_end, key=KEY).handshake(boot_id=1, timeout_s=2.0)
+
+
+def test_a_host_without_the_key_is_told_the_rover_needs_it():
+    host_end, rover_end = PipeTransport.pair()
+    _rover_answering(rover_end, signing=1)
+    with pytest.raises(SigningMismatch, match="refuses unsigned commands"):
+        Link(host_end).handshake(boot_id=1, timeout_s=2.0)
+
+
+def test_a_host_with_a_key_takes_only_the_rovers_signed_frames():
+    host_end, rover_end = PipeTransport.pair()
+    link = Link(host_end, key=KEY)
+    rover = Signer(KEY, R2H, clock=lambda: 1.8e9)
+    status = mg.Status(state=1)
+    rover_end.write(encode_frame(status, 1))                                          # unsigned
+    rover_end.write(encode_frame(status, 2, Signer(OTHER, R2H, clock=lambda: 1.8e9)))  # forged
+    rover_end.write(encode_frame(status, 3, rover))                                   # the rover's
+    frame = link.recv(timeout_s=1.0)
+    assert frame is not None and frame.seq == 3 and frame.counter is not None
+    c = link.counters
+    assert (c.unsigned, c.bad_tag) == (1, 1)
+    link.close()

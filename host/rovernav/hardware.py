@@ -134,6 +134,14 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
         if Path(map_file).exists():
             readings = read_map_file(map_file, grid)
     locator = Locator(cfg.vision, arena_w, arena_h)
+    key = None
+    if cfg.link.key_file:   # signed frames ([signing]); a relative path is the config file's neighbour
+        from .link.keys import load_key_file
+
+        key_path = Path(cfg.link.key_file)
+        if not key_path.is_absolute() and config_path:
+            key_path = Path(config_path).parent / key_path
+        key = load_key_file(key_path)
 
     def say(t: float, text: str) -> None:
         print(f"[{t:7.2f} s] {text}", flush=True)
@@ -145,7 +153,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
     interrupted = False
     try:
         transport = SerialTransport(name, baud)
-        link = Link(transport)
+        link = Link(transport, key=key)
 
         # Where are we and where to? From the scenario, or from the first frames.
         first = None

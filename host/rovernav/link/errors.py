@@ -41,6 +41,11 @@ class SchemaMismatch(ProtocolError):
             f"(pio run -e uno -t upload), or run the host version that matches it.")
 
 
+class SigningMismatch(ProtocolError):
+    """One end signs its commands and the other does not: the host has a link key and the rover
+    none (or says so), or the rover holds a key the host was not given."""
+
+
 class Nacked(ProtocolError):
     """The rover refused a command; `reason` is a NackReason."""
 

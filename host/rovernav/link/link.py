@@ -34,9 +34,9 @@ from types import TracebackType
 
 from .. import __version__
 from ..validate import check_number
-from .errors import LinkTimeout, Nacked, SchemaMismatch
-from .framing import DecoderCounters, Frame, FrameDecoder, encode_frame
-from .messages_gen import SCHEMA_HASH, Hello, Nack, Role
+from .errors import LinkTimeout, Nacked, SchemaMismatch, SigningMismatch
+from .framing import DecoderCounters, Frame, FrameDecoder, Signer, Verifier, encode_frame
+from .messages_gen import SCHEMA_HASH, SIGN_HOST_TO_ROVER, SIGN_ROVER_TO_HOST, Hello, Nack, Role
 from .requests import RequestTracker
 from .schema import Message
 from .transport import DEFAULT_BAUD, MAX_TIMEOUT_S, Transport, check_timeout
@@ -77,14 +77,19 @@ def host_hello(boot_id: int) -> Hello:
 class Link:
     """Framed, sequenced messages over a Transport. See the module docstring for the contract."""
 
-    def __init__(self, transport: Transport, hello_resend_s: float = 0.5) -> None:
+    def __init__(self, transport: Transport, hello_resend_s: float = 0.5, key: bytes | None = None) -> None:
         """hello_resend_s: how often handshake() repeats its HELLO while waiting [s]
-        (an Uno resets when its port is opened and misses what is sent during boot)."""
+        (an Uno resets when its port is opened and misses what is sent during boot).
+        key: the link key ([signing]): every frame but HELLO is then signed, and only the
+        rover's signed frames (and its HELLO) are taken; handshake() refuses a rover that says it
+        holds no key (a downgrade is not accepted)."""
         self.transport = transport
+        self.signer = None if key is None else Signer(key, SIGN_HOST_TO_ROVER)
+        verifier = None if key is None else Verifier(key, SIGN_ROVER_TO_HOST, require=True)
         self.hello_resend_s = check_number("hello_resend_s", hello_resend_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
         #: The rover's HELLO from the last successful handshake(), else None.
         self.peer_hello: Hello | None = None
-        self._decoder = FrameDecoder()
+        self._decoder = FrameDecoder(verifier)
         self._pending: collections.deque[Frame] = collections.deque()
         self._pending_dropped = 0
         self._next_seq = 0
@@ -132,7 +137,7 @@ class Link:
         """
         with self._tx_lock:
             seq = self._next_seq
-            frame = encode_frame(message, seq)
+            frame = encode_frame(message, seq, None if isinstance(message, Hello) else self.signer)
             self.transport.write(frame)
             self._next_seq = (seq + 1) & 0xFF
             self._tx_frames += 1
@@ -216,6 +221,8 @@ class Link:
         """
         check_number("timeout_s (seconds)", timeout_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
         ours = host_hello(int(check_number("boot_id", boot_id, integer=True)))
+        if self.signer is not None:
+            ours.signing = 1
 
         def is_rover_hello(frame: Frame) -> bool:
             return isinstance(frame.message, Hello) and frame.message.role == Role.ROVER
@@ -234,6 +241,15 @@ class Link:
         theirs: Hello = reply.message  # type: ignore[assignment]
         if theirs.schema_hash != SCHEMA_HASH:
             raise SchemaMismatch(SCHEMA_HASH, theirs.schema_hash)
+        rover_signs = bool(theirs.signing & 1)
+        if self.signer is not None and not rover_signs:
+            raise SigningMismatch("the rover says it holds no link key: it would take anyone's commands. "
+                                  "Provision it with this host's key, or remove [link] key_file to run unsigned")
+        if self.signer is None and rover_signs:
+            raise SigningMismatch("the rover holds a link key and refuses unsigned commands: give this host "
+                                  "the same key ([link] key_file)")
+        if self.signer is not None:
+            self.signer.jump_past((theirs.min_counter_hi << 32 | theirs.min_counter_lo) - 1)
         self.peer_hello = theirs
         log.info("rover on %s: schema 0x%08X, firmware %d.%d, boot id 0x%08X, holds %d waypoints",
                  self.transport, theirs.schema_hash, theirs.firmware_version >> 8,
