@@ -20,7 +20,7 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NoReturn
 
 from .errors import InputError
 
@@ -30,7 +30,6 @@ value, named in a one-line error); 3 an internal error (rerun with -v for the tr
 # Limits on the work a request may ask for: checked before anything is allocated.
 MAX_GRID_CELLS = 4_000_000        # an occupancy grid: 2,000 x 2,000 cells (60 x 60 m at 0.03 m), ~100 MB of planner arrays
 MAX_ARENA_M = 100.0               # an arena's side
-MAX_COORD_M = 1000.0              # any position given in metres
 MAX_SIM_TIME_S = 24 * 3600.0      # a simulated mission
 MAX_SIM_STEPS = 2_000_000         # steps of a fixed-step simulation (pose: duration / dt)
 MAX_TRIPS = 1000                  # round trips of one mission
@@ -46,7 +45,7 @@ class ArgParser(argparse.ArgumentParser):
             kwargs["epilog"] = f"{epilog}\n\n{EXIT_CODES}" if epilog else EXIT_CODES
         super().__init__(*args, **kwargs)
 
-    def error(self, message: str) -> "NoReturn":  # type: ignore[name-defined]  # noqa: F821
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
