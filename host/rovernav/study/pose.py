@@ -45,7 +45,7 @@ MAX_TIME_S = 30 * 86_400.0                      # a run gives up after 30 simula
 
 # What `rovernav pose` accepts (and why):
 MAX_POSE_COORD_M = 100_000.0   # x, y within ±100 km: twice the report's 50 x 35 km crater map, whose
-                               # metres P0, P1 and P2 are in (validate.MAX_COORD_M, an arena's 1 km, is too small)
+                               # metres P0, P1 and P2 are in (an arena's limits are far too small here)
 MAX_THETA_RAD = 10.0           # |θ| ≤ 10 rad (wrapped to [−π, π) anyway; 90 would be degrees)
 MIN_DT_S, MAX_DT_S = 1e-3, 1.0  # the report's step is 1 s; longer steps make the Euler heading
                                # update overshoot, shorter ones only add work (steps are capped below)
