@@ -36,8 +36,9 @@ int main() {
   for (;;) {
     PORTB |= 1;
 #if MAC == 1
-    const uint64_t t = rovernav::siphash24(key, msg, LEN);
-    sink = (uint8_t)t;
+    uint8_t t[8];
+    rovernav::siphash24(key, msg, LEN, t);
+    sink = t[0];
 #elif MAC == 2
     hmac_sha256(key, msg, LEN, out);
     sink = out[0];
@@ -65,7 +66,8 @@ def build(mac: int, length: int, work: Path) -> tuple[Path, int]:
     elf = work / f"mac{mac}-{length}.elf"
     cmd = ["avr-g++", "-mmcu=atmega328p", "-Os", "-std=gnu++14", "-flto", *avr_flags(), f"-DMAC={mac}",
            f"-DLEN={length}", f"-I{ROOT / 'firmware/lib/link'}", str(src),
-           str(ROOT / "firmware/lib/link/siphash.cpp"), str(ROOT / "benchmarks/avr/hmac_sha256.cpp"),
+           str(ROOT / "firmware/lib/link/siphash.cpp"), str(ROOT / "firmware/lib/link/sip_round_avr.S"),
+           str(ROOT / "benchmarks/avr/hmac_sha256.cpp"),
            "-Wl,--gc-sections", "-ffunction-sections", "-o", str(elf)]
     subprocess.run(cmd, check=True)
     text = subprocess.run(["avr-size", "--format=berkeley", str(elf)], capture_output=True, text=True,
