@@ -91,13 +91,15 @@ def load(path: Path = DEFINITION) -> dict:
     if not isinstance(sig, dict):
         raise DefinitionError("[signing] is missing")
     for key in ("flag", "counter_bytes", "tag_bytes", "epoch_unix_s", "persist_period_s", "reset_margin_ms",
-                "host_to_rover", "rover_to_host"):
+                "provision_window_ms", "host_to_rover", "rover_to_host"):
         if not isinstance(sig.get(key), int) or isinstance(sig.get(key), bool) or sig[key] < 0:
             raise DefinitionError(f"[signing].{key} must be a non-negative integer")
     if not 0 < sig["tag_bytes"] <= 8 or not 0 < sig["counter_bytes"] <= 8:
         raise DefinitionError("[signing]: tag_bytes and counter_bytes must be 1..8 (a SipHash tag is 8 bytes)")
     if sig["flag"] & proto["version"] or not 0 < sig["flag"] < 256:
         raise DefinitionError("[signing].flag must be a byte whose bits are free in [protocol].version")
+    if sig["reset_margin_ms"] <= 1000 * sig["persist_period_s"]:
+        raise DefinitionError("[signing].reset_margin_ms must exceed persist_period_s: a counter would repeat after a reset")
     for name in sig.get("unsigned", []):
         if name not in seen_names:
             raise DefinitionError(f"[signing].unsigned: no message {name!r}")
@@ -223,6 +225,7 @@ def render_cpp(d: dict) -> str:
                f"static const uint32_t kSignEpochUnixS = {sig['epoch_unix_s']}UL;\n"
                f"static const uint32_t kSignResetMarginMs = {sig['reset_margin_ms']}UL;\n"
                f"static const uint16_t kSignPersistPeriodS = {sig['persist_period_s']};\n"
+               f"static const uint16_t kSignProvisionWindowMs = {sig['provision_window_ms']};\n"
                "/// Whether a rover with a key takes host message `id` unsigned.\n"
                "inline bool may_be_unsigned(uint8_t id) {\n  return "
                + " || ".join(f"id == 0x{by_name[n]:02X}" for n in sig.get("unsigned", [])) + ";\n}\n\n")
@@ -323,6 +326,7 @@ def render_py(d: dict) -> str:
            f"SIGN_EPOCH_UNIX_S = {d['signing']['epoch_unix_s']}\n",
            f"SIGN_PERSIST_PERIOD_S = {d['signing']['persist_period_s']}\n",
            f"SIGN_RESET_MARGIN_MS = {d['signing']['reset_margin_ms']}\n",
+           f"SIGN_PROVISION_WINDOW_MS = {d['signing']['provision_window_ms']}\n",
            f"SIGN_HOST_TO_ROVER = {d['signing']['host_to_rover']}\n",
            f"SIGN_ROVER_TO_HOST = {d['signing']['rover_to_host']}\n",
            "SIGN_UNSIGNED_IDS = frozenset({" + ", ".join(

@@ -13,7 +13,7 @@ from rovernav.link.framing import cobs_encode, crc16, encode_frame
 from rovernav.link.link import Link, version_word
 from rovernav.link.messages_gen import (
     MESSAGES, PROTOCOL_VERSION, SCHEMA_HASH, Ack, Config, EventKind, Event, Fix, Heartbeat, Hello, Nack,
-    NackReason, Obstacle, Param, Path, Role, RoverState, Start, Status, Stop, StopReason,
+    LinkAuth, NackReason, Obstacle, Param, Path, Provision, Role, RoverState, Start, Status, Stop, StopReason,
 )
 from rovernav.link.schema import Message
 from rovernav.link.transport import LoopbackTransport, PipeTransport, Transport
@@ -36,6 +36,8 @@ SAMPLES: list[Message] = [
     Ack(msg_id=Start.ID, seq=255),
     Nack(msg_id=Path.ID, seq=0, reason=NackReason.OUT_OF_ORDER, detail=65535),
     Event(kind=EventKind.REPLANNED, arg=4, time_ms=0xFFFFFFFF, x_mm=-1, y_mm=1),
+    Provision(key=tuple(range(240, 256)), erase=1),
+    LinkAuth(signing=1, bad_tag=65535, replayed=7, not_signed=1, unverified=0),
 ]
 
 

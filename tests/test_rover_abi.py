@@ -109,7 +109,13 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
     assert abs(probe.x_mm - plant.x) < 10 and abs(probe.y_mm - plant.y) < 10
 
 
-def test_bad_input_to_the_binding_is_refused_clearly():
+def test_more_bytes_than_the_rover_holds_are_dropped_and_counted():
+    # As on the Uno, whose serial buffer drops what comes while it is full.
     core = RoverCore()
-    with pytest.raises(ValueError, match="at most 255"):
-        core.step(0, gyro_rate_mdps=0, rx=bytes(300))
+    core.step(0, gyro_rate_mdps=0, rx=bytes(300))
+    assert core.rx_dropped == 300 - RoverCore.RX_HELD_MAX
+
+
+def test_a_wrong_key_length_is_refused_clearly():
+    with pytest.raises(ValueError, match="16 bytes"):
+        RoverCore(key=bytes(5))

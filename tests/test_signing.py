@@ -100,7 +100,7 @@ def test_a_forged_frame_cannot_raise_the_counter():
 
 def test_unsigned_commands_are_refused_where_signatures_are_required_but_hello_is_not():
     d = rover_side()
-    assert d.feed(encode_frame(mg.Stop(reason=1), 1)) == [] and d.counters.unsigned == 1
+    assert d.feed(encode_frame(mg.Stop(reason=1), 1)) == [] and d.counters.not_signed == 1
     hello = encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH), 2)
     assert len(d.feed(hello)) == 1
     assert len(rover_side(require=False).feed(encode_frame(mg.Stop(reason=1), 3))) == 1
@@ -231,5 +231,5 @@ def test_a_host_with_a_key_takes_only_the_rovers_signed_frames():
     frame = link.recv(timeout_s=1.0)
     assert frame is not None and frame.seq == 3 and frame.counter is not None
     c = link.counters
-    assert (c.unsigned, c.bad_tag) == (1, 1)
+    assert (c.not_signed, c.bad_tag) == (1, 1)
     link.close()

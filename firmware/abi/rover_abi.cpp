@@ -20,6 +20,48 @@ void* rover_new(uint32_t boot_id, uint16_t reset_cause) {
   return r;
 }
 
+void* rover_new_keyed(uint32_t boot_id, uint16_t reset_cause, const uint8_t* key, uint64_t tx_counter,
+                      uint64_t rx_counter) {
+  rovernav::core::LinkSecrets s{};
+  s.has_key = key != nullptr;
+  for (uint8_t k = 0; key != nullptr && k < rovernav::kSipKeyBytes; ++k) s.key[k] = key[k];
+  for (uint8_t k = 0; k < rovernav::kSignCounterBytes; ++k) {
+    s.tx_counter.b[k] = static_cast<uint8_t>(tx_counter >> (8 * k));
+    s.rx_counter.b[k] = static_cast<uint8_t>(rx_counter >> (8 * k));
+  }
+  Rover* r = new Rover();
+  r->begin(boot_id, reset_cause, &s);
+  return r;
+}
+
+int rover_take_persist(void* rover, uint64_t* tx_counter, uint64_t* rx_counter) {
+  rovernav::Counter48 tx, rx;
+  if (!static_cast<Rover*>(rover)->persist_due(tx, rx)) return 0;
+  *tx_counter = *rx_counter = 0;
+  for (uint8_t k = rovernav::kSignCounterBytes; k > 0; --k) {
+    *tx_counter = (*tx_counter << 8) | tx.b[k - 1];
+    *rx_counter = (*rx_counter << 8) | rx.b[k - 1];
+  }
+  return 1;
+}
+
+int rover_take_key_change(void* rover, uint8_t* key_out) {
+  Rover* r = static_cast<Rover*>(rover);
+  const uint8_t change = r->take_key_change();
+  if (change == Rover::kKeyStore) {
+    for (uint8_t k = 0; k < rovernav::kSipKeyBytes; ++k) key_out[k] = r->link_key()[k];
+  }
+  return change;
+}
+
+void rover_auth_counters(const void* rover, uint16_t* out4) {
+  const rovernav::AuthCounters& c = static_cast<const Rover*>(rover)->auth_counters();
+  out4[0] = c.bad_tag;
+  out4[1] = c.replayed;
+  out4[2] = c.not_signed;
+  out4[3] = c.unverified;
+}
+
 void rover_step(void* rover, const rover_inputs* in, rover_outputs* out) {
   Inputs i;
   i.now_ms = in->now_ms;
@@ -39,6 +81,7 @@ void rover_step(void* rover, const rover_inputs* in, rover_outputs* out) {
   out->right_pwm = o.right_pwm;
   out->servo_cdeg = o.servo_cdeg;
   out->fire_sonar = o.fire_sonar ? 1 : 0;
+  out->rx_used = o.rx_used;
   out->tx_len = o.tx_len;
   for (uint8_t k = 0; k < o.tx_len; ++k) out->tx[k] = o.tx[k];
 }

@@ -9,7 +9,7 @@
 extern "C" {
 #endif
 
-#define ROVER_ABI_VERSION 1
+#define ROVER_ABI_VERSION 2
 #define ROVER_TX_PER_STEP 64
 
 typedef struct rover_inputs {
@@ -31,6 +31,7 @@ typedef struct rover_outputs {
   int16_t right_pwm;
   int16_t servo_cdeg;
   uint8_t fire_sonar;
+  uint8_t rx_used;          /* bytes of rx taken; give the rest again, first, next step */
   uint8_t tx_len;
   uint8_t tx[ROVER_TX_PER_STEP];
 } rover_outputs;
@@ -51,6 +52,15 @@ typedef struct rover_probe {
 uint32_t rover_abi_version(void);
 uint32_t rover_schema_hash(void);
 void* rover_new(uint32_t boot_id, uint16_t reset_cause);
+/* A rover with a link key (16 bytes; NULL: none) and its stored signing counters. */
+void* rover_new_keyed(uint32_t boot_id, uint16_t reset_cause, const uint8_t* key, uint64_t tx_counter,
+                      uint64_t rx_counter);
+/* What the rover asks its shell to store: 1 and the counters when they are due (else 0). */
+int rover_take_persist(void* rover, uint64_t* tx_counter, uint64_t* rx_counter);
+/* A PROVISION taken: 1 store (key written to key_out, 16 bytes), 2 erase, 0 none. */
+int rover_take_key_change(void* rover, uint8_t* key_out);
+/* Frames refused for their signature: bad tag, replayed, not signed, unverified. */
+void rover_auth_counters(const void* rover, uint16_t* out4);
 void rover_step(void* rover, const rover_inputs* in, rover_outputs* out);
 void rover_probe_state(const void* rover, rover_probe* probe);
 void rover_free(void* rover);

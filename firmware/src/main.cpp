@@ -17,6 +17,7 @@
 #include "boot_counter.h"
 #include "hw_watchdog.h"
 #include "link_serial.h"
+#include "link_store.h"
 #include "motors.h"
 #include "mpu6050.h"
 #include "rover.h"
@@ -37,6 +38,7 @@ hal::ServoTimer1 servo;
 hal::SonarHcsr04 sonar;
 hal::Mpu6050 gyro;
 hal::LinkSerial serial_link;
+hal::LinkStore link_store;
 
 hal::MpuResult gyro_state = hal::MpuResult::NotStarted;
 uint32_t last_step_ms = 0;
@@ -56,6 +58,7 @@ enum : uint8_t {
 core::Inputs in;
 core::Outputs out;
 uint8_t rx[kRxChunk];
+uint8_t rx_len = 0;   // bytes in rx the core has not taken yet (it takes one signed frame a step)
 
 }  // namespace
 
@@ -82,7 +85,11 @@ void setup() {
     gyro.calibrate(board::kGyroCalSamples, board::kGyroCalMaxMs, hal::HwWatchdog::kick);
   }
   hal::StatusLed::set(!hal::mpu_usable(gyro_state));
-  rover.begin(boot_id, hal::HwWatchdog::reset_flags());
+  {
+    core::LinkSecrets secrets;   // on the stack for setup() only: the core keeps its own copy
+    link_store.load(secrets);
+    rover.begin(boot_id, hal::HwWatchdog::reset_flags(), &secrets);
+  }
   last_step_ms = millis();
 }
 
@@ -112,11 +119,27 @@ void loop() {
   in.sonar_range_mm = sonar_range_mm;
   sonar_pending = false;
   in.wheels_valid = false;  // the seed's rover has no encoders
-  in.rx_len = serial_link.read_some(rx, sizeof rx);
+  rx_len = static_cast<uint8_t>(rx_len + serial_link.read_some(rx + rx_len, static_cast<uint8_t>(sizeof rx - rx_len)));
+  in.rx_len = rx_len;
   in.rx = rx;
   in.tx_room = serial_link.tx_free();
 
   rover.step(in, out);
+
+  // What the core did not take comes first next step.
+  rx_len = static_cast<uint8_t>(rx_len - out.rx_used);
+  for (uint8_t i = 0; i < rx_len; ++i) rx[i] = rx[out.rx_used + i];
+  // The link key and counters to EEPROM, a byte a step (link_store.h).
+  if (!link_store.busy()) {
+    const uint8_t change = rover.take_key_change();
+    Counter48 tx_counter, rx_counter;
+    if (change != 0) {
+      link_store.store_key(change == core::Rover::kKeyStore ? rover.link_key() : nullptr);
+    } else if (rover.persist_due(tx_counter, rx_counter)) {
+      link_store.store_counters(tx_counter, rx_counter);
+    }
+  }
+  link_store.poll();
 
   motors.set(out.left_pwm, out.right_pwm);
   servo.write_cdeg(out.servo_cdeg);
@@ -132,7 +155,7 @@ void loop() {
   const uint8_t work = rover.step_work();
   if (work & core::Rover::kWorkFix) did |= kDidFix;
   if (work & core::Rover::kWorkPlanned) did |= kDidPlan;
-  if (in.rx_len > 0) did |= kDidRx;
+  if (out.rx_used > 0) did |= kDidRx;
   GPIOR0 = static_cast<uint8_t>(did | (static_cast<uint8_t>(rover.state()) & 0x0Fu));
   PORTB = static_cast<uint8_t>(PORTB & ~_BV(PORTB0));
 }

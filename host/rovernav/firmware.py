@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 BUILD_DIR = ROOT / "build" / "native"
 LIBRARY = BUILD_DIR / "librovernav_rover.so"
-ABI_VERSION = 1
+ABI_VERSION = 2
 TX_PER_STEP = 64
 
 
@@ -50,6 +50,7 @@ class _Outputs(ctypes.Structure):
         ("right_pwm", ctypes.c_int16),
         ("servo_cdeg", ctypes.c_int16),
         ("fire_sonar", ctypes.c_uint8),
+        ("rx_used", ctypes.c_uint8),
         ("tx_len", ctypes.c_uint8),
         ("tx", ctypes.c_uint8 * TX_PER_STEP),
     ]
@@ -139,6 +140,16 @@ def load_library() -> ctypes.CDLL:
     lib.rover_schema_hash.restype = ctypes.c_uint32
     lib.rover_new.restype = ctypes.c_void_p
     lib.rover_new.argtypes = [ctypes.c_uint32, ctypes.c_uint16]
+    lib.rover_new_keyed.restype = ctypes.c_void_p
+    lib.rover_new_keyed.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint64,
+                                    ctypes.c_uint64]
+    lib.rover_take_persist.restype = ctypes.c_int
+    lib.rover_take_persist.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint64),
+                                       ctypes.POINTER(ctypes.c_uint64)]
+    lib.rover_take_key_change.restype = ctypes.c_int
+    lib.rover_take_key_change.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+    lib.rover_auth_counters.restype = None
+    lib.rover_auth_counters.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint16)]
     lib.rover_step.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Inputs), ctypes.POINTER(_Outputs)]
     lib.rover_step.restype = None
     lib.rover_probe_state.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Probe)]
@@ -158,20 +169,56 @@ def load_library() -> ctypes.CDLL:
 class RoverCore:
     """One rover: the firmware core behind its C ABI. Not thread-safe; step it from one thread."""
 
-    def __init__(self, boot_id: int = 1, reset_cause: int = 0):
+    RX_HELD_MAX = 255   # bytes held for the core, like the Uno's buffers: more are dropped
+
+    def __init__(self, boot_id: int = 1, reset_cause: int = 0, *, key: bytes | None = None,
+                 counters: tuple[int, int] = (0, 0)):
+        """key: the 16-byte link key in the rover's store (None: none, the link unsigned);
+        counters: its stored signing counters (tx, rx), as `take_persist` last gave them."""
         self._lib = load_library()
-        self._handle = self._lib.rover_new(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF)
+        if key is None and counters == (0, 0):
+            self._handle = self._lib.rover_new(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF)
+        else:
+            if key is not None and len(key) != 16:
+                raise ValueError(f"a link key is 16 bytes, got {len(key)}")
+            self._handle = self._lib.rover_new_keyed(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key,
+                                                     counters[0], counters[1])
         self._in = _Inputs()
         self._out = _Outputs()
         self._rx = (ctypes.c_uint8 * 255)()
+        self._held = b""          # bytes the core has not taken yet (one signed frame a step)
+        self.rx_dropped = 0       # bytes that found the buffer full
+
+    def take_persist(self) -> tuple[int, int] | None:
+        """The signing counters (tx, rx) the rover asks its store to keep now, else None."""
+        tx, rx = ctypes.c_uint64(), ctypes.c_uint64()
+        if self._lib.rover_take_persist(self._handle, ctypes.byref(tx), ctypes.byref(rx)):
+            return tx.value, rx.value
+        return None
+
+    def take_key_change(self) -> tuple[str, bytes | None] | None:
+        """A PROVISION the rover took: ("store", key) or ("erase", None); else None."""
+        buf = ctypes.create_string_buffer(16)
+        change = self._lib.rover_take_key_change(self._handle, buf)
+        return {0: None, 1: ("store", buf.raw), 2: ("erase", None)}[change]
+
+    def auth_counters(self) -> dict[str, int]:
+        """Frames the rover refused for their signature, by reason."""
+        out = (ctypes.c_uint16 * 4)()
+        self._lib.rover_auth_counters(self._handle, out)
+        return dict(zip(("bad_tag", "replayed", "not_signed", "unverified"), out))
 
     def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
              rx: bytes = b"", tx_room: int = TX_PER_STEP,
              wheel_ticks: tuple[int, int] | None = None) -> StepOut:
         """One tick. gyro_rate_mdps None = no gyro sample; sonar_range_mm None = no ping result
-        this tick (0 = a ping with no echo); rx at most 255 bytes; returns what the rover asked."""
-        if len(rx) > 255:
-            raise ValueError(f"at most 255 received bytes a step, got {len(rx)}")
+        this tick (0 = a ping with no echo); rx: the bytes received since the last step, given
+        to the core after any it left last time (a core with a key takes one signed frame a
+        step), up to RX_HELD_MAX held; returns what the rover asked."""
+        room = self.RX_HELD_MAX - len(self._held)
+        if len(rx) > room:
+            self.rx_dropped += len(rx) - room
+        rx = self._held + bytes(rx[:room])
         i = self._in
         i.now_ms = now_ms & 0xFFFFFFFF
         i.gyro_valid = gyro_rate_mdps is not None
@@ -186,6 +233,7 @@ class RoverCore:
         i.tx_room = max(0, min(255, tx_room))
         self._lib.rover_step(self._handle, ctypes.byref(i), ctypes.byref(self._out))
         o = self._out
+        self._held = rx[o.rx_used:]
         return StepOut(o.left_pwm, o.right_pwm, o.servo_cdeg, bool(o.fire_sonar), bytes(o.tx[:o.tx_len]))
 
     def probe(self) -> Probe:

@@ -1478,6 +1478,21 @@ UNOCORE_API uint8_t unocore_peek(unocore *u, uint16_t addr)
 
 UNOCORE_API uint32_t unocore_pc(unocore *u) { return u->avr->pc; }
 
+/* Writes the EEPROM (the link key a `rovernav provision` would have stored, say) before the
+ * image runs, or reads it back; 0 on success, -1 out of range. */
+UNOCORE_API int unocore_eeprom(unocore *u, uint16_t offset, uint8_t *data, uint16_t size, int write)
+{
+	if ((uint32_t)offset + size > 1024u)
+		return -1;
+	avr_eeprom_desc_t d = { .ee = data, .offset = offset, .size = size };
+	avr_ioctl(u->avr, write ? AVR_IOCTL_EEPROM_SET : AVR_IOCTL_EEPROM_GET, &d);
+	if (!write) { /* EEPROM_GET points d.ee at the simulator's copy */
+		for (uint16_t i = 0; i < size; i++)
+			data[i] = d.ee[i];
+	}
+	return 0;
+}
+
 /*
  * Starts the profile (see the top of the file), forgetting any earlier one. func_of_word: the
  * function index of each flash word (nwords of them; words beyond are function nfuncs - 1, the

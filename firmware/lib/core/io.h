@@ -18,7 +18,7 @@ struct Inputs {
   bool wheels_valid;          ///< wheel encoders fitted and read
   int16_t left_ticks;         ///< ticks since the previous step, forward positive
   int16_t right_ticks;
-  const uint8_t* rx;          ///< bytes received from the link since the previous step
+  const uint8_t* rx;          ///< bytes received from the link and not yet taken (Outputs.rx_used)
   uint8_t rx_len;
   uint8_t tx_room;            ///< bytes the link can take now (at most kTxPerStep are given)
 };
@@ -28,8 +28,10 @@ struct Outputs {
   int16_t right_pwm;
   int16_t servo_cdeg;         ///< sonar servo angle wanted, relative to ahead, clockwise positive
   bool fire_sonar;            ///< ping now; report the result in a later Inputs.sonar_valid
+  uint8_t rx_used;            ///< bytes of Inputs.rx taken: the rest come again, first, next step
+                              ///< (a signed frame's tag is a step's heavy job: one a step)
   uint8_t tx_len;
-  uint8_t tx[kTxPerStep];     ///< bytes to send now
+  const uint8_t* tx;          ///< bytes to send now: the core's own queue, valid until the next step
 };
 
 }  // namespace core

@@ -8,7 +8,46 @@
 namespace rovernav {
 namespace core {
 
-ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
+// The bytes received: frames decoded, checked for their signature (frame_auth.h), handled.
+// A tag is a step's heavy job (0.3-0.8 ms on the Uno): after one, the rest of the bytes wait
+// for the next step (the shell gives them again), and a step kept for a put-off job takes no
+// signed frame at all. A rover with no key computes no tag and takes everything at once.
+uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
+  if (fix_verified_) {
+    // The FIX whose tag the last step checked (still in the decoder: nothing was pushed since)
+    // is this step's job; it is 10 ms older than its age says.
+    fix_verified_ = false;
+    step_work_ = static_cast<uint8_t>(step_work_ & ~kWorkReserved);
+    handle_frame(decoder_.frame(), now, static_cast<uint16_t>(now - last_rx_ms_));
+    return 0;
+  }
+  if (auth_.keyed() && (step_work_ & kWorkReserved)) return 0;
+  uint8_t used = 0;
+  while (used < in.rx_len) {
+    if (!decoder_.push(in.rx[used++])) continue;
+    const AuthResult r = auth_.check(decoder_.frame());
+    if (r == AuthResult::AcceptedAfterTag && !host_counter_seen_) {
+      // The host's counter jumped from where we resumed to its clock: stored now, not in a
+      // minute, or a reset within the minute would take this session's frames again.
+      host_counter_seen_ = persist_due_ = true;
+    }
+    if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
+      last_rx_ms_ = now;   // only frames we take keep the link alive (a forger's do not)
+      if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {
+        fix_verified_ = put_off_ = true;   // a tag and an estimator update do not fit one step
+      } else {
+        handle_frame(decoder_.frame(), now, 0);
+      }
+    }
+    if (r == AuthResult::AcceptedAfterTag || r == AuthResult::RefusedAfterTag) {
+      step_work_ = static_cast<uint8_t>(step_work_ | kWorkTag);
+      break;
+    }
+  }
+  return used;
+}
+
+ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_t late_ms) {
   switch (f.msg_id) {
     case msg::Hello::kId: {
       msg::Hello m{};
@@ -28,6 +67,7 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
     case msg::Fix::kId: {
       msg::Fix m{};
       decode_message(f, m);
+      m.age_ms = static_cast<uint16_t>(m.age_ms + late_ms);
       on_fix(m, now);
       break;
     }
@@ -53,6 +93,12 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now) {
       msg::Config m{};
       decode_message(f, m);
       on_config(m, f.seq);
+      break;
+    }
+    case msg::Provision::kId: {
+      msg::Provision m{};
+      decode_message(f, m);
+      on_provision(m, f.seq, now);
       break;
     }
     default:
@@ -167,6 +213,26 @@ void Rover::on_config(const msg::Config& m, uint8_t seq) {
     case SetResult::UnknownParam: return nack(msg::Config::kId, seq, NackReason::UnknownParam, m.param);
     case SetResult::OutOfRange: return nack(msg::Config::kId, seq, NackReason::ParamOutOfRange, m.param);
   }
+}
+
+// PROVISION: only within kSignProvisionWindowMs of a reset. The radio cannot reset the rover;
+// a person can (the reset button, or opening the USB port, which resets the Uno through DTR:
+// `rovernav provision`). The new key signs the ACK already.
+void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now) {
+  const uint8_t id = msg::Provision::kId;
+  const uint32_t since_ms = now - boot_ms_;
+  if (since_ms > kSignProvisionWindowMs) {
+    const uint32_t s = since_ms / 1000;
+    return nack(id, seq, NackReason::NotNow, s > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(s));
+  }
+  if (m.erase > 1) return nack(id, seq, NackReason::BadValue, 2);
+  const Counter48 tx = auth_.tx_last(), rx = auth_.rx_last();
+  auth_.begin(m.erase ? nullptr : m.key);
+  auth_.resume(tx, rx);   // past every counter of the old key too
+  key_change_ = m.erase ? kKeyErase & 3u : kKeyStore & 3u;
+  persisted_once_ = false;  // the counters are stored again with the key
+  ack(id, seq);
+  send_event(EventKind::KeyStored, m.erase ? 0 : 1);
 }
 
 }  // namespace core

@@ -25,12 +25,20 @@ void Rover::nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail
 }
 
 void Rover::send_hello() {
-  msg::Hello h{};   // signing 0: this rover holds no key yet (issue 14)
+  msg::Hello h{};
   h.schema_hash = kSchemaHash;
   h.boot_id = boot_id_;
   h.firmware_version = kFirmwareVersion;
   h.role = static_cast<uint8_t>(Role::Rover);
   h.max_waypoints = kMaxWaypoints;
+  if (auth_.keyed()) {
+    // The host's counter must pass ours: after a reset we take none below the stored one plus
+    // the margin, so that a recording of the last session cannot be played back.
+    const Counter48 least = counter_plus(auth_.rx_last(), 1);
+    h.signing = 1;
+    h.min_counter_lo = le::get_u32(least.b);
+    h.min_counter_hi = le::get_u16(least.b + 4);
+  }
   tx_.send(h);
 }
 
@@ -75,6 +83,22 @@ ROVERNAV_NOINLINE void Rover::send_status() {
   s.rx_malformed = c.malformed;
   s.tx_dropped = tx_.dropped();
   tx_.send(s);
+}
+
+// LINK_AUTH in STATUS's place when the refusals have changed since it last went out.
+bool Rover::send_link_auth() {
+  const AuthCounters& c = auth_.counters();
+  const uint16_t sum = static_cast<uint16_t>(c.bad_tag + c.replayed + c.not_signed + c.unverified);
+  if (sum == auth_reported_) return false;
+  auth_reported_ = sum;
+  msg::LinkAuth a;
+  a.signing = auth_.keyed() ? 1 : 0;
+  a.bad_tag = c.bad_tag;
+  a.replayed = c.replayed;
+  a.not_signed = c.not_signed;
+  a.unverified = c.unverified;
+  tx_.send(a);
+  return true;
 }
 
 ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_mm) {

@@ -22,14 +22,35 @@ namespace core {
 namespace {
 // Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
 const uint32_t kMaxStepMs = 250;
+// The signing counters are stored every kSignPersistPeriodS, counted in 1.024 s ticks (at most
+// the period: the reset margin covers the period and no more).
+const uint16_t kPersistTicks = static_cast<uint16_t>(1000UL * kSignPersistPeriodS / 1024);
 }  // namespace
 
-void Rover::begin(uint32_t boot_id, uint16_t reset_cause) {
+void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets) {
   // A Rover starts in its default state (it is a global on the Uno: no copy of ~800 bytes on
   // a 2 KB stack); begin() only sets what the default cannot know.
   params_.reset();
   boot_id_ = boot_id;
   reset_cause_ = reset_cause;
+  const bool keyed = secrets != nullptr && secrets->has_key;
+  auth_.begin(keyed ? secrets->key : nullptr);
+  if (secrets != nullptr) auth_.resume(secrets->tx_counter, secrets->rx_counter);
+  tx_.sign_with(&auth_);
+}
+
+bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) {
+  if (!persist_due_) return false;
+  persist_due_ = false;
+  tx_counter = auth_.tx_last();
+  rx_counter = auth_.rx_last();
+  return true;
+}
+
+uint8_t Rover::take_key_change() {
+  const uint8_t change = key_change_;
+  key_change_ = 0;
+  return change;
 }
 
 uint16_t Rover::flags() const {
@@ -57,19 +78,22 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     dt_s = static_cast<float>(gap_ms < kMaxStepMs ? gap_ms : kMaxStepMs) / 1000.0f;
   }
   last_ms_ = now;
+  auth_.set_time(now);
   if (!booted_) {
     booted_ = have_time_ = true;
-    last_rx_ms_ = gyro_last_ms_ = last_status_ms_ = now;
+    last_rx_ms_ = gyro_last_ms_ = last_status_ms_ = boot_ms_ = now;
     send_hello();
     send_event(EventKind::Boot, reset_cause_);
   }
-
-  for (uint8_t i = 0; i < in.rx_len; ++i) {
-    if (decoder_.push(in.rx[i])) {
-      last_rx_ms_ = now;
-      handle_frame(decoder_.frame(), now);
-    }
+  const uint16_t ticks = static_cast<uint16_t>(now >> 10);   // 1.024 s
+  if (auth_.keyed() && (!persisted_once_ || static_cast<uint16_t>(ticks - persisted_ticks_) >= kPersistTicks)) {
+    // At the first step (the counters resumed past the stored ones must be stored at once: a
+    // second reset would resume from the same place) and every period after.
+    persisted_ticks_ = ticks;
+    persisted_once_ = persist_due_ = true;
   }
+
+  out.rx_used = take_frames(in, now);
   update_gyro(in, now);
   dead_reckon(in, dt_s, now);
   watch_link(now);
@@ -88,7 +112,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     now_in.sonar_range_mm = held_sonar_mm_;
     sonar_held_ = false;
   }
-  if (now_in.sonar_valid && (step_work_ & kWorkFix)) {
+  if (now_in.sonar_valid && (step_work_ & (kWorkFix | kWorkTag))) {
     sonar_held_ = put_off_ = true;
     held_sonar_mm_ = now_in.sonar_range_mm;
     now_in.sonar_valid = false;
@@ -100,15 +124,15 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   out.servo_cdeg = servo_cdeg_;
 
   if (now - last_status_ms_ >= params_.status_period_ms()) {
-    if (step_work_ & (kWorkFix | kWorkOther)) {
+    if (step_work_ & (kWorkFix | kWorkOther | kWorkTag)) {
       put_off_ = true;
     } else {
       last_status_ms_ = now;
-      send_status();
+      if (!send_link_auth()) send_status();
     }
   }
   const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
-  out.tx_len = tx_.take(out.tx, room);
+  out.tx = tx_.take(room, out.tx_len);
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.

@@ -12,6 +12,7 @@
 
 #include "estimator.h"
 #include "frame.h"
+#include "frame_auth.h"
 #include "heading_pid.h"
 #include "io.h"
 #include "local_planner.h"
@@ -59,6 +60,12 @@ struct RoverFields {
   uint16_t stage_id_ = 0;
   bool staging_ = false;
   uint8_t last_chunk_first_ = 0xFF;
+
+  // signatures (link_in.cpp, link_out.cpp): the key, the counters, what the shell must store
+  FrameAuth auth_;
+  uint32_t boot_ms_ = 0;                      // the first step's time: PROVISION's window runs from it
+  uint16_t persisted_ticks_ = 0;              // when the counters were last handed to the shell (now_ms / 1024)
+  uint16_t auth_reported_ = 0;                // refusals counted when LINK_AUTH last went out
 
   // failsafe (failsafe.cpp): the gyro's and the radio's watchdogs, faults
   FaultCode fault_ = FaultCode::None;
@@ -117,6 +124,19 @@ struct RoverFields {
   bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
   bool trusted_host_ : 1;                     // detour: the host sent no new path once this leg: it holds it clear
   bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
+  bool persist_due_ : 1;                      // signatures: the counters are to be stored (persist_due())
+  bool persisted_once_ : 1;                   // signatures: ... and have been since boot
+  bool host_counter_seen_ : 1;                // signatures: a signed frame has been taken since boot
+  bool fix_verified_ : 1;                     // signatures: the decoder holds a FIX whose tag passed: next step's job
+  uint8_t key_change_ : 2;                    // signatures: a PROVISION for the shell to store: kKeyStore / kKeyErase
+};
+
+/// What the shell keeps for the link in EEPROM and gives the rover at begin() (Uno: lib/hal/link_store).
+struct LinkSecrets {
+  bool has_key;
+  uint8_t key[kSipKeyBytes];
+  Counter48 tx_counter;   ///< the counters as last stored (0, 0 if never)
+  Counter48 rx_counter;
 };
 
 class Rover : private RoverFields {
@@ -140,9 +160,20 @@ class Rover : private RoverFields {
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
 
   Rover() : RoverFields{} {}
-  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT.
-  void begin(uint32_t boot_id, uint16_t reset_cause);
+  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT. secrets: the
+  /// stored link key and counters (nullptr: no key, the link unsigned).
+  void begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets = nullptr);
   void step(const Inputs& in, Outputs& out);
+
+  // What the shell stores for the link (EEPROM on the Uno). Each returns true once per change.
+  /// The counters to store now: at the first step and every kSignPersistPeriodS with a key.
+  bool persist_due(Counter48& tx_counter, Counter48& rx_counter);
+  enum : uint8_t { kKeyStore = 1, kKeyErase = 2 };
+  /// A PROVISION was taken: kKeyStore (store link_key()) or kKeyErase; 0 if none.
+  uint8_t take_key_change();
+  const uint8_t* link_key() const { return auth_.key(); }
+  bool signing() const { return auth_.keyed(); }
+  const AuthCounters& auth_counters() const { return auth_.counters(); }
 
   // Read-only views for tests, the simulator and the shell.
   RoverState state() const { return state_; }
@@ -150,8 +181,10 @@ class Rover : private RoverFields {
   /// planner ran), kWorkOther (a sonar result taken in, a sweep ended, a waypoint chosen afresh);
   /// kWorkReserved: the step was kept for a job the one before put off (it took no FIX). A step
   /// does one heavy job and puts the others off (see step()).
-  enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1, kWorkOther = 1u << 2, kWorkReserved = 1u << 3 };
-  enum : uint8_t { kWorkHeavy = kWorkFix | kWorkPlanned | kWorkOther };
+  /// kWorkTag: a received frame's tag was computed (at most one a step; in none kept for a put-off job).
+  enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1, kWorkOther = 1u << 2, kWorkReserved = 1u << 3,
+                   kWorkTag = 1u << 4 };
+  enum : uint8_t { kWorkHeavy = kWorkFix | kWorkPlanned | kWorkOther | kWorkTag };
   uint8_t step_work() const { return step_work_; }
   uint16_t flags() const;
   FaultCode fault() const { return fault_; }
@@ -185,18 +218,21 @@ class Rover : private RoverFields {
   float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
   float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
   // link_in.cpp
-  void handle_frame(const Frame& f, uint32_t now);
+  void handle_frame(const Frame& f, uint32_t now, uint16_t late_ms);
   void on_fix(const msg::Fix& m, uint32_t now);
   void on_path(const msg::Path& m, uint8_t seq);
   void on_start(const msg::Start& m, uint8_t seq);
   void on_stop(const msg::Stop& m, uint8_t seq);
   void on_config(const msg::Config& m, uint8_t seq);
+  void on_provision(const msg::Provision& m, uint8_t seq, uint32_t now);
+  uint8_t take_frames(const Inputs& in, uint32_t now);
   // link_out.cpp
   void ack(uint8_t msg_id, uint8_t seq);
   void nack(uint8_t msg_id, uint8_t seq, NackReason reason, uint16_t detail);
   void send_hello();
   void send_event(EventKind kind, uint16_t arg);
   void send_status();
+  bool send_link_auth();
   void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
   void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
   void report_clear(int16_t bearing_cdeg);

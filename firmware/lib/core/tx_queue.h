@@ -4,6 +4,7 @@
 #include <stdint.h>
 
 #include "frame.h"
+#include "frame_auth.h"
 
 namespace rovernav {
 namespace core {
@@ -21,19 +22,23 @@ class TxQueue {
   }
   /// Frames and queues a payload (one copy of this code for every message type).
   void send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len);
-  /// Moves up to max queued bytes to out; returns how many.
-  uint8_t take(uint8_t* out, uint8_t max);
+  /// Frames from now on are signed with auth's key, when it has one.
+  void sign_with(FrameAuth* auth) { auth_ = auth; }
+  /// Takes up to max queued bytes: n of them at the pointer returned, valid until the next
+  /// send_payload() or take() (the shell writes them to the serial port right after the step).
+  const uint8_t* take(uint8_t max, uint8_t& n);
   uint16_t dropped() const { return dropped_; }
-  uint8_t size() const { return count_; }
+  uint8_t size() const { return static_cast<uint8_t>(count_ - taken_); }
 
  private:
-  bool push(const uint8_t* data, uint8_t n);
+  void drop_taken();
 
-  uint8_t buf_[kCapacity] = {};
-  uint8_t head_ = 0;   // next byte to take
+  uint8_t buf_[kCapacity] = {};   // the queue, from buf_[0]: no wrapping, so take() gives one piece
   uint8_t count_ = 0;
+  uint8_t taken_ = 0;             // bytes at the front given out by the last take(), dropped before the next change
   uint8_t seq_ = 0;
   uint16_t dropped_ = 0;
+  FrameAuth* auth_ = nullptr;
 };
 
 }  // namespace core

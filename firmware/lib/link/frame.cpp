@@ -1,6 +1,7 @@
 #include "frame.h"
 
 #include "crc16.h"
+#include "frame_auth.h"
 
 namespace rovernav {
 
@@ -58,7 +59,9 @@ bool FrameDecoder::finish() {
     last_error_ = FrameError::BadCrc;
     return false;
   }
-  if (raw_[0] != kProtocolVersion) {
+  const bool is_signed = raw_[0] == (kProtocolVersion | kSignFlag);
+  if ((raw_[0] != kProtocolVersion && !is_signed) ||
+      (is_signed && body_len < kFrameHeader + kFrameSignature)) {
     ++counters_.malformed;
     last_error_ = FrameError::Malformed;
     return false;
@@ -69,7 +72,7 @@ bool FrameDecoder::finish() {
     last_error_ = FrameError::UnknownId;
     return false;
   }
-  const uint8_t payload_len = static_cast<uint8_t>(body_len - kFrameHeader);
+  const uint8_t payload_len = static_cast<uint8_t>(body_len - kFrameHeader - (is_signed ? kFrameSignature : 0));
   if (payload_len != expected) {
     ++counters_.malformed;
     last_error_ = FrameError::Malformed;
@@ -80,21 +83,24 @@ bool FrameDecoder::finish() {
   frame_.seq = raw_[2];
   frame_.payload_len = payload_len;
   frame_.payload = raw_ + kFrameHeader;
+  frame_.signed_len = is_signed ? static_cast<uint8_t>(kFrameHeader + payload_len + kSignCounterBytes) : 0;
   ++counters_.frames_ok;
   return true;
 }
 
 uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_t payload_len,
-                     uint8_t* out) {
+                     uint8_t* out, FrameAuth* auth) {
   if (payload_len > kMaxPayload) return 0;
   // Build the raw body in place after one spare byte, then COBS-encode forwards: the
   // encoder never writes past the byte it is about to read, so one buffer suffices.
   uint8_t* raw = out + 1;
   uint8_t n = 0;
-  raw[n++] = kProtocolVersion;
+  const bool sign = auth != nullptr && auth->keyed();
+  raw[n++] = sign ? static_cast<uint8_t>(kProtocolVersion | kSignFlag) : static_cast<uint8_t>(kProtocolVersion);
   raw[n++] = msg_id;
   raw[n++] = seq;
   for (uint8_t i = 0; i < payload_len; ++i) raw[n++] = payload[i];
+  if (sign) n = auth->sign(raw, n);
   const uint16_t crc = crc16_ccitt_false(raw, n);
   raw[n++] = static_cast<uint8_t>(crc & 0xFFu);
   raw[n++] = static_cast<uint8_t>(crc >> 8);

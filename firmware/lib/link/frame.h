@@ -3,6 +3,8 @@
 //   frame = COBS(body) 0x00
 //   body  = version:u8 | msg_id:u8 | seq:u8 | payload (0..kMaxPayload) | crc:u16le
 //   crc   = CRC-16/CCITT-FALSE over version..payload
+//   signed: version|kSignFlag ... payload | counter:u48le | tag:6 | crc (frame_auth.h checks
+//   the counter and the tag; the decoder only finds them)
 //
 // FrameDecoder takes one byte at a time, decodes COBS as it goes into a single buffer,
 // allocates nothing, resynchronises at the next 0x00 after garbage, and counts what it
@@ -22,8 +24,9 @@ namespace rovernav {
 enum : uint8_t {
   kFrameHeader = 3,
   kFrameCrc = 2,
-  /// Longest COBS body of a valid frame: one code byte per 254 data bytes.
-  kMaxEncodedBody = kMaxRawFrame + (kMaxRawFrame + 253) / 254,
+  kFrameSignature = kSignCounterBytes + kSignTagBytes,
+  /// Longest COBS body of a valid frame (a signed one): one code byte per 254 data bytes.
+  kMaxEncodedBody = kMaxSignedRawFrame + (kMaxSignedRawFrame + 253) / 254,
   /// Longest frame on the wire, delimiter included.
   kMaxEncodedFrame = kMaxEncodedBody + 1,
 };
@@ -37,6 +40,12 @@ struct Frame {
   uint8_t seq;
   uint8_t payload_len;
   const uint8_t* payload;  ///< points into the decoder's buffer; valid until the next push()
+  /// A signed frame: the bytes from version to the counter's end (what the tag covers) are
+  /// payload - kFrameHeader .. + signed_len, the tag follows them. 0: not signed.
+  uint8_t signed_len;
+  const uint8_t* signed_part() const { return payload - kFrameHeader; }
+  const uint8_t* counter() const { return payload + payload_len; }
+  const uint8_t* tag() const { return payload + payload_len + kSignCounterBytes; }
 };
 
 /// Why the last completed frame was dropped (None if it was accepted).
@@ -66,7 +75,7 @@ class FrameDecoder {
  private:
   bool finish();
 
-  uint8_t raw_[kMaxRawFrame];
+  uint8_t raw_[kMaxSignedRawFrame];
   uint8_t raw_len_;
   uint8_t encoded_len_;      // COBS bytes seen in this frame
   uint8_t block_left_;       // data bytes still due in the current COBS block
@@ -78,10 +87,13 @@ class FrameDecoder {
   FrameError last_error_ = FrameError::None;
 };
 
-/// Writes the frame for (msg_id, seq, payload) to out, which must hold kMaxEncodedFrame bytes.
-/// Returns the bytes written, delimiter included, or 0 if payload_len > kMaxPayload.
+class FrameAuth;
+
+/// Writes the frame for (msg_id, seq, payload) to out, which must hold kMaxEncodedFrame bytes;
+/// signed (counter and tag) when auth holds a key. Returns the bytes written, delimiter
+/// included, or 0 if payload_len > kMaxPayload.
 uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_t payload_len,
-                     uint8_t* out);
+                     uint8_t* out, FrameAuth* auth = nullptr);
 
 /// Encodes a generated message: encode_message(msg::Fix{...}, seq, out).
 template <typename Msg>

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x6790BF82UL;
+static const uint32_t kSchemaHash = 0x23F0286BUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -26,11 +26,12 @@ enum : uint8_t {
   kMaxSignedRawFrame = 62  // a signed frame, CRC included
 };
 static const uint32_t kSignEpochUnixS = 1767225600UL;
-static const uint32_t kSignResetMarginMs = 60000UL;
+static const uint32_t kSignResetMarginMs = 65000UL;
 static const uint16_t kSignPersistPeriodS = 60;
+static const uint16_t kSignProvisionWindowMs = 5000;
 /// Whether a rover with a key takes host message `id` unsigned.
 inline bool may_be_unsigned(uint8_t id) {
-  return id == 0x01;
+  return id == 0x01 || id == 0x08;
 }
 
 /// Which end of the link sent a HELLO.
@@ -85,6 +86,7 @@ enum class EventKind : uint8_t {
   PathAccepted = 13,  ///< a complete path was received; arg = path id
   Stopped = 14,  ///< a STOP was obeyed; arg = stop reason
   Reflex = 15,  ///< the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm
+  KeyStored = 16,  ///< a PROVISION was taken: the link key is stored (arg 1) or erased (arg 0)
 };
 
 /// Why the rover is in the fault state.
@@ -108,6 +110,7 @@ enum class NackReason : uint8_t {
   SchemaMismatch = 8,  ///< START before a HELLO with our schema hash
   Faulted = 9,  ///< START while in the fault state; detail = fault code
   NoFix = 10,  ///< START before the rover has had a camera fix: it does not know where it is
+  NotNow = 11,  ///< PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)
 };
 
 /// What the host's camera sees, sent in HEARTBEAT.
@@ -378,6 +381,23 @@ struct Config {
   }
 };
 
+/// Store (or erase) the link key ([signing]). Taken unsigned, and only within provision_window_ms of a reset: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno (rovernav provision). (host to rover)
+struct Provision {
+  enum : uint8_t { kId = 0x08, kPayloadSize = 17 };
+  uint8_t key[16];  ///< the 128-bit key, as in the key file
+  uint8_t erase;  ///< 1: forget the key (key ignored); the rover talks unsigned again
+  /// Writes kPayloadSize bytes to p.
+  void encode(uint8_t* p) const {
+    for (uint8_t i = 0; i < 16; ++i) le::put_u8(p + 0 + i * 1, key[i]);
+    le::put_u8(p + 16, erase);
+  }
+  /// Reads kPayloadSize bytes from p.
+  void decode(const uint8_t* p) {
+    for (uint8_t i = 0; i < 16; ++i) key[i] = le::get_u8(p + 0 + i * 1);
+    erase = le::get_u8(p + 16);
+  }
+};
+
 /// The rover's state, sent every status_period_ms. (rover to host)
 struct Status {
   enum : uint8_t { kId = 0x10, kPayloadSize = 45 };
@@ -556,10 +576,36 @@ struct Event {
   }
 };
 
+/// Frames the rover refused for their signature ([signing]), sent in STATUS's place when a count has changed. (rover to host)
+struct LinkAuth {
+  enum : uint8_t { kId = 0x15, kPayloadSize = 9 };
+  uint8_t signing;  ///< bit 0: the rover holds a key
+  uint16_t bad_tag;  ///< [frames] signed with a wrong tag (forged or altered)
+  uint16_t replayed;  ///< [frames] a counter not above the last accepted (replayed or reordered; checked before the tag)
+  uint16_t not_signed;  ///< [frames] commands without a signature, to a rover with a key
+  uint16_t unverified;  ///< [frames] signed frames to a rover with no key
+  /// Writes kPayloadSize bytes to p.
+  void encode(uint8_t* p) const {
+    le::put_u8(p + 0, signing);
+    le::put_u16(p + 1, bad_tag);
+    le::put_u16(p + 3, replayed);
+    le::put_u16(p + 5, not_signed);
+    le::put_u16(p + 7, unverified);
+  }
+  /// Reads kPayloadSize bytes from p.
+  void decode(const uint8_t* p) {
+    signing = le::get_u8(p + 0);
+    bad_tag = le::get_u16(p + 1);
+    replayed = le::get_u16(p + 3);
+    not_signed = le::get_u16(p + 5);
+    unverified = le::get_u16(p + 7);
+  }
+};
+
 }  // namespace msg
 
 /// Message ids and payload sizes, in flash.
-static const uint8_t kPayloadSizes[12][2] ROVERNAV_PROGMEM = {
+static const uint8_t kPayloadSizes[14][2] ROVERNAV_PROGMEM = {
   {0x01, 19},  // hello
   {0x02, 5},  // heartbeat
   {0x03, 11},  // fix
@@ -567,11 +613,13 @@ static const uint8_t kPayloadSizes[12][2] ROVERNAV_PROGMEM = {
   {0x05, 2},  // start
   {0x06, 1},  // stop
   {0x07, 5},  // config
+  {0x08, 17},  // provision
   {0x10, 45},  // status
   {0x11, 14},  // obstacle
   {0x12, 2},  // ack
   {0x13, 5},  // nack
   {0x14, 11},  // event
+  {0x15, 9},  // link_auth
 };
 
 /// Payload size of message `id`, or -1 if no message has that id.

@@ -124,7 +124,8 @@ TEST_CASE("encode_frame refuses a payload longer than a frame can carry") {
   uint8_t payload[rovernav::kMaxPayload + 1] = {};
   uint8_t out[rovernav::kMaxEncodedFrame];
   CHECK(rovernav::encode_frame(0x01, 0, payload, rovernav::kMaxPayload + 1, out) == 0);
-  CHECK(rovernav::encode_frame(0x01, 0, payload, rovernav::kMaxPayload, out) == rovernav::kMaxEncodedFrame);
+  // the longest unsigned frame: its raw bytes, a COBS code byte and the delimiter
+  CHECK(rovernav::encode_frame(0x01, 0, payload, rovernav::kMaxPayload, out) == rovernav::kMaxRawFrame + 2);
 }
 
 TEST_CASE("every encoded frame has no zero byte before its delimiter") {

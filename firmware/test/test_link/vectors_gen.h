@@ -40,6 +40,8 @@ static const uint8_t kGolden11[] = {0x05, 0x01, 0x11, 0x09, 0x04, 0x04, 0x6C, 0x
 static const uint8_t kGolden12[] = {0x08, 0x01, 0x12, 0x0A, 0x04, 0x03, 0xF4, 0x76, 0x00};
 static const uint8_t kGolden13[] = {0x08, 0x01, 0x13, 0x0B, 0x04, 0x03, 0x02, 0x08, 0x03, 0xA5, 0xAF, 0x00};
 static const uint8_t kGolden14[] = {0x06, 0x01, 0x14, 0x0C, 0x0A, 0x03, 0x03, 0x10, 0xA4, 0x01, 0x07, 0x7E, 0x04, 0x58, 0x02, 0x5A, 0xC6, 0x00};
+static const uint8_t kGolden15[] = {0x04, 0x01, 0x08, 0x0D, 0x10, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x0E, 0x0F, 0x03, 0x18, 0xD5, 0x00};
+static const uint8_t kGolden16[] = {0x06, 0x01, 0x15, 0x0E, 0x01, 0x03, 0x02, 0x02, 0x02, 0x01, 0x01, 0x01, 0x03, 0xE9, 0xBC, 0x00};
 static const GoldenFrame kGoldenFrames[] = {
   {"hello-rover", kGolden0, sizeof kGolden0},
   {"hello-host", kGolden1, sizeof kGolden1},
@@ -56,6 +58,8 @@ static const GoldenFrame kGoldenFrames[] = {
   {"ack", kGolden12, sizeof kGolden12},
   {"nack", kGolden13, sizeof kGolden13},
   {"event", kGolden14, sizeof kGolden14},
+  {"provision", kGolden15, sizeof kGolden15},
+  {"link_auth", kGolden16, sizeof kGolden16},
 };
 
 #ifdef ROVERNAV_GOLDEN_TEST_CASES
@@ -392,6 +396,64 @@ TEST_CASE("golden frame event (event) encodes and decodes byte for byte") {
   CHECK(d.time_ms == m.time_ms);
   CHECK(d.x_mm == m.x_mm);
   CHECK(d.y_mm == m.y_mm);
+}
+
+TEST_CASE("golden frame provision (provision) encodes and decodes byte for byte") {
+  static const uint8_t frame[] = {0x04, 0x01, 0x08, 0x0D, 0x10, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x0E, 0x0F, 0x03, 0x18, 0xD5, 0x00};
+  rovernav::msg::Provision m{};
+  m.key[0] = 0;
+  m.key[1] = 1;
+  m.key[2] = 2;
+  m.key[3] = 3;
+  m.key[4] = 4;
+  m.key[5] = 5;
+  m.key[6] = 6;
+  m.key[7] = 7;
+  m.key[8] = 8;
+  m.key[9] = 9;
+  m.key[10] = 10;
+  m.key[11] = 11;
+  m.key[12] = 12;
+  m.key[13] = 13;
+  m.key[14] = 14;
+  m.key[15] = 15;
+  m.erase = 0;
+  check_golden_encode(m, 13, frame, sizeof frame);
+  const rovernav::msg::Provision d = decode_golden<rovernav::msg::Provision>(frame, sizeof frame, 13);
+  CHECK(d.key[0] == m.key[0]);
+  CHECK(d.key[1] == m.key[1]);
+  CHECK(d.key[2] == m.key[2]);
+  CHECK(d.key[3] == m.key[3]);
+  CHECK(d.key[4] == m.key[4]);
+  CHECK(d.key[5] == m.key[5]);
+  CHECK(d.key[6] == m.key[6]);
+  CHECK(d.key[7] == m.key[7]);
+  CHECK(d.key[8] == m.key[8]);
+  CHECK(d.key[9] == m.key[9]);
+  CHECK(d.key[10] == m.key[10]);
+  CHECK(d.key[11] == m.key[11]);
+  CHECK(d.key[12] == m.key[12]);
+  CHECK(d.key[13] == m.key[13]);
+  CHECK(d.key[14] == m.key[14]);
+  CHECK(d.key[15] == m.key[15]);
+  CHECK(d.erase == m.erase);
+}
+
+TEST_CASE("golden frame link_auth (link_auth) encodes and decodes byte for byte") {
+  static const uint8_t frame[] = {0x06, 0x01, 0x15, 0x0E, 0x01, 0x03, 0x02, 0x02, 0x02, 0x01, 0x01, 0x01, 0x03, 0xE9, 0xBC, 0x00};
+  rovernav::msg::LinkAuth m{};
+  m.signing = 1;
+  m.bad_tag = 3;
+  m.replayed = 2;
+  m.not_signed = 1;
+  m.unverified = 0;
+  check_golden_encode(m, 14, frame, sizeof frame);
+  const rovernav::msg::LinkAuth d = decode_golden<rovernav::msg::LinkAuth>(frame, sizeof frame, 14);
+  CHECK(d.signing == m.signing);
+  CHECK(d.bad_tag == m.bad_tag);
+  CHECK(d.replayed == m.replayed);
+  CHECK(d.not_signed == m.not_signed);
+  CHECK(d.unverified == m.unverified);
 }
 
 #endif  // ROVERNAV_GOLDEN_TEST_CASES

@@ -16,13 +16,14 @@ at the next 0x00 after garbage, and counts what it drops exactly as the rover's 
 
 Checks run in that order; an empty frame (two delimiters in a row) is not counted.
 
-Signed frames ([signing] in protocol/messages.toml; the rover's side is still to come): the
-version byte carries SIGN_FLAG, and a counter and a SipHash-2-4 tag follow the payload. A
-decoder given a Verifier checks them after the CRC and counts what it refuses:
+Signed frames ([signing] in protocol/messages.toml; the rover checks them the same way,
+firmware/lib/link/frame_auth.cpp): the version byte carries SIGN_FLAG, and a counter and a
+SipHash-2-4 tag follow the payload. A decoder given a Verifier checks them after the CRC and
+counts what it refuses, in this order:
 
-    bad_tag     the tag is not the key's for this frame and direction (forged, altered, reflected)
     replayed    the counter is not above the last accepted one (a replay, or reordered)
-    unsigned    an unsigned frame where the Verifier requires signatures (HELLO excepted)
+    bad_tag     the tag is not the key's for this frame and direction (forged, altered, reflected)
+    not_signed  an unsigned frame where the Verifier requires signatures (HELLO excepted)
     unverified  a signed frame and no key to check it with
 """
 from __future__ import annotations
@@ -176,13 +177,13 @@ class DecoderCounters:
     malformed: int = 0
     bad_tag: int = 0
     replayed: int = 0
-    unsigned: int = 0
+    not_signed: int = 0
     unverified: int = 0
 
     @property
     def dropped(self) -> int:
         return (self.bad_crc + self.overlong + self.unknown_id + self.malformed + self.bad_tag + self.replayed
-                + self.unsigned + self.unverified)
+                + self.not_signed + self.unverified)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -267,16 +268,17 @@ class FrameDecoder:
                 return None
             end = len(raw) - CRC_BYTES
             signed_part, tag = raw[:end - SIGN_TAG_BYTES], raw[end - SIGN_TAG_BYTES:end]
-            if not hmac.compare_digest(tag, frame_tag(v.key, v.direction, signed_part)):
-                self.counters.bad_tag += 1
-                return None
+            # The counter first, as the rover checks it: a replay costs no tag.
             counter = int.from_bytes(signed_part[-SIGN_COUNTER_BYTES:], "little")
             if counter <= v.last_counter:
                 self.counters.replayed += 1
                 return None
+            if not hmac.compare_digest(tag, frame_tag(v.key, v.direction, signed_part)):
+                self.counters.bad_tag += 1
+                return None
             v.last_counter = counter
         elif v is not None and v.require and msg_id not in SIGN_UNSIGNED_IDS:
-            self.counters.unsigned += 1
+            self.counters.not_signed += 1
             return None
         self.counters.frames_ok += 1
         return Frame(msg_id, seq, payload, cls.unpack(payload), counter)

@@ -248,8 +248,7 @@ class Link:
         if self.signer is None and rover_signs:
             raise SigningMismatch("the rover holds a link key and refuses unsigned commands: give this host "
                                   "the same key ([link] key_file)")
-        if self.signer is not None:
-            self.signer.jump_past((theirs.min_counter_hi << 32 | theirs.min_counter_lo) - 1)
+        self._follow_rover_counter(reply)
         self.peer_hello = theirs
         log.info("rover on %s: schema 0x%08X, firmware %d.%d, boot id 0x%08X, holds %d waypoints",
                  self.transport, theirs.schema_hash, theirs.firmware_version >> 8,
@@ -331,4 +330,14 @@ class Link:
             log.debug("rx dropped %d bad frame(s) on %s; counters now %s", dropped, self.transport, self.counters)
         for frame in frames:
             log.debug("rx %s seq=%d %s", frame.message.NAME.upper(), frame.seq, frame.message)
+            self._follow_rover_counter(frame)
         return frames, True
+
+    def _follow_rover_counter(self, frame: Frame) -> None:
+        """A rover's signed HELLO (at its boot, or answering ours) says the least counter it takes
+        next: after a reset that is past anything it took before, so a recording cannot be played
+        back to it. Our counter jumps past it. Only a HELLO whose tag we checked moves it."""
+        m = frame.message
+        if (self.signer is not None and frame.counter is not None and isinstance(m, Hello)
+                and m.role == Role.ROVER and m.signing & 1):
+            self.signer.jump_past((m.min_counter_hi << 32 | m.min_counter_lo) - 1)

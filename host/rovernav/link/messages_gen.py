@@ -11,17 +11,18 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x6790BF82
+SCHEMA_HASH = 0x23F0286B
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
 SIGN_TAG_BYTES = 6
 SIGN_EPOCH_UNIX_S = 1767225600
 SIGN_PERSIST_PERIOD_S = 60
-SIGN_RESET_MARGIN_MS = 60000
+SIGN_RESET_MARGIN_MS = 65000
+SIGN_PROVISION_WINDOW_MS = 5000
 SIGN_HOST_TO_ROVER = 1
 SIGN_ROVER_TO_HOST = 2
-SIGN_UNSIGNED_IDS = frozenset({0x01})
+SIGN_UNSIGNED_IDS = frozenset({0x01, 0x08})
 MAX_SIGNED_RAW_FRAME = 62
 MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50
@@ -114,6 +115,8 @@ class EventKind(enum.IntEnum):
     """a STOP was obeyed; arg = stop reason"""
     REFLEX = 15
     """the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm"""
+    KEY_STORED = 16
+    """a PROVISION was taken: the link key is stored (arg 1) or erased (arg 0)"""
 
 class FaultCode(enum.IntEnum):
     """Why the rover is in the fault state."""
@@ -151,6 +154,8 @@ class NackReason(enum.IntEnum):
     """START while in the fault state; detail = fault code"""
     NO_FIX = 10
     """START before the rover has had a camera fix: it does not know where it is"""
+    NOT_NOW = 11
+    """PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)"""
 
 class CameraState(enum.IntEnum):
     """What the host's camera sees, sent in HEARTBEAT."""
@@ -403,6 +408,23 @@ class Config(Message):
 
 
 @dataclasses.dataclass
+class Provision(Message):
+    """Store (or erase) the link key ([signing]). Taken unsigned, and only within provision_window_ms of a reset: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno (rovernav provision)."""
+
+    ID: ClassVar[int] = 0x08
+    NAME: ClassVar[str] = 'provision'
+    DIRECTION: ClassVar[str] = 'host_to_rover'
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<BBBBBBBBBBBBBBBBB')
+    FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
+        FieldSpec('key', 'u8', 16, '', 'the 128-bit key, as in the key file'),
+        FieldSpec('erase', 'u8', 0, '', '1: forget the key (key ignored); the rover talks unsigned again'),
+    )
+
+    key: tuple[int, ...] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+    erase: int = 0
+
+
+@dataclasses.dataclass
 class Status(Message):
     """The rover's state, sent every status_period_ms."""
 
@@ -549,6 +571,29 @@ class Event(Message):
     y_mm: int = 0
 
 
+@dataclasses.dataclass
+class LinkAuth(Message):
+    """Frames the rover refused for their signature ([signing]), sent in STATUS's place when a count has changed."""
+
+    ID: ClassVar[int] = 0x15
+    NAME: ClassVar[str] = 'link_auth'
+    DIRECTION: ClassVar[str] = 'rover_to_host'
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<BHHHH')
+    FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
+        FieldSpec('signing', 'u8', 0, '', 'bit 0: the rover holds a key'),
+        FieldSpec('bad_tag', 'u16', 0, 'frames', 'signed with a wrong tag (forged or altered)'),
+        FieldSpec('replayed', 'u16', 0, 'frames', 'a counter not above the last accepted (replayed or reordered; checked before the tag)'),
+        FieldSpec('not_signed', 'u16', 0, 'frames', 'commands without a signature, to a rover with a key'),
+        FieldSpec('unverified', 'u16', 0, 'frames', 'signed frames to a rover with no key'),
+    )
+
+    signing: int = 0
+    bad_tag: int = 0
+    replayed: int = 0
+    not_signed: int = 0
+    unverified: int = 0
+
+
 MESSAGES: dict[int, type[Message]] = {
     0x01: Hello,
     0x02: Heartbeat,
@@ -557,10 +602,12 @@ MESSAGES: dict[int, type[Message]] = {
     0x05: Start,
     0x06: Stop,
     0x07: Config,
+    0x08: Provision,
     0x10: Status,
     0x11: Obstacle,
     0x12: Ack,
     0x13: Nack,
     0x14: Event,
+    0x15: LinkAuth,
 }
 MESSAGES_BY_NAME: dict[str, type[Message]] = {cls.NAME: cls for cls in MESSAGES.values()}

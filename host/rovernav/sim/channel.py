@@ -43,11 +43,14 @@ class Channel:
         self.bytes_delivered = 0
         self.bytes_lost = 0
         self.bytes_corrupted = 0
+        self.tap = None   # called with (data, now_s) for every write: an eavesdropper (attacker.py)
 
     def in_outage(self, t_s: float) -> bool:
         return any(a <= t_s < b for a, b in self.outages)
 
     def write(self, data: bytes, now_s: float) -> None:
+        if self.tap is not None:
+            self.tap(data, now_s)
         self._sending.extend((now_s, b) for b in data)
         self.bytes_sent += len(data)
 

@@ -52,6 +52,16 @@ def add_sim_parser(sub) -> None:
     p.add_argument("--firmware-reset", type=seconds(), action="append", default=[], metavar="T",
                    help="reset the rover's firmware at T seconds (repeatable)")
     p.add_argument("--gyro-dies", type=seconds(), metavar="T", help="the gyro stops answering at T seconds")
+    p.add_argument("--unsigned", action="store_true",
+                   help="run the link unsigned (no key on either end). By default host and rover share a "
+                        "128-bit link key, as after `rovernav keygen` and `rovernav provision`: every frame "
+                        "but HELLO carries a counter and a SipHash-2-4 tag, and each end refuses the rest "
+                        "(report.json: link.signing)")
+    p.add_argument("--attacker", action="store_true",
+                   help="a second transmitter on the rover's frequency: from 3 s on it injects, every 0.5 s, "
+                        "a forged STOP, a replay of a frame the host sent, a recorded frame altered in one "
+                        "bit, and an unsigned STOP, in turn. report.json's link.signing.attacker counts "
+                        "what it injected and what the rover refused")
     p.add_argument("--rover", choices=("native", "uno"), default="native",
                    help="the rover's firmware: native (default) steps the firmware core through its C ABI, "
                         "built for this machine; uno runs the Uno image itself (build/uno/firmware.elf, "
@@ -110,7 +120,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
                         firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
         opts = SimOptions(seed=args.seed, strategy=strategy, camera_fps=args.camera_fps, max_time_s=args.max_time,
                           host_replan=not args.no_host_replan, faults=faults, config=config, drive_mode=mode,
-                          rover=args.rover)
+                          rover=args.rover, signed=not args.unsigned, attacker=args.attacker)
         video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
         started = time.monotonic()
 

@@ -139,10 +139,32 @@ def build_report(sim, wall_time_s: float) -> dict:
                 "frames_ok": status.rx_ok, "bad_crc": status.rx_bad_crc, "overlong": status.rx_overlong,
                 "unknown_id": status.rx_unknown_id, "malformed": status.rx_malformed,
                 "tx_dropped": status.tx_dropped},
+            "signing": signing_figures(sim),
         },
         "faults": fault_figures(sim),
         "events": [{"t_s": round(t, 2), "text": text} for t, text in sim.events],
     }
+
+
+def signing_figures(sim) -> dict:
+    """Whether the link was signed, what each end refused for its signature, and what the attacker
+    (if any) injected: each injected frame should be refused by the rover, by the reason expected."""
+    hc = sim.link.counters
+    out = {"signed": sim.link_key is not None,
+           "rover_refused": sim.core.auth_counters(),
+           "host_refused": {"bad_tag": hc.bad_tag, "replayed": hc.replayed, "not_signed": hc.not_signed,
+                            "unverified": hc.unverified}}
+    if sim.attacker is not None:
+        from .attacker import EXPECTED_REFUSAL
+        expected: dict[str, int] = {}
+        for kind, n in sim.attacker.injected.items():
+            expected[EXPECTED_REFUSAL[kind]] = expected.get(EXPECTED_REFUSAL[kind], 0) + n
+        refused = out["rover_refused"]
+        out["attacker"] = {"injected": dict(sim.attacker.injected),
+                           "injected_total": sum(sim.attacker.injected.values()),
+                           "refused_total": sum(refused[k] for k in ("bad_tag", "replayed", "not_signed")),
+                           "expected_refusals": expected}
+    return out
 
 
 def fault_figures(sim) -> dict:

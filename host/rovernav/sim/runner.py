@@ -66,6 +66,8 @@ class SimOptions:
     faults: Faults = dataclasses.field(default_factory=Faults)
     config: Config | None = None
     rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (sim/uno.py)
+    signed: bool = True               # host and rover share a link key ([signing]); False: unsigned
+    attacker: bool = False            # a second transmitter injects forged and replayed frames (attacker.py)
 
 
 @dataclasses.dataclass
@@ -105,6 +107,17 @@ class Simulation:
         self.progress = progress or (lambda t, text: None)
         self.to_rover = Channel(options.channel, self.rng, self._outages())
         self.to_host = Channel(options.channel, self.rng, self._outages())
+        # The link key, as `rovernav keygen` would make it and `provision` store it (from its own
+        # generator: the simulation's random draws stay those of an unsigned run), and the
+        # counters the rover last stored (its EEPROM; the Uno image keeps its own in simavr).
+        self.link_key = (bytes(np.random.default_rng([options.seed, 0x4B4559]).integers(0, 256, 16, dtype=np.uint8))
+                         if options.signed else None)
+        self._stored_counters = (0, 0)
+        self.attacker = None
+        if options.attacker:
+            from .attacker import Attacker
+            self.attacker = Attacker(self.to_rover, seed=options.seed)
+            self.to_rover.tap = self.attacker.observe
         self.core = None
         self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
         look = RoverLook.for_vision(self.cfg.vision)
@@ -145,7 +158,8 @@ class Simulation:
         if self.opt.rover == "native":
             if self.core is not None:
                 self.core.close()
-            return RoverCore(boot_id=boot_id, reset_cause=reset_cause)
+            return RoverCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
+                             counters=self._stored_counters)
         if self.opt.rover != "uno":
             raise ValueError(f"unknown rover {self.opt.rover!r}: native or uno")
         if self.core is not None:
@@ -153,7 +167,7 @@ class Simulation:
             return self.core
         from .uno import UnoCore
         return UnoCore(boot_id=boot_id, reset_cause=reset_cause, sonar=lambda: self.plant.sonar_mm(self.world),
-                       start_ms=int(round(getattr(self, "t", 0.0) * 1000)))
+                       start_ms=int(round(getattr(self, "t", 0.0) * 1000)), key=self.link_key)
 
     def uno_timing(self) -> dict | None:
         """The report's "uno_timing" (None for the native core), with where the worst step was."""
@@ -172,7 +186,7 @@ class Simulation:
     def _new_host(self) -> Mission:
         self.transport = SimTransport(self.to_rover, self.to_host)
         self.transport.set_time(self.t)
-        self.link = Link(self.transport)
+        self.link = Link(self.transport, key=self.link_key)
         grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner)
         sc = self.scenario
         trips = self.cfg.mission.trips or sc.mission.trips
@@ -231,6 +245,8 @@ class Simulation:
                 self._host_ticked = now
                 self.transport.set_time(now)
                 self.mission.tick(now)
+            if self.attacker is not None:
+                self.attacker.tick(now)
             self._rover(now)
             self.t = round(now + STEP_S, 6)
             if self.t >= next_progress:
@@ -284,6 +300,10 @@ class Simulation:
         self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar and self.opt.rover == "native" else None
         if out.tx:
             self.to_host.write(out.tx, now)
+        if self.opt.rover == "native":
+            stored = self.core.take_persist()
+            if stored is not None:
+                self._stored_counters = stored
         self.plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, STEP_S)
         # The exact footprint test only when a cheap lower bound says it could matter: a new
         # minimum clearance, or a contact.

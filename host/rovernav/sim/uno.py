@@ -46,7 +46,8 @@ from typing import Callable
 
 from ..firmware import FirmwareBuildError, Probe, StepOut
 from ..link import messages_gen as mg
-from ..link.framing import FrameDecoder
+from ..link.framing import FrameDecoder, Verifier, crc16
+from ..link.messages_gen import SIGN_ROVER_TO_HOST
 
 log = logging.getLogger("rovernav.sim.uno")
 
@@ -233,6 +234,8 @@ def load_library() -> ctypes.CDLL:
     lib.unocore_stats_read.restype = None
     lib.unocore_peek.argtypes = [P, ctypes.c_uint16]
     lib.unocore_peek.restype = ctypes.c_uint8
+    lib.unocore_eeprom.argtypes = [P, ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint16, ctypes.c_int]
+    lib.unocore_eeprom.restype = ctypes.c_int
     lib.unocore_pc.argtypes = [P]
     lib.unocore_pc.restype = ctypes.c_uint32
     U64P = ctypes.POINTER(ctypes.c_uint64)
@@ -266,6 +269,7 @@ class Board:
     gyro_z_to_clockwise_sign: int
     mpu_address: int
     serial_baud: int
+    eeprom_link_addr: int
 
 
 def board_constants(path: Path = BOARD_H) -> Board:
@@ -279,7 +283,13 @@ def board_constants(path: Path = BOARD_H) -> Board:
 
     return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
                  value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
-                 value("kSerialBaud"))
+                 value("kSerialBaud"), value("kEepromLinkAddr"))
+
+
+def link_key_record(key: bytes) -> bytes:
+    """The key record firmware/lib/hal/link_store.h keeps in EEPROM: 0xA5, the key, its CRC-16."""
+    rec = b"\xA5" + bytes(key)
+    return rec + crc16(rec).to_bytes(2, "little")
 
 
 def _elf_sections(elf: Path) -> tuple[bytes, list[tuple[str, tuple]]]:
@@ -518,7 +528,7 @@ class UnoCore:
 
     def __init__(self, boot_id: int = 1, reset_cause: int = 1, *, sonar: Callable[[], int] | None = None,
                  start_ms: int = 0, elf: Path | None = None, fast_forward: bool | None = None,
-                 profile: bool = False):
+                 profile: bool = False, key: bytes | None = None):
         self.elf, _ = ensure_built(elf or ELF)
         self._lib = load_library()
         self.board = board_constants()
@@ -542,8 +552,14 @@ class UnoCore:
         self._txbuf = ctypes.create_string_buffer(4096)
         self._pings = 0
         self._servo_cdeg = 0
-        self._decoder = FrameDecoder()
+        # The image's own reports, for probe() and the report (never for control); with a link key
+        # its frames are signed, and checked here as the host checks them.
+        self._key = key
+        self._decoder = self._new_decoder()
         self._status: mg.Status | None = None
+        self.link_auth: mg.LinkAuth | None = None
+        if key is not None:
+            self.eeprom(self.board.eeprom_link_addr, link_key_record(key))
         self.sonar_ranges: list[int] = []
         self.wall_s = 0.0             # spent inside the AVR simulation
         self._records: list[tuple[int, int, int, int, int]] = []   # rise, fall, desc, has_desc, boot
@@ -610,6 +626,8 @@ class UnoCore:
             for frame in self._decoder.feed(tx):
                 if isinstance(frame.message, mg.Status):
                     self._status = frame.message
+                elif isinstance(frame.message, mg.LinkAuth):
+                    self.link_auth = frame.message
         r = self._regs
         lib.unocore_regs_read(h, ctypes.byref(r))
         fired = r.pings != self._pings
@@ -636,7 +654,7 @@ class UnoCore:
         the firmware finds reset_cause in MCUSR."""
         self._lib.unocore_reset(self._h, reset_cause & 0xFF)
         self._status = None
-        self._decoder = FrameDecoder()
+        self._decoder = self._new_decoder()
 
     def close(self) -> None:
         if getattr(self, "_h", None):
@@ -697,6 +715,25 @@ class UnoCore:
             self._records.extend((s.rise, s.fall, s.desc, s.has_desc, s.boot) for s in buf[:n])
             if n < len(buf):
                 break
+
+    def _new_decoder(self) -> FrameDecoder:
+        return FrameDecoder(None if self._key is None else Verifier(self._key, SIGN_ROVER_TO_HOST, require=False))
+
+    def auth_counters(self) -> dict[str, int]:
+        """Frames the image refused for their signature, as its last LINK_AUTH said."""
+        a = self.link_auth
+        return {name: getattr(a, name) if a else 0 for name in ("bad_tag", "replayed", "not_signed", "unverified")}
+
+    def eeprom(self, offset: int, data: bytes | None = None, size: int = 0) -> bytes:
+        """Writes data to the EEPROM at offset (before the image runs: what it finds at boot), or
+        reads size bytes from there; returns what is there afterwards."""
+        n = len(data) if data is not None else size
+        buf = ctypes.create_string_buffer(bytes(data) if data is not None else bytes(n), n)
+        if self._lib.unocore_eeprom(self._h, offset, buf, n, int(data is not None)) != 0:
+            raise ValueError(f"EEPROM bytes {offset}..{offset + n} are outside the ATmega328P's 1,024")
+        if data is not None:
+            self._lib.unocore_eeprom(self._h, offset, buf, n, 0)
+        return buf.raw[:n]
 
     def peek(self, addr: int) -> int:
         """One byte of the AVR's data space (registers, I/O, SRAM)."""

@@ -1,0 +1,90 @@
+#include "link_store.h"
+
+#include <avr/eeprom.h>
+#include <avr/io.h>
+
+#include "board.h"
+#include "crc16.h"
+
+namespace rovernav {
+namespace hal {
+
+namespace {
+enum : uint8_t { kKeyMagic = 0xA5, kKeyRecord = 19, kSlotBytes = 15, kSlotData = 13 };
+const uint16_t kKeyAddr = board::kEepromLinkAddr;
+const uint16_t kSlotAddr = board::kEepromLinkAddr + kKeyRecord;
+
+void read(uint16_t addr, uint8_t* out, uint8_t n) {
+  eeprom_read_block(out, reinterpret_cast<const void*>(addr), n);
+}
+
+bool crc_ok(const uint8_t* rec, uint8_t n) {
+  return crc16_ccitt_false(rec, n) == static_cast<uint16_t>(rec[n] | (rec[n + 1] << 8));
+}
+
+void put_crc(uint8_t* rec, uint8_t n) {
+  const uint16_t crc = crc16_ccitt_false(rec, n);
+  rec[n] = static_cast<uint8_t>(crc);
+  rec[n + 1] = static_cast<uint8_t>(crc >> 8);
+}
+}  // namespace
+
+void LinkStore::load(core::LinkSecrets& out) {
+  uint8_t rec[kKeyRecord];
+  read(kKeyAddr, rec, kKeyRecord);
+  out.has_key = rec[0] == kKeyMagic && crc_ok(rec, 17);
+  for (uint8_t i = 0; i < kSipKeyBytes; ++i) out.key[i] = rec[1 + i];
+  out.tx_counter = out.rx_counter = Counter48{};
+  bool found = false;
+  for (uint8_t s = 0; s < 2; ++s) {
+    read(static_cast<uint16_t>(kSlotAddr + s * kSlotBytes), rec, kSlotBytes);
+    // ages are 8-bit and each write adds one: the newer slot is a small step ahead
+    if (!crc_ok(rec, kSlotData) || (found && static_cast<uint8_t>(rec[12] - age_) >= 128)) continue;
+    found = true;
+    age_ = rec[12];
+    next_slot_ = static_cast<uint8_t>(s ^ 1);
+    out.tx_counter = counter_at(rec);
+    out.rx_counter = counter_at(rec + 6);
+  }
+}
+
+void LinkStore::start(uint16_t addr, uint8_t n) {
+  addr_ = addr;
+  left_ = n;
+  done_ = 0;
+}
+
+bool LinkStore::store_key(const uint8_t* key) {
+  if (busy()) return false;
+  buf_[0] = key != nullptr ? kKeyMagic : 0xFF;
+  for (uint8_t i = 0; i < kSipKeyBytes; ++i) buf_[1 + i] = key != nullptr ? key[i] : 0xFF;
+  put_crc(buf_, 17);
+  start(kKeyAddr, kKeyRecord);
+  return true;
+}
+
+bool LinkStore::store_counters(const Counter48& tx, const Counter48& rx) {
+  if (busy()) return false;
+  for (uint8_t i = 0; i < kSignCounterBytes; ++i) {
+    buf_[i] = tx.b[i];
+    buf_[6 + i] = rx.b[i];
+  }
+  ++age_;
+  buf_[12] = age_;
+  put_crc(buf_, kSlotData);
+  start(static_cast<uint16_t>(kSlotAddr + next_slot_ * kSlotBytes), kSlotBytes);
+  next_slot_ ^= 1;
+  return true;
+}
+
+void LinkStore::poll() {
+  if (left_ == 0 || (EECR & _BV(EEPE))) return;
+  // One byte, started and left to finish (3.4 ms) on its own: avr-libc's eeprom_write_byte
+  // waits only for the previous write, which EEPE shows has ended.
+  eeprom_write_byte(reinterpret_cast<uint8_t*>(addr_ + done_), buf_[done_]);
+  ++done_;
+  --left_;
+}
+
+}  // namespace hal
+}  // namespace rovernav

@@ -1,0 +1,83 @@
+// The link's signatures ([signing] in protocol/messages.toml): one end's key, the counter of
+// the frames it signs and the last counter it accepted from the other end.
+//
+// Receiving (check): a rover with no key takes unsigned frames and refuses signed ones
+// (unverified); with a key it refuses unsigned commands but the few listed in [signing].unsigned
+// (not_signed), frames whose counter is not above the last accepted (replayed: checked first, so
+// a replay costs no tag), and frames whose tag is wrong (bad_tag). Only a good tag moves the
+// counter on.
+//
+// Sending (sign): the counter is max(last + 1, base + now_ms), base set from the counter
+// persisted before the last reset plus kSignResetMarginMs, so it never repeats across resets
+// as long as the shell persists it every kSignPersistPeriodS (see Rover::persist_due).
+//
+// A 48-bit counter is kept as its 6 bytes, little-endian as on the wire (a uint64_t costs the
+// Uno about 1 KB of flash in library calls and inline code); it runs out after 8,900 years of
+// milliseconds.
+#pragma once
+#include <stdint.h>
+
+#include "frame.h"
+#include "siphash.h"
+
+namespace rovernav {
+
+struct Counter48 {
+  uint8_t b[kSignCounterBytes];
+};
+static_assert(sizeof(Counter48) == kSignCounterBytes && alignof(Counter48) == 1, "a Counter48 is its bytes");
+/// a + ms (modulo 2^48).
+Counter48 counter_plus(const Counter48& a, uint32_t ms);
+/// Whether a > b.
+bool counter_above(const Counter48& a, const Counter48& b);
+/// The counter in 6 bytes (as on the wire, or as stored).
+inline const Counter48& counter_at(const uint8_t* p) { return *reinterpret_cast<const Counter48*>(p); }
+
+struct AuthCounters {
+  uint16_t bad_tag;
+  uint16_t replayed;
+  uint16_t not_signed;
+  uint16_t unverified;
+};
+
+/// What check() made of a frame.
+enum class AuthResult : uint8_t { Accepted, Refused, RefusedAfterTag, AcceptedAfterTag };
+
+class FrameAuth {
+ public:
+  /// key: 16 bytes, or nullptr for none. The rover's end: it checks kSignHostToRover frames and
+  /// signs kSignRoverToHost ones.
+  void begin(const uint8_t* key);
+  bool keyed() const { return keyed_; }
+  const uint8_t* key() const { return key_; }
+
+  /// Counters resumed after a reset: rx_last = the last accepted (persisted) + the margin, tx
+  /// base likewise. Call after begin().
+  void resume(const Counter48& tx_persisted, const Counter48& rx_persisted);
+  /// The clock the tx counter follows (ms since boot); call each step before sign().
+  void set_time(uint32_t now_ms) { now_ms_ = now_ms; }
+
+  /// Checks a decoded frame. AcceptedAfterTag / RefusedAfterTag: a tag was computed (the
+  /// step's heavy job).
+  AuthResult check(const Frame& f);
+  /// Appends the counter and the tag to the n bytes of raw (version .. payload); returns the
+  /// new length. raw must have room for kFrameSignature more bytes.
+  uint8_t sign(uint8_t* raw, uint8_t n);
+
+  const Counter48& rx_last() const { return rx_last_; }
+  const Counter48& tx_last() const { return tx_last_; }
+  const AuthCounters& counters() const { return counters_; }
+
+ private:
+  void tag_of(uint8_t direction, const uint8_t* data, uint8_t len, uint8_t* tag) const;
+
+  uint8_t key_[kSipKeyBytes] = {};
+  bool keyed_ = false;
+  uint32_t now_ms_ = 0;
+  Counter48 tx_base_ = {};
+  Counter48 tx_last_ = {};
+  Counter48 rx_last_ = {};
+  AuthCounters counters_ = {};
+};
+
+}  // namespace rovernav
