@@ -90,7 +90,7 @@ def load(path: Path = DEFINITION) -> dict:
     sig = d.get("signing")
     if not isinstance(sig, dict):
         raise DefinitionError("[signing] is missing")
-    for key in ("flag", "counter_bytes", "tag_bytes", "epoch_unix_s", "persist_period_s", "reset_margin_ms",
+    for key in ("flag", "counter_bytes", "tag_bytes", "epoch_unix_s", "persist_step", "reset_margin",
                 "provision_window_ms", "host_to_rover", "rover_to_host"):
         if not isinstance(sig.get(key), int) or isinstance(sig.get(key), bool) or sig[key] < 0:
             raise DefinitionError(f"[signing].{key} must be a non-negative integer")
@@ -98,8 +98,10 @@ def load(path: Path = DEFINITION) -> dict:
         raise DefinitionError("[signing]: tag_bytes and counter_bytes must be 1..8 (a SipHash tag is 8 bytes)")
     if sig["flag"] & proto["version"] or not 0 < sig["flag"] < 256:
         raise DefinitionError("[signing].flag must be a byte whose bits are free in [protocol].version")
-    if sig["reset_margin_ms"] <= 1000 * sig["persist_period_s"]:
-        raise DefinitionError("[signing].reset_margin_ms must exceed persist_period_s: a counter would repeat after a reset")
+    if sig["persist_step"] != 65536:
+        raise DefinitionError("[signing].persist_step must be 65536: the rover compares the counters' bytes 2-5")
+    if sig["reset_margin"] <= sig["persist_step"]:
+        raise DefinitionError("[signing].reset_margin must exceed persist_step: a counter would repeat after a reset")
     for name in sig.get("unsigned", []):
         if name not in seen_names:
             raise DefinitionError(f"[signing].unsigned: no message {name!r}")
@@ -223,8 +225,8 @@ def render_cpp(d: dict) -> str:
                f"  kSignRoverToHost = {sig['rover_to_host']},\n"
                f"  kMaxSignedRawFrame = {max_raw + sig['counter_bytes'] + sig['tag_bytes']}  // a signed frame, CRC included\n}};\n"
                f"static const uint32_t kSignEpochUnixS = {sig['epoch_unix_s']}UL;\n"
-               f"static const uint32_t kSignResetMarginMs = {sig['reset_margin_ms']}UL;\n"
-               f"static const uint16_t kSignPersistPeriodS = {sig['persist_period_s']};\n"
+               f"static const uint32_t kSignResetMargin = {sig['reset_margin']}UL;\n"
+               f"static const uint32_t kSignPersistStep = {sig['persist_step']}UL;\n"
                f"static const uint16_t kSignProvisionWindowMs = {sig['provision_window_ms']};\n"
                "/// Whether a rover with a key takes host message `id` unsigned.\n"
                "inline bool may_be_unsigned(uint8_t id) {\n  return "
@@ -324,8 +326,8 @@ def render_py(d: dict) -> str:
            f"SIGN_COUNTER_BYTES = {d['signing']['counter_bytes']}\n",
            f"SIGN_TAG_BYTES = {d['signing']['tag_bytes']}\n",
            f"SIGN_EPOCH_UNIX_S = {d['signing']['epoch_unix_s']}\n",
-           f"SIGN_PERSIST_PERIOD_S = {d['signing']['persist_period_s']}\n",
-           f"SIGN_RESET_MARGIN_MS = {d['signing']['reset_margin_ms']}\n",
+           f"SIGN_PERSIST_STEP = {d['signing']['persist_step']}\n",
+           f"SIGN_RESET_MARGIN = {d['signing']['reset_margin']}\n",
            f"SIGN_PROVISION_WINDOW_MS = {d['signing']['provision_window_ms']}\n",
            f"SIGN_HOST_TO_ROVER = {d['signing']['host_to_rover']}\n",
            f"SIGN_ROVER_TO_HOST = {d['signing']['rover_to_host']}\n",

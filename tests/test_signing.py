@@ -166,9 +166,11 @@ from rovernav.link.transport import PipeTransport  # noqa: E402
 
 
 def _rover_answering(end, signing: int, min_counter: int = 0):
-    """A stand-in rover end: answers the first HELLO it hears with its own, then keeps every frame
-    the host sends (decoded with the key, when the rover has one)."""
+    """A stand-in rover end: answers the first HELLO it hears with its own (signed, as a rover
+    with a key signs it), then keeps every frame the host sends (decoded with the key, when the
+    rover has one)."""
     got, decoder = [], FrameDecoder(Verifier(KEY, H2R) if signing else None)
+    signer = Signer(KEY, mg.SIGN_ROVER_TO_HOST) if signing else None
 
     def run():
         answered = False
@@ -184,7 +186,7 @@ def _rover_answering(end, signing: int, min_counter: int = 0):
                     end.write(encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=7, role=mg.Role.ROVER,
                                                     max_waypoints=32, signing=signing,
                                                     min_counter_lo=min_counter & 0xFFFFFFFF,
-                                                    min_counter_hi=min_counter >> 32), 0))
+                                                    min_counter_hi=min_counter >> 32), 0, signer))
     threading.Thread(target=run, daemon=True).start()
     return got, decoder
 

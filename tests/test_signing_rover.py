@@ -58,7 +58,9 @@ def test_only_frames_signed_with_its_key_and_a_fresh_counter_are_obeyed():
     assert b.acks() == 1
     b.step(good)                                            # replayed
     b.step(encode_frame(config(2), 2))                      # unsigned
-    b.step(encode_frame(config(3), 3, Signer(bytes(16), mg.SIGN_HOST_TO_ROVER)))   # another key
+    other = Signer(bytes(16), mg.SIGN_HOST_TO_ROVER)
+    other.jump_past(host.last_counter + 1000)               # a fresh counter: only the tag can tell
+    b.step(encode_frame(config(3), 3, other))               # another key
     b.step(resigned_with_bit_flipped(encode_frame(config(4), 4, host)))           # altered, CRC good
     older = encode_frame(config(5), 5, host)
     newer = encode_frame(config(6), 6, host)
@@ -99,3 +101,41 @@ def test_a_rover_without_a_key_refuses_signed_frames_and_takes_unsigned_ones():
     assert sum(isinstance(m, mg.Ack) for m in said) == 1
     assert core.auth_counters()["unverified"] == 1
     assert next(m for m in said if isinstance(m, mg.Hello)).signing == 0
+
+
+def test_a_host_counter_that_jumps_is_stored_at_once_and_its_frames_refused_after_a_reset():
+    # A host restarted with its clock an hour ahead: the rover stores the new counter at once
+    # (not only when it next passes a multiple of 65,536), so a reset straight after it does not
+    # let a recording of those frames back in.
+    b = Bench()
+    host = Signer(KEY, mg.SIGN_HOST_TO_ROVER)
+    b.step(encode_frame(config(1), 1, host))
+    ahead = Signer(KEY, mg.SIGN_HOST_TO_ROVER, clock=lambda: host._clock() + 3600)
+    recording = [encode_frame(config(i), i, ahead) for i in range(2, 5)]
+    for frame in recording:
+        b.step(frame)
+    assert b.acks() == 4
+    stored_rx = b.stored[1]
+    assert stored_rx >= int.from_bytes(cobs_decode(recording[0][:-1])[-14:-8], "little")
+    again = Bench(counters=b.stored)
+    for frame in recording:
+        again.step(frame)
+    assert again.acks() == 0 and again.core.auth_counters()["replayed"] == 3
+
+
+def test_the_rovers_own_counter_never_repeats_across_resets():
+    # Three boots, each from the counters the last one stored: every frame the rover signs has a
+    # counter above every one before it (a host that heard them all would take each).
+    heard: list[int] = []
+    stored = (0, 0)
+    for _boot in range(3):
+        core = RoverCore(key=KEY, counters=stored)
+        decoder = FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST))
+        counters = []
+        for t in range(0, 2000, 10):
+            counters += [f.counter for f in decoder.feed(core.step(t, gyro_rate_mdps=0).tx)]
+            stored = core.take_persist() or stored
+        assert len(counters) >= 5 and decoder.counters.dropped == 0
+        assert counters == sorted(set(counters))
+        assert not heard or counters[0] > heard[-1]
+        heard += counters

@@ -26,11 +26,6 @@ uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
   while (used < in.rx_len) {
     if (!decoder_.push(in.rx[used++])) continue;
     const AuthResult r = auth_.check(decoder_.frame());
-    if (r == AuthResult::AcceptedAfterTag && !host_counter_seen_) {
-      // The host's counter jumped from where we resumed to its clock: stored now, not in a
-      // minute, or a reset within the minute would take this session's frames again.
-      host_counter_seen_ = persist_due_ = true;
-    }
     if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
       last_rx_ms_ = now;   // only frames we take keep the link alive (a forger's do not)
       if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {

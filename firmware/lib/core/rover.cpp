@@ -22,9 +22,7 @@ namespace core {
 namespace {
 // Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
 const uint32_t kMaxStepMs = 250;
-// The signing counters are stored every kSignPersistPeriodS, counted in 1.024 s ticks (at most
-// the period: the reset margin covers the period and no more).
-const uint16_t kPersistTicks = static_cast<uint16_t>(1000UL * kSignPersistPeriodS / 1024);
+static_assert(kSignPersistStep == 65536UL, "persist_due() compares the counters from byte 2 up");
 }  // namespace
 
 void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets) {
@@ -44,6 +42,8 @@ bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) {
   persist_due_ = false;
   tx_counter = auth_.tx_last();
   rx_counter = auth_.rx_last();
+  stored_tx_b2_ = tx_counter.b[2];
+  for (uint8_t i = 0; i < 4; ++i) stored_rx_hi_[i] = rx_counter.b[2 + i];
   return true;
 }
 
@@ -78,19 +78,20 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     dt_s = static_cast<float>(gap_ms < kMaxStepMs ? gap_ms : kMaxStepMs) / 1000.0f;
   }
   last_ms_ = now;
-  auth_.set_time(now);
   if (!booted_) {
     booted_ = have_time_ = true;
     last_rx_ms_ = gyro_last_ms_ = last_status_ms_ = boot_ms_ = now;
     send_hello();
     send_event(EventKind::Boot, reset_cause_);
   }
-  const uint16_t ticks = static_cast<uint16_t>(now >> 10);   // 1.024 s
-  if (auth_.keyed() && (!persisted_once_ || static_cast<uint16_t>(ticks - persisted_ticks_) >= kPersistTicks)) {
+  if (auth_.keyed()) {
     // At the first step (the counters resumed past the stored ones must be stored at once: a
-    // second reset would resume from the same place) and every period after.
-    persisted_ticks_ = ticks;
-    persisted_once_ = persist_due_ = true;
+    // second reset would resume from the same place), and when one has passed a multiple of
+    // 65,536 since it was stored: the rover's own counts its frames (byte 2 changes), the
+    // host's is its clock and may jump (any of bytes 2-5).
+    bool moved = !persisted_once_ || auth_.tx_last().b[2] != stored_tx_b2_;
+    for (uint8_t i = 0; i < 4; ++i) moved = moved || auth_.rx_last().b[2 + i] != stored_rx_hi_[i];
+    if (moved) persisted_once_ = persist_due_ = true;
   }
 
   out.rx_used = take_frames(in, now);

@@ -64,7 +64,8 @@ struct RoverFields {
   // signatures (link_in.cpp, link_out.cpp): the key, the counters, what the shell must store
   FrameAuth auth_;
   uint32_t boot_ms_ = 0;                      // the first step's time: PROVISION's window runs from it
-  uint16_t persisted_ticks_ = 0;              // when the counters were last handed to the shell (now_ms / 1024)
+  uint8_t stored_tx_b2_ = 0;                  // byte 2 of the tx counter last handed to the shell to store
+  uint8_t stored_rx_hi_[4] = {};              // bytes 2-5 of the rx counter last handed to the shell
   uint16_t auth_reported_ = 0;                // refusals counted when LINK_AUTH last went out
 
   // failsafe (failsafe.cpp): the gyro's and the radio's watchdogs, faults
@@ -126,7 +127,6 @@ struct RoverFields {
   bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
   bool persist_due_ : 1;                      // signatures: the counters are to be stored (persist_due())
   bool persisted_once_ : 1;                   // signatures: ... and have been since boot
-  bool host_counter_seen_ : 1;                // signatures: a signed frame has been taken since boot
   bool fix_verified_ : 1;                     // signatures: the decoder holds a FIX whose tag passed: next step's job
   uint8_t key_change_ : 2;                    // signatures: a PROVISION for the shell to store: kKeyStore / kKeyErase
 };
@@ -166,7 +166,8 @@ class Rover : private RoverFields {
   void step(const Inputs& in, Outputs& out);
 
   // What the shell stores for the link (EEPROM on the Uno). Each returns true once per change.
-  /// The counters to store now: at the first step and every kSignPersistPeriodS with a key.
+  /// The counters to store now (with a key): at the first step, and when either has passed a
+  /// multiple of kSignPersistStep since it was last stored.
   bool persist_due(Counter48& tx_counter, Counter48& rx_counter);
   enum : uint8_t { kKeyStore = 1, kKeyErase = 2 };
   /// A PROVISION was taken: kKeyStore (store link_key()) or kKeyErase; 0 if none.

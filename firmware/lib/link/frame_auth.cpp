@@ -27,8 +27,8 @@ void FrameAuth::begin(const uint8_t* key) {
 }
 
 void FrameAuth::resume(const Counter48& tx_persisted, const Counter48& rx_persisted) {
-  tx_base_ = tx_last_ = counter_plus(tx_persisted, kSignResetMarginMs);
-  rx_last_ = counter_plus(rx_persisted, kSignResetMarginMs);
+  tx_last_ = counter_plus(tx_persisted, kSignResetMargin);
+  rx_last_ = counter_plus(rx_persisted, kSignResetMargin);
 }
 
 void FrameAuth::tag_of(uint8_t direction, const uint8_t* data, uint8_t len, uint8_t* tag) const {
@@ -68,8 +68,7 @@ AuthResult FrameAuth::check(const Frame& f) {
 }
 
 uint8_t FrameAuth::sign(uint8_t* raw, uint8_t n) {
-  const Counter48 now = counter_plus(tx_base_, now_ms_);
-  tx_last_ = counter_above(now, tx_last_) ? now : counter_plus(tx_last_, 1);
+  tx_last_ = counter_plus(tx_last_, 1);
   for (uint8_t i = 0; i < kSignCounterBytes; ++i) raw[n++] = tx_last_.b[i];
   uint8_t tag[kSipTagBytes];
   tag_of(kSignRoverToHost, raw, n, tag);

@@ -7,9 +7,10 @@
 // a replay costs no tag), and frames whose tag is wrong (bad_tag). Only a good tag moves the
 // counter on.
 //
-// Sending (sign): the counter is max(last + 1, base + now_ms), base set from the counter
-// persisted before the last reset plus kSignResetMarginMs, so it never repeats across resets
-// as long as the shell persists it every kSignPersistPeriodS (see Rover::persist_due).
+// Sending (sign): the counter counts the frames signed, from where it resumed after the last
+// reset: the value stored then (EEPROM) plus kSignResetMargin. The shell stores both counters
+// whenever one passes a multiple of kSignPersistStep (Rover::persist_due), so neither repeats
+// across resets.
 //
 // A 48-bit counter is kept as its 6 bytes, little-endian as on the wire (a uint64_t costs the
 // Uno about 1 KB of flash in library calls and inline code); it runs out after 8,900 years of
@@ -51,11 +52,8 @@ class FrameAuth {
   bool keyed() const { return keyed_; }
   const uint8_t* key() const { return key_; }
 
-  /// Counters resumed after a reset: rx_last = the last accepted (persisted) + the margin, tx
-  /// base likewise. Call after begin().
+  /// Counters resumed after a reset: each the stored one plus kSignResetMargin. Call after begin().
   void resume(const Counter48& tx_persisted, const Counter48& rx_persisted);
-  /// The clock the tx counter follows (ms since boot); call each step before sign().
-  void set_time(uint32_t now_ms) { now_ms_ = now_ms; }
 
   /// Checks a decoded frame. AcceptedAfterTag / RefusedAfterTag: a tag was computed (the
   /// step's heavy job).
@@ -73,8 +71,6 @@ class FrameAuth {
 
   uint8_t key_[kSipKeyBytes] = {};
   bool keyed_ = false;
-  uint32_t now_ms_ = 0;
-  Counter48 tx_base_ = {};
   Counter48 tx_last_ = {};
   Counter48 rx_last_ = {};
   AuthCounters counters_ = {};

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x23F0286BUL;
+static const uint32_t kSchemaHash = 0x8997E82BUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -26,8 +26,8 @@ enum : uint8_t {
   kMaxSignedRawFrame = 62  // a signed frame, CRC included
 };
 static const uint32_t kSignEpochUnixS = 1767225600UL;
-static const uint32_t kSignResetMarginMs = 65000UL;
-static const uint16_t kSignPersistPeriodS = 60;
+static const uint32_t kSignResetMargin = 70000UL;
+static const uint32_t kSignPersistStep = 65536UL;
 static const uint16_t kSignProvisionWindowMs = 5000;
 /// Whether a rover with a key takes host message `id` unsigned.
 inline bool may_be_unsigned(uint8_t id) {

@@ -24,7 +24,8 @@ counts what it refuses, in this order:
     replayed    the counter is not above the last accepted one (a replay, or reordered)
     bad_tag     the tag is not the key's for this frame and direction (forged, altered, reflected)
     not_signed  an unsigned frame where the Verifier requires signatures (HELLO excepted)
-    unverified  a signed frame and no key to check it with
+    unverified  a signed frame and no key to check it with (a HELLO is still read, unchecked: it
+                tells a host without the key what it lacks)
 """
 from __future__ import annotations
 
@@ -262,7 +263,9 @@ class FrameDecoder:
             return None
         counter = None
         v = self.verifier
-        if signed:
+        if signed and v is None and msg_id in SIGN_UNSIGNED_IDS:
+            pass   # a keyed rover's HELLO, read unchecked: it tells a host without the key what it lacks
+        elif signed:
             if v is None:
                 self.counters.unverified += 1
                 return None

@@ -129,6 +129,7 @@ class Mission:
         self._map_unsaved = False
         self._resume_leg = False
         self._last_heard_s = 0.0
+        self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
 
     # ---------------------------------------------------------------- views
 
@@ -222,7 +223,7 @@ class Mission:
         elif self.phase is Phase.CONFIGURE:
             if not self.requests:
                 self._set_phase(Phase.LOCATE)
-            elif in_phase_s > d.configure_s and not self._silent():
+            elif self._waited_s(now_s) > d.configure_s and not self._silent():
                 self._fail(f"the rover did not take its parameters within {d.configure_s:.0f} s")
         if self.phase is Phase.LOCATE:
             if self._rover_seen():
@@ -240,7 +241,7 @@ class Mission:
                     self._request(mg.Start(path_id=self.path_id))
                 elif self._start_acked_for == self.path_id:
                     self._set_phase(Phase.RUN)
-            elif in_phase_s > d.load_s and not self._silent():
+            elif self._waited_s(now_s) > d.load_s and not self._silent():
                 self._fail(f"the rover did not take path {self.path_id} within {d.load_s:.0f} s")
         if self.phase is Phase.RUN and self.legs:
             self._watch_leg(now_s)
@@ -263,6 +264,8 @@ class Mission:
     # ---------------------------------------------------------------- what the rover says
 
     def _handle(self, frame) -> None:
+        if self._silent():
+            self._heard_again_s = self._now
         self._last_heard_s = self._now
         m = frame.message
         if isinstance(m, mg.Hello):
@@ -501,6 +504,12 @@ class Mission:
 
     def _request(self, message) -> None:
         self.requests.sent(message, self.link.send(message), self._now)
+
+    def _waited_s(self, now_s: float) -> float:
+        """How long the rover has had to answer in this phase: since the phase began, or since it
+        was heard again after a silence (it answers what was re-sent meanwhile once the radio is
+        back, a signed frame a step: not in the same instant as its first STATUS)."""
+        return now_s - max(self._phase_since, self._heard_again_s)
 
     def _silent(self) -> bool:
         return self._now - self._last_heard_s > SILENT_S

@@ -34,9 +34,12 @@ class Attacker:
         self._own = Signer(bytes(self.rng.integers(0, 256, 16, dtype=np.uint8)), SIGN_HOST_TO_ROVER)
         self.injected = {kind: 0 for kind in KINDS}
         self._i = 0
+        self._sending = False   # its own frames go through the same channel: not recorded
 
     def observe(self, data: bytes, now_s: float) -> None:
         """What the host put on the air (whole frames)."""
+        if self._sending:
+            return
         for encoded in data.split(b"\x00"):
             raw = cobs_decode(encoded) if encoded else None
             if raw and raw[0] & 0x80:
@@ -52,7 +55,11 @@ class Attacker:
             return
         self._i += 1
         self.injected[kind] += 1
-        self.channel.write(frame, now_s)
+        self._sending = True
+        try:
+            self.channel.write(frame, now_s)
+        finally:
+            self._sending = False
 
     def _old_frame(self, now_s: float) -> bytes | None:
         old = [raw for t, raw in self._heard if t < now_s - 1.0]
