@@ -399,3 +399,38 @@ def test_short_names_drop_parameters_clones_and_the_namespace():
     assert uno.short_name("rovernav::core::Estimator::position_sd_mm() const [clone .constprop.102]") == \
         "core::Estimator::position_sd_mm"
     assert uno.short_name("__subsf3 / __addsf3") == "__subsf3 / __addsf3"
+
+
+# ---------------------------------------------------------------- signed frames on the image
+
+def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_after_a_reset(built):
+    from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
+    from rovernav.link.provision import provision
+    from tests.test_provision import CoreTransport
+
+    key = bytes(range(200, 216))
+    core = uno.UnoCore(boot_id=3, reset_cause=2)   # the USB port opened: an external reset
+    try:
+        port = CoreTransport(core)
+        assert provision(port, key, clock=port.clock).startswith("stored the key")
+        port.run_ms(1000)   # the EEPROM record goes a byte a step, never waiting for the EEPROM
+        board = uno.board_constants()
+        assert core.eeprom(board.eeprom_link_addr, size=19) == uno.link_key_record(key)
+        # After a reset the image loads the key: its HELLO says it signs, signed with the key, and
+        # it obeys only what the key signs.
+        core.reset(2)
+        port.from_rover = b""
+        port.run_ms(2500)   # the image boots in about 1.6 s (the gyro's calibration)
+        heard = FrameDecoder(Verifier(key, mg.SIGN_ROVER_TO_HOST))
+        hello = next(f for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Hello))
+        assert hello.counter is not None and hello.message.signing == 1
+        host = Signer(key, mg.SIGN_HOST_TO_ROVER)
+        host.jump_past((hello.message.min_counter_hi << 32 | hello.message.min_counter_lo) - 1)
+        port.from_rover = b""
+        port.write(encode_frame(mg.Stop(reason=0), 9))            # unsigned: refused
+        port.write(encode_frame(mg.Stop(reason=0), 10, host))     # signed: obeyed
+        port.run_ms(300)
+        acks = [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)]
+        assert acks == [10] and heard.counters.dropped == 0
+    finally:
+        core.close()

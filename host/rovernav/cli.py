@@ -124,6 +124,24 @@ def _cmd_keygen(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_provision(args: argparse.Namespace) -> int:
+    from .link.keys import load_key_file
+    from .link.provision import ProvisionError, provision
+    from .link.transport import open_transport
+
+    key = None if args.erase else load_key_file(args.key_file)
+    transport = open_transport(args.port)
+    try:
+        print(f"opened {args.port}: waiting up to {args.boot_wait:g} s for the rover to boot ...")
+        print(provision(transport, key, boot_wait_s=args.boot_wait))
+    except ProvisionError as exc:
+        print(f"rovernav provision: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        transport.close()
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
@@ -198,11 +216,30 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Write a new random 128-bit key for the link's signed frames (SipHash-2-4 "
                                    "tags, protocol/messages.toml [signing]) to FILE, readable by its owner only "
                                    "(mode 0600). An existing file is not replaced unless --force is given. "
-                                   "(Signing is being built: the rover's side is still to come.)")
+                                   "Store it on the rover with `rovernav provision`, and give the host the same "
+                                   "file ([link] key_file).")
     p.add_argument("--out", type=output_file(".key"), default="link.key", metavar="FILE",
                    help="the key file to write, ending in .key (default link.key)")
     p.add_argument("--force", action="store_true", help="replace an existing key file")
     p.set_defaults(func=_cmd_keygen)
+
+    p = sub.add_parser("provision", help="store the link key on the rover, over its USB cable",
+                       description="Open PORT (the Uno's USB cable: opening it resets the board), wait for the "
+                                   "rover to boot, and send it the key in FILE (PROVISION, protocol/messages.toml). "
+                                   "The rover stores it in EEPROM and from then on takes only frames signed with "
+                                   "it. It takes a key only within 5 s of a reset, so a radio, which cannot reset "
+                                   "it, cannot change its key: over a port that does not reset the rover nothing "
+                                   "is sent. The rover's answer comes signed with the new key, which confirms it.")
+    p.add_argument("--port", required=True, type=port_spec,
+                   help="the rover's USB serial port, e.g. /dev/ttyACM0 or COM3 (or PORT@BAUD)")
+    key_or_erase = p.add_mutually_exclusive_group(required=True)
+    key_or_erase.add_argument("--key-file", type=input_file, metavar="FILE",
+                              help="the key file `rovernav keygen` wrote")
+    key_or_erase.add_argument("--erase", action="store_true",
+                              help="forget the rover's key: it takes unsigned commands again")
+    p.add_argument("--boot-wait", type=seconds(60.0, positive=True), default=4.0, metavar="S",
+                   help="how long to wait for the rover's boot HELLO after opening the port, up to 60 s (default 4)")
+    p.set_defaults(func=_cmd_provision)
 
     p = sub.add_parser("demo", help="run the Uno firmware in an AVR simulator and talk to it",
                        description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "

@@ -10,18 +10,23 @@ namespace core {
 
 // The bytes received: frames decoded, checked for their signature (frame_auth.h), handled.
 // A tag is a step's heavy job (0.3-0.8 ms on the Uno): after one, the rest of the bytes wait
-// for the next step (the shell gives them again), and a step kept for a put-off job takes no
-// signed frame at all. A rover with no key computes no tag and takes everything at once.
+// for the next step (the shell gives them again); a step kept for a put-off job, or with a
+// sonar result, takes no signed frame at all. A rover with no key computes no tag and takes
+// everything at once.
 uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
   if (fix_verified_) {
-    // The FIX whose tag the last step checked (still in the decoder: nothing was pushed since)
-    // is this step's job; it is 10 ms older than its age says.
+    // The FIX whose tag the last step checked (still in the decoder: nothing is pushed until it
+    // is taken) is this step's job, unless a sonar result was put off too: the sweep waits for
+    // that, the estimator can wait a step more. The FIX is 10-20 ms older than its age says.
+    if (sonar_held_ || in.sonar_valid) return 0;
     fix_verified_ = false;
     step_work_ = static_cast<uint8_t>(step_work_ & ~kWorkReserved);
     handle_frame(decoder_.frame(), now, static_cast<uint16_t>(now - last_rx_ms_));
     return 0;
   }
-  if (auth_.keyed() && (step_work_ & kWorkReserved)) return 0;
+  // A step kept for a put-off job, or one with a sonar result to take in (the sweep's pace),
+  // leaves the signed frames to the next.
+  if (auth_.keyed() && ((step_work_ & kWorkReserved) || in.sonar_valid)) return 0;
   uint8_t used = 0;
   while (used < in.rx_len) {
     if (!decoder_.push(in.rx[used++])) continue;

@@ -22,7 +22,7 @@ void Rover::stop_sweep() {
 // "nothing there" for the host to clear the cone); at the end, the leg checked against what it saw.
 void Rover::mode_scan(const Inputs& in, uint32_t now, Outputs& out) {
   const Params& p = params_;
-  if (step_work_ & (kWorkFix | kWorkTag)) {   // the sweep goes on next step (a result that came is held)
+  if (step_work_ & kWorkFix) {   // the sweep goes on next step (a result that came is held)
     put_off_ = true;
     return;
   }
