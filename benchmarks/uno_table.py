@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         if jitter_ms > JITTER_LIMIT_MS:
             failures.append(f"{sc}: jitter {jitter_ms:.2f} ms > 1 ms")
         if margin < STACK_MARGIN_MIN:
-            failures.append(f"{sc}: stack margin {margin} B < 256 B")
+            failures.append(f"{sc}: stack margin {margin} B < {STACK_MARGIN_MIN} B")
     print(f"\n({time.monotonic() - t0:.0f} s for {len(jobs)} runs, {args.jobs} at a time)")
     if args.json:
         args.json.write_text(json.dumps({f"{sc}/{rv}/{seed}": r for (sc, rv, seed), r in results.items()}, indent=1))

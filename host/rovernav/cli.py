@@ -80,11 +80,13 @@ def _describe(message) -> str:
 
 
 def _cmd_link_check(args: argparse.Namespace) -> int:
+    from .link.keys import load_key_file
     from .link.link import Link
     from .link.transport import open_transport
 
+    key = load_key_file(args.key_file) if args.key_file else None
     with open_transport(args.port) as transport:
-        talk_to_rover(Link(transport), args.seconds, args.timeout)
+        talk_to_rover(Link(transport, key=key), args.seconds, args.timeout)
     return 0
 
 
@@ -111,8 +113,10 @@ def talk_to_rover(link, seconds: float, hello_timeout_s: float, listening_note: 
         if frame is not None:
             print(f"  seq {frame.seq:3d}  {_describe(frame.message)}")
     c = link.counters
+    signing = (f"; signed: refused {c.bad_tag} bad tag, {c.replayed} replayed, {c.not_signed} unsigned"
+               if link.signer is not None else "")
     print(f"link: {c.frames_ok} frames received; dropped {c.bad_crc} bad CRC, {c.overlong} overlong, "
-          f"{c.unknown_id} unknown id, {c.malformed} malformed; sent {link.tx_frames} frames")
+          f"{c.unknown_id} unknown id, {c.malformed} malformed{signing}; sent {link.tx_frames} frames")
 
 
 def _cmd_keygen(args: argparse.Namespace) -> int:
@@ -210,6 +214,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how long to listen after the HELLO, 0 to 3600 (default 3)")
     p.add_argument("--timeout", type=seconds(600.0, positive=True), default=3.0,
                    help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)")
+    p.add_argument("--key-file", type=input_file, metavar="FILE",
+                   help="the link key of a rover that holds one (`rovernav keygen`, `rovernav provision`): "
+                        "frames are then signed and checked")
     p.set_defaults(func=_cmd_link_check)
 
     p = sub.add_parser("keygen", help="make a new key for signed frames",

@@ -40,6 +40,12 @@ void Rover::mode_scan(const Inputs& in, uint32_t now, Outputs& out) {
     }
   }
   if (!sweep_.running()) {
+    // The last reading (its OBSTACLE, signed, and its disk) was this step's job: the sweep's end
+    // (its EVENT, signed, and the check of the leg against the echoes) takes the next.
+    if (echo.valid) {
+      put_off_ = true;
+      return;
+    }
     send_event(EventKind::ScanDone, scan_echoes_);
     sweep_distance_mm_ = 0.0f;
     enter(RoverState::Rotate);

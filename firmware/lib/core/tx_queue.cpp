@@ -1,32 +1,66 @@
 #include "tx_queue.h"
 
+#include "noinline.h"
+
 namespace rovernav {
 namespace core {
 
-void TxQueue::send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len) {
-  // Encoded in place at the queue's end (no 64-byte frame on the stack): the frame's size is
-  // known before, a COBS code byte and the delimiter on top of its raw bytes.
+namespace {
+enum : uint8_t { kRawHead = 3 };   // length, id, seq
+}  // namespace
+
+ROVERNAV_NOINLINE void TxQueue::send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len) {
   drop_taken();
-  const bool sign = auth_ != nullptr && auth_->keyed();
-  const uint8_t need = static_cast<uint8_t>(len + kFrameHeader + kFrameCrc + (sign ? kFrameSignature : 0) + 2);
-  if (len > kMaxPayload || need > kCapacity - count_) {
+  if (len > kMaxPayload || kRawHead + len > kCapacity - count_) {
     ++dropped_;
     return;
   }
-  count_ = static_cast<uint8_t>(count_ + encode_frame(msg_id, seq_, payload, len, buf_ + count_, auth_));
-  ++seq_;
+  uint8_t* at = buf_ + count_;
+  at[0] = len;
+  at[1] = msg_id;
+  at[2] = seq_++;
+  for (uint8_t i = 0; i < len; ++i) at[kRawHead + i] = payload[i];
+  count_ = static_cast<uint8_t>(count_ + kRawHead + len);
 }
 
 void TxQueue::drop_taken() {
   if (taken_ == 0) return;
   count_ = static_cast<uint8_t>(count_ - taken_);
+  ready_ = static_cast<uint8_t>(ready_ - taken_);
   for (uint8_t i = 0; i < count_; ++i) buf_[i] = buf_[taken_ + i];   // at most 128 bytes, 30 us on the Uno
   taken_ = 0;
 }
 
-const uint8_t* TxQueue::take(uint8_t max, uint8_t& n) {
+// Frames the first raw frame in place (it grows by the signature, the CRC, COBS's code byte
+// and the delimiter: the raw frames behind it move up). False if there is none, or no room.
+ROVERNAV_NOINLINE bool TxQueue::frame_next() {
+  if (ready_ == count_) return false;
+  uint8_t* raw = buf_ + ready_;
+  const uint8_t len = raw[0];
+  const bool sign = auth_ != nullptr && auth_->keyed();
+  const uint8_t framed = static_cast<uint8_t>(len + kFrameHeader + kFrameCrc + (sign ? kFrameSignature : 0) + 2);
+  const uint8_t grow = static_cast<uint8_t>(framed - (kRawHead + len));
+  if (grow > kCapacity - count_) return false;
+  uint8_t head[kRawHead + kMaxPayload];   // encode_frame writes over the raw frame it reads
+  for (uint8_t i = 0; i < kRawHead + len; ++i) head[i] = raw[i];
+  for (uint8_t i = static_cast<uint8_t>(count_ - ready_ - kRawHead - len); i > 0; --i) {
+    raw[framed + i - 1] = raw[kRawHead + len + i - 1];   // the raw frames behind, moved up
+  }
+  encode_frame(head[1], head[2], head + kRawHead, len, raw, auth_);
+  ready_ = static_cast<uint8_t>(ready_ + framed);
+  count_ = static_cast<uint8_t>(count_ + grow);
+  return true;
+}
+
+const uint8_t* TxQueue::take(uint8_t max, bool may_frame, uint8_t& n) {
   drop_taken();
-  n = count_ < max ? count_ : max;
+  if (auth_ != nullptr && auth_->keyed()) {
+    if (may_frame && ready_ < max) frame_next();
+  } else {
+    while (ready_ < max && frame_next()) {   // a CRC, 1.3 us a byte: all that fit go at once
+    }
+  }
+  n = ready_ < max ? ready_ : max;
   taken_ = n;
   return buf_;
 }

@@ -152,6 +152,9 @@ def signing_figures(sim) -> dict:
     hc = sim.link.counters
     out = {"signed": sim.link_key is not None,
            "rover_refused": sim.core.auth_counters(),
+           # the native core is asked; the Uno image's counts are those of its last LINK_AUTH, sent
+           # in STATUS's place when they change (a refusal in the last 0.2 s may not be in it)
+           "rover_counts_from": "core" if sim.opt.rover == "native" else "last LINK_AUTH",
            "host_refused": {"bad_tag": hc.bad_tag, "replayed": hc.replayed, "not_signed": hc.not_signed,
                             "unverified": hc.unverified}}
     if sim.attacker is not None:
