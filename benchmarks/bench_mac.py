@@ -109,7 +109,30 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nflash added (bytes): SipHash-2-4 {statistics.median(r[2] for r in rows):.0f}, "
           f"HMAC-SHA256 {statistics.median(r[4] for r in rows):.0f} (medians over the lengths); "
           "16 MHz, cycles counted in simavr")
+    print()
+    frame_table(work_dir=None)
     return 0
+
+
+def frame_table(work_dir) -> None:
+    """The tag of every message's signed frame: the bytes it covers (the direction byte, the
+    header, the payload, the counter) and its cost on the Uno."""
+    from rovernav.link import messages_gen as mg
+
+    covered = {cls.NAME: 1 + 3 + cls.STRUCT.size + mg.SIGN_COUNTER_BYTES for cls in mg.MESSAGES.values()}
+    cost_us: dict[int, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        for length in sorted(set(covered.values())):
+            base_elf, _ = build(0, length, work)
+            elf, _ = build(1, length, work)
+            cost_us[length] = tag_us(elf) - tag_us(base_elf)
+    print("| message | payload | signed frame on the wire | bytes the tag covers | tag on the Uno (us) | cycles |")
+    print("|---|---|---|---|---|---|")
+    for cls in sorted(mg.MESSAGES.values(), key=lambda c: c.ID):
+        n = covered[cls.NAME]
+        wire = 3 + cls.STRUCT.size + mg.SIGN_COUNTER_BYTES + mg.SIGN_TAG_BYTES + 2 + 2
+        print(f"| {cls.NAME} | {cls.STRUCT.size} | {wire} | {n} | {cost_us[n]:.0f} | {cost_us[n] * 16:.0f} |")
 
 
 if __name__ == "__main__":

@@ -561,3 +561,25 @@ def test_a_target_an_unknown_wall_encloses_gets_the_no_path_verdict_after_the_ro
     r = build_report(sim, 1.0)
     assert r["outcome"] == "no_path" and r["collisions"] == 0 and not r["timed_out"]
     assert r["obstacles_discovered"] == 1 and r["replans"] >= 1   # the verdict came from what the sonar saw
+
+
+def test_an_attacker_on_the_radio_is_refused_frame_by_frame_and_the_mission_goes_on():
+    r = _run("seed-fig4-8-unknown-obstacle", seed=1, attacker=True)
+    assert r["reached"] and r["collisions"] == 0
+    s = r["link"]["signing"]
+    a = s["attacker"]
+    assert s["signed"] and a["injected_total"] >= 40 and min(a["injected"].values()) >= 10
+    assert a["refused_total"] == a["injected_total"]
+    assert {k: v for k, v in s["rover_refused"].items() if v} == a["expected_refusals"]
+    assert s["host_refused"] == {"bad_tag": 0, "replayed": 0, "not_signed": 0, "unverified": 0}
+
+
+def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
+    # Why the link is signed: without a key the rover obeys the injected STOPs and replays.
+    sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"),
+                     SimOptions(seed=1, attacker=True, signed=False, max_time_s=90.0))
+    sim.run()
+    r = build_report(sim, 1.0)
+    assert not r["reached"]
+    assert sum("rover: stopped" in text for _, text in sim.events) >= 10
+    assert r["link"]["signing"]["rover_refused"]["unverified"] == r["link"]["signing"]["attacker"]["injected"]["forged"]

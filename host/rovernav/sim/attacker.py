@@ -8,7 +8,8 @@ host sends and, every period, injects one frame of its own into the radio model,
     unsigned   a STOP with no signature
 
 A rover with the host's key refuses all four (bad_tag, replayed, bad_tag, not_signed) and the
-mission goes on; a rover with no key would obey the unsigned STOP.
+mission goes on. On an unsigned link (`--unsigned`) the rover refuses only the signed forgery
+(it has no key: unverified) and obeys the rest: replays, altered frames and STOPs.
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ class Attacker:
             return
         for encoded in data.split(b"\x00"):
             raw = cobs_decode(encoded) if encoded else None
-            if raw and raw[0] & 0x80:
+            if raw and len(raw) > 5:
                 self._heard.append((now_s, raw))
 
     def tick(self, now_s: float) -> None:
@@ -77,10 +78,12 @@ class Attacker:
             return None
         body = bytearray(raw[:-2])
         if kind == "altered":
-            end = len(body) - SIGN_TAG_BYTES
-            payload_len = end - SIGN_COUNTER_BYTES - 3
+            signed = bool(body[0] & 0x80)
+            end = len(body) - (SIGN_TAG_BYTES if signed else 0)
+            payload_len = end - (SIGN_COUNTER_BYTES if signed else 0) - 3
             if payload_len > 0:
                 body[3 + int(self.rng.integers(payload_len))] ^= 1 << int(self.rng.integers(8))
-            body[end - SIGN_COUNTER_BYTES:end] = ((1 << 46) + self._i).to_bytes(SIGN_COUNTER_BYTES, "little")
+            if signed:
+                body[end - SIGN_COUNTER_BYTES:end] = ((1 << 46) + self._i).to_bytes(SIGN_COUNTER_BYTES, "little")
         body += crc16(bytes(body)).to_bytes(2, "little")
         return cobs_encode(bytes(body)) + b"\x00"

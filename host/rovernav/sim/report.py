@@ -161,11 +161,13 @@ def signing_figures(sim) -> dict:
         from .attacker import EXPECTED_REFUSAL
         expected: dict[str, int] = {}
         for kind, n in sim.attacker.injected.items():
-            expected[EXPECTED_REFUSAL[kind]] = expected.get(EXPECTED_REFUSAL[kind], 0) + n
+            reason = EXPECTED_REFUSAL[kind] if sim.link_key is not None else ("unverified" if kind == "forged" else None)
+            if reason is not None:   # unsigned: the rest is obeyed
+                expected[reason] = expected.get(reason, 0) + n
         refused = out["rover_refused"]
         out["attacker"] = {"injected": dict(sim.attacker.injected),
                            "injected_total": sum(sim.attacker.injected.values()),
-                           "refused_total": sum(refused[k] for k in ("bad_tag", "replayed", "not_signed")),
+                           "refused_total": sum(refused[k] for k in ("bad_tag", "replayed", "not_signed", "unverified")),
                            "expected_refusals": expected}
     return out
 
