@@ -74,8 +74,10 @@ def _parse(cmd: str, flag: str, action, value: str, capsys):
         argv.append("image.png")
     if cmd == "plan":
         argv.append("seed-small-obstacles")
-    if cmd == "link-check" and flag != "--port":
+    if cmd in ("link-check", "provision") and flag != "--port":
         argv += ["--port", "loop://"]
+    if cmd == "provision" and flag not in ("--key-file", "--erase"):
+        argv.append("--erase")
     nargs = action.nargs if isinstance(action.nargs, int) else 1
     argv += [flag] + [value] * nargs
     try:

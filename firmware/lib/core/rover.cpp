@@ -133,9 +133,9 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     }
   }
   const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
-  // Frames are framed (signed) on their way out, and not in a step that took a FIX or a sonar
-  // result: what that step said leaves a step later (TxQueue).
-  out.tx = tx_.take(room, !(step_work_ & (kWorkFix | kWorkOther)), out.tx_len);
+  // Frames are framed (signed) on their way out, and not in a step that took a FIX, a sonar
+  // result or a planner slice: what that step said leaves a step later (TxQueue).
+  out.tx = tx_.take(room, !(step_work_ & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.

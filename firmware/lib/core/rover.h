@@ -135,8 +135,8 @@ struct RoverFields {
 struct LinkSecrets {
   bool has_key;
   uint8_t key[kSipKeyBytes];
-  Counter48 tx_counter;   ///< the counters as last stored (0, 0 if never)
-  Counter48 rx_counter;
+  Counter48 tx_counter;   ///< the counters as last stored (0, 0 if never); rx_counter follows
+  Counter48 rx_counter;   ///< tx_counter (link_store reads both at once)
 };
 
 class Rover : private RoverFields {

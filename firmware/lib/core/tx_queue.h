@@ -4,8 +4,9 @@
 // Frames are queued raw (length, id, seq, payload) and framed (CRC, COBS; signed with a key)
 // only when they are about to leave, by take(). Signing costs the Uno 0.3-0.8 ms a frame: a
 // keyed rover signs at most one a step, and none in a step that has done a heavy job (a FIX, a
-// sonar result), so what a step says does not add to its worst case (a FIX step that also
-// reaches a waypoint sends its EVENT a step later). Without a key every frame is framed at once.
+// sonar result, a planner slice), so what a step says does not add to its worst case (a FIX
+// step that also reaches a waypoint sends its EVENT a step later). Without a key every frame is
+// framed at once.
 #pragma once
 #include <stdint.h>
 

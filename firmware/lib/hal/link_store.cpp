@@ -2,6 +2,8 @@
 
 #include <avr/eeprom.h>
 #include <avr/io.h>
+#include <stddef.h>
+#include <string.h>
 
 #include "board.h"
 #include "crc16.h"
@@ -29,12 +31,15 @@ void put_crc(uint8_t* rec, uint8_t n) {
 }
 }  // namespace
 
+static_assert(offsetof(core::LinkSecrets, rx_counter) == offsetof(core::LinkSecrets, tx_counter) + sizeof(Counter48),
+              "the counters lie as in a slot: tx then rx");
+
 void LinkStore::load(core::LinkSecrets& out) {
-  uint8_t rec[kKeyRecord];
+  uint8_t* rec = buf_;   // nothing is being written yet: the write buffer holds what is read
   read(kKeyAddr, rec, kKeyRecord);
   out.has_key = rec[0] == kKeyMagic && crc_ok(rec, 17);
-  for (uint8_t i = 0; i < kSipKeyBytes; ++i) out.key[i] = rec[1 + i];
-  out.tx_counter = out.rx_counter = Counter48{};
+  memcpy(out.key, rec + 1, kSipKeyBytes);
+  memset(&out.tx_counter, 0, 2 * sizeof(Counter48));
   bool found = false;
   for (uint8_t s = 0; s < 2; ++s) {
     read(static_cast<uint16_t>(kSlotAddr + s * kSlotBytes), rec, kSlotBytes);
@@ -43,8 +48,7 @@ void LinkStore::load(core::LinkSecrets& out) {
     found = true;
     age_ = rec[12];
     next_slot_ = static_cast<uint8_t>(s ^ 1);
-    out.tx_counter = counter_at(rec);
-    out.rx_counter = counter_at(rec + 6);
+    memcpy(&out.tx_counter, rec, 2 * sizeof(Counter48));   // tx then rx, as in the slot
   }
 }
 
