@@ -36,6 +36,9 @@ class TxQueue {
   /// take() (the shell writes them to the serial port right after the step).
   const uint8_t* take(uint8_t max, bool may_frame, uint8_t& n);
   uint16_t dropped() const { return dropped_; }
+  /// A keyed queue whose framed bytes have all gone and whose next frame waits to be signed: a
+  /// step that can do without its heavy job (a planner slice) leaves the time to take() for it.
+  bool wants_signing() const { return ready_ == 0 && count_ > taken_ && auth_ != nullptr && auth_->keyed(); }
   /// Bytes queued, framed or not.
   uint8_t size() const { return static_cast<uint8_t>(count_ - taken_); }
 
