@@ -433,3 +433,35 @@ def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_af
         assert acks == [10] and heard.counters.dropped == 0
     finally:
         core.close()
+
+
+@pytest.mark.parametrize("slots, expected_rx", [
+    ([(1000, 5000, 5, True), (9999, 99999, 6, False)], 5000),    # the newer slot torn (bad CRC): the other
+    ([(1000, 5000, 5, True), (2000, 9000, 6, True)], 9000),      # both whole: the newer age
+    ([(2000, 9000, 255, True), (3000, 12000, 0, True)], 12000),  # ages wrap: 0 follows 255
+    ([(1, 2, 3, False), (4, 5, 6, False)], 0),                   # none whole: from zero
+])
+def test_the_image_resumes_from_the_newest_whole_counter_slot(built, slots, expected_rx):
+    from rovernav.link.framing import FrameDecoder, Verifier, crc16
+
+    key = bytes(range(100, 116))
+    core = uno.UnoCore(boot_id=3, reset_cause=1)
+    try:
+        base = uno.board_constants().eeprom_link_addr
+        core.eeprom(base, uno.link_key_record(key))
+        for i, (tx, rx, age, whole) in enumerate(slots):
+            rec = tx.to_bytes(6, "little") + rx.to_bytes(6, "little") + bytes((age,))
+            crc = crc16(rec) ^ (0 if whole else 0x5A5A)
+            core.eeprom(base + 19 + 15 * i, rec + crc.to_bytes(2, "little"))
+        heard = FrameDecoder(Verifier(key, mg.SIGN_ROVER_TO_HOST))
+        frames = []
+        for k in range(1, 260):
+            frames += heard.feed(core.step(k * 10, gyro_rate_mdps=0).tx)
+        hello = next(f for f in frames if isinstance(f.message, mg.Hello))
+        assert (hello.message.min_counter_hi << 32 | hello.message.min_counter_lo) == expected_rx + mg.SIGN_RESET_MARGIN + 1
+        # ... and it stored the resumed counters at once, in the slot it did not take
+        stored = [core.eeprom(base + 19 + 15 * i, size=15) for i in range(2)]
+        whole = [s for s in stored if crc16(s[:13]) == int.from_bytes(s[13:], "little")]
+        assert any(int.from_bytes(s[6:12], "little") == expected_rx + mg.SIGN_RESET_MARGIN for s in whole)
+    finally:
+        core.close()
