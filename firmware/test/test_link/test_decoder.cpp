@@ -39,7 +39,10 @@ TEST_CASE("decoder drops garbage and resynchronises at the next delimiter") {
 }
 
 TEST_CASE("every single-bit flip of every golden frame is rejected and counted") {
-  long flips = 0;
+  // Failures are counted and asserted once, with the first one named: a passing run stays a few
+  // lines long under `pio test`'s success reporting (test_doctest_output.py checks that).
+  long flips = 0, taken = 0, uncounted = 0;
+  int first_len = -1, first_pos = -1, first_bit = -1;
   for (const GoldenFrame& g : kGoldenFrames) {
     for (uint8_t pos = 0; pos < g.len; ++pos) {
       for (uint8_t bit = 0; bit < 8; ++bit) {
@@ -50,31 +53,41 @@ TEST_CASE("every single-bit flip of every golden frame is rejected and counted")
         bool any = false;
         for (uint8_t i = 0; i < g.len; ++i) any = dec.push(copy[i]) || any;
         any = dec.push(0x00) || any;  // terminate whatever the flip left open
-        CAPTURE(g.len);
-        CAPTURE(pos);
-        CAPTURE(bit);
-        REQUIRE_FALSE(any);
         const rovernav::FrameCounters& c = dec.counters();
-        CHECK(c.bad_crc + c.malformed + c.unknown_id + c.overlong >= 1);
+        const bool counted = c.bad_crc + c.malformed + c.unknown_id + c.overlong >= 1;
+        if ((any || !counted) && first_len < 0) {
+          first_len = g.len;
+          first_pos = pos;
+          first_bit = bit;
+        }
+        taken += any ? 1 : 0;
+        uncounted += counted ? 0 : 1;
         ++flips;
       }
     }
   }
+  CAPTURE(first_len);
+  CAPTURE(first_pos);
+  CAPTURE(first_bit);
+  CHECK(taken == 0);
+  CHECK(uncounted == 0);
   MESSAGE("bit flips tried: " << flips);
-  CHECK(flips > 1000);
 }
 
 TEST_CASE("every truncation of every golden frame is rejected") {
+  long tried = 0, taken = 0;
   for (const GoldenFrame& g : kGoldenFrames) {
     for (uint8_t keep = 1; keep + 1 < g.len; ++keep) {
       FrameDecoder dec;
       bool any = false;
       for (uint8_t i = 0; i < keep; ++i) any = dec.push(g.bytes[i]) || any;
       any = dec.push(0x00) || any;
-      REQUIRE_FALSE(any);
-      CHECK(dec.counters().frames_ok == 0);
+      taken += (any || dec.counters().frames_ok != 0) ? 1 : 0;
+      ++tried;
     }
   }
+  CHECK(tried > 300);
+  CHECK(taken == 0);
 }
 
 TEST_CASE("random bytes never crash the decoder and never yield a frame that re-encodes differently") {
@@ -130,14 +143,18 @@ TEST_CASE("encode_frame refuses a payload longer than a frame can carry") {
 
 TEST_CASE("every encoded frame has no zero byte before its delimiter") {
   rovernav::test::XorShift rng(99u);
+  long wrong_length = 0, zeros = 0, undelimited = 0;   // counted, asserted once (short success output)
   for (int round = 0; round < 20000; ++round) {
     uint8_t payload[rovernav::kMaxPayload];
     const uint8_t len = static_cast<uint8_t>(rng.next() % (rovernav::kMaxPayload + 1));
     for (uint8_t i = 0; i < len; ++i) payload[i] = static_cast<uint8_t>(rng.next() % 3 == 0 ? 0 : rng.next());
     uint8_t out[rovernav::kMaxEncodedFrame];
     const uint8_t n = rovernav::encode_frame(static_cast<uint8_t>(rng.next()), static_cast<uint8_t>(round), payload, len, out);
-    REQUIRE(n == len + 3 + 2 + 2);
-    for (uint8_t i = 0; i + 1 < n; ++i) REQUIRE(out[i] != 0);
-    CHECK(out[n - 1] == 0);
+    if (n != len + 3 + 2 + 2) ++wrong_length;
+    for (uint8_t i = 0; i + 1 < n; ++i) zeros += out[i] == 0 ? 1 : 0;
+    if (out[n - 1] != 0) ++undelimited;
   }
+  CHECK(wrong_length == 0);
+  CHECK(zeros == 0);
+  CHECK(undelimited == 0);
 }

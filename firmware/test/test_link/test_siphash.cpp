@@ -53,6 +53,7 @@ TEST_CASE("fed in pieces of any size, SipHash-2-4 gives the same tag as in one p
   uint8_t key[16], msg[64];
   for (uint8_t i = 0; i < 16; ++i) key[i] = i;
   for (uint8_t i = 0; i < 64; ++i) msg[i] = i;
+  int wrong = 0;
   for (uint8_t len = 0; len <= 64; ++len) {
     for (uint8_t piece = 1; piece <= 9; ++piece) {
       SipHash24 h;
@@ -67,7 +68,8 @@ TEST_CASE("fed in pieces of any size, SipHash-2-4 gives the same tag as in one p
       }
       uint8_t tag[8];
       h.finish(tag);
-      CHECK(as_u64(tag) == of_counting_bytes(len));
+      if (as_u64(tag) != of_counting_bytes(len)) ++wrong;
     }
   }
+  CHECK(wrong == 0);   // 585 ways, asserted once
 }
