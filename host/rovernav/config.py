@@ -40,7 +40,7 @@ class ArenaConfig:
 class LinkConfig:
     port: str = ""
     baud: int = 57600
-    key_file: str = ""   # the link key for signed frames (`rovernav keygen`); the rover's side is to come
+    key_file: str = ""   # the link key for signed frames (`rovernav keygen`, stored on the rover by `rovernav provision`)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,8 +8,9 @@
 //                  wrapping), CRC-16 of the 13 (2)
 //
 // Counters go to the slot not holding the newest record, so a write cut short by a reset
-// leaves the other slot whole; load() takes the valid slot with the newer age. Written once
-// a minute at most (kSignPersistPeriodS): 100,000 writes a cell last 139 days of use, two slots.
+// leaves the other slot whole; load() takes the valid slot with the newer age. Written when a
+// counter passes a multiple of kSignPersistStep (Rover::persist_due): while the host talks, once
+// every 65.5 s of its clock; 100,000 writes a cell, two slots in turn: 150 days of continuous use.
 //
 // Writes never wait: an EEPROM byte takes 3.4 ms, so poll() starts one byte a step when the
 // last has finished (EEPE clear), 15-19 steps for a record. Reads are immediate.
