@@ -109,9 +109,15 @@ def test_run_refuses_a_rover_built_from_another_protocol_definition(tmp_path):
         t.start()
         try:
             r = _rovernav("run", "--port", rover_end.peer_name, "--camera", str(video),
-                          "--scenario", "seed-fig4-8-unknown-obstacle", timeout=90)
+                          "--scenario", "seed-fig4-8-unknown-obstacle", "--log", str(tmp_path / "refused.mcap"),
+                          timeout=90)
         finally:
             stop.set()
             t.join(2)
     assert r.returncode == 2, r.stdout + r.stderr
     assert "0xBADC0DE5" in r.stderr and f"0x{mg.SCHEMA_HASH:08X}" in r.stderr
+    # The run's log is kept, with the rover's HELLO that ended it.
+    from rovernav.runlog.replay import read_log
+
+    said = [r for r in read_log(tmp_path / "refused.mcap").inputs if r["kind"] == "rx"]
+    assert said and said[0]["type"] == "hello" and said[0]["fields"]["schema_hash"] == 0xBADC0DE5

@@ -8,41 +8,10 @@ from rovernav.firmware import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
 from rovernav.link.provision import ProvisionError, provision
-from rovernav.link.transport import Transport
+
+from tests.core_transport import CoreTransport
 
 KEY = bytes(range(50, 66))
-
-
-class CoreTransport(Transport):
-    """The rover core behind a serial port: a read steps it for the time the read may wait."""
-
-    def __init__(self, core: RoverCore):
-        super().__init__("core://")
-        self.core, self.t_ms, self.to_rover, self.from_rover = core, 0, b"", b""
-        self.sent_to_rover = b""
-
-    def run_ms(self, ms: int) -> None:
-        for _ in range(ms // 10):
-            out = self.core.step(self.t_ms, gyro_rate_mdps=0, rx=self.to_rover)
-            self.to_rover = b""
-            self.from_rover += out.tx
-            self.t_ms += 10
-
-    def clock(self) -> float:
-        return self.t_ms / 1000.0
-
-    def _write(self, data: bytes) -> None:
-        self.to_rover += data
-        self.sent_to_rover += data
-
-    def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
-        if not self.from_rover:
-            self.run_ms(max(10, int((timeout_s or 0.0) * 1000)))
-        data, self.from_rover = self.from_rover[:max_bytes], self.from_rover[max_bytes:]
-        return data
-
-    def _close(self) -> None:
-        pass
 
 
 def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it():

@@ -405,7 +405,7 @@ def test_short_names_drop_parameters_clones_and_the_namespace():
 def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_after_a_reset(built):
     from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
     from rovernav.link.provision import provision
-    from tests.test_provision import CoreTransport
+    from tests.core_transport import CoreTransport
 
     key = bytes(range(200, 216))
     core = uno.UnoCore(boot_id=3, reset_cause=2)   # the USB port opened: an external reset

@@ -1,6 +1,7 @@
 """The `rovernav` command.
 
     rovernav sim [SCENARIO]               a whole mission in the simulator (the main job)
+    rovernav replay LOG.mcap              the host's mission code again against a recorded run
     rovernav run --port P --camera C      a mission with a real rover and webcam
     rovernav plan SCENARIO                plan a path on a scenario's arena
     rovernav locate IMAGE                 find the rover and the target in a camera image
@@ -24,7 +25,7 @@ import sys
 import time
 
 from . import __version__
-from .validate import EXIT_CODES, ArgParser, input_file, output_file, port_spec, seconds
+from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, output_file, port_spec, seconds
 
 log = logging.getLogger("rovernav")
 
@@ -153,9 +154,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .hardware import run_hardware
+    from .hardware import default_log_path, run_hardware
+    from .runlog.cli import live_port_of
 
-    return run_hardware(args.port, args.camera, args.config, args.scenario, args.map)
+    log_path = None if args.no_log else (args.log or default_log_path())
+    return run_hardware(args.port, args.camera, args.config, args.scenario, args.map, max_time_s=args.max_time,
+                        log_path=log_path, live_port=live_port_of(args), log_image_hz=args.log_image_hz)
 
 
 def add_run_parser(sub) -> None:
@@ -168,6 +172,13 @@ def add_run_parser(sub) -> None:
     p.add_argument("--config", type=input_file, help="rovernav TOML configuration")
     p.add_argument("--scenario", help="scenario file: arena, start, target, known obstacles")
     p.add_argument("--map", help="learned map (JSON) to load at the start and save at the end")
+    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=1800.0, metavar="S",
+                   help="stop the rover and end the mission after S seconds (default 1800)")
+    p.add_argument("--log", type=output_file(".mcap"), metavar="FILE",
+                   help="the run log to write (default run-YYYYMMDD-HHMMSS.mcap in this folder)")
+    from .runlog.cli import add_log_flags
+
+    add_log_flags(p, "--log")
     p.set_defaults(func=_cmd_run)
 
 
@@ -189,6 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_protocol)
 
     from .planning.cli import add_plan_parser
+    from .runlog.cli import add_replay_parser
     from .sim.arenas import add_arenas_parser
     from .sim.cli import add_sim_parser
     from .sim.trials import add_trials_parser
@@ -196,6 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .vision.cli import add_locate_parser
 
     add_sim_parser(sub)
+    add_replay_parser(sub)
     add_arenas_parser(sub)
     add_trials_parser(sub)
     add_plan_parser(sub)

@@ -13,6 +13,7 @@ the old map or the new one, never half of either) and exits with status 130.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import stat
@@ -110,8 +111,18 @@ def _serial_port(port: str, cfg, config_path: str | None) -> tuple[str, int]:
     return name, (baud if "@" in spec else cfg.link.baud)
 
 
+def default_log_path() -> Path:
+    """run-YYYYMMDD-HHMMSS.mcap in the current folder."""
+    return Path(time.strftime("run-%Y%m%d-%H%M%S.mcap"))
+
+
 def run_hardware(port: str, camera: str, config_path: str | None, scenario_path: str | None,
-                 map_path: str | None = None, max_time_s: float = 1800.0) -> int:
+                 map_path: str | None = None, max_time_s: float = 1800.0, log_path: str | Path | None = None,
+                 live_port: int | None = None, log_image_hz: float = 2.0) -> int:
+    """A mission on the real rover. `log_path`: the run log (MCAP; None: none); `live_port`:
+    serve it live on 127.0.0.1 (rovernav.runlog)."""
+    from .mission.spec import MissionSpec
+    from .runlog import RecordingTransport, RunLog
     from .scenario import load_scenario
     from .vision import Locator
 
@@ -148,12 +159,11 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
 
     # ---- 2. the devices
     cap = open_camera(source)
-    transport = link = None
+    transport = link = runlog = None
     mission: Mission | None = None
     interrupted = False
     try:
         transport = SerialTransport(name, baud)
-        link = Link(transport, key=key)
 
         # Where are we and where to? From the scenario, or from the first frames.
         first = None
@@ -167,18 +177,21 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
                 break
         if first is None or first.rover is None:
             raise CameraError(f"the camera does not see the rover: {first.reason if first else 'no frame'}")
-        if scenario is not None:
-            start, target = (scenario.start.x_m, scenario.start.y_m), (scenario.target.x_m, scenario.target.y_m)
-            trips = cfg.mission.trips or scenario.mission.trips
-            legs = trips * (2 if scenario.mission.kind == "out-and-back" else 1)
-        else:
-            if first.target is None:
-                raise CameraError("no target marker in view and no --scenario to say where to go")
-            start, target = first.rover[:2], first.target
-            legs = cfg.mission.trips or 1
-
-        mission = Mission(link, grid, start, target, legs=legs, rover_params=cfg.rover_params(),
-                          fix_sd_mm=cfg.mission.fix_sd_mm, heartbeat_hz=cfg.mission.heartbeat_hz, on_event=say)
+        if scenario is None and first.target is None:
+            raise CameraError("no target marker in view and no --scenario to say where to go")
+        spec = MissionSpec.for_run(scenario, cfg, start_xy=None if scenario else first.rover[:2],
+                                   target_xy=None if scenario else first.target,
+                                   host_boot_id=int.from_bytes(os.urandom(4), "little"))
+        if log_path is not None or live_port is not None:
+            meta = {"port": name, "camera": str(source), "scenario": scenario.name if scenario else ""}
+            if readings is not None:
+                meta["initial_map"] = [dataclasses.asdict(r) for r in readings]
+            runlog = RunLog(log_path, spec, source="hardware", scenario=scenario, live_port=live_port,
+                            image_hz=log_image_hz, meta=meta)
+            if runlog.live_port is not None:
+                say(0.0, f"live view: open Foxglove and connect to ws://localhost:{runlog.live_port}")
+        link = Link(transport if runlog is None else RecordingTransport(transport, runlog), key=key)
+        mission = spec.build(link, on_event=say, recorder=runlog)
         if readings is not None:
             say(0.0, f"loaded {mission.map.replay(readings)} sonar readings from {map_file}")
         t0 = time.monotonic()
@@ -186,6 +199,10 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
             while not mission.done and time.monotonic() - t0 < max_time_s:
                 ok, frame = cap.read()
                 now = time.monotonic() - t0
+                if runlog is not None:
+                    runlog.set_time(now)
+                    if ok:
+                        runlog.camera_image(now, frame)
                 if ok:
                     det = locator.locate(frame, now)
                     if det.rover is not None:
@@ -216,6 +233,11 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
                 cap.release()
                 if transport is not None:
                     transport.close()
+                if runlog is not None:
+                    runlog.close({"host_outcome": mission.outcome.value if mission else "not started",
+                                  "interrupted": interrupted or ending_with is not None})
+                    if log_path is not None:
+                        print(f"run log: {log_path} (`rovernav replay {log_path}`)", file=sys.stderr)
     if interrupted:
         _summary(mission)
         raise KeyboardInterrupt

@@ -43,6 +43,7 @@ environment variable ROVERNAV_SCENARIO_DIR); `load_scenario` takes their name or
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import tomllib
@@ -493,3 +494,31 @@ def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:
     difficulty["band"] = band
     out["difficulty"] = difficulty
     return out
+
+
+# --- writing -------------------------------------------------------------------------------
+
+def scenario_toml(scenario: Scenario) -> str:
+    """The scenario as a version-1 file: `parse_scenario` of it gives the same Scenario (every
+    number written exactly, the [generated] table and the path left out). A run log keeps this."""
+    def num(v: float) -> str:
+        return repr(float(v))
+
+    def text(s: str) -> str:
+        return json.dumps(s, ensure_ascii=False)   # a TOML basic string is a JSON string
+
+    lines = [f"name = {text(scenario.name)}", f"version = {FORMAT_VERSION}"]
+    if scenario.description:
+        lines.append(f"description = {text(scenario.description)}")
+    a, s, t, m = scenario.arena, scenario.start, scenario.target, scenario.mission
+    lines += ["", "[arena]", f"width_m = {num(a.width_m)}", f"height_m = {num(a.height_m)}",
+              "", "[start]", f"x_m = {num(s.x_m)}", f"y_m = {num(s.y_m)}", f"heading_deg = {num(s.heading_deg)}",
+              "", "[target]", f"x_m = {num(t.x_m)}", f"y_m = {num(t.y_m)}",
+              "", "[mission]", f"kind = {text(m.kind)}", f"trips = {int(m.trips)}"]
+    for key, shapes in (("obstacles", scenario.obstacles), ("walls", scenario.walls), ("posts", scenario.posts)):
+        for shape in shapes:
+            lines += ["", f"[[{key}]]"]
+            for f in dataclasses.fields(shape):
+                value = getattr(shape, f.name)
+                lines.append(f"{f.name} = {('true' if value else 'false') if isinstance(value, bool) else num(value)}")
+    return "\n".join(lines) + "\n"

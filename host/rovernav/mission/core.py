@@ -73,6 +73,35 @@ class Detection:
     reason: str | None = None
 
 
+class Recorder:
+    """What a mission tells a run log (rovernav.runlog.RunLog), here doing nothing.
+
+    Inputs, in the order they reach the mission: the ticks, the camera's detections, every frame
+    it takes from the rover, and a failure imposed from outside; `rovernav replay` feeds these to
+    a new Mission and compares its outputs: the frames it sends (and the events it reports)."""
+
+    def host_input(self, kind: str, t_s: float, **data) -> None:
+        pass
+
+    def host_rx(self, t_s: float, frame) -> None:
+        pass
+
+    def host_tx(self, t_s: float, message, seq: int) -> None:
+        pass
+
+    def host_event(self, t_s: float, text: str) -> None:
+        pass
+
+    def host_path(self, t_s: float, path_id: int, path: list[tuple[float, float]]) -> None:
+        pass
+
+    def host_sonar(self, t_s: float, reading: SonarReading, changed: bool) -> None:
+        pass
+
+    def host_map(self, t_s: float, learned_map: LearnedMap) -> None:
+        pass
+
+
 class Mission:
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
     and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
@@ -82,8 +111,10 @@ class Mission:
                  fix_sd_mm: int = 3, heartbeat_hz: float = 5.0, host_replan: bool = True,
                  on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None,
                  state_file: str | Path | None = None, strategy: Strategy | None = None,
-                 deadlines: Deadlines = Deadlines(), host_boot_id: int | None = None):
+                 deadlines: Deadlines = Deadlines(), host_boot_id: int | None = None,
+                 recorder: Recorder | None = None):
         self.link = link
+        self.recorder = recorder or Recorder()
         self.map = LearnedMap(grid)
         self.start_xy = start_xy
         self.target_xy = target_xy
@@ -97,7 +128,12 @@ class Mission:
         self.heartbeat_period_s = 1.0 / heartbeat_hz
         self.host_replan = host_replan
         self.deadlines = deadlines
-        self.on_event = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
+        say = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
+
+        def on_event_recorded(t: float, text: str) -> None:
+            self.recorder.host_event(t, text)
+            say(t, text)
+        self.on_event = on_event_recorded
         self.map_file = Path(map_file) if map_file else None   # kept up to date: a restarted host reloads it
         self.record = LegRecord(state_file)
         self.host_boot_id = int.from_bytes(os.urandom(4), "little") if host_boot_id is None else host_boot_id
@@ -167,6 +203,8 @@ class Mission:
 
     def on_detection(self, detection: Detection, now_s: float) -> None:
         """A camera frame was processed; send its fix if the rover was seen."""
+        self.recorder.host_input("detection", now_s, taken_s=detection.t_s, x_m=detection.x_m, y_m=detection.y_m,
+                                 heading_deg=detection.heading_deg, reason=detection.reason)
         self._last_frame_s = now_s
         if detection.x_m is None:
             self._last_detection = detection if self._last_detection is None else self._last_detection
@@ -178,27 +216,30 @@ class Mission:
         heading_cdeg = round(((detection.heading_deg + 180.0) % 360.0 - 180.0) * 100)
         if heading_cdeg == -18000:
             heading_cdeg = 18000
-        self.link.send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m), heading_cdeg=heading_cdeg,
+        self._send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m), heading_cdeg=heading_cdeg,
                               age_ms=age_ms, sd_mm=self.fix_sd_mm, frame_seq=self.fixes_sent & 0xFFFF))
         self.fixes_sent += 1
 
     def tick(self, now_s: float) -> None:
         """Advance: read what the rover said, re-send what is unanswered, move the phases on."""
+        self.recorder.host_input("tick", now_s)
         self._now = now_s
         if self._phase_since is None:
             self._phase_since = self._last_heard_s = now_s
+            self.recorder.host_map(now_s, self.map)   # the map the mission starts from
         for _ in range(MAX_FRAMES_PER_TICK):   # a flood cannot hold one tick forever
             if self.done:
                 break
             frame = self.link.recv(timeout_s=0)
             if frame is None:
                 break
+            self.recorder.host_rx(now_s, frame)
             self._handle(frame)
         if self.done:
             return
         if now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
-            self.link.send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))
+            self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))
         if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
             self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s")
             return
@@ -219,7 +260,7 @@ class Mission:
                 self._fail(f"no HELLO from the rover within {d.hello_s:.0f} s")
             elif now_s - self._hello_at >= HELLO_EVERY_S:
                 self._hello_at = now_s
-                self.link.send(host_hello(self.host_boot_id))
+                self._send(host_hello(self.host_boot_id))
         elif self.phase is Phase.CONFIGURE:
             if not self.requests:
                 self._set_phase(Phase.LOCATE)
@@ -292,13 +333,18 @@ class Mission:
                                      "re-sending parameters and path")
             self.rover_boot_id = m.boot_id
             self.requests.clear()
-            self.link.send(host_hello(self.host_boot_id))
+            self._send(host_hello(self.host_boot_id))
             resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
             self._configure()
             self._resume_leg = resume   # once configured: the same leg again, from where the rover is
             return
         if self.phase is Phase.HELLO:
             self.rover_boot_id = m.boot_id
+            if self._hello_at < 0:
+                # The rover's HELLO came before ours went out (it booted while this host was
+                # starting): it takes no START until it has checked our schema, so say HELLO now.
+                self._hello_at = self._now
+                self._send(host_hello(self.host_boot_id))
             self.on_event(self._now, f"rover HELLO: boot id {m.boot_id}, firmware "
                                      f"{m.firmware_version >> 8}.{m.firmware_version & 0xFF}, schema ok")
             self._configure()
@@ -325,6 +371,7 @@ class Mission:
         reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
                                m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
         changed = self.map.add(reading)
+        self.recorder.host_sonar(self._now, reading, changed)
         self._map_unsaved = True
         if m.range_mm and self.legs:
             self.current_leg.obstacles_found += 1
@@ -342,6 +389,7 @@ class Mission:
                 self._arrived()
         elif kind is mg.EventKind.SCAN_DONE:
             self._save_map()   # once a sweep, not once a reading: the file grows with the map
+            self.recorder.host_map(self._now, self.map)
             if self._map_changed_at is not None:
                 self._map_changed()
         elif kind is mg.EventKind.PATH_ACCEPTED:
@@ -373,7 +421,7 @@ class Mission:
         if len(self.legs) >= self.legs_asked:
             self._set_phase(Phase.DONE)
             self.outcome = Outcome.REACHED
-            self.link.send(mg.Stop(reason=mg.StopReason.MISSION_DONE))
+            self._send(mg.Stop(reason=mg.StopReason.MISSION_DONE))
         else:
             self._next_leg()
 
@@ -432,6 +480,7 @@ class Mission:
             path = path[:mg.MAX_WAYPOINTS - 1] + [path[-1]]
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
+        self.recorder.host_path(self._now, self.path_id, path)
         self._accepted_path_id = None
         self._set_phase(Phase.LOAD)
         n = mg.WAYPOINTS_PER_CHUNK
@@ -502,8 +551,13 @@ class Mission:
         wp = self.last_status.waypoint_index if self.last_status else 0
         return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):]
 
+    def _send(self, message) -> int:
+        seq = self.link.send(message)
+        self.recorder.host_tx(self._now, message, seq)
+        return seq
+
     def _request(self, message) -> None:
-        self.requests.sent(message, self.link.send(message), self._now)
+        self.requests.sent(message, self._send(message), self._now)
 
     def _waited_s(self, now_s: float) -> float:
         """How long the rover has had to answer in this phase: since the phase began, or since it
@@ -523,7 +577,7 @@ class Mission:
             if self.requests.exhausted(pending) and not silent:
                 self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries")
                 return
-            self.requests.resent(pending, self.link.send(pending.message), now_s, count=not silent)
+            self.requests.resent(pending, self._send(pending.message), now_s, count=not silent)
 
     def _fail(self, why: str, outcome: Outcome = Outcome.FAILED) -> None:
         if self.phase is Phase.FAILED:
@@ -534,12 +588,13 @@ class Mission:
         self._set_phase(Phase.FAILED)
         self.on_event(self._now, f"mission failed: {why}")
         try:
-            self.link.send(mg.Stop(reason=mg.StopReason.HOST_SHUTDOWN))
+            self._send(mg.Stop(reason=mg.StopReason.HOST_SHUTDOWN))
         except LinkError:
             pass   # the link itself is what failed: nothing more to tell the rover
 
     def fail(self, why: str) -> None:
         """End the mission from outside (an operator, or the simulator's time limit)."""
+        self.recorder.host_input("fail", self._now, why=why)
         self._fail(why)
 
     def _rover_seen(self) -> bool:

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..validate import MAX_SIM_TIME_S, input_file, number, out_dir, seconds, time_window
 
 # What a run writes into its folder (and a new run there first removes).
-RESULT_FILES = ("report.json", "summary.png", "video.mp4", "comparison.json")
+RESULT_FILES = ("report.json", "summary.png", "video.mp4", "run.mcap", "comparison.json")
 
 
 def add_sim_parser(sub) -> None:
@@ -19,8 +19,9 @@ def add_sim_parser(sub) -> None:
         description="Simulate a mission: the firmware core the Uno runs (through its C ABI), a rover plant "
                     "with motor lag and dead band, a drifting gyro, an HC-SR04 on a servo, an overhead camera "
                     "rendering 640x480 frames that the host's vision code reads, and a 57,600-baud radio; the "
-                    "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4 and "
-                    "summary.png into the output folder.",
+                    "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4, "
+                    "summary.png and run.mcap (the run log: open it in Foxglove, or `rovernav replay` it) "
+                    "into the output folder; --live shows the run in Foxglove as it happens.",
         epilog="Strategies: rovernav (the autonomy on the rover, simplified paths, fast sweeps) and seed (the "
                "2019 system's behaviour: a stop at every grid waypoint, 9-second sweeps); both runs them in the "
                "same world and prints them side by side.")
@@ -83,6 +84,12 @@ def add_sim_parser(sub) -> None:
                         "calls per step, the interrupts, and the float and integer library routines with their "
                         "callers. Prints the top 10 for the steps with a FIX. Off by default: the AVR simulation "
                         "runs about a third slower")
+    from ..runlog.cli import add_log_flags
+
+    add_log_flags(p, "run.mcap in the output folder")
+    p.add_argument("--speed", type=number(0.01, 1000.0), default=None, metavar="X",
+                   help="run at X times real time (default: as fast as the machine goes; with --live, 1: the "
+                        "live view shows the mission at its own pace)")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.set_defaults(func=cmd_sim)
 
@@ -94,6 +101,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from ..firmware import FirmwareBuildError
     from .report import VideoWriter, build_report, summary_picture, write_report
     from .runner import Faults, SimOptions, Simulation
+    from ..runlog.cli import live_port_of
+    from ..runlog.writer import RunLogError
 
     if args.profile and args.rover != "uno":
         print("rovernav sim: --profile profiles the Uno image: it needs --rover uno", file=sys.stderr)
@@ -120,7 +129,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
                         firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
         opts = SimOptions(seed=args.seed, strategy=strategy, camera_fps=args.camera_fps, max_time_s=args.max_time,
                           host_replan=not args.no_host_replan, faults=faults, config=config, drive_mode=mode,
-                          rover=args.rover, signed=not args.unsigned, attacker=args.attacker)
+                          rover=args.rover, signed=not args.unsigned, attacker=args.attacker,
+                          log=None if args.no_log else out / "run.mcap", live_port=live_port_of(args),
+                          log_image_hz=args.log_image_hz,
+                          pace=args.speed if args.speed is not None else (1.0 if args.live else 0.0))
         video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
         started = time.monotonic()
 
@@ -135,7 +147,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
         try:
             sim = Simulation(scenario, opts, frame_sink=video, progress=progress)
-        except FirmwareBuildError as exc:
+        except (FirmwareBuildError, RunLogError) as exc:
             if video is not None:
                 video.close(keep=False)
             print(f"rovernav sim: {exc}", file=sys.stderr)
@@ -143,6 +155,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"simulating {scenario.name} with the {strategy} strategy, {sim.drive_mode} (seed {args.seed}) ...",
                   flush=True)
+        if sim.runlog is not None and sim.runlog.live_port is not None:
+            print(f"live view: open Foxglove and connect to ws://localhost:{sim.runlog.live_port} "
+                  f"(running at {opts.pace:g}x real time)", flush=True)
         if args.profile:
             try:
                 sim.core.enable_profile()   # before the first step: the image has not run yet
@@ -155,6 +170,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
             # Ctrl-C or an error mid-run: no half video; a report that says the run was cut short.
             if video is not None:
                 video.close(keep=False)
+            sim.close_log({"interrupted": True})   # the log of a run cut short is kept: it says how it ended
             try:
                 cut = build_report(sim, time.monotonic() - started)
                 cut.update(outcome="interrupted", interrupted=True, reached=False)
@@ -164,6 +180,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
             raise
         if video is not None:
             video.close()
+        sim.close_log()
         report = build_report(sim, time.monotonic() - started)
         if args.rover == "uno":
             report["uno_timing"] = sim.uno_timing()
@@ -174,7 +191,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
         summary_picture(sim, report, out / "summary.png")
         reports.append(report)
         print(_summary_line(report))
-        print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}"))
+        print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}")
+              + ("" if opts.log is None else f", {opts.log}"))
     if len(reports) > 1:
         print()
         print(comparison_table(reports))

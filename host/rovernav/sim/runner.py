@@ -16,6 +16,7 @@ import dataclasses
 import logging
 import math
 import tempfile
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -25,7 +26,8 @@ from ..config import Config, config_from_dict
 from ..firmware import RoverCore
 from ..link import messages_gen as mg
 from ..link.link import Link
-from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin, make_strategy
+from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
+from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
 from ..render import Camera, Lighting, Renderer, RoverLook, Scene
 from ..vision import Locator
@@ -37,6 +39,7 @@ log = logging.getLogger("rovernav.sim")
 
 STEP_S = 0.010
 HOST_PERIOD_S = 0.030
+HOST_BOOT_ID = 0x484F5354   # "HOST": the simulated host's boot id (+1 per restart)
 
 
 @dataclasses.dataclass
@@ -68,6 +71,10 @@ class SimOptions:
     rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (sim/uno.py)
     signed: bool = True               # host and rover share a link key ([signing]); False: unsigned
     attacker: bool = False            # a second transmitter injects forged and replayed frames (attacker.py)
+    log: Path | None = None           # the run's MCAP log (rovernav.runlog); None: none
+    live_port: int | None = None      # serve the log's channels live on 127.0.0.1 at this port (0: any free one)
+    log_image_hz: float = 2.0         # camera images kept in the log (and shown live) per second
+    pace: float = 0.0                 # > 0: run at this many times real time (for a live view); 0: flat out
 
 
 @dataclasses.dataclass
@@ -145,8 +152,23 @@ class Simulation:
         self._host_ticked = -1.0
         self.events: list[tuple[float, str]] = []
         self._map_dir = tempfile.TemporaryDirectory(prefix="rovernav-sim-")
-        self._map_file = Path(self._map_dir.name) / "learned-map.json"
         self.restarts_done = 0
+        params = [(p, v) for p, v in self.cfg.rover_params() if p != mg.Param.DRIVE_MODE]
+        if self.drive_mode != "rotate_drive" or mg.Param.DRIVE_MODE in self.cfg.rover:
+            params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.drive_mode.upper()])))
+        # The host's mission in plain values: the run log keeps it, and `rovernav replay` builds
+        # the same mission from it. Its boot id says "HOST" (+1 per restart).
+        self.spec = MissionSpec.for_run(scenario, self.cfg, strategy=options.strategy,
+                                        host_replan=options.host_replan, rover_params=params, host_boot_id=HOST_BOOT_ID)
+        self.runlog = None
+        if options.log is not None or options.live_port is not None:
+            from ..runlog import RunLog
+
+            self.runlog = RunLog(options.log, self.spec, source="sim", scenario=scenario, truth=True,
+                                 live_port=options.live_port, image_hz=options.log_image_hz,
+                                 meta={"scenario": scenario.name, "seed": options.seed, "strategy": options.strategy,
+                                       "drive_mode": self.drive_mode, "rover": options.rover,
+                                       "signed": options.signed})
         self.mission = self._new_host()
         self._clairvoyant: OccupancyGrid | None = None
 
@@ -186,29 +208,27 @@ class Simulation:
     def _new_host(self) -> Mission:
         self.transport = SimTransport(self.to_rover, self.to_host)
         self.transport.set_time(self.t)
-        self.link = Link(self.transport, key=self.link_key)
-        grid = OccupancyGrid.from_scenario(self.scenario, self.cfg.planner)
-        sc = self.scenario
-        trips = self.cfg.mission.trips or sc.mission.trips
-        legs = trips * (2 if sc.mission.kind == "out-and-back" else 1)
-        params = [(p, v) for p, v in self.cfg.rover_params() if p != mg.Param.DRIVE_MODE]
-        if self.drive_mode != "rotate_drive" or mg.Param.DRIVE_MODE in self.cfg.rover:
-            params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.drive_mode.upper()])))
-        mission = Mission(self.link, grid, (sc.start.x_m, sc.start.y_m), (sc.target.x_m, sc.target.y_m),
-                          legs=legs, rover_params=params, fix_sd_mm=self.cfg.mission.fix_sd_mm,
-                          heartbeat_hz=self.cfg.mission.heartbeat_hz, host_replan=self.opt.host_replan,
-                          on_event=self._event, map_file=self._map_file,
-                          state_file=Path(self._map_dir.name) / "mission-state.json",
-                          strategy=make_strategy(self.opt.strategy),
-                          host_boot_id=0x484F5354 + self.restarts_done)   # "HOST", +1 per restart
-        if self._map_file.exists():   # a restarted host: its learned map survived on disk
-            mission.load_map(self._map_file)
-        mission.restore_state()
-        return mission
+        transport = self.transport
+        if self.runlog is not None:
+            from ..runlog import RecordingTransport
+
+            transport = RecordingTransport(self.transport, self.runlog)
+        self.link = Link(transport, key=self.link_key)
+        spec = self.spec.with_boot_id(HOST_BOOT_ID + self.restarts_done)
+        if self.restarts_done and self.runlog is not None:
+            self.runlog.new_host(self.t, spec.host_boot_id)
+        return start_host(spec, self.link, Path(self._map_dir.name), on_event=self._event, recorder=self.runlog)
 
     def _event(self, t: float, text: str) -> None:
+        """What the host says (the run log has it from the mission itself)."""
         self.events.append((t, text))
         self.progress(t, text)
+
+    def _sim_event(self, t: float, text: str, level: str = "info") -> None:
+        """What happens in the simulated world: faults, crashes, the time limit."""
+        if self.runlog is not None:
+            self.runlog.event(t, text, source="sim", level=level)
+        self._event(t, text)
 
     # ---------------------------------------------------------------- the loop
 
@@ -217,27 +237,34 @@ class Simulation:
         restarts = sorted(f.host_restarts)
         resets = sorted(f.firmware_resets)
         next_progress = 30.0
+        wall0 = time.monotonic()
         while not self.mission.done and self.crash is None:
             if self.t >= self.opt.max_time_s:
                 self.timed_out = True
-                self._event(self.t, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)")
+                self._sim_event(self.t, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)", "error")
                 break
             now = self.t
+            if self.opt.pace > 0:   # a live view: simulated time keeps pace with the wall clock
+                time.sleep(max(0.0, wall0 + now / self.opt.pace - time.monotonic()))
+            if self.runlog is not None:
+                self.runlog.set_time(now)
+                self._fault_edges(now)
             if restarts and now >= restarts[0]:
                 restarts.pop(0)
-                self._event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS")
+                self._sim_event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS",
+                                "warning")
                 # Nothing of the old host survives: the new one starts from HELLO, as a restarted
                 # process would. (Rebuilding the leg from the rover's STATUS is issue 6's work.)
                 self.restarts_done += 1
                 self.mission = self._new_host()
             if resets and now >= resets[0]:
                 resets.pop(0)
-                self._event(now, "firmware reset: the rover reboots with a new boot id")
+                self._sim_event(now, "firmware reset: the rover reboots with a new boot id", "warning")
                 self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=4)
                 self._sonar_pending = None
             if f.gyro_dies_at is not None and now >= f.gyro_dies_at and self.plant.gyro_alive:
                 self.plant.gyro_alive = False
-                self._event(now, "the gyro stops answering")
+                self._sim_event(now, "the gyro stops answering", "warning")
             processed = self._camera(now)
             # The host's loop runs once a camera frame (the hardware runner's does too), and at
             # least every HOST_PERIOD_S when frames stop.
@@ -269,6 +296,8 @@ class Simulation:
                                             hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset())
                 frame = self.renderer.render(scene, self.rng)
                 self.frames_rendered += 1
+                if self.runlog is not None:
+                    self.runlog.camera_image(now, frame)
                 self._pending_frames.append((now, frame))
                 if self.frame_sink is not None:
                     self.frame_sink(now, frame, self)
@@ -284,6 +313,22 @@ class Simulation:
             else:
                 self.mission.on_detection(Detection(taken, None, None, None, det.reason), now)
         return processed
+
+    def _fault_edges(self, now: float) -> None:
+        """The run log's events for a radio or camera outage starting or ending at this step."""
+        f = self.opt.faults
+        for what, windows in (("radio", f.link_outages), (f"camera ({f.camera_outage_kind})", f.camera_outages)):
+            for start, duration in windows:
+                if start <= now < start + STEP_S:
+                    self.runlog.event(now, f"{what} outage for {duration:g} s begins", source="sim", level="warning")
+                elif start + duration <= now < start + duration + STEP_S:
+                    self.runlog.event(now, f"{what} outage ends", source="sim", level="warning")
+
+    def close_log(self, summary: dict | None = None) -> None:
+        """End the run log (renamed into place; also for a run cut short)."""
+        if self.runlog is not None:
+            self.runlog.close({"outcome": self.outcome, "host_outcome": self.mission.outcome.value,
+                               "mission_time_s": self.t, **(summary or {})})
 
     def _camera_out(self, now: float) -> str | None:
         for start, duration in self.opt.faults.camera_outages:
@@ -305,6 +350,8 @@ class Simulation:
             if stored is not None:
                 self._stored_counters = stored
         self.plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, STEP_S)
+        if self.runlog is not None:
+            self.runlog.true_pose(now + STEP_S, self.plant.x, self.plant.y, self.plant.heading)
         # The exact footprint test only when a cheap lower bound says it could matter: a new
         # minimum clearance, or a contact.
         bound = self.world.clearance_bound_m(self.plant.x, self.plant.y)
@@ -320,7 +367,7 @@ class Simulation:
             # Motors cannot push a rover through a box or a wall: the run ends where it touched.
             self.crash = {"t_s": round(now, 2), "x_m": round(self.plant.x, 3), "y_m": round(self.plant.y, 3),
                           "heading_deg": round(self.plant.heading, 1), "against": against}
-            self._event(now, f"CRASH at ({self.plant.x:.2f}, {self.plant.y:.2f}) m against {against}")
+            self._sim_event(now, f"CRASH at ({self.plant.x:.2f}, {self.plant.y:.2f}) m against {against}")
             self.mission.fail(f"the rover crashed into {against}")
         self._in_contact = contact
         if int(round(now * 1000)) % 50 == 0:

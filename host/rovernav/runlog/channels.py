@@ -1,0 +1,82 @@
+"""The run log's channels: topic, schema, and what each carries.
+
+Foxglove's well-known schemas (protobuf, `foxglove.*`) where one fits, so that Foxglove shows
+them with no extension: poses and paths in the 3D panel, the camera in an Image panel, the map
+as a Grid, events in the Log panel. The link's frames and the host's inputs are ours: JSON
+with a JSON schema (the Raw Messages panel shows them; plots reach into their fields).
+
+Positions are in the frame "arena": metres, origin at the arena's bottom-left corner, x right,
+y up, z up (the scenario's axes). Headings (0 = +y, clockwise) become the usual yaw about z.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+LOG_FORMAT = "rovernav.run-log"
+LOG_VERSION = 1
+#: The MCAP metadata record that holds the run: format, version, the mission spec, ...
+META_RUN = "rovernav.run"
+#: The frame every position is in.
+ARENA_FRAME = "arena"
+
+
+@dataclasses.dataclass(frozen=True)
+class ChannelSpec:
+    topic: str
+    schema: str          # a Foxglove schema name, or ours (JSON)
+    what: str
+    sim_only: bool = False
+    json_schema: dict | None = None   # for our JSON channels
+
+
+_FRAME_FIELDS = {
+    "n": {"type": "integer", "description": "order among the host's inputs and outputs"},
+    "t_s": {"type": "number", "description": "mission time [s]"},
+    "type": {"type": "string", "description": "message name (protocol/messages.toml)"},
+    "id": {"type": "integer"}, "seq": {"type": "integer"},
+    "payload_hex": {"type": "string", "description": "the message's payload bytes"},
+    "fields": {"type": "object", "description": "the decoded message"},
+    "counter": {"type": ["integer", "null"], "description": "a signed frame's counter"},
+}
+
+_JSON = {
+    "rovernav.LinkFrame": {"type": "object", "title": "rovernav.LinkFrame", "properties": _FRAME_FIELDS},
+    "rovernav.RawBytes": {"type": "object", "title": "rovernav.RawBytes",
+                          "properties": {"t_s": {"type": "number"}, "hex": {"type": "string"},
+                                         "bytes": {"type": "integer"}}},
+    "rovernav.HostInput": {"type": "object", "title": "rovernav.HostInput",
+                           "properties": {"n": {"type": "integer"}, "t_s": {"type": "number"},
+                                          "kind": {"type": "string",
+                                                   "enum": ["tick", "detection", "fail", "new_host"]}}},
+    "rovernav.Sample": {"type": "object", "title": "rovernav.Sample"},
+}
+
+CHANNELS: tuple[ChannelSpec, ...] = (
+    ChannelSpec("/link/host_to_rover", "rovernav.LinkFrame", "every frame the host sent, decoded"),
+    ChannelSpec("/link/rover_to_host", "rovernav.LinkFrame", "every frame the host took from the rover, decoded"),
+    ChannelSpec("/link/raw/host_to_rover", "rovernav.RawBytes", "the bytes the host wrote to the radio"),
+    ChannelSpec("/link/raw/rover_to_host", "rovernav.RawBytes",
+                "the bytes the host read from the radio (noise and refused frames included)"),
+    ChannelSpec("/host/inputs", "rovernav.HostInput",
+                "what `rovernav replay` feeds the mission again: ticks, camera detections, failures from outside"),
+    ChannelSpec("/camera/image", "foxglove.CompressedImage", "the camera's frames, JPEG, thinned (--log-image-hz)"),
+    ChannelSpec("/camera/fix", "foxglove.PoseInFrame", "where the host's vision located the rover"),
+    ChannelSpec("/rover/estimate", "foxglove.PoseInFrame", "the rover's own estimate, from its STATUS"),
+    ChannelSpec("/rover/status", "rovernav.Sample", "the rover's STATUS as numbers to plot: state, speeds, sd"),
+    ChannelSpec("/sim/true_pose", "foxglove.PoseInFrame", "the simulated rover's true pose (20 Hz)", sim_only=True),
+    ChannelSpec("/rover/driven_path", "foxglove.PosesInFrame",
+                "the path driven so far (true pose in the simulator, the camera's fixes on hardware), once a second"),
+    ChannelSpec("/plan/path", "foxglove.PosesInFrame", "each path the host sent the rover"),
+    ChannelSpec("/arena", "foxglove.SceneUpdate",
+                "the arena: known obstacles grey, unknown ones red (simulator only), start and target"),
+    ChannelSpec("/map/occupancy", "foxglove.Grid",
+                "the host's learned map after each sweep: occupied_pct (log-odds as percent) and inflated"),
+    ChannelSpec("/sonar/echo", "foxglove.SceneUpdate", "each sonar echo the rover reported: the beam and the hit"),
+    ChannelSpec("/events", "foxglove.Log", "what happened, in words: the mission, the rover's events, faults, crashes"),
+)
+
+BY_TOPIC = {c.topic: c for c in CHANNELS}
+
+
+def json_schema(name: str) -> dict:
+    return _JSON[name]

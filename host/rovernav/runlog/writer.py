@@ -1,0 +1,402 @@
+"""RunLog: one run's channels, written to an MCAP file and, live, served on localhost.
+
+A RunLog is the Mission's recorder (it receives the host's inputs and outputs, see
+`rovernav.mission.core.Recorder`) and the runner's (camera frames, the simulator's truth, raw
+radio bytes through `RecordingTransport`, events). It reads no clock: every call carries the
+mission time, and a record's MCAP log time is the run's start (wall clock) plus that.
+
+The file is written to a hidden partial name and renamed into place by `close()`, also when a
+run is cut short (Ctrl-C, a crash): a log is worth most then. The foxglove-sdk does the
+writing (zstd-compressed chunks) and the WebSocket server; `mcap` reads it back.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RovernavError
+from ..link import messages_gen as mg
+from ..link.transport import Transport
+from ..mission.core import Recorder
+from .channels import ARENA_FRAME, BY_TOPIC, CHANNELS, LOG_FORMAT, LOG_VERSION, META_RUN, json_schema
+
+log = logging.getLogger("rovernav.runlog")
+
+#: Default rate of the camera images kept in the log (the fixes are all kept).
+DEFAULT_IMAGE_HZ = 2.0
+#: JPEG quality of the kept images.
+JPEG_QUALITY = 75
+#: The true pose is logged this often [s] (the simulator's step is 0.01 s).
+TRUE_POSE_EVERY_S = 0.05
+#: The driven path is republished this often [s], thinned to points this far apart [m].
+DRIVEN_PATH_EVERY_S = 1.0
+DRIVEN_PATH_STEP_M = 0.01
+#: Live only: the arena is republished this often [s] for viewers that join late.
+LIVE_ARENA_EVERY_S = 2.0
+#: Live only: the server's clock is moved on this often [s].
+LIVE_TIME_EVERY_S = 0.1
+#: Default port of the live view (Foxglove's own default).
+DEFAULT_LIVE_PORT = 8765
+
+
+class RunLogError(RovernavError):
+    """The log cannot be written or served (a port in use, a folder that cannot be written)."""
+
+
+def _json(data: dict) -> bytes:
+    # Python's JSON writes every float exactly (repr): what replay reads back is what was logged.
+    return json.dumps(data, allow_nan=False, separators=(",", ":")).encode()
+
+
+def _quat(heading_deg: float):
+    from foxglove.messages import Quaternion
+
+    yaw = math.pi / 2 - math.radians(heading_deg)   # heading: 0 = +y, clockwise; yaw: from +x, anticlockwise
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def _pose(x_m: float, y_m: float, heading_deg: float = 90.0, z_m: float = 0.0):
+    from foxglove.messages import Pose, Vector3
+
+    return Pose(position=Vector3(x=float(x_m), y=float(y_m), z=float(z_m)), orientation=_quat(heading_deg))
+
+
+def _color(r: float, g: float, b: float, a: float = 1.0):
+    from foxglove.messages import Color
+
+    return Color(r=r, g=g, b=b, a=a)
+
+
+def message_record(message, seq: int, n: int, t_s: float, counter: int | None = None) -> dict:
+    """A link frame as the log keeps it: its payload (what replay decodes) and its fields (to read)."""
+    return {"n": n, "t_s": t_s, "type": message.NAME, "id": message.ID, "seq": seq,
+            "payload_hex": message.pack().hex(), "fields": message.to_dict(), "counter": counter}
+
+
+class RunLog(Recorder):
+    """The channels of one run. `path`: the MCAP file (None: no file); `live_port`: serve the
+    channels over Foxglove's WebSocket protocol on 127.0.0.1 at that port (0: any free port;
+    None: no server). `truth`: the simulator's true world may be shown (unknown obstacles,
+    true pose)."""
+
+    def __init__(self, path: str | Path | None, spec, *, source: str, scenario=None, truth: bool = False,
+                 live_port: int | None = None, image_hz: float = DEFAULT_IMAGE_HZ, meta: dict | None = None):
+        import foxglove
+        from foxglove.channels import (CompressedImageChannel, GridChannel, LogChannel, PoseInFrameChannel,
+                                       PosesInFrameChannel, SceneUpdateChannel)
+
+        self.path = Path(path) if path is not None else None
+        self.partial = None if self.path is None else self.path.with_name(f".{self.path.stem}.partial{self.path.suffix}")
+        self.truth = truth
+        self.scenario = scenario
+        self.sonar_offset_m = float(spec.planner["sonar_offset_m"])
+        self.image_period_s = 1.0 / image_hz if image_hz > 0 else math.inf
+        self.t0_ns = time.time_ns()
+        self.t_s = 0.0
+        self.counts: dict[str, int] = {c.topic: 0 for c in CHANNELS}
+        self._n = 0
+        self._next_image_s = 0.0
+        self._next_true_s = 0.0
+        self._next_driven_s = 0.0
+        self._next_arena_s = 0.0
+        self._next_time_s = 0.0
+        self._driven: list[tuple[float, float, float]] = []
+        self._echoes = 0
+        self._closed = False
+        self.ctx = foxglove.Context()
+        typed = {"foxglove.CompressedImage": CompressedImageChannel, "foxglove.PoseInFrame": PoseInFrameChannel,
+                 "foxglove.PosesInFrame": PosesInFrameChannel, "foxglove.SceneUpdate": SceneUpdateChannel,
+                 "foxglove.Grid": GridChannel, "foxglove.Log": LogChannel}
+        self.channels = {}
+        for c in CHANNELS:
+            if c.sim_only and not truth:
+                continue
+            if c.schema in typed:
+                self.channels[c.topic] = typed[c.schema](c.topic, context=self.ctx)
+            else:
+                schema = foxglove.Schema(name=c.schema, encoding="jsonschema",
+                                         data=json.dumps(json_schema(c.schema)).encode())
+                self.channels[c.topic] = foxglove.Channel(c.topic, schema=schema, message_encoding="json",
+                                                          context=self.ctx)
+        self.writer = None
+        if self.path is not None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self.writer = foxglove.open_mcap(self.partial, allow_overwrite=True, context=self.ctx)
+            except Exception as exc:   # the SDK raises its own error types
+                raise RunLogError(f"cannot write the run log {self.path}: {exc}") from None
+            run = {"format": LOG_FORMAT, "version": str(LOG_VERSION), "source": source,
+                   "started_unix_ns": str(self.t0_ns), "spec": spec.to_json(),
+                   "schema_hash": f"0x{mg.SCHEMA_HASH:08X}"}
+            run.update({k: (v if isinstance(v, str) else json.dumps(v)) for k, v in (meta or {}).items()})
+            self.writer.write_metadata(META_RUN, run)
+        self.server = None
+        if live_port is not None:
+            try:
+                self.server = foxglove.start_server(name="rovernav", host="127.0.0.1", port=live_port,
+                                                    context=self.ctx, capabilities=[foxglove.Capability.Time])
+            except Exception as exc:
+                self.close()
+                raise RunLogError(f"cannot serve the live view on 127.0.0.1:{live_port}: {exc}") from None
+        if scenario is not None:
+            self._arena(0.0)
+
+    # ------------------------------------------------------------ plumbing
+
+    @property
+    def live_port(self) -> int | None:
+        return None if self.server is None else self.server.port
+
+    def _log(self, topic: str, t_s: float, message) -> None:
+        ch = self.channels.get(topic)
+        if ch is None or self._closed:
+            return
+        ch.log(message, log_time=self.t0_ns + max(0, round(t_s * 1e9)))
+        self.counts[topic] += 1
+
+    def _next_n(self) -> int:
+        self._n += 1
+        return self._n
+
+    def set_time(self, t_s: float) -> None:
+        """The run's time now (for the raw bytes the transport moves); live: the viewer's clock."""
+        self.t_s = t_s
+        if self.server is not None:
+            if t_s >= self._next_time_s:
+                self._next_time_s = t_s + LIVE_TIME_EVERY_S
+                self.server.broadcast_time(self.t0_ns + round(t_s * 1e9))
+            if self.scenario is not None and t_s >= self._next_arena_s:
+                self._arena(t_s)
+
+    # ------------------------------------------------------------ the mission's recorder
+
+    def host_input(self, kind: str, t_s: float, **data) -> None:
+        self._log("/host/inputs", t_s, _json({"n": self._next_n(), "t_s": t_s, "kind": kind, **data}))
+        if kind == "detection" and data.get("x_m") is not None:
+            from foxglove.messages import PoseInFrame
+
+            self._log("/camera/fix", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
+                                                      pose=_pose(data["x_m"], data["y_m"], data["heading_deg"])))
+            if not self.truth:
+                self._drive(t_s, data["x_m"], data["y_m"])
+
+    def new_host(self, t_s: float, host_boot_id: int) -> None:
+        """A new host process takes over (the simulator's --host-restart): replay starts a new Mission."""
+        self.host_input("new_host", t_s, host_boot_id=host_boot_id)
+
+    def host_rx(self, t_s: float, frame) -> None:
+        m = frame.message
+        self._log("/link/rover_to_host", t_s, _json(message_record(m, frame.seq, self._next_n(), t_s, frame.counter)))
+        if isinstance(m, mg.Status):
+            self._status(t_s, m)
+
+    def host_tx(self, t_s: float, message, seq: int) -> None:
+        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s)))
+
+    def host_event(self, t_s: float, text: str) -> None:
+        self.event(t_s, text, source="host")
+
+    def host_path(self, t_s: float, path_id: int, path) -> None:
+        from foxglove.messages import PosesInFrame
+
+        headings = [math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) for a, b in zip(path, path[1:])]
+        headings.append(headings[-1] if headings else 0.0)
+        self._log("/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
+                                                  poses=[_pose(x, y, h) for (x, y), h in zip(path, headings)]))
+
+    def host_sonar(self, t_s: float, reading, changed: bool) -> None:
+        if reading.range_m is None:
+            return
+        from foxglove.messages import (LinePrimitive, Point3, SceneEntity, SceneUpdate, SpherePrimitive, Vector3)
+
+        h = math.radians(reading.heading_deg)
+        # Where the beam's axis meets the range (the sensor sits sonar_offset_m ahead of the centre).
+        off = self.sonar_offset_m
+        sx, sy = reading.x_m + off * math.sin(h), reading.y_m + off * math.cos(h)
+        b = math.radians(reading.heading_deg + reading.bearing_deg)
+        ex, ey = sx + reading.range_m * math.sin(b), sy + reading.range_m * math.cos(b)
+        self._echoes += 1
+        entity = SceneEntity(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, id=f"echo-{self._echoes}",
+                             lines=[LinePrimitive(thickness=0.004, points=[Point3(x=sx, y=sy, z=0.05),
+                                                                          Point3(x=ex, y=ey, z=0.05)],
+                                                  color=_color(1.0, 0.6, 0.0, 0.5))],
+                             spheres=[SpherePrimitive(pose=_pose(ex, ey, z_m=0.05), size=Vector3(x=0.02, y=0.02, z=0.02),
+                                                      color=_color(1.0, 0.0, 0.0))])
+        self._log("/sonar/echo", t_s, SceneUpdate(entities=[entity]))
+
+    def host_map(self, t_s: float, learned_map) -> None:
+        from foxglove.messages import Grid, PackedElementField, PackedElementFieldNumericType, Vector2
+
+        g = learned_map.grid
+        sonar = learned_map.sonar
+        pct = np.clip(np.rint(sonar.probability() * 100), 0, 100).astype(np.uint8)
+        pct[sonar.known] = 100
+        inflated = g.inflated[:pct.shape[0], :pct.shape[1]].astype(np.uint8) * 100
+        cells = np.stack([pct, inflated], axis=-1)   # rows from y = 0 up, as Grid wants
+        ny, nx = pct.shape
+        self._log("/map/occupancy", t_s, Grid(
+            timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, pose=_pose(0.0, 0.0),
+            column_count=nx, cell_size=Vector2(x=sonar.resolution_m, y=sonar.resolution_m),
+            row_stride=nx * 2, cell_stride=2,
+            fields=[PackedElementField(name="occupied_pct", offset=0, type=PackedElementFieldNumericType.Uint8),
+                    PackedElementField(name="inflated", offset=1, type=PackedElementFieldNumericType.Uint8)],
+            data=cells.tobytes()))
+
+    # ------------------------------------------------------------ the runner's
+
+    def raw(self, direction: str, data: bytes) -> None:
+        """Bytes through the host's transport: direction "host_to_rover" or "rover_to_host"."""
+        if data:
+            self._log(f"/link/raw/{direction}", self.t_s,
+                      _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}))
+
+    def camera_image(self, t_s: float, frame_bgr: np.ndarray) -> None:
+        """A camera frame; kept when the image rate allows (the first, then every 1/image_hz s)."""
+        if t_s + 1e-9 < self._next_image_s:
+            return
+        self._next_image_s = t_s + self.image_period_s
+        import cv2
+        from foxglove.messages import CompressedImage
+
+        ok, jpeg = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if ok:
+            self._log("/camera/image", t_s, CompressedImage(timestamp=self._stamp(t_s), frame_id="camera",
+                                                            data=jpeg.tobytes(), format="jpeg"))
+
+    def true_pose(self, t_s: float, x_m: float, y_m: float, heading_deg: float) -> None:
+        """The simulated rover's pose (thinned to TRUE_POSE_EVERY_S)."""
+        if t_s + 1e-9 < self._next_true_s:
+            return
+        self._next_true_s = t_s + TRUE_POSE_EVERY_S
+        from foxglove.messages import PoseInFrame
+
+        self._log("/sim/true_pose", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
+                                                     pose=_pose(x_m, y_m, heading_deg)))
+        self._drive(t_s, x_m, y_m)
+
+    def event(self, t_s: float, text: str, source: str = "sim", level: str = "info") -> None:
+        from foxglove.messages import Log, LogLevel
+
+        lv = {"info": LogLevel.Info, "warning": LogLevel.Warning, "error": LogLevel.Error}[level]
+        if level == "info" and any(w in text for w in ("failed", "CRASH", "fault")):
+            lv = LogLevel.Error
+        self._log("/events", t_s, Log(timestamp=self._stamp(t_s), level=lv, message=text, name=source))
+
+    def close(self, summary: dict | None = None) -> None:
+        """End the log: the file renamed into place (also after an interrupted run)."""
+        if self._closed:
+            return
+        if self._driven:
+            self._publish_driven(self.t_s)
+        self._closed = True
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+        if self.writer is not None:
+            if summary:
+                self.writer.write_metadata("rovernav.summary", {k: json.dumps(v) for k, v in summary.items()})
+            self.writer.close()
+            self.writer = None
+            os.replace(self.partial, self.path)
+
+    # ------------------------------------------------------------ helpers
+
+    def _stamp(self, t_s: float):
+        from foxglove.messages import Timestamp
+
+        ns = self.t0_ns + max(0, round(t_s * 1e9))
+        return Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+    def _status(self, t_s: float, m: mg.Status) -> None:
+        from foxglove.messages import PoseInFrame
+
+        if m.flags & mg.StatusFlag.MISSION_ACTIVE or m.x_mm or m.y_mm:
+            self._log("/rover/estimate", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
+                                                          pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100)))
+        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else str(m.state)
+        self._log("/rover/status", t_s, _json({"t_s": t_s, "state": state, **m.to_dict()}))
+
+    def _drive(self, t_s: float, x_m: float, y_m: float) -> None:
+        if not self._driven or math.dist(self._driven[-1][:2], (x_m, y_m)) >= DRIVEN_PATH_STEP_M:
+            self._driven.append((x_m, y_m, t_s))
+        if t_s >= self._next_driven_s:
+            self._next_driven_s = t_s + DRIVEN_PATH_EVERY_S
+            self._publish_driven(t_s)
+
+    def _publish_driven(self, t_s: float) -> None:
+        from foxglove.messages import PosesInFrame
+
+        pts = self._driven
+        poses = [_pose(x, y, math.degrees(math.atan2(pts[min(i + 1, len(pts) - 1)][0] - x,
+                                                     pts[min(i + 1, len(pts) - 1)][1] - y)) if len(pts) > 1 else 0.0)
+                 for i, (x, y, _) in enumerate(pts)]
+        self._log("/rover/driven_path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=poses))
+
+    def _arena(self, t_s: float) -> None:
+        from foxglove.messages import (CubePrimitive, CylinderPrimitive, SceneEntity, SceneUpdate, SpherePrimitive,
+                                       Vector3)
+
+        self._next_arena_s = t_s + LIVE_ARENA_EVERY_S
+        sc = self.scenario
+        known, unknown = _color(0.6, 0.6, 0.6, 0.9), _color(0.9, 0.15, 0.15, 0.6)
+        height = 0.10
+        cubes, cylinders = [], []
+        for o in sc.obstacles:
+            if o.known or self.truth:
+                cubes.append(CubePrimitive(pose=_pose(o.x_m, o.y_m, z_m=height / 2),
+                                           size=Vector3(x=o.w_m, y=o.h_m, z=height), color=known if o.known else unknown))
+        for w in sc.walls:
+            if w.known or self.truth:
+                heading = math.degrees(math.atan2(w.x1_m - w.x0_m, w.y1_m - w.y0_m))
+                cubes.append(CubePrimitive(pose=_pose((w.x0_m + w.x1_m) / 2, (w.y0_m + w.y1_m) / 2, heading + 90.0,
+                                                      z_m=height / 2),
+                                           size=Vector3(x=w.thickness_m, y=w.length_m, z=height),
+                                           color=known if w.known else unknown))
+        for p in sc.posts:
+            if p.known or self.truth:
+                cylinders.append(CylinderPrimitive(pose=_pose(p.x_m, p.y_m, z_m=height / 2),
+                                                   size=Vector3(x=2 * p.radius_m, y=2 * p.radius_m, z=height),
+                                                   bottom_scale=1.0, top_scale=1.0, color=known if p.known else unknown))
+        floor = CubePrimitive(pose=_pose(sc.arena.width_m / 2, sc.arena.height_m / 2, z_m=-0.005),
+                              size=Vector3(x=sc.arena.width_m, y=sc.arena.height_m, z=0.01),
+                              color=_color(0.15, 0.15, 0.15, 1.0))
+        marks = [SpherePrimitive(pose=_pose(sc.start.x_m, sc.start.y_m, z_m=0.02), size=Vector3(x=0.06, y=0.06, z=0.02),
+                                 color=_color(0.1, 0.8, 0.1)),
+                 SpherePrimitive(pose=_pose(sc.target.x_m, sc.target.y_m, z_m=0.02), size=Vector3(x=0.08, y=0.08, z=0.02),
+                                 color=_color(1.0, 0.85, 0.0))]
+        entity = SceneEntity(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, id="arena",
+                             cubes=[floor] + cubes, cylinders=cylinders, spheres=marks)
+        self._log("/arena", t_s, SceneUpdate(entities=[entity]))
+
+
+class RecordingTransport(Transport):
+    """The transport it wraps, handing every byte it moves to a RunLog (the raw channels)."""
+
+    def __init__(self, inner: Transport, runlog: RunLog):
+        super().__init__(inner.name)
+        self.inner = inner
+        self.runlog = runlog
+
+    def __getattr__(self, name: str):
+        # Anything else (a serial port's baud rate) is the wrapped transport's.
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def _write(self, data: bytes) -> None:
+        self.inner.write(data)
+        self.runlog.raw("host_to_rover", data)
+
+    def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
+        data = self.inner.read(max_bytes, timeout_s)
+        self.runlog.raw("rover_to_host", data)
+        return data
+
+    def _close(self) -> None:
+        self.inner.close()

@@ -1,0 +1,256 @@
+"""Run logs (MCAP, Foxglove's schemas), the live view over Foxglove's WebSocket protocol, and
+`rovernav replay` (issue 15, items 1-3)."""
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import socket
+import threading
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+
+from rovernav import hardware
+from rovernav.cli import main
+from rovernav.firmware import RoverCore
+from rovernav.link import messages_gen as mg
+from rovernav.mission.spec import MissionSpec
+from rovernav.runlog import CHANNELS
+from rovernav.runlog.channels import META_RUN
+from rovernav.runlog.replay import paths_sent, read_log, replay
+from rovernav.scenario import load_scenario
+from rovernav.sim.runner import SimOptions, Simulation
+
+from tests.core_transport import CoreTransport
+
+FIG48 = "seed-fig4-8-unknown-obstacle"
+
+
+def _summary(path: Path):
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        s = reader.get_summary()
+        channels = {ch.topic: (ch, s.schemas[ch.schema_id], s.statistics.channel_message_counts.get(cid, 0))
+                    for cid, ch in s.channels.items()}
+        meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+    return channels, meta
+
+
+def _json_messages(path: Path, topic: str) -> list[dict]:
+    with open(path, "rb") as f:
+        return [json.loads(m.data) for _s, _c, m in make_reader(f).iter_messages(topics=[topic])]
+
+
+@pytest.fixture(scope="module")
+def fig48_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fig48")
+    sim = Simulation(load_scenario(FIG48), SimOptions(seed=1, log=out / "run.mcap"), progress=lambda t, text: None)
+    sim.run()
+    sim.close_log()
+    return sim, out / "run.mcap"
+
+
+@pytest.mark.mission
+def test_a_simulated_run_logs_every_channel_with_its_schema_and_count(fig48_run):
+    sim, path = fig48_run
+    assert sim.outcome == "reached"
+    channels, meta = _summary(path)
+    assert set(channels) == {c.topic for c in CHANNELS}
+    for c in CHANNELS:
+        ch, schema, _count = channels[c.topic]
+        assert schema.name == c.schema, c.topic
+        if c.schema.startswith("foxglove."):
+            assert (ch.message_encoding, schema.encoding) == ("protobuf", "protobuf"), c.topic
+        else:
+            assert (ch.message_encoding, schema.encoding) == ("json", "jsonschema"), c.topic
+    count = {topic: n for topic, (_c, _s, n) in channels.items()}
+    link = sim.link
+    # The link, both ways: every frame the host sent and took, and every byte it moved.
+    assert count["/link/host_to_rover"] == link.tx_frames
+    assert count["/link/rover_to_host"] == link.counters.frames_ok - link.pending
+    assert sum(r["bytes"] for r in _json_messages(path, "/link/raw/host_to_rover")) == link.tx_bytes
+    assert sum(r["bytes"] for r in _json_messages(path, "/link/raw/rover_to_host")) == link.rx_bytes
+    # The camera: every fix, images at 2 Hz; the truth at 20 Hz.
+    inputs = _json_messages(path, "/host/inputs")
+    assert count["/camera/fix"] == sum(1 for r in inputs if r["kind"] == "detection" and r["x_m"] is not None) > 900
+    assert abs(count["/camera/image"] - sim.t * 2.0) <= 2
+    assert abs(count["/sim/true_pose"] - sim.t / 0.05) <= 2
+    # Paths, map, echoes, events.
+    m = sim.mission
+    assert count["/plan/path"] == len(m.legs) + m.replans == 3
+    scans = sum(1 for _t, e in m.events if e.kind == mg.EventKind.SCAN_DONE)
+    assert count["/map/occupancy"] == scans + 1 and scans >= 3
+    assert count["/sonar/echo"] == len(m.echoes) > 0
+    assert count["/events"] == len(sim.events)
+    assert count["/arena"] == 1 and count["/rover/driven_path"] >= sim.t - 1
+    # What it was made of, to replay it.
+    run = meta[META_RUN]
+    assert MissionSpec.from_json(run["spec"]) == sim.spec
+    assert json.loads(meta["rovernav.summary"]["outcome"]) == "reached"
+
+
+@pytest.mark.mission
+def test_foxglove_messages_decode_to_what_happened(fig48_run):
+    sim, path = fig48_run
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        last = {}
+        for _s, ch, _m, msg in reader.iter_decoded_messages(topics=["/sim/true_pose", "/map/occupancy",
+                                                                    "/camera/image", "/plan/path"]):
+            last[ch.topic] = msg
+    pose, grid = last["/sim/true_pose"].pose, last["/map/occupancy"]
+    end = sim.samples[-1]
+    assert math.dist((pose.position.x, pose.position.y), (end.x_m, end.y_m)) < 0.02
+    # Heading 0 = +y, clockwise; the pose's yaw is anticlockwise from +x.
+    yaw = 2 * math.atan2(pose.orientation.z, pose.orientation.w)
+    assert abs((math.degrees(math.pi / 2 - yaw) - end.heading_deg + 180) % 360 - 180) < 3
+    cells = np.frombuffer(grid.data, np.uint8).reshape(-1, grid.column_count, 2)
+    # The last map logged is the mission's map at its last sweep's end: the sonar's log-odds as
+    # percent (unknown 50, seen clear below, seen occupied above, known obstacles 100), and the
+    # planner's inflated cells.
+    learned = sim.mission.map
+    want = np.clip(np.rint(learned.sonar.probability() * 100), 0, 100).astype(np.uint8)
+    want[learned.sonar.known] = 100
+    assert np.array_equal(cells[..., 0], want)
+    assert np.array_equal(cells[..., 1], sim.mission.grid.inflated.astype(np.uint8) * 100)
+    assert (want < 50).sum() > 100 and ((want > 50) & ~learned.sonar.known).sum() > 0
+    img = cv2.imdecode(np.frombuffer(last["/camera/image"].data, np.uint8), cv2.IMREAD_COLOR)
+    assert img.shape == (480, 640, 3)
+    final = [(p.position.x, p.position.y) for p in last["/plan/path"].poses]
+    assert final[-1] == pytest.approx((2.0, 1.4))
+
+
+@pytest.mark.mission
+def test_replay_of_an_out_and_back_log_gives_the_same_decisions_and_shows_a_changed_planner(tmp_path, capsys):
+    out = tmp_path / "sim"
+    assert main(["sim", "out-and-back", "--no-video", "--quiet", "--out", str(out)]) == 0
+    log = out / "run.mcap"
+    capsys.readouterr()
+    assert main(["replay", str(log), "--json", str(tmp_path / "same.json")]) == 0
+    assert "identical" in capsys.readouterr().out
+    same = json.loads((tmp_path / "same.json").read_text())
+    assert same["identical"] and same["paths_recorded"] == same["paths_replayed"] >= 4
+    assert all(p["recorded"] == p["replayed"] for p in same["paths"])     # same waypoints, same times
+    assert same["outcome_recorded"] == same["outcome_replayed"] == "reached"
+
+    code = main(["replay", str(log), "--set", "planner.robot_radius_m=0.15", "--json", str(tmp_path / "diff.json"),
+                 "--plot", str(tmp_path / "diff.png")])
+    text = capsys.readouterr().out
+    assert code == 1 and "DIFFERENT" in text and "robot_radius_m 0.12 -> 0.15" in text
+    diff = json.loads((tmp_path / "diff.json").read_text())
+    assert not diff["identical"] and diff["changed"] == {"planner.robot_radius_m": [0.12, 0.15]}
+    assert any(p["recorded"]["waypoints_m"] != p["replayed"]["waypoints_m"] for p in diff["paths"]
+               if p["recorded"] and p["replayed"])
+    assert cv2.imread(str(tmp_path / "diff.png")) is not None
+
+
+@pytest.mark.mission
+def test_replay_follows_host_restarts_and_firmware_resets(tmp_path):
+    sim = Simulation(load_scenario(FIG48), SimOptions(seed=2, log=tmp_path / "run.mcap", log_image_hz=0,
+                                                      faults=_faults()), progress=lambda t, text: None)
+    sim.run()
+    sim.close_log()
+    run = read_log(tmp_path / "run.mcap")
+    assert sum(1 for r in run.inputs if r["kind"] == "new_host") == 1
+    result = replay(run)
+    assert result.identical, result.first_difference()
+    assert len(paths_sent(result.sent)) >= 2
+
+
+def _faults():
+    from rovernav.sim.runner import Faults
+
+    return Faults(host_restarts=[12.0], firmware_resets=[20.0], link_outages=[(25.0, 2.0)])
+
+
+def test_replay_refuses_what_is_not_a_run_log(tmp_path, capsys):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file at all")
+    assert main(["replay", str(junk)]) == 2
+    err = capsys.readouterr().err
+    assert "not a readable MCAP run log" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    import foxglove
+
+    other = tmp_path / "other.mcap"
+    with foxglove.open_mcap(other, context=foxglove.Context()):
+        pass
+    assert main(["replay", str(other)]) == 2
+    assert "not a rovernav run log" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("setting", ["planner.nope=1", "planner.robot_radius_m=-1", "planner.resolution_m=x",
+                                     "strategy=fast", "host_replan=maybe", "heartbeat", "=3"])
+def test_replay_refuses_a_bad_setting(fig48_run, setting, capsys):
+    _sim, path = fig48_run
+    assert main(["replay", str(path), "--set", setting]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rovernav replay: --set") and "Traceback" not in err
+
+
+def test_the_live_view_answers_a_foxglove_websocket_client():
+    websockets = pytest.importorskip("websockets")
+    sim = Simulation(load_scenario(FIG48), SimOptions(seed=1, live_port=0, pace=20.0, max_time_s=3.0),
+                     progress=lambda t, text: None)
+    port = sim.runlog.live_port
+    runner = threading.Thread(target=sim.run, daemon=True)
+    runner.start()
+
+    async def client():
+        async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"]) as ws:
+            info = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            advertised = {}
+            while set(advertised) != {c.topic for c in CHANNELS}:
+                msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
+                if msg["op"] == "advertise":
+                    advertised.update({c["topic"]: c for c in msg["channels"]})
+            await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                {"id": 7, "channelId": advertised["/sim/true_pose"]["id"]}]}))
+            while True:
+                data = await asyncio.wait_for(ws.recv(), 10)
+                if isinstance(data, bytes) and data[0] == 1:   # message data: op, subscription, time, payload
+                    return info, advertised, data
+
+    info, advertised, data = asyncio.run(client())
+    runner.join(30)
+    sim.close_log()
+    assert info["op"] == "serverInfo" and info["name"] == "rovernav" and "time" in info["capabilities"]
+    assert advertised["/sim/true_pose"]["schemaName"] == "foxglove.PoseInFrame"
+    assert int.from_bytes(data[1:5], "little") == 7 and len(data) > 13
+
+
+def test_a_live_port_in_use_is_a_one_line_error(tmp_path, capsys):
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        code = main(["sim", FIG48, "--no-video", "--quiet", "--out", str(tmp_path), "--live", "--live-port", str(port)])
+    err = capsys.readouterr().err
+    assert code == 2 and f"cannot serve the live view on 127.0.0.1:{port}" in err and "Traceback" not in err
+
+
+@pytest.mark.mission
+def test_rovernav_run_logs_the_hardware_mission_and_it_replays(tmp_path, monkeypatch):
+    from tests.test_config import _video
+
+    video = _video(tmp_path / "arena.mp4")
+    core = CoreTransport(RoverCore())
+    monkeypatch.setattr(hardware, "SerialTransport", lambda name, baud: core)
+    log = tmp_path / "hw.mcap"
+    hardware.run_hardware("/dev/ttyFAKE", str(video), None, FIG48, max_time_s=3.0, log_path=log)
+    run = read_log(log)
+    assert run.source == "hardware"
+    kinds = {r["kind"] for r in run.inputs}
+    assert {"tick", "detection", "rx"} <= kinds
+    sent = {r["type"] for r in run.sent}
+    assert {"hello", "config", "fix", "heartbeat", "path", "start"} <= sent
+    # The rover's boot HELLO was waiting before the host's first tick: the host still said its own
+    # HELLO (once), so the rover took the path and START (it refuses START from an unchecked host).
+    assert [r["type"] for r in run.sent].count("hello") == 1
+    assert not [r for r in run.inputs if r["kind"] == "rx" and r["type"] == "nack"]
+    result = replay(run)
+    assert result.identical and len(result.sent) == len(run.sent) > 50
