@@ -254,3 +254,32 @@ def test_rovernav_run_logs_the_hardware_mission_and_it_replays(tmp_path, monkeyp
     assert not [r for r in run.inputs if r["kind"] == "rx" and r["type"] == "nack"]
     result = replay(run)
     assert result.identical and len(result.sent) == len(run.sent) > 50
+
+
+def test_the_foxglove_layout_in_docs_is_generated_from_the_channels():
+    from rovernav.runlog.layout import LAYOUT_FILE, layout_text
+
+    assert LAYOUT_FILE.read_text() == layout_text(), "run python -m rovernav.runlog.layout --write"
+    text = LAYOUT_FILE.read_text()
+    shown = {c.topic for c in CHANNELS if c.schema.startswith("foxglove.") and c.schema not in
+             ("foxglove.CompressedImage", "foxglove.Log")}
+    assert all(f'"{t}"' in text for t in shown | {"/camera/image", "/events", "/link/rover_to_host"})
+
+
+@pytest.mark.parametrize("text, why", [("{}", "not a rovernav mission spec"),
+                                       ('{"format": "rovernav.mission-spec", "version": 9}', "version 9"),
+                                       ('{"format": "rovernav.mission-spec", "version": 1}', "lacks"),
+                                       ("[", "not JSON")])
+def test_a_bad_mission_spec_is_refused(text, why):
+    with pytest.raises(ValueError, match=why):
+        MissionSpec.from_json(text)
+
+
+def test_a_mission_spec_survives_json_and_a_planner_change(fig48_run):
+    sim, _path = fig48_run
+    spec = MissionSpec.from_json(sim.spec.to_json())
+    assert spec == sim.spec
+    wider = spec.with_planner(robot_radius_m=0.15)
+    assert wider.planner["robot_radius_m"] == 0.15 and wider.grid().config.inflation_m > spec.grid().config.inflation_m
+    with pytest.raises(ValueError, match="robot_radius_m"):
+        spec.with_planner(robot_radius_m=-1.0)

@@ -346,3 +346,17 @@ def test_a_bad_wall_or_post_names_the_file_and_the_key(tmp_path, what, breaks, k
     message = str(info.value)
     assert message.startswith(f"{f}: {key} "), message
     assert says in message
+
+
+def test_a_scenario_written_by_scenario_toml_reads_back_the_same():
+    # The run log keeps a scenario as this text; replay builds the host's grid from it.
+    import dataclasses
+
+    from rovernav.scenario import parse_scenario, scenario_names, scenario_toml
+    from rovernav.sim.arenas import generate_arenas
+
+    scenarios = [load_scenario(n) for n in scenario_names()] + [a.scenario for a in generate_arenas(70, seed=3)]
+    assert any(s.walls for s in scenarios) and any(s.posts for s in scenarios)
+    for s in scenarios:
+        again = parse_scenario(scenario_toml(s), source="<test>")
+        assert again == dataclasses.replace(s, path=None, generated=None), s.name
