@@ -14,7 +14,9 @@ from there and combined with the flags PlatformIO's atmelavr/arduino builder add
 (PIO_* below). Libraries are found the way PlatformIO's dependency finder does: follow the
 #include lines from firmware/src through firmware/lib and the core's own libraries (Wire,
 EEPROM, ...), compile every library reached, skip the env's lib_ignore. firmware/test is
-never compiled.
+never compiled. The image is linked as PlatformIO links it: the same driver (avr-g++), flags
+and order of objects and archives (link_command below), so both builds give the same image
+from the same toolchain.
 
 Exit status: 0 built and within budget; 1 over budget or a compile/link error; 2 the
 toolchain or the Arduino core is missing, or platformio.ini cannot be used.
@@ -57,8 +59,15 @@ PIO_CXXFLAGS = ["-fno-exceptions", "-fno-threadsafe-statics", "-fpermissive", "-
 PIO_ASFLAGS = ["-x", "assembler-with-cpp"]
 PIO_DEFINES = ["-DF_CPU=16000000L", "-DARDUINO_ARCH_AVR", "-DARDUINO=10808",
                "-DARDUINO_AVR_UNO"]
+# arduino.py's LINKFLAGS and LIBS=["m"]; platform-atmelavr's builder/main.py names the tools
+# (CC avr-gcc, CXX avr-g++, AR avr-gcc-ar) and adds no flags of its own.
 PIO_LINKFLAGS = ["-Os", f"-mmcu={MCU}", "-Wl,--gc-sections", "-flto", "-fuse-linker-plugin"]
 PIO_LIBS = ["-lm"]
+# The framework's archives, as arduino.py names them (BuildLibrary of variants/<variant> and of
+# cores/<core>). The Uno's variant (standard) has no sources: PlatformIO still archives and links
+# an empty libFrameworkArduinoVariant.a, and so does this build.
+VARIANT_ARCHIVE = "FrameworkArduinoVariant"
+CORE_ARCHIVE = "FrameworkArduino"
 # --- Added here, not by PlatformIO: dependency files for incremental builds.
 DEPFLAGS = ["-MMD"]
 
@@ -224,9 +233,15 @@ class Flags:
 
 
 def uno_flags(config: PioConfig) -> Flags:
-    flags = Flags(common=list(PIO_CCFLAGS), c=list(PIO_CFLAGS), cxx=list(PIO_CXXFLAGS),
-                  asm=list(PIO_ASFLAGS), defines=list(PIO_DEFINES), link=list(PIO_LINKFLAGS))
-    flags.add_build_flags(config.words(ENV_NAME, "build_flags"))
+    user = Flags()
+    user.add_build_flags(config.words(ENV_NAME, "build_flags"))
+    flags = Flags(common=PIO_CCFLAGS + user.common, c=PIO_CFLAGS + user.c,
+                  cxx=PIO_CXXFLAGS + user.cxx, asm=PIO_ASFLAGS + user.asm,
+                  defines=PIO_DEFINES + user.defines,
+                  # LINKFLAGS: platformio-core's piobuild.py ProcessProgramDeps applies build_flags
+                  # (ProcessFlags) before BuildFrameworks runs arduino.py, which appends its own;
+                  # so the project's -Wl,... come first on PlatformIO's link line.
+                  link=user.link + PIO_LINKFLAGS)
     flags.remove(config.words(ENV_NAME, "build_unflags"))
     return flags
 
@@ -341,6 +356,89 @@ def find_libraries(src_dir: Path, include_dir: Path, lib_dir: Path,
     return used
 
 
+def archive_order(libs: list[Library], project_sources: list[Path],
+                  local_dirs: list[Path]) -> list[Library]:
+    """The libraries in the order PlatformIO puts their archives on the link line.
+
+    platformio-core 6.1 (builder/tools/piolib.py): ConfigureProjectLibBuilder scans the
+    project's sources (ProjectAsLibBuilder.search_deps_recursive); every library that holds a
+    header they include, directly or through other headers (SCons' CConditionalScanner walks
+    #include depth-first, in the order written), becomes a dependency, in the order first met
+    (get_implicit_includes, lib_inc_map). depend_on() then scans each such library's own
+    sources the same way (deep+ mode: all of them) and records its dependencies, skipping one
+    that would close a cycle (_already_depends). LibBuilderBase.build() returns the archives
+    depth-first: a library's dependencies before the library itself, each archive once
+    (is_built). piobuild.py ProcessProjectDeps prepends that list to the framework's LIBS.
+
+    `local_dirs` are searched after a file's own folder (the project's include and src dirs).
+    Libraries in `libs` that the scan does not reach keep their place at the end.
+    """
+    providers: dict[str, Library] = {}
+    for lib in reversed(libs):  # earlier (project) libraries win, as in find_libraries
+        for header in lib.headers():
+            providers[header] = lib
+
+    def owner(path: Path) -> Library | None:
+        return next((lib for lib in libs
+                     if lib.include_dir in path.parents or lib.root in path.parents), None)
+
+    def resolve(name: str, including: Path) -> Path | None:
+        own = owner(including)
+        bases = [including.parent] + ([own.include_dir] if own else []) + local_dirs
+        hit = next((b / name for b in bases if (b / name).is_file()), None)
+        if hit is not None:
+            return hit.resolve()
+        lib = providers.get(name)
+        return (lib.include_dir / name).resolve() if lib is not None else None
+
+    def dependencies(files: list[Path], me: Library | None) -> list[Library]:
+        found: list[Library] = []
+        seen: set[Path] = set()
+
+        def walk(path: Path) -> None:
+            for name in includes_of(path):
+                hit = resolve(name, path)
+                if hit is None or hit in seen:
+                    continue
+                seen.add(hit)
+                lib = owner(hit)
+                if lib is not None and lib is not me and lib not in found:
+                    found.append(lib)
+                walk(hit)
+
+        for path in files:
+            seen.add(path.resolve())
+            walk(path.resolve())
+        return found
+
+    graph: dict[str | None, list[Library]] = {}   # None: the project
+
+    def reaches(lib: Library, target: str | None) -> bool:
+        return any(dep.name == target or reaches(dep, target) for dep in graph.get(lib.name, []))
+
+    def search(name: str | None, files: list[Path], me: Library | None) -> None:
+        if name in graph:
+            return
+        graph[name] = []
+        for lib in dependencies(files, me):
+            if not reaches(lib, name):      # piolib.py: a circular dependency is left out
+                graph[name].append(lib)
+            search(lib.name, lib.sources(), lib)
+
+    search(None, project_sources, None)
+    order: list[Library] = []
+
+    def build(lib: Library) -> None:
+        for dep in graph.get(lib.name, []):
+            build(dep)
+        if lib not in order:
+            order.append(lib)
+
+    for lib in graph[None]:
+        build(lib)
+    return order + [lib for lib in libs if lib not in order]
+
+
 # ----------------------------------------------------------------------------- compiling
 
 @dataclass
@@ -447,8 +545,48 @@ def section_sizes(elf: Path, verbose: bool) -> Sizes:
     return Sizes(flash, ram)
 
 
-def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
-    require_tools()
+def link_command(linker: str, elf: Path, link_flags: list[str], objects: list[Path],
+                 build_dir: Path, archives: list[Path]) -> list[str]:
+    """The link line, in PlatformIO's form:
+
+        $LINK -o $TARGET $LINKFLAGS $SOURCES $_LIBDIRFLAGS $_LIBFLAGS
+        (SCons 4.8 SCons/Tool/link.py LINKCOM; PlatformIO 6.1 runs SCons as tool-scons 4.40801)
+
+    - LINKFLAGS: the project's -Wl,... then the framework's (uno_flags).
+    - SOURCES: the project's own objects (firmware/src), nothing archived.
+    - _LIBDIRFLAGS: -L$BUILD_DIR (platformio-core builder/main.py: LIBPATH=["$BUILD_DIR"]).
+    - _LIBFLAGS: the project's library archives (archive_order), then the framework's
+      (arduino.py: env.Prepend(LIBS=[variant, core]) before its LIBS=["m"]), then -lm; and
+      piobuild.py BuildProgram wraps them in -Wl,--start-group ... -Wl,--end-group (gcc).
+    """
+    return ([linker, "-o", str(elf)] + link_flags + [str(o) for o in objects] +
+            [f"-L{build_dir}", "-Wl,--start-group"] + [str(a) for a in archives] + PIO_LIBS +
+            ["-Wl,--end-group"])
+
+
+def linker_for(units: list[Unit]) -> str:
+    """SCons' $SMARTLINK (SCons/Tool/linkCommon smart_link, Tool/cxx.py iscplusplus): $CXX when
+    one of the program's own objects was compiled from C++, else $CC. platform-atmelavr's
+    builder/main.py sets CXX=avr-g++ and CC=avr-gcc and no LINK of its own.
+
+    The two drivers differ: avr-g++ takes -lm out of the group and puts `-lgcc -lm` after it
+    (g++'s spec for the C++ runtime, which on the AVR is libgcc)."""
+    return "avr-g++" if any(u.kind == "cxx" for u in units) else "avr-gcc"
+
+
+@dataclass
+class Plan:
+    """Every command of a build, worked out without running any."""
+    units: list[Unit]                               # everything to compile
+    compile: dict[Path, list[str]]                  # source -> its compile command
+    archives: list[tuple[Path, list[Unit]]]         # in link order
+    link: list[str]
+    elf: Path
+    hex_file: Path
+    libraries: list[Library]                        # in link order
+
+
+def plan_build(build_dir: Path, strict: bool = False) -> Plan:
     config = PioConfig(PLATFORMIO_INI)
     if not config.has_env(ENV_NAME):
         raise SetupError(f"{PLATFORMIO_INI} has no [env:{ENV_NAME}]")
@@ -462,6 +600,9 @@ def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
     test_dir = config.directory("test_dir", "test")
     core_dir = ARDUINO_AVR / "cores" / "arduino"
     variant_dir = ARDUINO_AVR / "variants" / "standard"
+    if not core_dir.is_dir():
+        raise SetupError(f"the Arduino core is missing: {core_dir} (apt-get install "
+                         "arduino-core-avr)")
 
     libs = find_libraries(src_dir, include_dir, lib_dir,
                           set(config.items(ENV_NAME, "lib_ignore")))
@@ -475,23 +616,49 @@ def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
                      SOURCE_SUFFIXES[f.suffix], project)
                 for f in files if test_dir not in f.parents]
 
-    src_units = units_in([p for p in sorted(src_dir.rglob("*"))
-                          if p.suffix in SOURCE_SUFFIXES], src_dir, build_dir / "src", True)
-    core_units = units_in([p for p in sorted(core_dir.iterdir())
-                           if p.suffix in SOURCE_SUFFIXES], core_dir,
-                          build_dir / "FrameworkArduino", False)
-    lib_units = {lib.name: units_in(lib.sources(), lib.include_dir,
-                                    build_dir / "lib" / lib.name, lib.project)
-                 for lib in libs}
-    all_units = src_units + core_units + [u for us in lib_units.values() for u in us]
+    def sources_in(folder: Path) -> list[Path]:
+        return [p for p in sorted(folder.iterdir()) if p.suffix in SOURCE_SUFFIXES]
+
+    src_files = [p for p in sorted(src_dir.rglob("*")) if p.suffix in SOURCE_SUFFIXES]
+    src_units = units_in(src_files, src_dir, build_dir / "src", True)
     if not src_units:
         raise SetupError(f"no sources in {relative(src_dir)}")
+    variant_units = units_in(sources_in(variant_dir), variant_dir,
+                             build_dir / VARIANT_ARCHIVE, False)
+    core_units = units_in(sources_in(core_dir), core_dir, build_dir / CORE_ARCHIVE, False)
+    ordered = archive_order(libs, src_files, [p for p in (include_dir, src_dir) if p.is_dir()])
+    lib_units = {lib.name: units_in(lib.sources(), lib.include_dir,
+                                    build_dir / "lib" / lib.name, lib.project)
+                 for lib in ordered}
 
-    commands = {u.source: command_for(u, flags, include_flags, extra) for u in all_units}
-    stale = [u for u in all_units if not up_to_date(u, commands[u.source])]
+    # Archives like PlatformIO's: an ISR in an unused core file (Tone.cpp's Timer2 interrupt,
+    # say) stays out of the image. A library without sources has no archive (piolib.py
+    # LibBuilderBase.build); the framework's variant archive is made even when empty.
+    archives = [(build_dir / f"lib{lib.name}.a", lib_units[lib.name])
+                for lib in ordered if lib_units[lib.name]]
+    archives += [(build_dir / f"lib{VARIANT_ARCHIVE}.a", variant_units),
+                 (build_dir / f"lib{CORE_ARCHIVE}.a", core_units)]
+    all_units = src_units + [u for _, units in archives for u in units]
+    elf = build_dir / "firmware.elf"
+    return Plan(
+        units=all_units,
+        compile={u.source: command_for(u, flags, include_flags, extra) for u in all_units},
+        archives=archives,
+        link=link_command(linker_for(src_units), elf, flags.link, [u.obj for u in src_units],
+                          build_dir, [a for a, _ in archives]),
+        elf=elf,
+        hex_file=build_dir / "firmware.hex",
+        libraries=ordered,
+    )
+
+
+def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
+    require_tools()
+    plan = plan_build(build_dir, strict)
+    stale = [u for u in plan.units if not up_to_date(u, plan.compile[u.source])]
     failures, hidden_warnings = [], 0
     with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(compile_unit, u, commands[u.source], verbose) for u in stale]
+        futures = [pool.submit(compile_unit, u, plan.compile[u.source], verbose) for u in stale]
         for future in concurrent.futures.as_completed(futures):
             unit, code, stderr = future.result()
             if code != 0:
@@ -503,33 +670,24 @@ def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
                     hidden_warnings += stderr.count("warning:")
     if failures:
         raise BuildError("compilation failed:\n" + "\n".join(failures))
-    print(f"compiled {len(stale)} of {len(all_units)} files "
-          f"(libraries: {', '.join(lib.name for lib in libs) or 'none'})")
+    print(f"compiled {len(stale)} of {len(plan.units)} files "
+          f"(libraries: {', '.join(lib.name for lib in plan.libraries) or 'none'})")
     if hidden_warnings:
         print(f"({hidden_warnings} warnings in the Arduino core and its libraries not shown)")
 
-    # Archives like PlatformIO's libFrameworkArduino.a: an ISR in an unused core file
-    # (Tone.cpp's Timer2 interrupt, say) stays out of the image. Rebuilt every time (it takes
-    # milliseconds), so an object whose source was deleted never lingers in one.
-    archives = []
-    for name, units in [("FrameworkArduino", core_units)] + list(lib_units.items()):
-        if not units:
-            continue
-        archive = build_dir / f"lib{name}.a"
+    # Rebuilt every time (it takes milliseconds), so an object whose source was deleted never
+    # lingers in an archive.
+    for archive, units in plan.archives:
+        archive.parent.mkdir(parents=True, exist_ok=True)
         archive.unlink(missing_ok=True)
         run(["avr-gcc-ar", "rcs", str(archive)] + [str(u.obj) for u in units],
             f"archiving {archive.name}", verbose)
-        archives.append(archive)
 
-    elf = build_dir / "firmware.elf"
-    hex_file = build_dir / "firmware.hex"
-    run(["avr-gcc"] + flags.link + ["-o", str(elf)] + [str(u.obj) for u in src_units] +
-        ["-Wl,--start-group"] + [str(a) for a in archives] + PIO_LIBS + ["-Wl,--end-group"],
-        "linking firmware.elf", verbose)
-    run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(elf), str(hex_file)],
+    run(plan.link, "linking firmware.elf", verbose)
+    run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(plan.elf), str(plan.hex_file)],
         "avr-objcopy", verbose)
-    print(f"wrote {relative(hex_file)}")
-    return section_sizes(elf, verbose)
+    print(f"wrote {relative(plan.hex_file)}")
+    return section_sizes(plan.elf, verbose)
 
 
 def main(argv: list[str] | None = None) -> int:
