@@ -1,4 +1,5 @@
-"""tools/build_uno.py links the Uno image as PlatformIO does.
+"""tools/build_uno.py links the Uno image as PlatformIO does, and platformio.ini keeps Unity out of
+the Uno env.
 
 The expected link line is the one `pio run -e uno -v` printed (PlatformIO Core 6.1.19 from PyPI,
 SCons 4.8.1, a local stand-in for platform-atmelavr 5.1's builder scripts since the platform
@@ -141,3 +142,16 @@ def test_a_cycle_is_cut_where_platformio_cuts_it(tmp_path):
         "b": {"b.h": "", "b.cpp": '#include "a.h"\n'},
     }
     assert _order(tmp_path, '#include "a.h"\n', libs) == ["b", "a"]
+
+
+def test_the_uno_env_cannot_pull_unity_and_native_keeps_doctest():
+    ini = _ini()
+    uno, native = ini["env:uno"], ini["env:native"]
+    # `pio test` with the default env ignores every suite; one let through by `--ignore` on the
+    # command line stops at the missing custom runner instead of fetching Unity
+    assert uno.get("test_ignore", "").split() == ["*"]
+    assert uno.get("test_framework") == "custom"
+    assert not (ROOT / "firmware" / "test" / "test_custom_runner.py").exists()
+    assert "lib_deps" not in uno
+    assert native.get("test_framework") == "doctest"
+    assert native.get("build_src_filter", "").split() == ["-<*>"]
