@@ -155,3 +155,21 @@ def test_the_uno_env_cannot_pull_unity_and_native_keeps_doctest():
     assert "lib_deps" not in uno
     assert native.get("test_framework") == "doctest"
     assert native.get("build_src_filter", "").split() == ["-<*>"]
+
+
+def test_every_library_source_assembles_or_compiles_to_nothing_off_the_avr(tmp_path):
+    # PlatformIO's native env (`pio test -e native`) builds every file of lib/core and lib/link,
+    # the AVR assembly included: off the AVR it must be empty, comments and all (the ';' comments
+    # of an AVR source are statements to another assembler).
+    import shutil
+    import subprocess
+
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("no gcc")
+    sources = sorted((ROOT / "firmware" / "lib").glob("*/*.S"))
+    assert sources
+    for src in sources:
+        r = subprocess.run([gcc, "-c", "-x", "assembler-with-cpp", str(src), "-o", str(tmp_path / "x.o")],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, f"{src.name}: {r.stderr[:400]}"

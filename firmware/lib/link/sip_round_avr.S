@@ -1,3 +1,4 @@
+#if defined(__AVR__)   // first: another assembler (PlatformIO's native env) would read the ';' comments as code
 ; One SipRound on the ATmega328P: void rovernav_sip_round(uint8_t v[32]), v0..v3 little-endian.
 ;
 ; avr-gcc's 64-bit arithmetic goes through memory and library shift loops: a C++ round on uint64_t
@@ -15,8 +16,6 @@
 ;   v0 += v3; v3 = rotl(v3, 21) ^ v0
 ;   v2 += v1; v1 = rotl(v1, 17) ^ v2; v2 = rotl(v2, 32)
 ; Only compiled for the AVR; elsewhere siphash.cpp's C++ round is used.
-
-#if defined(__AVR__)
 
 .macro LOAD8 off, r0, r1, r2, r3, r4, r5, r6, r7
   ldd \r0, Z+\off
