@@ -281,6 +281,7 @@ def _strict(text: str):
     return json.loads(text, parse_constant=refuse)
 
 
+@pytest.mark.mission
 def test_an_unreachable_target_gives_a_strict_json_report_with_nulls(tmp_path):
     walled = BASE.replace("known = false", "known = true") + "".join(
         f"\n[[walls]]\nx0_m = {a}\ny0_m = {b}\nx1_m = {c}\ny1_m = {e}\nthickness_m = 0.05\n"
@@ -316,6 +317,7 @@ def test_a_run_cut_short_leaves_a_report_saying_so_and_none_of_the_last_runs_fil
     assert not list(out.glob(".*partial*"))   # no half video under any name
 
 
+@pytest.mark.mission
 def test_the_report_names_the_drive_mode_the_configuration_sent(tmp_path):
     cfg = tmp_path / "pose.toml"
     cfg.write_text("[rover]\ndrive_mode = 1\n")

@@ -133,6 +133,7 @@ def _run(name: str, **kw) -> dict:
     return build_report(sim, 1.0)
 
 
+@pytest.mark.mission
 def test_figure_4_8_mission_finds_the_unknown_obstacle_and_arrives_without_contact():
     r = _run("seed-fig4-8-unknown-obstacle", seed=3)
     assert r["reached"] and r["collisions"] == 0
@@ -142,6 +143,7 @@ def test_figure_4_8_mission_finds_the_unknown_obstacle_and_arrives_without_conta
     assert r["spl"] > 0.8
 
 
+@pytest.mark.mission
 def test_out_and_back_second_trip_needs_no_replanning():
     r = _run("out-and-back", seed=2)
     assert r["reached"] and r["collisions"] == 0
@@ -151,6 +153,7 @@ def test_out_and_back_second_trip_needs_no_replanning():
     assert r["obstacles_discovered"] == 2
 
 
+@pytest.mark.mission
 def test_the_seed_strategy_is_slower_than_ours_in_the_same_world():
     ours = _run("seed-fig4-8-unknown-obstacle", seed=1)
     seed = _run("seed-fig4-8-unknown-obstacle", seed=1, strategy="seed")
@@ -158,6 +161,7 @@ def test_the_seed_strategy_is_slower_than_ours_in_the_same_world():
     assert seed["mission_time_s"] > 1.5 * ours["mission_time_s"]
 
 
+@pytest.mark.mission
 def test_rovernav_sim_writes_report_video_and_picture(tmp_path):
     out = tmp_path / "run"
     result = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-large-obstacles", "--out", str(out),
@@ -183,12 +187,14 @@ def test_rovernav_sim_refuses_an_unknown_scenario_and_a_bad_fault_window(tmp_pat
     assert r.returncode == 2 and "START:DURATION" in r.stderr
 
 
+@pytest.mark.mission
 def test_with_the_hosts_replanning_off_the_rover_gets_round_the_figure_4_8_obstacle_itself():
     r = _run("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
     assert r["reached"] and r["collisions"] == 0 and r["replans"] == 0
     assert any("rover: replanned" in e["text"] for e in r["events"])   # the rover's own detour
 
 
+@pytest.mark.mission
 def test_an_eight_second_camera_outage_mid_path_is_ridden_out_on_dead_reckoning():
     from rovernav.sim.runner import Faults
 
@@ -201,6 +207,7 @@ def test_an_eight_second_camera_outage_mid_path_is_ridden_out_on_dead_reckoning(
     assert f["max_dr_error_m"] is not None and f["max_dr_error_m"] < 0.05
 
 
+@pytest.mark.mission
 def test_a_firmware_reset_mid_mission_is_brought_back_up_to_date_and_the_mission_completes():
     from rovernav.sim.runner import Faults
 
@@ -209,6 +216,7 @@ def test_a_firmware_reset_mid_mission_is_brought_back_up_to_date_and_the_mission
     assert any("rover restarted" in e["text"] for e in r["events"])
 
 
+@pytest.mark.mission
 def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
     from rovernav.sim.runner import Faults
 
@@ -217,6 +225,7 @@ def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
     assert r["mission_time_s"] < 16.0 and r["faults"]["rover_faults"][0]["fault"] == "gyro_silent"
 
 
+@pytest.mark.mission
 def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_completes():
     from rovernav.sim.runner import Faults
 
@@ -238,6 +247,7 @@ def test_a_radio_outage_beside_an_unknown_box_ends_without_contact():
     assert r["reached"] and r["collisions"] == 0 and not r["crashed"]
 
 
+@pytest.mark.mission
 def test_a_radio_outage_over_the_moment_the_obstacle_is_found_still_ends_without_contact():
     from rovernav.sim.runner import Faults
 
@@ -246,6 +256,7 @@ def test_a_radio_outage_over_the_moment_the_obstacle_is_found_still_ends_without
     assert r["faults"]["local_detours"] >= 0 and r["faults"]["max_dr_error_m"] < 0.05
 
 
+@pytest.mark.mission
 def test_an_outage_too_long_to_trust_ends_in_a_safe_stop_and_a_resume():
     from rovernav.sim.runner import Faults
 
@@ -256,11 +267,13 @@ def test_an_outage_too_long_to_trust_ends_in_a_safe_stop_and_a_resume():
     assert f["hold_recovery_s"][0] is not None and f["holds"][0]["t_s"] + f["hold_recovery_s"][0] >= 48.0
 
 
+@pytest.mark.mission
 def test_the_pose_law_drive_mode_completes_a_mission_and_the_report_says_so():
     ours = _run("seed-fig4-8-unknown-obstacle", seed=1, drive_mode="pose_law")
     assert ours["reached"] and ours["collisions"] == 0 and ours["drive_mode"] == "pose_law"
 
 
+@pytest.mark.mission
 def test_rovernav_sim_compares_the_drive_modes(tmp_path):
     r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-large-obstacles", "--drive-mode", "both",
                         "--no-video", "--quiet", "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
@@ -278,6 +291,7 @@ def test_the_world_names_what_the_rover_touches():
     assert w.touching(0.05, 1.5, 0.0) == "the left wall"
 
 
+@pytest.mark.mission
 def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its_face(monkeypatch):
     # With its sonar deaf the rover cannot see Figure 4.8's obstacle: the run must end at the
     # obstacle's face (a crash), never pass through it, and say so.
@@ -303,6 +317,7 @@ def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its
     json.dumps(r, allow_nan=False)
 
 
+@pytest.mark.mission
 def test_a_target_two_centimetres_from_the_start_is_reached_at_once():
     from rovernav.scenario import parse_scenario
 
@@ -347,6 +362,7 @@ def _brute_clearance(fp, shape_outline, shape_poly_or_post):
     return float(d)
 
 
+@pytest.mark.slow
 def test_clearance_to_walls_and_posts_is_exact_at_any_heading():
     wall = Wall(1.6, 1.6, 2.4, 2.4, 0.06, known=False)
     post = Post(2.0, 2.0, 0.07)
@@ -487,6 +503,7 @@ known = false
 """
 
 
+@pytest.mark.mission
 def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(tmp_path):
     from rovernav.scenario import parse_scenario
     from rovernav.sim.report import Canvas, draw_arena
@@ -506,6 +523,7 @@ def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(t
         assert [150, 150, 200] in patch or [90, 90, 160] in patch, (x, y)
 
 
+@pytest.mark.mission
 def test_a_blind_rover_crashes_into_an_unknown_wall_and_the_report_names_it(monkeypatch):
     from rovernav.scenario import parse_scenario
 
@@ -563,6 +581,7 @@ def test_a_target_an_unknown_wall_encloses_gets_the_no_path_verdict_after_the_ro
     assert r["obstacles_discovered"] == 1 and r["replans"] >= 1   # the verdict came from what the sonar saw
 
 
+@pytest.mark.mission
 def test_an_attacker_on_the_radio_is_refused_frame_by_frame_and_the_mission_goes_on():
     r = _run("seed-fig4-8-unknown-obstacle", seed=1, attacker=True)
     assert r["reached"] and r["collisions"] == 0
@@ -574,6 +593,7 @@ def test_an_attacker_on_the_radio_is_refused_frame_by_frame_and_the_mission_goes
     assert s["host_refused"] == {"bad_tag": 0, "replayed": 0, "not_signed": 0, "unverified": 0}
 
 
+@pytest.mark.mission
 def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
     # Why the link is signed: without a key the rover obeys the injected STOPs and replays.
     sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"),

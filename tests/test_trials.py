@@ -227,7 +227,6 @@ def test_a_run_that_raises_is_recorded_as_an_error_with_its_traceback_and_the_ot
     assert "RuntimeError" in (tmp_path / "runs" / "easy-s1" / "error.txt").read_text()
 
 
-@pytest.mark.mission
 def test_a_run_past_its_wall_clock_budget_stops_itself_and_is_recorded_as_hung(tmp_path):
     (tmp_path / "easy.toml").write_text(EASY)
     row = run_trial(str(tmp_path / "easy.toml"), "rovernav", 1, str(tmp_path / "run"), 30.0, run_timeout_s=1e-6)
@@ -236,7 +235,7 @@ def test_a_run_past_its_wall_clock_budget_stops_itself_and_is_recorded_as_hung(t
     assert (tmp_path / "run" / "summary.png").is_file()
 
 
-@pytest.mark.mission
+@pytest.mark.slow
 def test_on_a_dask_cluster_a_run_that_never_returns_is_killed_and_the_benchmark_goes_on(tmp_path):
     jobs = [_job(tmp_path, 1, run_timeout_s=0.5), _job(tmp_path, 2, run_timeout_s=0.5)]
     rows = run_jobs(jobs, workers=1, trial=_hang_on_seed_1, hang_grace_s=0.5)
@@ -312,6 +311,7 @@ def test_a_serial_benchmark_on_two_tiny_arenas_writes_every_output(tmp_path, cap
 
 
 @pytest.mark.mission
+@pytest.mark.slow
 def test_a_benchmark_on_a_one_worker_local_dask_cluster(tmp_path, capsys):
     arenas = _arenas(tmp_path / "arenas", easy=EASY)
     out = tmp_path / "out"

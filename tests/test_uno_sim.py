@@ -356,6 +356,7 @@ def test_the_profile_counts_every_cycle_of_a_step_to_its_function_and_interrupts
     json.dumps(prof, allow_nan=False)
 
 
+@pytest.mark.mission
 def test_a_profiled_mission_names_the_estimators_update_in_the_fix_steps(built):
     from rovernav.scenario import load_scenario
     from rovernav.sim.runner import SimOptions, Simulation

@@ -9,8 +9,22 @@ field is the seed's comparison planner (Table 4.2). Every failure is a NoPathErr
 """
 from .config import PlannerConfig
 from .errors import GoalBlocked, LocalMinimum, NoPathError, OutsideArena, StartBlocked, Unreachable
-from .grid import OccupancyGrid, SonarUpdate
-from .planner import PLANNERS, PlanResult, plan, warm_up
+
+# The grid and the planners compile with numba (about 0.2 s to import): loaded when first used,
+# so that a command that only parses its flags (`rovernav plan --help`, a refused flag) is quick.
+_LAZY = {"OccupancyGrid": ".grid", "SonarUpdate": ".grid", "PLANNERS": ".planner", "PlanResult": ".planner",
+         "plan": ".planner", "warm_up": ".planner"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "PLANNERS", "GoalBlocked", "LocalMinimum", "NoPathError", "OccupancyGrid", "OutsideArena",

@@ -9,6 +9,16 @@
                 writer, the replay, the tests and the README's table)
 """
 from .channels import CHANNELS, LOG_FORMAT, LOG_VERSION
-from .writer import RecordingTransport, RunLog
+
+
+def __getattr__(name: str):
+    # The writer needs numpy, OpenCV and the foxglove-sdk: loaded when a run logs, not when a
+    # command only parses its flags.
+    if name in ("RecordingTransport", "RunLog"):
+        from . import writer
+
+        return getattr(writer, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["CHANNELS", "LOG_FORMAT", "LOG_VERSION", "RecordingTransport", "RunLog"]

@@ -18,6 +18,10 @@ LOG_VERSION = 1
 META_RUN = "rovernav.run"
 #: The frame every position is in.
 ARENA_FRAME = "arena"
+#: Default rate of the camera images kept in the log (the fixes are all kept).
+DEFAULT_IMAGE_HZ = 2.0
+#: Default port of the live view (Foxglove's own default).
+DEFAULT_LIVE_PORT = 8765
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,7 +23,7 @@ def live_port(text: str) -> int:
 
 def add_log_flags(p: argparse.ArgumentParser, default_log: str) -> None:
     """--no-log, --log-image-hz, --live [PORT] for a command that runs a mission."""
-    from .writer import DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT
+    from .channels import DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT
 
     p.add_argument("--no-log", action="store_true",
                    help=f"do not write the run log ({default_log}: an MCAP file with every frame on the link both "

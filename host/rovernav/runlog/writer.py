@@ -24,12 +24,11 @@ from ..errors import RovernavError
 from ..link import messages_gen as mg
 from ..link.transport import Transport
 from ..mission.core import Recorder
-from .channels import ARENA_FRAME, BY_TOPIC, CHANNELS, LOG_FORMAT, LOG_VERSION, META_RUN, json_schema
+from .channels import (ARENA_FRAME, CHANNELS, DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT, LOG_FORMAT, LOG_VERSION,  # noqa: F401
+                       META_RUN, json_schema)
 
 log = logging.getLogger("rovernav.runlog")
 
-#: Default rate of the camera images kept in the log (the fixes are all kept).
-DEFAULT_IMAGE_HZ = 2.0
 #: JPEG quality of the kept images.
 JPEG_QUALITY = 75
 #: The true pose is logged this often [s] (the simulator's step is 0.01 s).
@@ -41,8 +40,6 @@ DRIVEN_PATH_STEP_M = 0.01
 LIVE_ARENA_EVERY_S = 2.0
 #: Live only: the server's clock is moved on this often [s].
 LIVE_TIME_EVERY_S = 0.1
-#: Default port of the live view (Foxglove's own default).
-DEFAULT_LIVE_PORT = 8765
 
 
 class RunLogError(RovernavError):
