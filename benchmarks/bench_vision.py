@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 
+from rovernav.angles import wrap_deg  # noqa: E402
 from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.vision import Locator, VisionConfig
 
@@ -52,7 +53,7 @@ def run(kind: str, frames: int, seed: int, tracking: bool) -> dict:
             misses += 1
             continue
         pos_mm.append(1000 * math.hypot(det.rover[0] - x, det.rover[1] - y))
-        head_deg.append(abs((det.rover[2] - h + 180) % 360 - 180))
+        head_deg.append(abs(wrap_deg(det.rover[2] - h)))
     q95 = lambda v: float(np.percentile(v, 95))  # noqa: E731
     return {"kind": kind, "mode": "tracking" if tracking else "cold", "frames": frames, "misses": misses,
             "locate_ms_median": 1000 * statistics.median(t_loc), "locate_ms_p95": 1000 * q95(t_loc),

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from rovernav.angles import wrap_deg
 from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene, render_frame
 from rovernav.vision.calibration import Calibration
 from rovernav.vision.config import VisionConfig
@@ -105,8 +106,8 @@ def test_an_aruco_rover_is_a_readable_tag_whose_top_edge_faces_forward(heading):
     assert ids is not None and sorted(ids.ravel().tolist()) == [look.rover_tag_id, look.target_tag_id]
     c = corners[list(ids.ravel()).index(look.rover_tag_id)].reshape(4, 2)
     up = (c[0] + c[1]) / 2 - (c[2] + c[3]) / 2            # image pixels, v down
-    seen = math.degrees(math.atan2(up[0], -up[1])) % 360
-    assert abs((seen - heading + 180) % 360 - 180) < 3
+    seen = math.degrees(math.atan2(up[0], -up[1]))
+    assert abs(wrap_deg(seen - heading)) < 3
 
 
 def test_hidden_markers_and_decoys_are_drawn_as_asked():

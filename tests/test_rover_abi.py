@@ -9,6 +9,7 @@ import math
 
 import pytest
 
+from rovernav.angles import heading_cdeg
 from rovernav.firmware import RoverCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
@@ -87,7 +88,7 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
     for _ in range(9000):  # at most 90 s
         if now % 33 < 10:
             host.send(mg.Fix(x_mm=round(plant.x), y_mm=round(plant.y),
-                             heading_cdeg=round(((math.degrees(plant.h) + 180) % 360 - 180) * 100),
+                             heading_cdeg=heading_cdeg(math.degrees(plant.h)),
                              sd_mm=2))
         if not started and any(isinstance(m, mg.Event) and m.kind == mg.EventKind.PATH_ACCEPTED for m in host.heard):
             host.send(mg.Start(path_id=3))

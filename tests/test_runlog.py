@@ -15,6 +15,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
+from rovernav.angles import wrap_deg
 from rovernav import hardware
 from rovernav.cli import main
 from rovernav.firmware import RoverCore
@@ -108,7 +109,7 @@ def test_foxglove_messages_decode_to_what_happened(fig48_run):
     assert math.dist((pose.position.x, pose.position.y), (end.x_m, end.y_m)) < 0.02
     # Heading 0 = +y, clockwise; the pose's yaw is anticlockwise from +x.
     yaw = 2 * math.atan2(pose.orientation.z, pose.orientation.w)
-    assert abs((math.degrees(math.pi / 2 - yaw) - end.heading_deg + 180) % 360 - 180) < 3
+    assert abs(wrap_deg(math.degrees(math.pi / 2 - yaw) - end.heading_deg)) < 3
     cells = np.frombuffer(grid.data, np.uint8).reshape(-1, grid.column_count, 2)
     # The last map logged is the mission's map at its last sweep's end: the sonar's log-odds as
     # percent (unknown 50, seen clear below, seen occupied above, known obstacles 100), and the

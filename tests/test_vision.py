@@ -16,6 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rovernav.angles import wrap_deg
 from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.vision import Calibration, Locator, VisionConfig, heading_deg
 from rovernav.vision.cli import add_locate_parser
@@ -30,7 +31,7 @@ def _renderer(cfg: VisionConfig, seed: int = 0, camera: Camera | None = None, li
 
 
 def _heading_error(a: float, b: float) -> float:
-    return abs((a - b + 180.0) % 360.0 - 180.0)
+    return abs(wrap_deg(a - b))
 
 
 def _oblique_config(markers: str = "colour") -> VisionConfig:

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "frame.h"
+#include "angles.h"
 #include "rover.h"
 
 namespace rovernav {
@@ -47,12 +48,7 @@ struct Plant {
     if (m <= deadband) return 0;
     return static_cast<float>(pwm < 0 ? -(m - deadband) : (m - deadband));
   }
-  int16_t heading_cdeg() const {
-    float d = heading_rad * 57.29578f;
-    while (d > 180) d -= 360;
-    while (d <= -180) d += 360;
-    return static_cast<int16_t>(lroundf(d * 100));
-  }
+  int16_t heading_cdeg() const { return core::rad_to_cdeg(heading_rad); }
 };
 
 class Bench {

@@ -38,6 +38,7 @@ import math
 import cv2
 import numpy as np
 
+from ..angles import wrap_rad
 from ..validate import check_grid
 
 
@@ -117,7 +118,7 @@ class SonarMap:
             dy = self.ys[r0:r1][:, None] - sy
             d = np.hypot(dx, dy)
             axis = math.radians(r.heading_deg + r.bearing_deg)
-            off = np.abs((np.arctan2(dx, dy) - axis + math.pi) % (2 * math.pi) - math.pi)
+            off = np.abs(wrap_rad(np.arctan2(dx, dy) - axis))
             # A cell is in the cone when any of it is: half a cell's angular size more than the half-cone.
             half = math.radians(m.cone_deg) / 2 + np.arctan2(0.5 * res, np.maximum(d, 1e-6))
             cone = off <= half

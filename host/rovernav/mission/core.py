@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
+from ..angles import heading_cdeg
 from ..link import messages_gen as mg
 from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
@@ -213,10 +214,8 @@ class Mission:
         if self.phase is Phase.HELLO:
             return
         age_ms = max(0, min(65535, round((now_s - detection.t_s) * 1000)))
-        heading_cdeg = round(((detection.heading_deg + 180.0) % 360.0 - 180.0) * 100)
-        if heading_cdeg == -18000:
-            heading_cdeg = 18000
-        self._send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m), heading_cdeg=heading_cdeg,
+        self._send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m),
+                          heading_cdeg=heading_cdeg(detection.heading_deg),
                               age_ms=age_ms, sd_mm=self.fix_sd_mm, frame_seq=self.fixes_sent & 0xFFFF))
         self.fixes_sent += 1
 

@@ -93,6 +93,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..angles import compass_deg
 from ..errors import InputError, RovernavError
 from ..files import write_atomic
 from ..validate import output_file
@@ -276,7 +277,7 @@ class _Draw:
         """Towards the target (to the nearest 45°) half the time, else any multiple of 45°."""
         if self.chance(0.5) and start != target:
             bearing = math.degrees(math.atan2(target[0] - start[0], target[1] - start[1]))
-            return float(round(bearing / 45.0) * 45 % 360)
+            return float(compass_deg(round(bearing / 45.0) * 45))
         return float(self.whole(0, 7) * 45)
 
     def box(self, cx: float, cy: float, w: float, h: float, known: bool, role: str) -> _Box:
@@ -789,7 +790,7 @@ def _mirror(layout: _Layout, flip_x: bool, flip_y: bool) -> _Layout:
     heading = 180.0 - heading if flip_y else heading
     return dataclasses.replace(layout, start=(fx(layout.start[0]), fy(layout.start[1])),
                                target=(fx(layout.target[0]), fy(layout.target[1])), boxes=boxes, segs=segs, posts=posts,
-                               heading_deg=heading % 360.0 + 0.0)
+                               heading_deg=compass_deg(heading))
 
 
 def _num(value: float) -> str:

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from ..angles import wrap_deg
 from ..link.messages_gen import PARAMS, Param
 from ..planning.config import geometry_m
 from .world import World
@@ -84,7 +85,7 @@ class RoverPlant:
         mid = math.radians(self.heading + 0.5 * self.rate_dps * dt_s)
         self.x += v * dt_s * math.sin(mid)
         self.y += v * dt_s * math.cos(mid)
-        self.heading = (self.heading + self.rate_dps * dt_s + 180.0) % 360.0 - 180.0
+        self.heading = wrap_deg(self.heading + self.rate_dps * dt_s)
         self.distance_m += abs(v) * dt_s
         # servo
         target = servo_cdeg / 100.0

@@ -34,6 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..angles import wrap_rad
 from ..files import write_atomic
 from ..validate import MAX_SIM_STEPS
 
@@ -54,8 +55,8 @@ MAX_GAIN = 10.0                # |K| ≤ 10 per second: with steps up to 1 s lar
 
 
 def wrap_angle(a: float) -> float:
-    """`a` [rad] folded into [−π, π)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+    """`a` [rad] folded into (−π, π], as the rover's pose law wraps it (rovernav.angles.wrap_rad)."""
+    return wrap_rad(a)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -228,22 +229,25 @@ def simulate_pose(start: Sequence[float] = REPORT_P0, goal: Sequence[float] = RE
     pi, two_pi = math.pi, 2.0 * math.pi
     atan2, hypot, cos, sin = math.atan2, math.hypot, math.cos, math.sin
     for k in range(n_max + 1):
-        # to_polar and wrap_angle, inlined (the same operations, so the same numbers): this loop
-        # runs up to max_steps times.
+        # to_polar and wrap_angle (rovernav.angles.wrap_rad), inlined (the same operations, so the
+        # same numbers): this loop runs up to max_steps times.
         rho = hypot(x - gx, y - gy)
-        alpha = (atan2(gy - y, gx - x) - theta + pi) % two_pi - pi
-        beta = (-alpha - theta + gtheta + pi) % two_pi - pi
+        alpha = pi - (pi - atan2(gy - y, gx - x) + theta) % two_pi
+        alpha = alpha if alpha > -pi else alpha + two_pi
+        beta = pi - (pi + alpha + theta - gtheta) % two_pi
+        beta = beta if beta > -pi else beta + two_pi
         v = min(kr * rho, vmax)
         omega = ka * alpha + kb * beta
         t_add(t); x_add(x); y_add(y); th_add(theta); v_add(v); om_add(omega)
-        if rho < rho_tol_m and abs((theta - gtheta + pi) % two_pi - pi) < heading_tol_rad:
+        if rho < rho_tol_m and abs(wrap_angle(theta - gtheta)) < heading_tol_rad:
             converged = True
             break
         if k == n_max:
             break
         x += v * cos(theta) * dt
         y += v * sin(theta) * dt
-        theta = (theta + omega * dt + pi) % two_pi - pi
+        theta = pi - (pi - theta - omega * dt) % two_pi
+        theta = theta if theta > -pi else theta + two_pi
         t = (k + 1) * dt
     as_np = lambda a: np.frombuffer(a, dtype=np.float64)  # noqa: E731 - no copy
     return PoseRun(start=start, goal=goal, gains=gains, vmax_m_s=float(vmax), dt_s=float(dt),

@@ -22,6 +22,7 @@ import math
 import cv2
 import numpy as np
 
+from ..angles import compass_deg
 from .config import CalibrationConfig
 
 
@@ -91,5 +92,4 @@ def heading_deg(back_m, front_m) -> float:
     """Heading of the vector back -> front in arena coordinates: 0 = +y, clockwise positive, [0, 360)."""
     dx = float(front_m[0]) - float(back_m[0])
     dy = float(front_m[1]) - float(back_m[1])
-    h = math.degrees(math.atan2(dx, dy)) % 360.0
-    return 0.0 if h >= 360.0 else h   # -1e-15 % 360 is 360.0
+    return compass_deg(math.degrees(math.atan2(dx, dy)))
