@@ -121,3 +121,10 @@ def test_run_refuses_a_rover_built_from_another_protocol_definition(tmp_path):
 
     said = [r for r in read_log(tmp_path / "refused.mcap").inputs if r["kind"] == "rx"]
     assert said and said[0]["type"] == "hello" and said[0]["fields"]["schema_hash"] == 0xBADC0DE5
+
+
+def test_the_old_sonar_section_is_refused_naming_where_the_offset_lives():
+    from rovernav.config import ConfigError, config_from_dict
+
+    with pytest.raises(ConfigError, match=r"\[planner\] sonar_offset_m"):
+        config_from_dict({"sonar": {"offset_m": 0.1}}, where="old.toml: ")

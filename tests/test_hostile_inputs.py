@@ -173,7 +173,7 @@ def test_every_scenario_key_refuses_hostile_values_naming_the_key(table, index, 
 
 
 CONFIG_KEYS = [("arena", "width_m"), ("arena", "height_m"), ("link", "port"), ("link", "baud"), ("camera", "source"),
-               ("camera", "fps"), ("sonar", "offset_m"), ("mission", "trips"), ("mission", "heartbeat_hz"),
+               ("camera", "fps"), ("mission", "trips"), ("mission", "heartbeat_hz"),
                ("mission", "fix_sd_mm"), ("mission", "map"), ("rover", "arrival_radius_mm"), ("rover", "pose_k_rho_x1000"),
                ("rover", "pose_k_beta_x1000"), ("rover", "drive_mode"), ("planner", "resolution_m"),
                ("planner", "robot_radius_m")]

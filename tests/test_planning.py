@@ -437,69 +437,15 @@ def test_an_enclosed_target_is_unreachable():
         plan(grid, (0.5, 0.5), (2.0, 2.0), planner="dstar")
 
 
-# --- sonar echoes -----------------------------------------------------------------------------------
-
-def test_an_echo_marks_the_whole_15_degree_arc_at_its_range():
-    grid = OccupancyGrid(2.36, 1.75)
-    # Rover at (1.0, 0.5) facing +y (heading 0°); the sonar sits 0.10 m ahead, at (1.0, 0.6).
-    update = grid.add_sonar_echo(1.0, 0.5, heading_deg=0.0, bearing_deg=0.0, range_m=0.3)
-    half = math.radians(7.5)
-    arc_cells = set()
-    for a in np.linspace(-half, half, 200):
-        arc_cells.add(grid.world_to_cell(1.0 + 0.3 * math.sin(a), 0.6 + 0.3 * math.cos(a)))
-    raw = {(int(x), int(y)) for y, x in np.argwhere(grid.raw)}
-    assert raw == arc_cells
-    assert {tuple(c) for c in update.new_cells.tolist()} == arc_cells
-    edge = grid.world_to_cell(1.0 + 0.3 * math.sin(half) - 0.005, 0.6 + 0.3 * math.cos(half))
-    assert edge in raw and grid.world_to_cell(1.0, 0.895) in raw
-    for outside in [(1.0, 0.85), (1.0, 0.95), (1.0 + 0.3 * math.sin(2 * half), 0.6 + 0.3 * math.cos(2 * half)),
-                    (1.0 - 0.3 * math.sin(2 * half), 0.6 + 0.3 * math.cos(2 * half))]:
-        assert grid.world_to_cell(*outside) not in raw, outside
-    # Inflated around the arc by 0.17 m, no further.
-    assert not grid.is_free(1.0, 0.9 - 0.15) and grid.is_free(1.0, 0.9 - 0.20)
-    assert not grid.is_free(1.0 + 0.039 + 0.15, 0.897) and grid.is_free(1.0 + 0.039 + 0.2, 0.897)
-    assert update.newly_inflated == int(grid.inflated.sum() - OccupancyGrid(2.36, 1.75).inflated.sum())
-
-
-def test_an_echos_bearing_adds_to_the_heading_clockwise():
-    grid = OccupancyGrid(2.36, 1.75)
-    grid.add_sonar_echo(1.0, 0.8, heading_deg=90.0, bearing_deg=0.0, range_m=0.3)  # facing +x
-    assert grid.raw[grid.world_to_cell(1.4, 0.8)[::-1]]
-    grid.add_sonar_echo(1.0, 0.8, heading_deg=90.0, bearing_deg=90.0, range_m=0.2)  # looking -y
-    assert grid.raw[grid.world_to_cell(1.1, 0.6)[::-1]]
-    grid.add_sonar_echo(1.0, 0.8, heading_deg=0.0, bearing_deg=-45.0, range_m=0.3)  # looking up-left
-    s = 0.3 * math.sqrt(0.5)
-    assert grid.raw[grid.world_to_cell(1.0 - s, 0.9 + s)[::-1]]
-    with pytest.raises(ValueError, match="sonar range"):
-        grid.add_sonar_echo(1.0, 0.8, 0.0, 0.0, 0.0)
-
-
-def test_an_echo_says_whether_it_blocks_the_path():
-    _, grid = scenario_grid("seed-fig4-8-unknown-obstacle")
-    empty = OccupancyGrid(grid.width_m, grid.height_m)
-    straight = plan(empty, (0.3, 0.3), (2.0, 1.4)).waypoints
-    elsewhere = [(0.4, 1.4), (1.0, 1.5)]
-    rover = (0.75, 0.56)
-    heading = math.degrees(math.atan2(2.0 - 0.3, 1.4 - 0.3))
-    update = empty.add_sonar_echo(*rover, heading, 0.0, 0.3, path=straight)
-    assert update.blocks_path is True and empty.path_blocked(straight)
-    assert not empty.path_blocked(elsewhere)
-    assert empty.copy().add_sonar_echo(0.4, 1.0, 0.0, 0.0, 0.4).blocks_path is None
-    # Replanning goes round it.
-    detour = plan(empty, (0.3, 0.3), (2.0, 1.4))
-    assert sampled_cells_free(empty.inflated, empty.resolution_m, detour.waypoints)
-
-
 def test_incremental_inflation_equals_inflating_from_scratch():
     rng = np.random.default_rng(11)
     grid = OccupancyGrid(3.0, 2.0)
     for _ in range(5):
         grid.add_box(rng.uniform(0, 3), rng.uniform(0, 2), rng.uniform(0.05, 0.5), rng.uniform(0.05, 0.5))
-        grid.add_sonar_echo(rng.uniform(0.3, 2.7), rng.uniform(0.3, 1.7), rng.uniform(0, 360),
-                            rng.uniform(-67.5, 67.5), rng.uniform(0.05, 0.4))
+        grid.add_disks(rng.uniform((0.3, 0.3), (2.7, 1.7), size=(int(rng.integers(1, 30)), 2)), rng.uniform(0.005, 0.03))
     assert (grid.inflated == grid.blocked_within(grid.config.inflation_m)).all()
-    echoes_off_the_arena = grid.add_sonar_echo(0.2, 0.2, 225.0, 0.0, 0.4)
-    assert len(echoes_off_the_arena.arc_xy) == 0 and len(echoes_off_the_arena.new_cells) == 0
+    new, newly = grid.add_disks(np.array([[-0.1, -0.2], [3.5, 1.0]]), 0.02)   # off the arena: dropped
+    assert len(new) == 0 and newly == 0
 
 
 # --- walls and posts ----------------------------------------------------------------------------

@@ -5,7 +5,6 @@
     [camera]   source (index or video file), fps       the overhead camera
     [vision]   markers, HSV ranges, calibration, ...   (rovernav.vision.config.VisionConfig)
     [planner]  resolution_m, robot_radius_m, ...       (rovernav.planning.PlannerConfig)
-    [sonar]    offset_m                                where the sensor sits ahead of the rover's centre
     [mission]  trips, heartbeat_hz, fix_sd_mm, map     what the mission does
     [rover]    any CONFIG parameter by name = value    sent to the rover at the start
 
@@ -50,11 +49,6 @@ class CameraConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class SonarConfig:
-    offset_m: float = 0.10  # the HC-SR04 sits this far ahead of the rover's centre
-
-
-@dataclasses.dataclass(frozen=True)
 class MissionConfig:
     trips: int = 0             # 0: as the scenario says
     heartbeat_hz: float = 5.0
@@ -67,7 +61,6 @@ class Config:
     arena: ArenaConfig = ArenaConfig()
     link: LinkConfig = LinkConfig()
     camera: CameraConfig = CameraConfig()
-    sonar: SonarConfig = SonarConfig()
     mission: MissionConfig = MissionConfig()
     vision: Any = None    # VisionConfig
     planner: Any = None   # PlannerConfig
@@ -121,8 +114,11 @@ def config_from_dict(data: dict, where: str = "") -> Config:
     from .planning import PlannerConfig
     from .vision.config import VisionConfig
 
-    known = {"arena", "link", "camera", "vision", "planner", "sonar", "mission", "rover"}
+    known = {"arena", "link", "camera", "vision", "planner", "mission", "rover"}
     for name in data:
+        if name == "sonar":   # where the ranger sits is the planner's (and the rover's) geometry
+            raise ConfigError(f"{where}[sonar] is gone: the ranger's offset is [planner] sonar_offset_m (metres), "
+                              "which the host plans with and sends to the rover")
         if name not in known:
             raise ConfigError(f"{where}unknown section [{name}] (known: {', '.join(sorted(known))})")
     arena = _section(ArenaConfig, "arena", data.get("arena", {}), where,
@@ -130,7 +126,6 @@ def config_from_dict(data: dict, where: str = "") -> Config:
     link = _section(LinkConfig, "link", data.get("link", {}), where,
                     {"baud": frozenset((9600, 19200, 38400, 57600, 115200))})
     camera = _section(CameraConfig, "camera", data.get("camera", {}), where, {"fps": (0.0, 120.0, True)})
-    sonar = _section(SonarConfig, "sonar", data.get("sonar", {}), where, {"offset_m": (0.0, 0.5, False)})
     mission = _section(MissionConfig, "mission", data.get("mission", {}), where,
                        {"trips": (0, MAX_TRIPS, False), "heartbeat_hz": (0.0, 50.0, True),
                         "fix_sd_mm": (1, 255, False)})
@@ -157,7 +152,7 @@ def config_from_dict(data: dict, where: str = "") -> Config:
             raise ConfigError(f"{where}[rover] {key} = {value} is outside [{spec.min}, {spec.max}] ({spec.unit})")
         rover[by_name[key]] = value
     _check_pose_gains(rover, where)
-    return Config(arena, link, camera, sonar, mission, vision, planner, rover)
+    return Config(arena, link, camera, mission, vision, planner, rover)
 
 
 def _check_pose_gains(rover: dict, where: str) -> None:

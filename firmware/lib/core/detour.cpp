@@ -6,6 +6,7 @@
 #include <math.h>
 #include "angles.h"
 #include "float_ops.h"
+#include "sonar_geometry.h"
 
 namespace rovernav {
 namespace core {
@@ -15,13 +16,12 @@ void Rover::remember_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   // anywhere across the cone at that range), as one disk round the point on the beam's axis
   // wide enough for the arc, plus the clearance the host plans with. Nothing is assumed behind it.
   const Params& p = params_;
-  const float h = est_.heading_rad();
-  const float b = h + cdeg_to_rad(bearing_cdeg);
   const float r = static_cast<float>(range_mm);
-  const float off = p.sonar_offset_mm();
+  const PointMm e = echo_point(est_.x_mm(), est_.y_mm(), est_.heading_rad(), cdeg_to_rad(bearing_cdeg), r,
+                               p.sonar_offset_mm());
   Point c;
-  c.x_mm = saturate_i16(est_.x_mm() + off * sinf(h) + r * sinf(b));
-  c.y_mm = saturate_i16(est_.y_mm() + off * cosf(h) + r * cosf(b));
+  c.x_mm = saturate_i16(e.x_mm);
+  c.y_mm = saturate_i16(e.y_mm);
   local_.add(c, saturate_u16(p.clearance_mm() + r * tanf(p.sonar_half_cone_rad())));
 }
 

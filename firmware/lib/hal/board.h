@@ -66,8 +66,5 @@ constexpr uint16_t kWatchdogTimeoutMs = 250;
 constexpr uint16_t kEepromBootCounterAddr = 0;   // uint16_t, little-endian
 constexpr uint16_t kEepromLinkAddr = 16;         // the link key and signing counters (link_store.h), 49 bytes
 
-// --- Firmware version announced in HELLO: major << 8 | minor.
-constexpr uint16_t kFirmwareVersion = 0x0001;
-
 }  // namespace board
 }  // namespace rovernav

@@ -7,10 +7,18 @@
 
 #include "frame.h"
 #include "angles.h"
+#include "sonar_geometry.h"
 #include "rover.h"
 
 namespace rovernav {
 namespace test {
+
+/// A parameter's default, from the protocol definition (messages.toml, generated).
+inline float default_param(Param p) {
+  int32_t def = 0, lo = 0, hi = 0;
+  param_limits(static_cast<uint8_t>(p), def, lo, hi);
+  return static_cast<float>(def);
+}
 
 struct Said {
   uint8_t msg_id;
@@ -81,10 +89,13 @@ class Bench {
   uint16_t ping(int16_t servo_cdeg) const {
     if (!has_box) return sonar_range_mm;
     const float h = plant.heading_rad;
-    const float sx = plant.x_mm + 100.0f * sinf(h), sy = plant.y_mm + 100.0f * cosf(h);
+    const core::PointMm s = core::sonar_origin(plant.x_mm, plant.y_mm, h, default_param(Param::SonarOffsetMm));
+    const float sx = s.x_mm, sy = s.y_mm;
+    // Five rays across the cone (the parameter's full width), as the simulator's ranger casts more.
+    const float quarter_cone_cdeg = default_param(Param::SonarConeCdeg) / 4.0f;
     float best = 1e9f;
     for (int k = -2; k <= 2; ++k) {
-      const float a = h + (static_cast<float>(servo_cdeg) / 100.0f + 3.75f * static_cast<float>(k)) * 0.0174533f;
+      const float a = h + core::cdeg_to_rad(static_cast<int32_t>(servo_cdeg + quarter_cone_cdeg * static_cast<float>(k)));
       const float dx = sinf(a), dy = cosf(a);
       float t0 = 0.0f, t1 = 1e9f;
       bool hit = true;

@@ -1,4 +1,4 @@
 """Occupancy from the sonar: a log-odds grid fed by every reading (see sonar_map)."""
-from .sonar_map import SensorModel, SonarMap, SonarReading
+from .sonar_map import SensorModel, SonarMap, SonarReading, echo_point, sonar_origin
 
-__all__ = ["SensorModel", "SonarMap", "SonarReading"]
+__all__ = ["SensorModel", "SonarMap", "SonarReading", "echo_point", "sonar_origin"]

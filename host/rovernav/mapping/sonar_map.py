@@ -42,6 +42,24 @@ from ..angles import wrap_rad
 from ..validate import check_grid
 
 
+def sonar_origin(x_m: float, y_m: float, heading_deg: float, offset_m: float) -> tuple[float, float]:
+    """Where the ranger sits [m]: `offset_m` ahead of the rover's centre (x_m, y_m) along its
+    heading (0 = +y, clockwise). The one definition on the host (the firmware's is
+    core::sonar_origin, firmware/lib/core/sonar_geometry.h)."""
+    h = math.radians(heading_deg)
+    return x_m + offset_m * math.sin(h), y_m + offset_m * math.cos(h)
+
+
+def echo_point(x_m: float, y_m: float, heading_deg: float, bearing_deg: float, range_m: float,
+               offset_m: float) -> tuple[float, float]:
+    """Where an echo lies [m]: on the beam's axis (heading + the servo's bearing, clockwise), at
+    `range_m` from the ranger. The obstacle may stand anywhere across the cone at that range:
+    the map marks the whole arc; pictures and logs show this point."""
+    sx, sy = sonar_origin(x_m, y_m, heading_deg, offset_m)
+    b = math.radians(heading_deg + bearing_deg)
+    return sx + range_m * math.sin(b), sy + range_m * math.cos(b)
+
+
 @dataclasses.dataclass(frozen=True)
 class SensorModel:
     """The inverse sensor model's numbers (log-odds are dimensionless, lengths in metres)."""
@@ -99,8 +117,7 @@ class SonarMap:
         return 1.0 / (1.0 + np.exp(-self.logodds.astype(np.float64)))
 
     def sensor_xy(self, r: SonarReading) -> tuple[float, float]:
-        h = math.radians(r.heading_deg)
-        return r.x_m + self.sonar_offset_m * math.sin(h), r.y_m + self.sonar_offset_m * math.cos(h)
+        return sonar_origin(r.x_m, r.y_m, r.heading_deg, self.sonar_offset_m)
 
     def update(self, r: SonarReading) -> int:
         """Fold one reading in; returns how many cells crossed the occupied threshold (either way)."""

@@ -34,7 +34,7 @@ from pathlib import Path
 
 from ..errors import MapFileError
 from ..files import write_atomic
-from ..mapping import SonarMap, SonarReading
+from ..mapping import SonarMap, SonarReading, echo_point
 from ..planning import OccupancyGrid
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
@@ -70,10 +70,7 @@ class Echo:
 
     def point(self, sonar_offset_m: float) -> tuple[float, float]:
         """Where the beam's axis meets the echo's range (the sensor sits sonar_offset_m ahead)."""
-        h = math.radians(self.heading_deg)
-        sx, sy = self.x_m + sonar_offset_m * math.sin(h), self.y_m + sonar_offset_m * math.cos(h)
-        b = math.radians(self.heading_deg + self.bearing_deg)
-        return sx + self.range_m * math.sin(b), sy + self.range_m * math.cos(b)
+        return echo_point(self.x_m, self.y_m, self.heading_deg, self.bearing_deg, self.range_m, sonar_offset_m)
 
 
 class LearnedMap:

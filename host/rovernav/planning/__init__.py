@@ -2,7 +2,6 @@
 
     grid = OccupancyGrid.from_scenario(scenario, PlannerConfig())   # known obstacles, inflated
     result = plan(grid, scenario.start.xy, scenario.target.xy)     # A*, simplified waypoints [m]
-    grid.add_sonar_echo(x, y, heading_deg, bearing_deg, range_m, path=result.waypoints)
 
 A* runs the seed's 16-direction motion model and is optimal on its grid; the potential
 field is the seed's comparison planner (Table 4.2). Every failure is a NoPathError.
@@ -12,7 +11,7 @@ from .errors import GoalBlocked, LocalMinimum, NoPathError, OutsideArena, StartB
 
 # The grid and the planners compile with numba (about 0.2 s to import): loaded when first used,
 # so that a command that only parses its flags (`rovernav plan --help`, a refused flag) is quick.
-_LAZY = {"OccupancyGrid": ".grid", "SonarUpdate": ".grid", "PLANNERS": ".planner", "PlanResult": ".planner",
+_LAZY = {"OccupancyGrid": ".grid", "PLANNERS": ".planner", "PlanResult": ".planner",
          "plan": ".planner", "warm_up": ".planner"}
 
 
@@ -28,5 +27,5 @@ def __getattr__(name: str):
 
 __all__ = [
     "PLANNERS", "GoalBlocked", "LocalMinimum", "NoPathError", "OccupancyGrid", "OutsideArena",
-    "PlanResult", "PlannerConfig", "SonarUpdate", "StartBlocked", "Unreachable", "plan", "warm_up",
+    "PlanResult", "PlannerConfig", "StartBlocked", "Unreachable", "plan", "warm_up",
 ]

@@ -24,7 +24,6 @@ Obstacles and layers
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import TYPE_CHECKING, Sequence
 
@@ -37,16 +36,6 @@ from .segment import polyline_clear, segment_clear
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..scenario import Scenario
-
-
-@dataclasses.dataclass(frozen=True)
-class SonarUpdate:
-    """What one sonar echo changed in the grid."""
-
-    arc_xy: np.ndarray          # (m, 2) points [m] sampled along the echo's arc, inside the arena
-    new_cells: np.ndarray       # (k, 2) cells (ix, iy) that became raw obstacles
-    newly_inflated: int         # how many cells the rover may no longer enter because of the echo
-    blocks_path: bool | None    # whether the given path now crosses an inflated cell (None: no path given)
 
 
 class OccupancyGrid:
@@ -328,47 +317,6 @@ class OccupancyGrid:
         self.disks.append(disks)
         self.version += 1
         return new, self._grow(self._disk_distance(disks, self.config.inflation_m))
-
-    # --- the sonar -----------------------------------------------------------------------
-
-    def sonar_arc(self, x_m: float, y_m: float, heading_deg: float, bearing_deg: float,
-                  range_m: float) -> np.ndarray:
-        """Points [m] along the arc an echo could have come from, spaced at most a quarter cell apart.
-
-        The rover stands at (x, y) with `heading_deg` (0° = +y, clockwise positive, the seed's
-        gyro convention); the sonar sits `config.sonar_offset_m` ahead of its centre and points
-        `bearing_deg` (clockwise positive) off the heading. An echo at `range_m` may come from
-        anywhere on the arc of that radius across the beam's cone (`config.sonar_cone_deg`).
-        Points off the arena are kept: the caller decides.
-        """
-        cfg = self.config
-        if not math.isfinite(range_m) or not 0.0 < range_m <= cfg.sonar_max_range_m:
-            raise ValueError(f"sonar range must be in (0, {cfg.sonar_max_range_m}] m, got {range_m!r}")
-        h = math.radians(heading_deg)
-        sx = x_m + cfg.sonar_offset_m * math.sin(h)
-        sy = y_m + cfg.sonar_offset_m * math.cos(h)
-        half = math.radians(cfg.sonar_cone_deg) / 2
-        n = max(3, int(math.ceil(range_m * 2 * half / (self.resolution_m / 4))) + 1)
-        theta = h + math.radians(bearing_deg) + np.linspace(-half, half, n)
-        return np.stack([sx + range_m * np.sin(theta), sy + range_m * np.cos(theta)], axis=1)
-
-    def add_sonar_echo(self, x_m: float, y_m: float, heading_deg: float, bearing_deg: float,
-                       range_m: float, path: Sequence[Sequence[float]] | None = None) -> SonarUpdate:
-        """Mark the echo's whole arc (see `sonar_arc`) as obstacle and re-inflate around it.
-
-        The seed marked only the point on the beam's axis and widened every obstacle by the
-        0.05 m margin instead; marking the arc keeps the obstacle wherever in the cone it stood.
-        The arc is stored as disks on its sample points, with a radius of half their spacing
-        so that the arc between samples is covered. When `path` (waypoints [m]) is given,
-        `blocks_path` says whether it now crosses an inflated cell, by the planner's own
-        segment check.
-        """
-        arc = self.sonar_arc(x_m, y_m, heading_deg, bearing_deg, range_m)
-        spacing = float(np.hypot(*(arc[1] - arc[0])))
-        inside = (arc[:, 0] >= 0) & (arc[:, 0] <= self.width_m) & (arc[:, 1] >= 0) & (arc[:, 1] <= self.height_m)
-        new, newly = self.add_disks(arc[inside], spacing / 2)
-        blocks = None if path is None else self.path_blocked(path)
-        return SonarUpdate(arc_xy=arc[inside], new_cells=new, newly_inflated=newly, blocks_path=blocks)
 
     # --- checks --------------------------------------------------------------------------
 

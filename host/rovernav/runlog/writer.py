@@ -212,12 +212,11 @@ class RunLog(Recorder):
             return
         from foxglove.messages import (LinePrimitive, Point3, SceneEntity, SceneUpdate, SpherePrimitive, Vector3)
 
-        h = math.radians(reading.heading_deg)
-        # Where the beam's axis meets the range (the sensor sits sonar_offset_m ahead of the centre).
-        off = self.sonar_offset_m
-        sx, sy = reading.x_m + off * math.sin(h), reading.y_m + off * math.cos(h)
-        b = math.radians(reading.heading_deg + reading.bearing_deg)
-        ex, ey = sx + reading.range_m * math.sin(b), sy + reading.range_m * math.cos(b)
+        from ..mapping import echo_point, sonar_origin
+
+        r, off = reading, self.sonar_offset_m
+        sx, sy = sonar_origin(r.x_m, r.y_m, r.heading_deg, off)
+        ex, ey = echo_point(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m, off)
         self._echoes += 1
         entity = SceneEntity(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, id=f"echo-{self._echoes}",
                              lines=[LinePrimitive(thickness=0.004, points=[Point3(x=sx, y=sy, z=0.05),

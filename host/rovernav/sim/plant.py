@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from ..angles import wrap_deg
+from ..mapping.sonar_map import sonar_origin
 from ..link.messages_gen import PARAMS, Param
 from ..planning.config import geometry_m
 from .world import World
@@ -103,9 +104,7 @@ class RoverPlant:
     def sonar_mm(self, world: World) -> int:
         """One ping: the nearest surface in the cone (mm), a floor echo, or 0 for nothing."""
         c = self.cfg
-        h = math.radians(self.heading)
-        sx = self.x + c.sonar_offset_m * math.sin(h)
-        sy = self.y + c.sonar_offset_m * math.cos(h)
+        sx, sy = sonar_origin(self.x, self.y, self.heading, c.sonar_offset_m)
         axis = self.heading + self.servo_deg
         nearest = world.sonar_m(sx, sy, axis, c.sonar_cone_deg, c.sonar_max_m, c.sonar_max_incidence_deg,
                                 c.sonar_rays)
