@@ -7,12 +7,17 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from rovernav.angles import heading_cdeg
 from rovernav.firmware import RoverCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
+from rovernav.sim.plant import PlantConfig, RoverPlant
+
+#: The rover's arrival radius (the protocol's default): it stops within this of its last waypoint.
+ARRIVAL_MM = mg.PARAMS[mg.Param.ARRIVAL_RADIUS_MM].default
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -20,28 +25,13 @@ def library():
     return build_library()
 
 
-class Plant:
-    """Differential drive with a dead band and a first-order lag; heading clockwise from +y."""
-
-    def __init__(self, x=300.0, y=300.0, heading_deg=0.0):
-        self.x, self.y, self.h = x, y, math.radians(heading_deg)
-        self.l = self.r = 0.0
-        self.rate_dps = 0.0
-
-    @staticmethod
-    def eff(pwm):
-        return 0.0 if abs(pwm) <= 30 else math.copysign(abs(pwm) - 30, pwm)
-
-    def advance(self, left, right, dt):
-        k = dt / (0.08 + dt)
-        self.l += k * (self.eff(left) - self.l)
-        self.r += k * (self.eff(right) - self.r)
-        v = 2.0 * 0.5 * (self.l + self.r)
-        self.rate_dps = 1.2 * 0.5 * (self.l - self.r)
-        mid = self.h + 0.5 * math.radians(self.rate_dps) * dt
-        self.x += v * dt * math.sin(mid)
-        self.y += v * dt * math.cos(mid)
-        self.h += math.radians(self.rate_dps) * dt
+def ideal_plant(x_mm=300.0, y_mm=300.0, heading_deg=0.0) -> RoverPlant:
+    """The simulator's plant (rovernav.sim.plant), with no noise, no bias and motors as the
+    firmware's speed model assumes them (its default speed per PWM, equal motors)."""
+    cfg = PlantConfig(mm_s_per_pwm=mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].default / 1000.0,
+                      deadband_pwm=float(mg.PARAMS[mg.Param.MOTOR_DEADBAND_PWM].default), right_gain=1.0,
+                      speed_noise=0.0, gyro_noise_dps=0.0, gyro_bias_dps=0.0, gyro_bias_walk_dps_per_sqrt_s=0.0)
+    return RoverPlant(x_mm / 1000, y_mm / 1000, heading_deg, cfg, np.random.default_rng(0))
 
 
 class Host:
@@ -76,7 +66,7 @@ def test_library_reports_our_schema_and_boots_with_hello():
 
 
 def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
-    core, plant, host = RoverCore(boot_id=5), Plant(), Host()
+    core, plant, host = RoverCore(boot_id=5), ideal_plant(), Host()
     waypoints = [(300, 300), (300, 700), (700, 900), (900, 500)]
     host.send(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=1, firmware_version=1, role=mg.Role.HOST))
     host.send(mg.Config(param=mg.Param.SWEEP_INTERVAL_MM, value=0))
@@ -85,29 +75,32 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
     host.send(mg.Path(path_id=3, total=4, first_index=0, count=4, x_mm=xs, y_mm=ys))
     started = False
     now = 0
+    arrived_ms = None
     for _ in range(9000):  # at most 90 s
         if now % 33 < 10:
-            host.send(mg.Fix(x_mm=round(plant.x), y_mm=round(plant.y),
-                             heading_cdeg=heading_cdeg(math.degrees(plant.h)),
+            host.send(mg.Fix(x_mm=round(plant.x * 1000), y_mm=round(plant.y * 1000),
+                             heading_cdeg=heading_cdeg(plant.heading),
                              sd_mm=2))
         if not started and any(isinstance(m, mg.Event) and m.kind == mg.EventKind.PATH_ACCEPTED for m in host.heard):
             host.send(mg.Start(path_id=3))
             started = True
-        out = core.step(now, gyro_rate_mdps=round(plant.rate_dps * 1000), rx=host.take())
+        out = core.step(now, gyro_rate_mdps=plant.gyro_mdps(), rx=host.take())
         host.hear(out.tx)
-        plant.advance(out.left_pwm, out.right_pwm, 0.01)
+        plant.step(out.left_pwm, out.right_pwm, out.servo_cdeg, 0.01)
         now += 10
-        if host.events(mg.EventKind.ARRIVED) and now % 1000 == 0:
-            break  # after arrival, one more STATUS has gone out
+        if arrived_ms is None and host.events(mg.EventKind.ARRIVED):
+            arrived_ms = now
+        if arrived_ms is not None and now >= arrived_ms + 1000:
+            break  # after arrival, STATUS has gone out again
     assert host.events(mg.EventKind.ARRIVED), "the rover never arrived"
     assert [e.arg for e in host.events(mg.EventKind.WAYPOINT_REACHED)] == [0, 1, 2, 3]
-    assert math.hypot(plant.x - 900, plant.y - 500) < 46
+    assert math.hypot(plant.x * 1000 - 900, plant.y * 1000 - 500) < ARRIVAL_MM + 10
     nacks = [m for m in host.heard if isinstance(m, mg.Nack)]
     assert nacks == []
     statuses = [m for m in host.heard if isinstance(m, mg.Status)]
     assert statuses and statuses[-1].state == mg.RoverState.ARRIVED
     probe = core.probe()
-    assert abs(probe.x_mm - plant.x) < 10 and abs(probe.y_mm - plant.y) < 10
+    assert abs(probe.x_mm - plant.x * 1000) < 10 and abs(probe.y_mm - plant.y * 1000) < 10
 
 
 def test_more_bytes_than_the_rover_holds_are_dropped_and_counted():

@@ -20,6 +20,10 @@ inline float default_param(Param p) {
   return static_cast<float>(def);
 }
 
+/// Where a rover that has arrived may stand from its goal: the arrival radius (the protocol's
+/// default) and 10 mm of coasting after the motors stop.
+inline float arrived_within_mm() { return default_param(Param::ArrivalRadiusMm) + 10.0f; }
+
 struct Said {
   uint8_t msg_id;
   uint8_t seq;
@@ -34,10 +38,10 @@ struct Plant {
   float lag_s = 0.08f;
   float left_eff = 0, right_eff = 0;
   float x_mm = 300, y_mm = 300, heading_rad = 0;
-  float mm_s_per_pwm = 2.0f;       // matches the core's default speed model
+  float mm_s_per_pwm = default_param(Param::SpeedMmSPerPwmX1000) / 1000.0f;   // the core's speed model
   float deg_s_per_pwm = 1.2f;      // yaw rate per PWM of wheel difference
   float right_gain = 1.0f;
-  int16_t deadband = 30;
+  int16_t deadband = static_cast<int16_t>(default_param(Param::MotorDeadbandPwm));
   float rate_dps = 0;
   void advance(int16_t left, int16_t right, float dt_s) {
     const float k = dt_s / (lag_s + dt_s);

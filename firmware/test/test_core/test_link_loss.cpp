@@ -119,7 +119,7 @@ TEST_CASE("dr_max_distance_mm also bounds a dead-reckoned drive") {
   b.camera = false;
   const float y0 = b.plant.y_mm;
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Hold; }, 30000));
-  CHECK(b.plant.y_mm - y0 < 200.0f + 36.0f + 50.0f);  // the fix timeout, then 200 mm
+  CHECK(b.plant.y_mm - y0 < 200.0f + test::default_param(Param::ArrivalRadiusMm) + 50.0f);  // the fix timeout, then 200 mm
 }
 
 TEST_CASE("STOP wins during an outage of the camera") {

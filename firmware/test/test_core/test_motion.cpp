@@ -58,7 +58,7 @@ TEST_CASE("the rover rotates on the spot towards a waypoint, then drives to it a
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Drive; }, 5000));
   CHECK(fabsf(b.plant.heading_rad * core::kDegPerRad - 90.0f) < 3.0f);
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 20000));
-  CHECK(b.true_distance_to(900, 300) < 46.0f);
+  CHECK(b.true_distance_to(900, 300) < test::arrived_within_mm());
   CHECK(b.events(EventKind::Arrived) == 1);
   b.step();
   CHECK(b.out.left_pwm == 0);
@@ -96,7 +96,7 @@ TEST_CASE("waypoints are reached one by one, each announced, round a corner") {
   msg::Event e;
   CHECK(b.events(EventKind::WaypointReached, &e) == 4);
   CHECK(e.arg == 3);
-  CHECK(b.true_distance_to(800, 400) < 46.0f);
+  CHECK(b.true_distance_to(800, 400) < test::arrived_within_mm());
 }
 
 TEST_CASE("pushed off its heading while driving, the rover stops and re-rotates") {
@@ -109,7 +109,7 @@ TEST_CASE("pushed off its heading while driving, the rover stops and re-rotates"
   b.plant.heading_rad += 15.0f * core::kRadPerDeg;  // a bump: the camera sees it
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Rotate; }, 500));
   REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 30000));
-  CHECK(b.true_distance_to(300, 1500) < 46.0f);
+  CHECK(b.true_distance_to(300, 1500) < test::arrived_within_mm());
 }
 
 TEST_CASE("when the distance to the waypoint starts growing, the rover stops and turns back") {
@@ -170,7 +170,7 @@ TEST_CASE("pose law: round a corner in arcs, without stopping to turn at the way
   REQUIRE(b.rover.state() == RoverState::Arrived);
   CHECK(rotations_after_drive == 0);
   CHECK(b.events(EventKind::WaypointReached) == 4);
-  CHECK(b.true_distance_to(1400, 1300) < 46.0f);
+  CHECK(b.true_distance_to(1400, 1300) < test::arrived_within_mm());
   // It arrives heading along the last leg (east, 90 degrees), as the law's goal pose asks.
   CHECK(fabsf(b.plant.heading_rad * core::kDegPerRad - 90.0f) < 25.0f);
 }

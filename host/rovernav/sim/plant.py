@@ -35,7 +35,7 @@ from .world import World
 @dataclasses.dataclass(frozen=True)
 class PlantConfig:
     mm_s_per_pwm: float = 2.2         # wheel speed per PWM above the dead band (firmware assumes 2.0)
-    deadband_pwm: float = 30.0
+    deadband_pwm: float = float(PARAMS[Param.MOTOR_DEADBAND_PWM].default)   # as the firmware assumes
     lag_s: float = 0.08               # motor and inertia
     right_gain: float = 1.10          # the right motor is the stronger
     track_m: float = 0.13             # distance between the wheels
