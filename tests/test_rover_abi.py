@@ -113,3 +113,20 @@ def test_more_bytes_than_the_rover_holds_are_dropped_and_counted():
 def test_a_wrong_key_length_is_refused_clearly():
     with pytest.raises(ValueError, match="16 bytes"):
         RoverCore(key=bytes(5))
+
+
+def test_the_python_structs_are_checked_against_the_librarys_layout():
+    import ctypes
+
+    from rovernav.firmware import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
+
+    lib = load_library()
+    check_layout(lib)   # the real copies agree (load_library checks this too)
+
+    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that firmware.py lacks
+        _fields_ = [("state", ctypes.c_uint8), ("fault", ctypes.c_uint8), ("flags", ctypes.c_uint32)] + \
+            _Probe._fields_[3:]
+
+    Probe.__name__ = "_Probe"
+    with pytest.raises(FirmwareBuildError, match=r"sizeof\(_Probe\) is 32 there, 36 here"):
+        check_layout(lib, STRUCTS[:2] + (Probe,))

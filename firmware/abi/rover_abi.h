@@ -50,6 +50,10 @@ typedef struct rover_probe {
 } rover_probe;
 
 uint32_t rover_abi_version(void);
+/* The structs' layout as this library was compiled, for a host to check its own copy against:
+ * writes at most `n` words (sizeof each struct, ROVER_TX_PER_STEP, then the offset of every field
+ * of rover_inputs, rover_outputs and rover_probe, in declaration order); returns how many there are. */
+uint32_t rover_abi_layout(uint32_t* out, uint32_t n);
 uint32_t rover_schema_hash(void);
 void* rover_new(uint32_t boot_id, uint16_t reset_cause);
 /* A rover with a link key (16 bytes; NULL: none) and its stored signing counters. */

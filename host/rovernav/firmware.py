@@ -72,6 +72,36 @@ class _Probe(ctypes.Structure):
     ]
 
 
+STRUCTS = (_Inputs, _Outputs, _Probe)
+
+
+def python_layout(structs=STRUCTS) -> list[int]:
+    """What rover_abi_layout() says, computed from this module's ctypes copies of the structs."""
+    words = [ctypes.sizeof(st) for st in structs] + [TX_PER_STEP]
+    for st in structs:
+        words += [getattr(st, name).offset for name, _type in st._fields_]
+    return words
+
+
+def check_layout(lib, structs=STRUCTS) -> None:
+    """FirmwareBuildError, naming the first field that differs, when the library's structs are not
+    laid out as this module's copies (an edit to rover_abi.h not made here, or the reverse)."""
+    n = 64
+    buf = (ctypes.c_uint32 * n)()
+    count = lib.rover_abi_layout(buf, n)
+    theirs, ours = list(buf[:min(count, n)]), python_layout(structs)
+    if theirs == ours:
+        return
+    names = [f"sizeof({st.__name__})" for st in structs] + ["ROVER_TX_PER_STEP"] + \
+        [f"{st.__name__}.{name}" for st in structs for name, _type in st._fields_]
+    for i, (a, b) in enumerate(zip(theirs, ours)):
+        if a != b:
+            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: "
+                                     f"{names[i]} is {a} there, {b} here")
+    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: {count} layout "
+                             f"words there, {len(ours)} here (a field added on one side only)")
+
+
 @dataclasses.dataclass(frozen=True)
 class StepOut:
     """What the rover asked for in one step."""
@@ -158,6 +188,9 @@ def load_library() -> ctypes.CDLL:
     lib.rover_free.restype = None
     if lib.rover_abi_version() != ABI_VERSION:
         raise FirmwareBuildError(f"{LIBRARY} has ABI version {lib.rover_abi_version()}, expected {ABI_VERSION}")
+    lib.rover_abi_layout.restype = ctypes.c_uint32
+    lib.rover_abi_layout.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
+    check_layout(lib)
     from .link.messages_gen import SCHEMA_HASH
     if lib.rover_schema_hash() != SCHEMA_HASH:
         raise FirmwareBuildError(f"{LIBRARY} was built from another protocol definition "

@@ -133,6 +133,9 @@ class _ProfStep(ctypes.Structure):
                 ("has_desc", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 2), ("n", ctypes.c_uint32)]
 
 
+#: The harness's structs, in unocore_struct_sizes()'s order (checked when the library loads).
+HARNESS_STRUCTS = (_Step, _Regs, _Stats, _ProfInfo, _ProfEntry, _ProfStep)
+
 _SONAR_FN = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p)
 
 
@@ -252,6 +255,17 @@ def load_library() -> ctypes.CDLL:
     if lib.unocore_abi_version() != ABI_VERSION:
         raise UnoSetupError(f"{LIBRARY} has ABI version {lib.unocore_abi_version()}, expected {ABI_VERSION}: "
                             "rebuild it (make -C tools/avrsim unocore)")
+    lib.unocore_struct_sizes.restype = ctypes.c_uint32
+    lib.unocore_struct_sizes.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
+    sizes = (ctypes.c_uint32 * 16)()
+    count = lib.unocore_struct_sizes(sizes, 16)
+    for name, st, size in zip(("step", "regs", "stats", "prof_info", "prof_entry", "prof_step"), HARNESS_STRUCTS,
+                              sizes[:count]):
+        if ctypes.sizeof(st) != size:
+            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/sim/uno.py disagree: unocore_{name} is "
+                                f"{size} bytes there, {ctypes.sizeof(st)} here")
+    if count != len(HARNESS_STRUCTS):
+        raise UnoSetupError(f"unocore.c names {count} structs, sim/uno.py {len(HARNESS_STRUCTS)}")
     _lib = lib
     return lib
 
