@@ -60,7 +60,7 @@ def load(path: Path = DEFINITION) -> dict:
     with open(path, "rb") as fh:
         d = tomllib.load(fh)
     proto = d.get("protocol", {})
-    for key in ("version", "max_payload", "max_waypoints", "waypoints_per_chunk"):
+    for key in ("version", "max_payload", "max_waypoints", "waypoints_per_chunk", "uart_buffer_bytes"):
         if not isinstance(proto.get(key), int):
             raise DefinitionError(f"[protocol].{key} must be an integer")
     seen_ids: dict[int, str] = {}
@@ -105,8 +105,9 @@ def load(path: Path = DEFINITION) -> dict:
     for name in sig.get("unsigned", []):
         if name not in seen_names:
             raise DefinitionError(f"[signing].unsigned: no message {name!r}")
-    if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > 64:
-        raise DefinitionError("a signed frame of max_payload bytes would pass 64 bytes on the wire")
+    if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > proto["uart_buffer_bytes"]:
+        raise DefinitionError(f"a signed frame of max_payload bytes would pass [protocol].uart_buffer_bytes "
+                              f"({proto['uart_buffer_bytes']}) on the wire")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -216,7 +217,8 @@ def render_cpp(d: dict) -> str:
            f"enum : uint8_t {{ kProtocolVersion = {p['version']} }};\n",
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
            f"enum : uint8_t {{\n  kMaxPayload = {p['max_payload']},\n  kMaxRawFrame = {max_raw},  // header + payload + CRC\n"
-           f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']}\n}};\n\n"]
+           f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']},\n"
+           f"  kUartBufferBytes = {p['uart_buffer_bytes']}  // the Uno's serial buffers: a whole frame fits\n}};\n\n"]
     sig = d["signing"]
     by_name = {m["name"]: m["id"] for m in d["messages"]}
     out.append("// Signed frames ([signing] in protocol/messages.toml).\n"
@@ -337,7 +339,8 @@ def render_py(d: dict) -> str:
            f"MAX_PAYLOAD = {p['max_payload']}\n",
            f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",
            f"MAX_WAYPOINTS = {p['max_waypoints']}\n",
-           f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n\n"]
+           f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n",
+           f"UART_BUFFER_BYTES = {p['uart_buffer_bytes']}   # the Uno's serial buffers: a whole frame fits\n\n"]
     for e in d.get("enums", []):
         base = "enum.IntFlag" if e.get("bitmask") else "enum.IntEnum"
         out.append(f"\nclass {camel(e['name'])}({base}):\n    \"\"\"{e.get('doc', '')}\"\"\"\n\n")

@@ -259,3 +259,18 @@ def test_traffic_budget_of_the_readme_holds():
     assert (size[mg.Fix], size[mg.Heartbeat], size[mg.Status], size[mg.Path]) == (18, 12, 52, 44)
     bytes_per_s = 30 * size[mg.Fix] + 5 * size[mg.Heartbeat] + 5 * size[mg.Status]
     assert bytes_per_s < 57600 / 10 / 6
+
+
+def test_every_fault_code_is_raised_by_the_firmware():
+    # A fault code on the wire that no code path raises is a promise the rover does not keep.
+    from pathlib import Path
+
+    import re
+
+    sources = "".join(p.read_text() for p in (Path(__file__).resolve().parents[1] / "firmware" / "lib").rglob("*.cpp"))
+    raised = set(re.findall(r"raise_fault\(FaultCode::(\w+)", sources))
+    for code in mg.FaultCode:
+        if code is mg.FaultCode.NONE:
+            continue
+        camel = "".join(part.capitalize() for part in code.name.lower().split("_"))
+        assert camel in raised, f"fault code {code.name.lower()} is never raised"

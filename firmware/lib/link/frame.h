@@ -32,7 +32,7 @@ enum : uint8_t {
 };
 static_assert(static_cast<int>(kMaxRawFrame) == kFrameHeader + static_cast<int>(kMaxPayload) + kFrameCrc,
               "raw frame size");
-static_assert(kMaxEncodedFrame <= 64, "a frame must fit the Uno's 64-byte serial buffers");
+static_assert(static_cast<int>(kMaxEncodedFrame) <= static_cast<int>(kUartBufferBytes), "a frame must fit the Uno's serial buffers");
 
 struct Frame {
   uint8_t version;

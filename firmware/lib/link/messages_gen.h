@@ -8,12 +8,13 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x8997E82BUL;
+static const uint32_t kSchemaHash = 0x30D2B0E8UL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
   kMaxWaypoints = 32,
-  kWaypointsPerChunk = 8
+  kWaypointsPerChunk = 8,
+  kUartBufferBytes = 64  // the Uno's serial buffers: a whole frame fits
 };
 
 // Signed frames ([signing] in protocol/messages.toml).
@@ -94,8 +95,6 @@ enum class FaultCode : uint8_t {
   None = 0,
   GyroSilent = 1,  ///< no gyro sample for gyro_timeout_ms
   GyroImplausible = 2,  ///< gyro rate beyond gyro_max_rate_cdeg_s
-  GyroInit = 3,  ///< gyro did not answer at start-up
-  SonarSilent = 4,  ///< no echo result for a ping
 };
 
 /// Why the rover refused a message.

@@ -34,7 +34,7 @@ import hmac
 import time
 
 from .messages_gen import (MAX_SIGNED_RAW_FRAME, MESSAGES, PROTOCOL_VERSION, SIGN_COUNTER_BYTES, SIGN_EPOCH_UNIX_S,
-                           SIGN_FLAG, SIGN_TAG_BYTES, SIGN_UNSIGNED_IDS)
+                           SIGN_FLAG, SIGN_TAG_BYTES, SIGN_UNSIGNED_IDS, UART_BUFFER_BYTES)
 from .schema import Message
 from .siphash import KEY_BYTES, siphash24
 
@@ -45,7 +45,7 @@ SIGNATURE_BYTES = SIGN_COUNTER_BYTES + SIGN_TAG_BYTES
 MAX_ENCODED_BODY = MAX_SIGNED_RAW_FRAME + (MAX_SIGNED_RAW_FRAME + 253) // 254
 #: Longest frame on the wire, delimiter included. The rover's buffers are sized for it.
 MAX_FRAME = MAX_ENCODED_BODY + 1
-assert MAX_FRAME <= 64, "a frame must fit the Uno's 64-byte serial buffer"
+assert MAX_FRAME <= UART_BUFFER_BYTES, "a frame must fit the Uno's serial buffer"
 
 
 def _crc_table() -> list[int]:

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x8997E82B
+SCHEMA_HASH = 0x30D2B0E8
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -28,6 +28,7 @@ MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50
 MAX_WAYPOINTS = 32
 WAYPOINTS_PER_CHUNK = 8
+UART_BUFFER_BYTES = 64   # the Uno's serial buffers: a whole frame fits
 
 
 class Role(enum.IntEnum):
@@ -126,10 +127,6 @@ class FaultCode(enum.IntEnum):
     """no gyro sample for gyro_timeout_ms"""
     GYRO_IMPLAUSIBLE = 2
     """gyro rate beyond gyro_max_rate_cdeg_s"""
-    GYRO_INIT = 3
-    """gyro did not answer at start-up"""
-    SONAR_SILENT = 4
-    """no echo result for a ping"""
 
 class NackReason(enum.IntEnum):
     """Why the rover refused a message."""

@@ -338,7 +338,7 @@ class Simulation:
 
     def _rover(self, now: float) -> None:
         rx = self.to_rover.receive(now, 255)
-        tx_room = max(0, 64 - self.to_host.queued())
+        tx_room = max(0, mg.UART_BUFFER_BYTES - self.to_host.queued())   # the Uno's serial TX buffer
         out = self.core.step(int(round(now * 1000)), gyro_rate_mdps=self.plant.gyro_mdps(),
                              sonar_range_mm=self._sonar_pending, rx=rx, tx_room=tx_room)
         # (The Uno image pings the plant itself, through UnoCore's sonar callback.)

@@ -609,7 +609,7 @@ class UnoCore:
     # -------------------------------------------------------------- RoverCore's interface
 
     def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
-             rx: bytes = b"", tx_room: int = 64, wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+             rx: bytes = b"", tx_room: int = mg.UART_BUFFER_BYTES, wheel_ticks: tuple[int, int] | None = None) -> StepOut:
         """Runs the AVR up to now_ms with the gyro reading gyro_rate_mdps (clockwise, None = the
         chip stops answering) and rx queued for its UART; returns what its pins show at now_ms.
         sonar_range_mm, tx_room and wheel_ticks are not used (see the module's docstring)."""
