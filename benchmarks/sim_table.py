@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{'reached' if r['reached'] else 'NOT reached'}, {r['mission_time_s']:.1f} s, "
                   f"{r['collisions']} collisions, {r['speedup']}x", file=sys.stderr, flush=True)
     med = statistics.median
-    print(f"| scenario | strategy | reached, 0 collisions | mission time (s) | path (m) | optimum (m) | SPL | replans | min clearance (m) | speed-up |")
+    print("| scenario | strategy | reached, 0 collisions | mission time (s) | path (m) | optimum (m) | SPL | replans | min clearance (m) | speed-up |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for sc in args.scenarios:
         for st in args.strategies:

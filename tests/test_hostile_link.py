@@ -1,4 +1,4 @@
-"""Issue 13: hostile input to the link, the transports, the learned map, `rovernav run` and
+"""Hostile input to the link, the transports, the learned map, `rovernav run` and
 `rovernav demo`. Every bad input is a one-line InputError/LinkError (exit 2), never a
 traceback; a flood of frames or junk bytes never grows memory without bound and never
 stretches a wait past its timeout; nothing half-written is left on disk."""

@@ -1,4 +1,4 @@
-"""Hostile input to `rovernav pose`, `rovernav study` and `rovernav locate` (issue 13).
+"""Hostile input to `rovernav pose`, `rovernav study` and `rovernav locate` .
 
 Every bad flag, file or value gives one line naming it and exit status 2, quickly, never a
 traceback, never unbounded work, never a wrong or half-written output file.

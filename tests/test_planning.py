@@ -6,7 +6,6 @@ scipy's csgraph on a larger grid.
 """
 from __future__ import annotations
 
-import argparse
 
 from rovernav.validate import ArgParser
 import heapq

@@ -1,5 +1,5 @@
 """Run logs (MCAP, Foxglove's schemas), the live view over Foxglove's WebSocket protocol, and
-`rovernav replay` (issue 15, items 1-3)."""
+`rovernav replay`."""
 from __future__ import annotations
 
 import asyncio

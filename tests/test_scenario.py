@@ -126,7 +126,7 @@ MISTAKES = [
     ("zero trips", lambda t: _replace(t, "trips = 3", "trips = 0"), "mission.trips", "from 1 to 1000"),
     ("other version", lambda t: _replace(t, "version = 1", "version = 2"), "version", "understands version 1"),
     ("no version", lambda t: _replace(t, "version = 1\n", ""), "version", "missing"),
-    # issue 13: sizes that would exhaust memory or time, shapes off the arena, a start in a box
+    # sizes that would exhaust memory or time, shapes off the arena, a start in a box
     ("a 1 km arena", lambda t: _replace(t, "width_m = 2.0", "width_m = 1000.0"), "arena.width_m", "at most 100 m"),
     ("a billion trips", lambda t: _replace(t, "trips = 3", "trips = 1000000000"), "mission.trips", "from 1 to 1000"),
     ("infinite size", lambda t: _replace(t, "width_m = 2.0", "width_m = inf"), "arena.width_m", "must be a number"),

@@ -1,4 +1,4 @@
-"""Signed frames on the host (issue 14): the format in protocol/messages.toml [signing], the tag,
+"""Signed frames on the host: the format in protocol/messages.toml [signing], the tag,
 the counter, and every way a frame can be refused: forged, altered, reflected, replayed,
 reordered, truncated, unsigned where signatures are required, or signed with no key to check it.
 And the key file: made 0600, never overwritten by accident, refused when others can read it."""

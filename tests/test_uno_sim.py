@@ -226,7 +226,7 @@ def test_rovernav_sim_rover_uno_reaches_the_target_and_reports_the_images_timing
     assert t["speed"]["avr_x_real_time"] > 0   # the speed is a figure printed, not a timed test
     if not t["hooks"]["step_probe_pb0"]:
         pytest.skip("this image has no PB0 step probe: no step times to check")
-    assert t["steps"] > 3000 and t["step_time"]["max_us"] <= 5000   # issue 12: every step within half the period
+    assert t["steps"] > 3000 and t["step_time"]["max_us"] <= 5000   # every step within half the 10 ms period
     for state in ("rotate", "drive", "scan"):
         figures = t["by_state"][state]
         assert figures["count"] > 0
@@ -263,7 +263,7 @@ def test_rovernav_sim_help_documents_the_rover_flag():
 
 @pytest.mark.mission
 def test_the_images_own_detour_planner_fits_the_step_period(built, tmp_path):
-    # Issue 12's limits, on the image through a detour of its own (the host does not replan):
+    # The step's limits, on the image through a detour of its own (the host does not replan):
     # no replanning step past half the 10 ms period, the period's jitter within 1 ms, and at
     # least 256 bytes of stack to spare. (The planner once took a 45 ms step here.)
     out = tmp_path / "run"

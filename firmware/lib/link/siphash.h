@@ -1,5 +1,5 @@
 // SipHash-2-4 (Aumasson and Bernstein, 2012): a keyed 64-bit MAC with a 128-bit key, made for
-// short messages. The link's frame tags (issue 14, frame.h) are built on it; see
+// short messages. The link's frame tags (frame_auth.h) are built on it; see
 // benchmarks/bench_mac.py for its flash and cycles on the Uno against HMAC-SHA256.
 //
 // The state is 32 bytes (v0..v3, little-endian) and every step but the round works a byte at a

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import logging
 import math
 import tempfile
 import time
@@ -35,7 +34,6 @@ from .channel import Channel, ChannelConfig, SimTransport
 from .plant import PlantConfig, RoverPlant
 from .world import World
 
-log = logging.getLogger("rovernav.sim")
 
 STEP_S = 0.010
 HOST_PERIOD_S = 0.030
@@ -251,10 +249,10 @@ class Simulation:
                 self._fault_edges(now)
             if restarts and now >= restarts[0]:
                 restarts.pop(0)
-                self._sim_event(now, "host restarted: its state is dropped and rebuilt from the rover's HELLO and STATUS",
-                                "warning")
-                # Nothing of the old host survives: the new one starts from HELLO, as a restarted
-                # process would. (Rebuilding the leg from the rover's STATUS is issue 6's work.)
+                self._sim_event(now, "host restarted: the new host keeps what was on disk (the learned map, the legs "
+                                     "done) and takes the rest from the rover's HELLO and STATUS", "warning")
+                # As a restarted process: nothing in memory survives, only the files the old host
+                # kept in its working folder (start_host reloads them).
                 self.restarts_done += 1
                 self.mission = self._new_host()
             if resets and now >= resets[0]:

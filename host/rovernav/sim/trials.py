@@ -61,7 +61,6 @@ import datetime
 import io
 import json
 import logging
-import math
 import os
 import platform
 import shutil
@@ -72,7 +71,7 @@ import time
 import traceback
 import uuid
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Callable, Iterable
 
 from .. import __version__
 from ..errors import InputError

@@ -865,8 +865,6 @@ class UnoCore:
             return {}
         if not getattr(self, "_h", None):
             return self._final_profile or {}
-        import numpy as np
-
         fmap = self._fmap
         info, kinds, worst = self._profile_arrays()
         out: dict = {
@@ -878,7 +876,6 @@ class UnoCore:
             "instructions_counted": info.instructions,
             "kinds": {},
         }
-        us = 1e6 / CLOCK_HZ
         for k, name in enumerate(PROF_KINDS):
             out["kinds"][name] = self._profile_kind(kinds[name], info.steps[k], info.step_cycles[k],
                                                     info.attributed[k])
