@@ -10,7 +10,7 @@ import pytest
 import rovernav
 from rovernav.link.errors import LinkClosed, LinkTimeout, Nacked, SchemaMismatch
 from rovernav.link.framing import cobs_encode, crc16, encode_frame
-from rovernav.link.link import Link, version_word
+from rovernav.link.link import Link, host_hello, version_word
 from rovernav.link.messages_gen import (
     MESSAGES, PROTOCOL_VERSION, SCHEMA_HASH, Ack, Config, EventKind, Event, Fix, Heartbeat, Hello, Nack,
     LinkAuth, NackReason, Obstacle, Param, Path, Provision, Role, RoverState, Start, Status, Stop, StopReason,
@@ -433,7 +433,14 @@ def test_version_word_is_major_times_256_plus_minor():
     assert version_word("0.1.0") == 1
     assert version_word("1.2.3") == 258
     assert version_word("2.10") == 522
-    assert version_word(rovernav.__version__) >= 0
+    # The host says the package's version, the one in pyproject.toml.
+    import tomllib
+    from pathlib import Path
+
+    declared = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())["project"]["version"]
+    major, minor = (int(part) for part in declared.split(".")[:2])
+    assert rovernav.__version__ == declared
+    assert host_hello(1).firmware_version == version_word(rovernav.__version__) == major * 256 + minor
     for bad in ("", "1", "x.y", "256.0", "1.256"):
         with pytest.raises(ValueError):
             version_word(bad)
