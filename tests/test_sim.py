@@ -9,11 +9,13 @@ import sys
 import numpy as np
 import pytest
 
+from rovernav.link import messages_gen as mg
+from rovernav.mission import Failure
 from rovernav.scenario import load_scenario
 from rovernav.sim.channel import Channel, ChannelConfig
 from rovernav.sim.plant import PlantConfig, RoverPlant
 from rovernav.sim.report import build_report
-from rovernav.sim.runner import SimOptions, Simulation
+from rovernav.sim.runner import HOST_BOOT_ID, SimOptions, Simulation
 from rovernav.sim.world import Box, World
 
 
@@ -128,9 +130,19 @@ def test_channel_corruption_flips_bits():
 # ---------------------------------------------------------------- whole missions
 
 def _run(name: str, **kw) -> dict:
+    return _simulate(name, **kw)[0]
+
+
+def _simulate(name: str, **kw) -> tuple[dict, Simulation]:
+    """The report of a run, and the run itself (its mission's failure kind, the rover's events)."""
     sim = Simulation(load_scenario(name), SimOptions(**kw))
     sim.run()
-    return build_report(sim, 1.0)
+    return build_report(sim, 1.0), sim
+
+
+def _rover_events(sim, kind) -> int:
+    """How many EVENT frames of `kind` the host took from the rover."""
+    return sum(1 for _t, e in sim.mission.events if e.kind == kind)
 
 
 @pytest.mark.mission
@@ -189,9 +201,9 @@ def test_rovernav_sim_refuses_an_unknown_scenario_and_a_bad_fault_window(tmp_pat
 
 @pytest.mark.mission
 def test_with_the_hosts_replanning_off_the_rover_gets_round_the_figure_4_8_obstacle_itself():
-    r = _run("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
+    r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
     assert r["reached"] and r["collisions"] == 0 and r["replans"] == 0
-    assert any("rover: replanned" in e["text"] for e in r["events"])   # the rover's own detour
+    assert _rover_events(sim, mg.EventKind.REPLANNED) >= 1   # the rover's own detour
 
 
 @pytest.mark.mission
@@ -211,17 +223,17 @@ def test_an_eight_second_camera_outage_mid_path_is_ridden_out_on_dead_reckoning(
 def test_a_firmware_reset_mid_mission_is_brought_back_up_to_date_and_the_mission_completes():
     from rovernav.sim.runner import Faults
 
-    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(firmware_resets=[15.0]))
+    r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(firmware_resets=[15.0]))
     assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 1
-    assert any("rover restarted" in e["text"] for e in r["events"])
+    assert _rover_events(sim, mg.EventKind.BOOT) == 2   # booted, and booted again after the reset
 
 
 @pytest.mark.mission
 def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
     from rovernav.sim.runner import Faults
 
-    r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(gyro_dies_at=15.0))
-    assert not r["reached"] and r["error"] == "rover fault: gyro_silent"
+    r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(gyro_dies_at=15.0))
+    assert not r["reached"] and sim.mission.failure is Failure.ROVER_FAULT
     assert r["mission_time_s"] < 16.0 and r["faults"]["rover_faults"][0]["fault"] == "gyro_silent"
 
 
@@ -229,9 +241,9 @@ def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
 def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_completes():
     from rovernav.sim.runner import Faults
 
-    r = _run("out-and-back", seed=1, faults=Faults(host_restarts=[80.0]))
+    r, sim = _simulate("out-and-back", seed=1, faults=Faults(host_restarts=[80.0]))
     assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 4
-    assert any("host restarted" in e["text"] for e in r["events"])
+    assert sim.restarts_done == 1 and sim.mission.host_boot_id == HOST_BOOT_ID + 1   # a new host finished it
 
 
 @pytest.mark.mission
@@ -601,5 +613,5 @@ def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
     sim.run()
     r = build_report(sim, 1.0)
     assert not r["reached"]
-    assert sum("rover: stopped" in text for _, text in sim.events) >= 10
+    assert _rover_events(sim, mg.EventKind.STOPPED) >= 10
     assert r["link"]["signing"]["rover_refused"]["unverified"] == r["link"]["signing"]["attacker"]["injected"]["forged"]

@@ -30,4 +30,9 @@ class CameraError(RovernavError):
 
 
 class MissionFailed(RovernavError):
-    """The mission cannot go on: the rover refused it, faulted, stopped answering, or no path exists."""
+    """The mission cannot go on: the rover refused it, faulted, stopped answering, or no path exists.
+    `failure` is the kind (rovernav.mission.Failure), when the mission said it."""
+
+    def __init__(self, message: str, failure=None):
+        super().__init__(message)
+        self.failure = failure

@@ -244,7 +244,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
     if mission.phase is Phase.FAILED:
         if mission.cause is not None:
             raise mission.cause   # the rover cannot be used (e.g. another protocol definition): exit 2
-        raise MissionFailed(mission.error or "mission failed")
+        raise MissionFailed(mission.error or "mission failed", mission.failure)
     _summary(mission)
     return 0 if mission.phase is Phase.DONE else 1
 

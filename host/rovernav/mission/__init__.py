@@ -7,10 +7,10 @@
 Requests and their resends are the link's (rovernav.link.requests), shared with Link.request.
 """
 from ..errors import MissionFailed
-from .core import Detection, Mission, Outcome, Phase
+from .core import Detection, Failure, Mission, Outcome, Phase
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, leg_goal, leg_origin
 from .strategies import RovernavStrategy, SeedStrategy, Strategy, make_strategy
 
-__all__ = ["Deadlines", "Detection", "Echo", "LearnedMap", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
+__all__ = ["Deadlines", "Detection", "Echo", "Failure", "LearnedMap", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
            "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "make_strategy"]

@@ -56,6 +56,23 @@ class Phase(enum.Enum):
     FAILED = "failed"
 
 
+class Failure(enum.Enum):
+    """Why a mission failed, as a kind a caller can act on (the message says it in words)."""
+
+    NO_HELLO = "no_hello"              # the rover never said HELLO
+    SCHEMA = "schema"                  # the rover was built from another protocol definition
+    NOT_CONFIGURED = "not_configured"  # parameters not acknowledged in time
+    NO_CAMERA = "no_camera"            # the camera does not see the rover
+    NOT_LOADED = "not_loaded"          # a path and START not acknowledged in time
+    REFUSED = "refused"                # the rover NACKed a command
+    NOT_ANSWERED = "not_answered"      # a request unanswered after every try
+    ROVER_FAULT = "rover_fault"        # the rover reported a fault (its gyro, ...)
+    SILENT = "silent"                  # no frame from the rover for too long
+    LEG_LATE = "leg_late"              # a leg not reached after its recoveries
+    NO_PATH = "no_path"                # the planner's verdict: the goal cannot be reached
+    FROM_OUTSIDE = "from_outside"      # ended by whoever runs the mission (a crash, an operator)
+
+
 class Outcome(enum.Enum):
     RUNNING = "running"
     REACHED = "reached"        # every leg reached
@@ -142,6 +159,7 @@ class Mission:
         self.phase = Phase.HELLO
         self.outcome = Outcome.RUNNING
         self.error: str | None = None
+        self.failure: Failure | None = None    # the kind of failure, with `error` in words
         self.cause: Exception | None = None   # the link error behind a failure, when there is one
         self.legs: list[Leg] = []
         self.path: list[tuple[float, float]] = []
@@ -240,7 +258,7 @@ class Mission:
             self._heartbeat_at = now_s
             self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))
         if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
-            self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s")
+            self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s", Failure.SILENT)
             return
         self._resend(now_s)
         if self.done:
@@ -256,7 +274,7 @@ class Mission:
         in_phase_s = now_s - self._phase_since
         if self.phase is Phase.HELLO:
             if in_phase_s > d.hello_s:
-                self._fail(f"no HELLO from the rover within {d.hello_s:.0f} s")
+                self._fail(f"no HELLO from the rover within {d.hello_s:.0f} s", Failure.NO_HELLO)
             elif now_s - self._hello_at >= HELLO_EVERY_S:
                 self._hello_at = now_s
                 self._send(host_hello(self.host_boot_id))
@@ -264,7 +282,7 @@ class Mission:
             if not self.requests:
                 self._set_phase(Phase.LOCATE)
             elif self._waited_s(now_s) > d.configure_s and not self._silent():
-                self._fail(f"the rover did not take its parameters within {d.configure_s:.0f} s")
+                self._fail(f"the rover did not take its parameters within {d.configure_s:.0f} s", Failure.NOT_CONFIGURED)
         if self.phase is Phase.LOCATE:
             if self._rover_seen():
                 if self._resume_leg:
@@ -273,7 +291,7 @@ class Mission:
                 else:
                     self._next_leg()
             elif in_phase_s > d.locate_s:
-                self._fail(f"the camera has not seen the rover for {d.locate_s:.0f} s")
+                self._fail(f"the camera has not seen the rover for {d.locate_s:.0f} s", Failure.NO_CAMERA)
         if self.phase is Phase.LOAD:
             if not self.requests and self._accepted_path_id == self.path_id:
                 if self._start_sent_for != self.path_id:
@@ -282,7 +300,7 @@ class Mission:
                 elif self._start_acked_for == self.path_id:
                     self._set_phase(Phase.RUN)
             elif self._waited_s(now_s) > d.load_s and not self._silent():
-                self._fail(f"the rover did not take path {self.path_id} within {d.load_s:.0f} s")
+                self._fail(f"the rover did not take path {self.path_id} within {d.load_s:.0f} s", Failure.NOT_LOADED)
         if self.phase is Phase.RUN and self.legs:
             self._watch_leg(now_s)
 
@@ -294,7 +312,7 @@ class Mission:
             return
         if leg.recoveries >= self.deadlines.leg_recoveries:
             self._fail(f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s "
-                       f"and {leg.recoveries} re-sends")
+                       f"and {leg.recoveries} re-sends", Failure.LEG_LATE)
             return
         leg.recoveries += 1
         self.on_event(now_s, f"leg {leg.index + 1} is late: re-planning from where the rover is "
@@ -324,7 +342,7 @@ class Mission:
             return
         if m.schema_hash != mg.SCHEMA_HASH:
             self.cause = SchemaMismatch(mg.SCHEMA_HASH, m.schema_hash)
-            self._fail(str(self.cause))
+            self._fail(str(self.cause), Failure.SCHEMA)
             return
         if self.rover_boot_id is not None and m.boot_id != self.rover_boot_id and self.phase is not Phase.HELLO:
             # The rover restarted: it forgot its parameters and its path. Bring it back.
@@ -354,7 +372,8 @@ class Mission:
             return
         if isinstance(m, mg.Nack):
             self.nacks.append(m)
-            self._fail(str(Nacked(pending.message.NAME, m.reason, m.detail)))
+            self.cause = Nacked(pending.message.NAME, m.reason, m.detail)
+            self._fail(str(self.cause), Failure.REFUSED)
         elif isinstance(pending.message, mg.Start):
             self._start_acked_for = pending.message.path_id
 
@@ -394,7 +413,8 @@ class Mission:
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
         elif kind is mg.EventKind.FAULT:
-            self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}")
+            self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}",
+                       Failure.ROVER_FAULT)
         elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
             self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
 
@@ -526,7 +546,7 @@ class Mission:
                     self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
                 path = [tuple(p) for p in result.waypoints]
                 return path if origin is start else [start] + path
-        self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Outcome.NO_PATH)
+        self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
 
     def _nearest_free(self, xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.3
@@ -574,16 +594,18 @@ class Mission:
         silent = self._silent()
         for pending in self.requests.due(now_s):
             if self.requests.exhausted(pending) and not silent:
-                self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries")
+                self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries",
+                           Failure.NOT_ANSWERED)
                 return
             self.requests.resent(pending, self._send(pending.message), now_s, count=not silent)
 
-    def _fail(self, why: str, outcome: Outcome = Outcome.FAILED) -> None:
+    def _fail(self, why: str, failure: Failure) -> None:
         if self.phase is Phase.FAILED:
             return
         self._save_map()
         self.error = why
-        self.outcome = outcome
+        self.failure = failure
+        self.outcome = Outcome.NO_PATH if failure is Failure.NO_PATH else Outcome.FAILED
         self._set_phase(Phase.FAILED)
         self.on_event(self._now, f"mission failed: {why}")
         try:
@@ -594,7 +616,7 @@ class Mission:
     def fail(self, why: str) -> None:
         """End the mission from outside (an operator, or the simulator's time limit)."""
         self.recorder.host_input("fail", self._now, why=why)
-        self._fail(why)
+        self._fail(why, Failure.FROM_OUTSIDE)
 
     def _rover_seen(self) -> bool:
         d = self._last_detection
