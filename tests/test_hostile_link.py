@@ -815,3 +815,29 @@ def test_a_failed_build_is_one_line_with_its_last_line(monkeypatch):
     assert "\n" not in str(info.value)
     with pytest.raises(demo.DemoError, match="no-such-tool-xyz is not installed"):
         demo._run(["no-such-tool-xyz"], "building")
+
+
+def test_the_hosts_exceptions_are_one_small_tree():
+    # A caller catches what it can handle: input, link, camera, planning, setup, a failed mission.
+    from rovernav import errors
+    from rovernav.config import ConfigError
+    from rovernav.demo import DemoError
+    from rovernav.firmware import FirmwareBuildError
+    from rovernav.link.provision import ProvisionError
+    from rovernav.planning import NoPathError, Unreachable
+    from rovernav.runlog.replay import LogFileError
+    from rovernav.scenario import ScenarioError
+    from rovernav.sim.arenas import GenerationFailed
+    from rovernav.sim.uno import UnoSetupError
+
+    branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,
+                errors.MissionFailed)
+    assert all(issubclass(b, errors.RovernavError) for b in branches)
+    for cls, branch in [(ConfigError, errors.InputError), (ScenarioError, errors.InputError),
+                        (MapFileError, errors.InputError), (LogFileError, errors.InputError),
+                        (PortSpecError, errors.InputError), (PortSpecError, LinkError), (ProvisionError, LinkError),
+                        (NoPathError, errors.PlanningError), (Unreachable, errors.PlanningError),
+                        (GenerationFailed, errors.PlanningError), (DemoError, errors.SetupError),
+                        (FirmwareBuildError, errors.SetupError), (UnoSetupError, errors.SetupError)]:
+        assert issubclass(cls, branch), (cls, branch)
+        assert sum(issubclass(cls, b) for b in branches) == (2 if cls is PortSpecError else 1), cls

@@ -18,7 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from .link.errors import LinkError
+from .errors import SetupError
 from .validate import check_number
 
 log = logging.getLogger("rovernav.demo")
@@ -31,7 +31,7 @@ START_TIMEOUT_S = 20.0
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 
-class DemoError(LinkError):
+class DemoError(SetupError):
     """The demo could not be set up (no checkout, a build failed, the simulator did not start)."""
 
 

@@ -4,11 +4,18 @@
      ├── InputError (also a ValueError)   a file, flag or value the user gave cannot be used:
      │    ├── ConfigError                  rovernav.config
      │    ├── ScenarioError                rovernav.scenario
-     │    └── MapFileError                 a learned-map file
-     ├── LinkError                         the radio or the rover (rovernav.link.errors)
+     │    ├── MapFileError                 a learned-map file
+     │    └── LogFileError, KeyFileError, ArenaError, TrialsError, PortSpecError
+     ├── LinkError                         the radio or the rover (rovernav.link.errors), ProvisionError
      ├── CameraError                       a camera that cannot be opened or stops delivering
-     ├── NoPathError                       the planner found no path (rovernav.planning.errors)
-     └── MissionFailed                     a mission that cannot go on (the reason in its message)
+     ├── PlanningError                     no path: NoPathError and its kinds (rovernav.planning.errors),
+     │                                     an arena generator that found no draw
+     ├── SetupError                        a tool or a build this machine lacks (the firmware core's
+     │                                     library, the Uno image, simavr, `rovernav demo`'s toolchain)
+     └── MissionFailed                     a mission that cannot go on (the kind in .failure)
+
+The command line turns MissionFailed into exit status 1 and every other RovernavError into 2, with
+its message on one line.
 """
 from __future__ import annotations
 
@@ -27,6 +34,15 @@ class MapFileError(InputError):
 
 class CameraError(RovernavError):
     """The camera could not be opened or stopped delivering frames."""
+
+
+class PlanningError(RovernavError):
+    """No path: the planner's verdict (NoPathError and its kinds) or an arena nobody could plan."""
+
+
+class SetupError(RovernavError):
+    """Something this machine must have to do the work is missing or does not build (one line
+    naming it, and what to install)."""
 
 
 class MissionFailed(RovernavError):

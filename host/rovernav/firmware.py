@@ -14,6 +14,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from .errors import SetupError
+
 log = logging.getLogger("rovernav.firmware")
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,7 +26,7 @@ ABI_VERSION = 2
 TX_PER_STEP = 64
 
 
-class FirmwareBuildError(RuntimeError):
+class FirmwareBuildError(SetupError):
     """The firmware core could not be built or loaded."""
 
 

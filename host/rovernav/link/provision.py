@@ -12,13 +12,14 @@ from __future__ import annotations
 import time
 
 from ..errors import InputError
+from .errors import LinkError
 from .framing import FrameDecoder, Verifier, encode_frame
 from .messages_gen import (SIGN_PROVISION_WINDOW_MS, SIGN_ROVER_TO_HOST, Ack, Hello, Nack, NackReason, Provision,
                            Role)
 from .transport import Transport
 
 
-class ProvisionError(RuntimeError):
+class ProvisionError(LinkError):
     """The key was not stored; the message says why and what to do."""
 
 

@@ -9,14 +9,14 @@
 """
 from __future__ import annotations
 
-from ..errors import RovernavError
+from ..errors import PlanningError
 
 
 def fmt_xy(xy: tuple[float, float]) -> str:
     return f"({xy[0]:.2f}, {xy[1]:.2f}) m"
 
 
-class NoPathError(RovernavError):
+class NoPathError(PlanningError):
     """The planner found no path. `reason` is the one-line message."""
 
     @property

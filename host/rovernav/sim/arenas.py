@@ -94,7 +94,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..angles import compass_deg
-from ..errors import InputError, RovernavError
+from ..errors import InputError, PlanningError
 from ..files import write_atomic
 from ..validate import output_file
 from ..planning import NoPathError, OccupancyGrid, PlannerConfig, PlanResult, Unreachable, plan
@@ -141,7 +141,7 @@ class ArenaError(InputError):
     """A request the generator cannot serve: a bad count, seed, family or output folder."""
 
 
-class GenerationFailed(RovernavError):
+class GenerationFailed(PlanningError):
     """No draw of an arena met its family's constraints within MAX_TRIES."""
 
 
