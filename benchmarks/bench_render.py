@@ -12,8 +12,8 @@ run's frames (wall clock and this process's CPU time), then the median of those 
 Besides the whole frame, the parts of this renderer: the arena without the rover (a copy of a noisy
 arena and fresh noise round the target) and the rover (drawn and lit in a window round its body).
 
---against FILE times another version of rovernav/render.py too (say the one before a change:
-`git show REV:host/rovernav/render.py > /tmp/render_old.py`), interleaved frame by frame with this
+--against FILE times another version of rovernav/sim/camera.py too (say the one before a change:
+`git show REV:host/rovernav/sim/camera.py > /tmp/render_old.py`), interleaved frame by frame with this
 one so that a machine's changing load falls on both alike.
 
 Here (2 cores shared with other jobs, load 4-5), against the renderer of fd38c9a (the rover drawn
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rovernav import render as this_render
+from rovernav.sim import camera as this_render
 from rovernav.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -107,7 +107,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--markers", choices=("colour", "aruco"), default="colour")
-    ap.add_argument("--against", type=Path, help="another version of rovernav/render.py to time alongside")
+    ap.add_argument("--against", type=Path, help="another version of rovernav/sim/camera.py to time alongside")
     args = ap.parse_args()
     modules = {"this": this_render}
     if args.against is not None:

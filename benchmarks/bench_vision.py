@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from rovernav.angles import wrap_deg  # noqa: E402
-from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene
+from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.vision import Locator, VisionConfig
 
 W, H = 2.36, 1.75

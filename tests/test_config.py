@@ -80,7 +80,7 @@ def test_run_with_a_missing_camera_or_port_fails_with_a_message(tmp_path):
 
 
 def _video(path):
-    from rovernav.render import Renderer, Scene
+    from rovernav.sim.camera import Renderer, Scene
 
     r = Renderer(seed=0)
     rng = np.random.default_rng(0)

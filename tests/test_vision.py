@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovernav.angles import wrap_deg
-from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene
+from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.vision import Calibration, Locator, VisionConfig, heading_deg
 from rovernav.vision.cli import add_locate_parser
 

@@ -117,7 +117,7 @@ def start_avrsim(elf: Path, speed: float = 1.0, seconds: float | None = None) ->
 
 
 def run_demo(seconds: float = 3.0) -> int:
-    from .cli import talk_to_rover
+    from .link.check import talk_to_rover
     from .link.link import Link
     from .link.transport import SerialTransport
 

@@ -28,7 +28,7 @@ from ..link.link import Link
 from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
 from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
-from ..render import Camera, Lighting, Renderer, RoverLook, Scene
+from .camera import Camera, Lighting, Renderer, RoverLook, Scene
 from ..vision import Locator
 from .channel import Channel, ChannelConfig, SimTransport
 from .plant import PlantConfig, RoverPlant

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rovernav.angles import wrap_deg
-from rovernav.render import Camera, Lighting, Renderer, RoverLook, Scene, render_frame
+from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene, render_frame
 from rovernav.vision.calibration import Calibration
 from rovernav.vision.config import VisionConfig
 
