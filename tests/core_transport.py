@@ -36,3 +36,20 @@ class CoreTransport(Transport):
 
     def _close(self) -> None:
         pass
+
+
+def firmware_hello(**changes):
+    """The HELLO the firmware core itself says at boot (its version, its waypoint capacity), with
+    `changes` (another schema, boot id, ...) for a stand-in rover to say."""
+    import dataclasses
+
+    from rovernav.link import framing
+    from rovernav.link import messages_gen as mg
+
+    core = RoverCore(boot_id=1)
+    try:
+        frames = framing.FrameDecoder().feed(core.step(0, gyro_rate_mdps=0).tx)
+    finally:
+        core.close()
+    hello = next(f.message for f in frames if isinstance(f.message, mg.Hello))
+    return dataclasses.replace(hello, **changes)

@@ -21,7 +21,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "host"))
 
-from rovernav.link import framing, messages_gen  # noqa: E402
+from rovernav.link import framing  # noqa: E402
 from rovernav.link.messages_gen import SCHEMA_HASH, Hello, Role  # noqa: E402
 
 BRIDGE = ROOT / "build" / "avrsim" / "rovernav_avrsim"
@@ -160,9 +160,9 @@ def _assert_rover_hello(frame: framing.Frame) -> None:
 
 
 def _host_hello(seq: int) -> bytes:
-    return framing.encode_frame(
-        messages_gen.Hello(schema_hash=SCHEMA_HASH, boot_id=1, firmware_version=256,
-                           role=int(Role.HOST), max_waypoints=0), seq)
+    from rovernav.link.link import host_hello
+
+    return framing.encode_frame(host_hello(1), seq)
 
 
 def test_firmware_hello_over_pty(built, tmp_path):

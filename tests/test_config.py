@@ -10,6 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.core_transport import firmware_hello
+
 from rovernav.config import ConfigError, config_from_dict, load_config
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
@@ -102,8 +104,7 @@ def test_run_refuses_a_rover_built_from_another_protocol_definition(tmp_path):
                 for f in dec.feed(rover_end.read(4096, 0.05)):
                     if isinstance(f.message, mg.Hello):
                         rover_end.write(framing.encode_frame(
-                            mg.Hello(schema_hash=0xBADC0DE5, boot_id=7, firmware_version=256, role=mg.Role.ROVER,
-                                     max_waypoints=32), 0))
+                            firmware_hello(schema_hash=0xBADC0DE5, boot_id=7), 0))
 
         t = threading.Thread(target=fake_rover, daemon=True)
         t.start()

@@ -34,10 +34,11 @@ from rovernav.mission.learned_map import (
 )
 from rovernav.planning import OccupancyGrid, PlannerConfig
 
+from tests.core_transport import firmware_hello
+
 needs_pty = pytest.mark.skipif(os.name != "posix", reason="pseudo-terminals are POSIX only")
 
-ROVER_HELLO = mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=7, firmware_version=0x0100, role=mg.Role.ROVER,
-                       max_waypoints=32)
+ROVER_HELLO = firmware_hello(boot_id=7)
 
 
 class FakeClock:

@@ -108,7 +108,9 @@ def ack(frame) -> Ack:
 
 
 def rover_hello(schema_hash: int = SCHEMA_HASH) -> Hello:
-    return Hello(schema_hash=schema_hash, boot_id=0x1234, firmware_version=0x0003, role=Role.ROVER, max_waypoints=32)
+    from tests.core_transport import firmware_hello
+
+    return firmware_hello(schema_hash=schema_hash, boot_id=0x1234)
 
 
 # ------------------------------------------------------------------ send and receive

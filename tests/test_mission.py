@@ -17,6 +17,8 @@ from rovernav.link.transport import PipeTransport
 from rovernav.mission import Detection, Failure, Mission, Outcome, Phase
 from rovernav.planning import OccupancyGrid, PlannerConfig
 
+from tests.core_transport import firmware_hello
+
 
 class CoreRover:
     """The rover's firmware core behind the pipe, stepped every 10 ms up to the time it is served.
@@ -78,8 +80,7 @@ class ScriptedRover:
         self.seq = (self.seq + 1) & 0xFF
 
     def hello(self):
-        self.say(mg.Hello(schema_hash=self.schema, boot_id=self.boot_id, firmware_version=256, role=mg.Role.ROVER,
-                          max_waypoints=32))
+        self.say(firmware_hello(schema_hash=self.schema, boot_id=self.boot_id))
 
     def serve(self, t_s=None):
         for f in self.decoder.feed(self.end.read(65536, 0)):

@@ -14,6 +14,7 @@ from rovernav.angles import heading_cdeg
 from rovernav.firmware import RoverCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
+from rovernav.link.link import host_hello
 from rovernav.sim.plant import PlantConfig, RoverPlant
 
 #: The rover's arrival radius (the protocol's default): it stops within this of its last waypoint.
@@ -68,7 +69,7 @@ def test_library_reports_our_schema_and_boots_with_hello():
 def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
     core, plant, host = RoverCore(boot_id=5), ideal_plant(), Host()
     waypoints = [(300, 300), (300, 700), (700, 900), (900, 500)]
-    host.send(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=1, firmware_version=1, role=mg.Role.HOST))
+    host.send(host_hello(1))
     host.send(mg.Config(param=mg.Param.SWEEP_INTERVAL_MM, value=0))
     xs = tuple(w[0] for w in waypoints) + (0,) * 4
     ys = tuple(w[1] for w in waypoints) + (0,) * 4

@@ -16,6 +16,9 @@ from rovernav.link import messages_gen as mg
 from rovernav.link.framing import (MAX_FRAME, FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16,
                                    encode_frame, frame_tag)
 from rovernav.link.keys import KeyFileError, load_key_file, write_key_file
+from rovernav.link.link import host_hello
+
+from tests.core_transport import firmware_hello
 
 KEY = bytes(range(16))
 OTHER = bytes(range(1, 17))
@@ -101,7 +104,7 @@ def test_a_forged_frame_cannot_raise_the_counter():
 def test_unsigned_commands_are_refused_where_signatures_are_required_but_hello_is_not():
     d = rover_side()
     assert d.feed(encode_frame(mg.Stop(reason=1), 1)) == [] and d.counters.not_signed == 1
-    hello = encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH), 2)
+    hello = encode_frame(host_hello(1), 2)
     assert len(d.feed(hello)) == 1
     assert len(rover_side(require=False).feed(encode_frame(mg.Stop(reason=1), 3))) == 1
 
@@ -183,10 +186,9 @@ def _rover_answering(end, signing: int, min_counter: int = 0):
                 got.append(frame)
                 if isinstance(frame.message, mg.Hello) and not answered:
                     answered = True
-                    end.write(encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=7, role=mg.Role.ROVER,
-                                                    max_waypoints=32, signing=signing,
-                                                    min_counter_lo=min_counter & 0xFFFFFFFF,
-                                                    min_counter_hi=min_counter >> 32), 0, signer))
+                    end.write(encode_frame(firmware_hello(boot_id=7, signing=signing,
+                                                          min_counter_lo=min_counter & 0xFFFFFFFF,
+                                                          min_counter_hi=min_counter >> 32), 0, signer))
     threading.Thread(target=run, daemon=True).start()
     return got, decoder
 

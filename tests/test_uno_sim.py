@@ -192,7 +192,9 @@ def test_idle_fast_forward_changes_nothing_the_firmware_or_the_host_can_see(buil
     bytes on the UART, the same step edges to the cycle."""
     from rovernav.link.framing import encode_frame
 
-    hello = encode_frame(mg.Hello(schema_hash=mg.SCHEMA_HASH, boot_id=9, role=mg.Role.HOST), 0)
+    from rovernav.link.link import host_hello
+
+    hello = encode_frame(host_hello(9), 0)
     runs = []
     for fast in (True, False):
         core = UnoCore(boot_id=5, reset_cause=1, fast_forward=fast)
