@@ -365,3 +365,22 @@ def test_results_are_written_whole_and_readable_as_an_ordinary_file(tmp_path):
     os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
     assert [p.name for p in tmp_path.iterdir()] == ["report.json"]   # no temporary file left behind
+
+
+def test_a_path_longer_than_the_rover_holds_goes_in_parts_and_the_leg_ends_at_its_true_end():
+    mission, rover, notes = _setup(rover_cls=ScriptedRover)
+    t = _run(mission, rover, 1.0)
+    assert mission.phase is Phase.RUN
+    # A winding path of 40 waypoints (as a cluttered arena's A* can give), ending at the target.
+    zigzag = [(0.3 + 0.04 * i, 0.3 + (0.05 if i % 2 else 0.0)) for i in range(39)] + [(2.0, 1.4)]
+    mm = lambda pts: [(round(x * 1000), round(y * 1000)) for x, y in pts]   # noqa: E731 - as the wire carries them
+    mission.load_path(zigzag)
+    t = _run(mission, rover, 1.0, t0=t)
+    assert mm(rover.paths[mission.path_id]) == mm(zigzag[:mg.MAX_WAYPOINTS]) and mission.phase is Phase.RUN
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))        # at the end of the first part
+    t = _run(mission, rover, 1.0, t0=t)
+    assert mm(rover.paths[mission.path_id]) == mm(zigzag[mg.MAX_WAYPOINTS - 1:])
+    assert not mission.legs[0].reached and mission.phase is Phase.RUN
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))        # at the target
+    _run(mission, rover, 1.0, t0=t)
+    assert mission.legs[0].reached and mission.phase is Phase.DONE

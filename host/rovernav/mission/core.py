@@ -162,7 +162,8 @@ class Mission:
         self.failure: Failure | None = None    # the kind of failure, with `error` in words
         self.cause: Exception | None = None   # the link error behind a failure, when there is one
         self.legs: list[Leg] = []
-        self.path: list[tuple[float, float]] = []
+        self.path: list[tuple[float, float]] = []         # what the rover was last given
+        self.path_rest: list[tuple[float, float]] = []    # the rest of a path longer than the rover holds
         self.path_id = 0
         self.rover_boot_id: int | None = None
         self.last_status: mg.Status | None = None
@@ -422,6 +423,11 @@ class Mission:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
 
     def _arrived(self) -> None:
+        if self.path_rest:   # the end of a part of a long path: the next part, from here
+            rest = self.path_rest
+            self.on_event(self._now, f"part of the path done: the next {len(rest)} of its waypoints")
+            self.load_path([self.path[-1]] + rest)
+            return
         if not self.strategy.on_arrived(self):
             return
         self._leg_done()
@@ -492,11 +498,11 @@ class Mission:
         self.strategy.start_leg(self, path)
 
     def load_path(self, path: list[tuple[float, float]]) -> None:
-        """Send `path` under a new id; START follows once the rover has it whole."""
-        if len(path) > mg.MAX_WAYPOINTS:
-            # The rover holds MAX_WAYPOINTS: it drives straight from the last it holds to the goal.
-            # A later sweep (or the leg's deadline) replans the rest if that is blocked.
-            path = path[:mg.MAX_WAYPOINTS - 1] + [path[-1]]
+        """Send `path` under a new id; START follows once the rover has it whole.
+
+        The rover holds MAX_WAYPOINTS: a longer path goes in parts, the first MAX_WAYPOINTS now and
+        the rest, from the last of them, when the rover says it has arrived there (`_arrived`)."""
+        path, self.path_rest = path[:mg.MAX_WAYPOINTS], list(path[mg.MAX_WAYPOINTS:])
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
         self.recorder.host_path(self._now, self.path_id, path)
@@ -568,7 +574,7 @@ class Mission:
         if not self.path:
             return []
         wp = self.last_status.waypoint_index if self.last_status else 0
-        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):]
+        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):] + self.path_rest
 
     def _send(self, message) -> int:
         seq = self.link.send(message)
