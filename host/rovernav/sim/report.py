@@ -336,7 +336,9 @@ class VideoWriter:
     Only the video is filtered: the annotations go on a copy of each frame, and the host's frames
     stay the camera's, sensor noise and all. What the encoder is told (encoder_options) keeps
     out-and-back's 198 s of video at 640x480, 30 fps, to 2.9 MB (the OpenCV mp4v video was 26 MB)
-    with the status line and the lines legible; benchmarks/bench_video.py measures it.
+    with the status line and the lines legible; benchmarks/bench_video.py measures it. The heading
+    arrows and the estimate's circle are 2 px wide: at 1 px their green and cyan, about as bright
+    as the floor, went grey in 4:2:0 chroma (in the mp4v video too).
     """
 
     CRF_DEFAULT = 20
@@ -397,14 +399,14 @@ class VideoWriter:
         p = sim.plant
         cv2.polylines(img, [np.array([px(x, y) for x, y in footprint(p.x, p.y, p.heading)], np.int32)], True, (0, 255, 0), 1)
         hr = math.radians(p.heading)
-        cv2.arrowedLine(img, px(p.x, p.y), px(p.x + 0.15 * math.sin(hr), p.y + 0.15 * math.cos(hr)), (0, 255, 0), 1)
+        cv2.arrowedLine(img, px(p.x, p.y), px(p.x + 0.15 * math.sin(hr), p.y + 0.15 * math.cos(hr)), (0, 255, 0), 2)
         st = m.last_status
         if st is not None and st.flags & mg.StatusFlag.MISSION_ACTIVE:
             ex, ey = st.x_mm / 1000, st.y_mm / 1000
             sd = max(st.sd_x_mm, st.sd_y_mm) / 1000
-            cv2.circle(img, px(ex, ey), max(2, int(2 * sd * w / sc.arena.width_m)), (255, 200, 0), 1)
+            cv2.circle(img, px(ex, ey), max(2, int(2 * sd * w / sc.arena.width_m)), (255, 200, 0), 2)
             eh = math.radians(st.heading_cdeg / 100)
-            cv2.arrowedLine(img, px(ex, ey), px(ex + 0.12 * math.sin(eh), ey + 0.12 * math.cos(eh)), (255, 200, 0), 1)
+            cv2.arrowedLine(img, px(ex, ey), px(ex + 0.12 * math.sin(eh), ey + 0.12 * math.cos(eh)), (255, 200, 0), 2)
             state = mg.RoverState(st.state).name.lower() if st.state in mg.RoverState._value2member_map_ else st.state
         else:
             state = "-"
