@@ -375,13 +375,17 @@ class VideoWriter:
             self._cal = (key, Calibration.straight_down(w, h, sc.arena.width_m, sc.arena.height_m))
         cal = self._cal[1]
 
+        def pxs(points) -> np.ndarray:
+            """Arena points (metres) to the nearest pixel centres, N x 2 int32, in one go."""
+            return np.rint(cal.to_pixels(np.asarray(points, np.float64).reshape(-1, 2))).astype(np.int32)
+
         def px(x, y):
-            u, v = cal.to_pixels(np.array([[x, y]]))[0]
-            return int(round(u)), int(round(v))
+            u, v = pxs((x, y))[0]
+            return int(u), int(v)
 
         m = sim.mission
         if m.path:
-            cv2.polylines(img, [np.array([px(x, y) for x, y in m.path], np.int32)], False, (255, 0, 255), 2, cv2.LINE_AA)
+            cv2.polylines(img, [pxs(m.path)], False, (255, 0, 255), 2, cv2.LINE_AA)
         for o in sc.obstacles:
             color = (200, 200, 200) if o.known else (80, 80, 255)
             cv2.rectangle(img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1)
@@ -389,15 +393,16 @@ class VideoWriter:
         # so the overlay draws them filled, known grey, unknown red.
         for o in getattr(sc, "walls", ()):
             color = (200, 200, 200) if o.known else (80, 80, 255)
-            cv2.fillPoly(img, [np.array([px(x, y) for x, y in o.corners()], np.int32)], color, cv2.LINE_AA)
+            cv2.fillPoly(img, [pxs(o.corners())], color, cv2.LINE_AA)
         for o in getattr(sc, "posts", ()):
             color = (200, 200, 200) if o.known else (80, 80, 255)
             (u, v), (u1, _) = px(o.x_m, o.y_m), px(o.x_m + o.radius_m, o.y_m)
             cv2.circle(img, (u, v), max(1, abs(u1 - u)), color, -1, cv2.LINE_AA)
-        for e in m.echoes[-60:]:
-            cv2.circle(img, px(*e.point(m.grid.config.sonar_offset_m)), 3, (0, 0, 255), -1)
+        offset = m.grid.config.sonar_offset_m
+        for u, v in pxs([e.point(offset) for e in m.echoes[-60:]]).tolist():
+            cv2.circle(img, (u, v), 3, (0, 0, 255), -1)
         p = sim.plant
-        cv2.polylines(img, [np.array([px(x, y) for x, y in footprint(p.x, p.y, p.heading)], np.int32)], True, (0, 255, 0), 1)
+        cv2.polylines(img, [pxs(footprint(p.x, p.y, p.heading))], True, (0, 255, 0), 1)
         hr = math.radians(p.heading)
         cv2.arrowedLine(img, px(p.x, p.y), px(p.x + 0.15 * math.sin(hr), p.y + 0.15 * math.cos(hr)), (0, 255, 0), 2)
         st = m.last_status
