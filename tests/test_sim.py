@@ -233,7 +233,7 @@ def test_a_dead_gyro_ends_the_mission_with_the_rovers_fault_not_a_hang():
     from rovernav.sim.runner import Faults
 
     r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(gyro_dies_at=15.0))
-    assert not r["reached"] and sim.mission.failure is Failure.ROVER_FAULT
+    assert not r["reached"] and sim.mission.failure is Failure.ROVER_FAULT and r["failure"] == "rover_fault"
     assert r["mission_time_s"] < 16.0 and r["faults"]["rover_faults"][0]["fault"] == "gyro_silent"
 
 

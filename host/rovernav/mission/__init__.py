@@ -9,8 +9,8 @@ Requests and their resends are the link's (rovernav.link.requests), shared with 
 from ..errors import MissionFailed
 from .core import Detection, Failure, Mission, Outcome, Phase
 from .learned_map import Echo, LearnedMap
-from .legs import Deadlines, Leg, leg_goal, leg_origin
+from .legs import Deadlines, Leg, leg_goal, leg_origin, legs_per_trip
 from .strategies import RovernavStrategy, SeedStrategy, Strategy, make_strategy
 
 __all__ = ["Deadlines", "Detection", "Echo", "Failure", "LearnedMap", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
-           "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "make_strategy"]
+           "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "legs_per_trip", "make_strategy"]

@@ -9,6 +9,11 @@ from pathlib import Path
 from ..files import write_atomic
 
 
+def legs_per_trip(kind: str) -> int:
+    """Legs in one trip of a mission of `kind` (a scenario's [mission] kind): out and back, or one."""
+    return 2 if kind == "out-and-back" else 1
+
+
 def leg_goal(start_xy: tuple[float, float], target_xy: tuple[float, float], index: int) -> tuple[float, float]:
     """Where leg `index` (from 0) ends: legs alternate start -> target and target -> start."""
     return target_xy if index % 2 == 0 else start_xy

@@ -16,7 +16,7 @@ from typing import Any, Callable
 from ..link import messages_gen as mg
 from ..planning import OccupancyGrid, PlannerConfig
 from .core import Mission
-from .legs import Deadlines
+from .legs import Deadlines, legs_per_trip
 from .strategies import make_strategy
 
 SPEC_FORMAT = "rovernav.mission-spec"
@@ -55,7 +55,7 @@ class MissionSpec:
         from ..scenario import scenario_toml
 
         trips = cfg.mission.trips or (scenario.mission.trips if scenario is not None else 1)
-        out_and_back = scenario is not None and scenario.mission.kind == "out-and-back"
+        per_trip = legs_per_trip(scenario.mission.kind) if scenario is not None else 1
         if scenario is not None:
             start_xy = start_xy or (scenario.start.x_m, scenario.start.y_m)
             target_xy = target_xy or (scenario.target.x_m, scenario.target.y_m)
@@ -67,7 +67,7 @@ class MissionSpec:
         params = cfg.rover_params() if rover_params is None else rover_params
         return cls(start_xy=(float(start_xy[0]), float(start_xy[1])),
                    target_xy=(float(target_xy[0]), float(target_xy[1])),
-                   legs=trips * (2 if out_and_back else 1), arena_w_m=float(arena[0]), arena_h_m=float(arena[1]),
+                   legs=trips * per_trip, arena_w_m=float(arena[0]), arena_h_m=float(arena[1]),
                    scenario_toml=None if scenario is None else scenario_toml(scenario),
                    planner=(cfg.planner or PlannerConfig()).to_dict(),
                    rover_params=tuple((int(p), int(v)) for p, v in params),

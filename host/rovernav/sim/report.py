@@ -1,7 +1,6 @@
 """What a simulated mission produced: report.json, the summary picture and the annotated video."""
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -11,6 +10,7 @@ import numpy as np
 
 from ..link import messages_gen as mg
 from ..files import write_atomic, write_json_atomic
+from ..mission.legs import legs_per_trip
 from .world import footprint
 
 TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
@@ -82,7 +82,7 @@ def build_report(sim, wall_time_s: float) -> dict:
         })
     reached = len(m.legs) == m.legs_asked and all(leg["reached"] for leg in legs)
     # A trip: one leg for a reach mission, out and back (two legs) for an out-and-back one.
-    per_trip = 2 if sc.mission.kind == "out-and-back" else 1
+    per_trip = legs_per_trip(sc.mission.kind)
     trips = []
     for i in range(0, len(legs), per_trip):
         group = legs[i:i + per_trip]
@@ -126,6 +126,7 @@ def build_report(sim, wall_time_s: float) -> dict:
         "obstacles_unknown": len(unknown),
         "sonar_echoes": len(m.echoes),
         "error": m.error,
+        "failure": m.failure.value if m.failure is not None else None,
         "trips": trips,
         "legs": legs,
         "camera": {"fps": sim.opt.camera_fps, "latency_s": sim.opt.camera_latency_s,
