@@ -64,3 +64,29 @@ def remove_stale(folder: Path, names: tuple[str, ...]) -> list[str]:
             path.unlink()
             removed.append(name)
     return removed
+
+
+class build_lock:
+    """`with build_lock(folder):` one process at a time builds into `folder` (an flock on
+    folder/.build.lock): two simulations, or two test workers, that find the firmware core or the
+    simavr harness out of date do not both run the compiler over the same outputs."""
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / ".build.lock"
+        self._fd: int | None = None
+
+    def __enter__(self) -> "build_lock":
+        import fcntl
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        fcntl.flock(self._fd, fcntl.LOCK_EX)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import fcntl
+
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None

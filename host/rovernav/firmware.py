@@ -140,9 +140,17 @@ def _sources() -> list[Path]:
 
 
 def build_library(force: bool = False) -> Path:
-    """Build librovernav_rover.so with CMake if it is missing or older than a source; return its path."""
+    """Build librovernav_rover.so with CMake if it is missing or older than a source; return its path.
+    One process builds at a time (the others wait, then find it built)."""
     if not FIRMWARE.is_dir():
         raise FirmwareBuildError(f"no firmware sources under {ROOT}: the core is built from a checkout")
+    from .files import build_lock
+
+    with build_lock(BUILD_DIR):
+        return _build_library(force)
+
+
+def _build_library(force: bool) -> Path:
     newest = max(p.stat().st_mtime for p in _sources())
     if not force and LIBRARY.exists() and LIBRARY.stat().st_mtime >= newest:
         return LIBRARY

@@ -176,6 +176,13 @@ def ensure_built(elf: Path = ELF) -> tuple[Path, Path]:
 
     A stale image whose rebuild fails (somebody's edit in progress) is used as it is, with a
     warning; a missing one is an error. Missing Debian packages are named in the error."""
+    from ..files import build_lock
+
+    with build_lock(ROOT / "build"):
+        return _ensure_built(elf)
+
+
+def _ensure_built(elf: Path) -> tuple[Path, Path]:
     missing = missing_packages()
     need_elf = not elf.is_file()
     need_lib = not LIBRARY.is_file()
