@@ -284,3 +284,9 @@ def test_a_mission_spec_survives_json_and_a_planner_change(fig48_run):
     assert wider.planner["robot_radius_m"] == 0.15 and wider.grid().config.inflation_m > spec.grid().config.inflation_m
     with pytest.raises(ValueError, match="robot_radius_m"):
         spec.with_planner(robot_radius_m=-1.0)
+
+
+def test_the_readme_lists_every_channel_with_its_schema():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    for c in CHANNELS:
+        assert f"| `{c.topic}` | {c.schema} |" in readme, c.topic

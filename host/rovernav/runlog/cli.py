@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from ..validate import input_file, number, output_file
 
@@ -121,9 +122,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"replaying {args.log}: a {run.source} run, {len(run.inputs):,} host inputs, "
               f"{len(run.sent):,} frames sent", flush=True)
 
-    def progress(t_s: float) -> None:
-        if not args.quiet:
-            print(f"  ... {t_s:6.1f} s of the mission", file=sys.stderr, flush=True)
+    started = time.monotonic()
+
+    def progress(t_s: float) -> None:   # only for a replay that takes a while (a long run's log)
+        if not args.quiet and time.monotonic() - started > 2.0:
+            print(f"  ... {t_s:6.1f} s of the mission replayed", file=sys.stderr, flush=True)
 
     result = replay(run, spec, progress=progress)
     text = report_text(result)
