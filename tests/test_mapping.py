@@ -141,3 +141,20 @@ def test_the_sensor_model_numbers_make_one_echo_occupied_and_one_clear_look_undo
     m = SensorModel()
     assert m.occupied_logodds >= m.occupied_threshold
     assert m.occupied_logodds + m.free_logodds < m.occupied_threshold
+
+
+def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo():
+    # The ranger sits sonar_offset_mm (the protocol's default, 100 mm) ahead of the rover's
+    # centre; an echo lies on the beam's axis (heading + servo bearing, clockwise from +y).
+    from rovernav.link import messages_gen as mg
+    from rovernav.mapping import echo_point, sonar_origin
+    from rovernav.mission.learned_map import Echo
+    from rovernav.mission.legs import legs_per_trip
+
+    off = mg.PARAMS[mg.Param.SONAR_OFFSET_MM].default / 1000
+    assert sonar_origin(1.0, 0.5, 0.0, off) == pytest.approx((1.0, 0.6))
+    assert sonar_origin(1.0, 0.5, 90.0, off) == pytest.approx((1.1, 0.5))
+    assert echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off) == pytest.approx((1.1, 0.2))     # facing +x, looking -y
+    assert echo_point(1.0, 0.8, 0.0, -45.0, 0.3, off) == pytest.approx((1.0 - 0.3 * 0.5 ** 0.5, 0.9 + 0.3 * 0.5 ** 0.5))
+    assert Echo(1.0, 0.5, 90.0, 90.0, 0.3).point(off) == echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off)
+    assert (legs_per_trip("out-and-back"), legs_per_trip("reach")) == (2, 1)
