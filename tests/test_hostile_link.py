@@ -702,10 +702,12 @@ class FakeLocator:
 
 
 @pytest.fixture
-def fake_rig(monkeypatch):
-    """`rovernav run` with a fake camera and locator, its port one end of a pipe (the rover's end returned)."""
+def fake_rig(monkeypatch, tmp_path_factory):
+    """`rovernav run` with a fake camera and locator, its port one end of a pipe (the rover's end
+    returned), run from a folder of its own (where its run log goes)."""
     from rovernav import hardware, vision
 
+    monkeypatch.chdir(tmp_path_factory.mktemp("cwd"))
     host_end, rover_end = PipeTransport.pair("radio")
     camera = FakeCamera(interrupt_at=25)
     monkeypatch.setattr(hardware, "open_camera", lambda source: camera)
@@ -732,6 +734,12 @@ def test_ctrl_c_stops_the_rover_saves_the_map_whole_and_exits_130(tmp_path, caps
     assert mg.Stop(reason=mg.StopReason.OPERATOR) in said   # the rover was told to stop
     assert len(read_map_file(tmp_path / "map.json")) == 1    # the map is whole
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.json"]   # no temporary file left
+    # ... and the run's log too, under its default name, whole and replayable.
+    from rovernav.runlog.replay import read_log
+
+    logs = sorted(Path.cwd().iterdir())
+    assert len(logs) == 1 and logs[0].name.startswith("run-") and logs[0].suffix == ".mcap"
+    assert read_log(logs[0]).summary["interrupted"] is True
 
 
 def test_ctrl_c_while_the_map_is_being_saved_leaves_the_old_map_whole(tmp_path, capsys, fake_rig, monkeypatch):

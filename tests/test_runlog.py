@@ -290,3 +290,12 @@ def test_the_readme_lists_every_channel_with_its_schema():
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     for c in CHANNELS:
         assert f"| `{c.topic}` | {c.schema} |" in readme, c.topic
+
+
+def test_two_hardware_runs_in_one_second_get_logs_of_their_own(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(hardware.time, "strftime", lambda fmt: "run-20261125-120000")
+    first = hardware.default_log_path()
+    first.write_bytes(b"a log")
+    second = hardware.default_log_path()
+    assert (first.name, second.name) == ("run-20261125-120000.mcap", "run-20261125-120000-2.mcap")

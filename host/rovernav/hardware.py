@@ -112,8 +112,14 @@ def _serial_port(port: str, cfg, config_path: str | None) -> tuple[str, int]:
 
 
 def default_log_path() -> Path:
-    """run-YYYYMMDD-HHMMSS.mcap in the current folder."""
-    return Path(time.strftime("run-%Y%m%d-%H%M%S.mcap"))
+    """run-YYYYMMDD-HHMMSS.mcap in the current folder (-2, -3, ... after it when a run of the same
+    second has that name already: no run's log is written over another's)."""
+    stem = time.strftime("run-%Y%m%d-%H%M%S")
+    for k in range(1, 1000):
+        path = Path(f"{stem}.mcap" if k == 1 else f"{stem}-{k}.mcap")
+        if not path.exists() and not path.with_name(f".{path.stem}.partial.mcap").exists():
+            return path
+    raise InputError(f"{stem}-*.mcap: a thousand run logs of this second already; give --log")
 
 
 def run_hardware(port: str, camera: str, config_path: str | None, scenario_path: str | None,
