@@ -114,10 +114,12 @@ def _serial_port(port: str, cfg, config_path: str | None) -> tuple[str, int]:
 def default_log_path() -> Path:
     """run-YYYYMMDD-HHMMSS.mcap in the current folder (-2, -3, ... after it when a run of the same
     second has that name already: no run's log is written over another's)."""
+    from .runlog.channels import partial_path
+
     stem = time.strftime("run-%Y%m%d-%H%M%S")
     for k in range(1, 1000):
         path = Path(f"{stem}.mcap" if k == 1 else f"{stem}-{k}.mcap")
-        if not path.exists() and not path.with_name(f".{path.stem}.partial.mcap").exists():
+        if not path.exists() and not partial_path(path).exists():
             return path
     raise InputError(f"{stem}-*.mcap: a thousand run logs of this second already; give --log")
 

@@ -18,6 +18,11 @@ LOG_VERSION = 1
 META_RUN = "rovernav.run"
 #: The frame every position is in.
 ARENA_FRAME = "arena"
+def partial_path(path):
+    """Where a log is written until it is closed and renamed to `path`: a hidden name beside it."""
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
 #: Default rate of the camera images kept in the log (the fixes are all kept).
 DEFAULT_IMAGE_HZ = 2.0
 #: Default port of the live view (Foxglove's own default).
@@ -78,8 +83,6 @@ CHANNELS: tuple[ChannelSpec, ...] = (
     ChannelSpec("/sonar/echo", "foxglove.SceneUpdate", "each sonar echo the rover reported: the beam and the hit"),
     ChannelSpec("/events", "foxglove.Log", "what happened, in words: the mission, the rover's events, faults, crashes"),
 )
-
-BY_TOPIC = {c.topic: c for c in CHANNELS}
 
 
 def json_schema(name: str) -> dict:

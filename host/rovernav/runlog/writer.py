@@ -25,7 +25,7 @@ from ..link import messages_gen as mg
 from ..link.transport import Transport
 from ..mission.core import Recorder
 from .channels import (ARENA_FRAME, CHANNELS, DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT, LOG_FORMAT, LOG_VERSION,  # noqa: F401
-                       META_RUN, json_schema)
+                       META_RUN, json_schema, partial_path)
 
 log = logging.getLogger("rovernav.runlog")
 
@@ -70,6 +70,13 @@ def _color(r: float, g: float, b: float, a: float = 1.0):
     return Color(r=r, g=g, b=b, a=a)
 
 
+def _poses_along(points) -> list:
+    """Poses at `points` [(x, y, ...)], each facing the next point (the last as the one before it)."""
+    headings = [math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) for a, b in zip(points, points[1:])]
+    headings.append(headings[-1] if headings else 0.0)
+    return [_pose(p[0], p[1], h) for p, h in zip(points, headings)]
+
+
 def message_record(message, seq: int, n: int, t_s: float, counter: int | None = None) -> dict:
     """A link frame as the log keeps it: its payload (what replay decodes) and its fields (to read)."""
     return {"n": n, "t_s": t_s, "type": message.NAME, "id": message.ID, "seq": seq,
@@ -89,7 +96,7 @@ class RunLog(Recorder):
                                        PosesInFrameChannel, SceneUpdateChannel)
 
         self.path = Path(path) if path is not None else None
-        self.partial = None if self.path is None else self.path.with_name(f".{self.path.stem}.partial{self.path.suffix}")
+        self.partial = None if self.path is None else partial_path(self.path)
         self.truth = truth
         self.scenario = scenario
         self.sonar_offset_m = float(spec.planner["sonar_offset_m"])
@@ -202,10 +209,8 @@ class RunLog(Recorder):
     def host_path(self, t_s: float, path_id: int, path) -> None:
         from foxglove.messages import PosesInFrame
 
-        headings = [math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) for a, b in zip(path, path[1:])]
-        headings.append(headings[-1] if headings else 0.0)
         self._log("/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                  poses=[_pose(x, y, h) for (x, y), h in zip(path, headings)]))
+                                                  poses=_poses_along(path)))
 
     def host_sonar(self, t_s: float, reading, changed: bool) -> None:
         if reading.range_m is None:
@@ -328,11 +333,8 @@ class RunLog(Recorder):
     def _publish_driven(self, t_s: float) -> None:
         from foxglove.messages import PosesInFrame
 
-        pts = self._driven
-        poses = [_pose(x, y, math.degrees(math.atan2(pts[min(i + 1, len(pts) - 1)][0] - x,
-                                                     pts[min(i + 1, len(pts) - 1)][1] - y)) if len(pts) > 1 else 0.0)
-                 for i, (x, y, _) in enumerate(pts)]
-        self._log("/rover/driven_path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=poses))
+        self._log("/rover/driven_path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
+                                                          poses=_poses_along(self._driven)))
 
     def _arena(self, t_s: float) -> None:
         from foxglove.messages import (CubePrimitive, CylinderPrimitive, SceneEntity, SceneUpdate, SpherePrimitive,
