@@ -247,6 +247,20 @@ def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_comple
 
 
 @pytest.mark.mission
+def test_a_host_restarted_on_the_first_leg_gets_its_path_taken():
+    # Found replaying logs of generated arenas with random faults: the new host's first path had
+    # the id and size of the one the rover held from the old host, so the rover took it for a
+    # repeat, ACKed it and never said PATH_ACCEPTED; the mission failed 30 s later.
+    from rovernav.sim.arenas import generate_arenas
+    from rovernav.sim.runner import Faults
+
+    arena = next(a for a in generate_arenas(24, seed=1) if a.scenario.name.startswith("arena-0023"))
+    sim = Simulation(arena.scenario, SimOptions(seed=832968, faults=Faults(host_restarts=[9.5]), max_time_s=300))
+    sim.run()
+    assert sim.outcome == "reached" and sim.restarts_done == 1
+
+
+@pytest.mark.mission
 def test_a_radio_outage_beside_an_unknown_box_ends_without_contact():
     # An outage trial that once ended against the Figure 4.8 box's corner: the rover's sweep
     # beside the box was lost on the radio, so the host's map never had the corner. The rover

@@ -164,7 +164,11 @@ class Mission:
         self.legs: list[Leg] = []
         self.path: list[tuple[float, float]] = []         # what the rover was last given
         self.path_rest: list[tuple[float, float]] = []    # the rest of a path longer than the rover holds
-        self.path_id = 0
+        # Path ids count up from a base drawn from this host's boot id: a restarted host's first
+        # path must not carry the id of the path the rover holds from the host before it (the
+        # rover takes a PATH chunk with the id and size of the one it holds as a repeat it has
+        # already taken, ACKs it and waits for nothing more).
+        self.path_id = (self.host_boot_id & 0xFF) << 8
         self.rover_boot_id: int | None = None
         self.last_status: mg.Status | None = None
         self.events: list[tuple[float, mg.Event]] = []
