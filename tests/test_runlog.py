@@ -12,6 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
@@ -299,3 +301,36 @@ def test_two_hardware_runs_in_one_second_get_logs_of_their_own(tmp_path, monkeyp
     first.write_bytes(b"a log")
     second = hardware.default_log_path()
     assert (first.name, second.name) == ("run-20261125-120000.mcap", "run-20261125-120000-2.mcap")
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cut=st.floats(0.0, 1.0), flips=st.lists(st.integers(0, 10**9), max_size=4), junk=st.binary(max_size=200))
+def test_a_damaged_or_foreign_file_is_refused_in_one_line(fig48_run, tmp_path, capsys, cut, flips, junk):
+    # A real log truncated anywhere, with bytes flipped, or followed by junk; or junk alone.
+    _sim, path = fig48_run
+    data = bytearray(path.read_bytes())
+    data = data[:int(len(data) * cut)]
+    for f in flips:
+        if data:
+            data[f % len(data)] ^= 0xFF
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data) + junk)
+    code = main(["replay", str(bad), "--quiet"])
+    err = capsys.readouterr().err
+    assert code in (0, 1, 2) and "internal error" not in err and "Traceback" not in err, err
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1 and str(bad) in err
+
+
+def test_a_log_cut_off_mid_run_replays_up_to_its_last_whole_chunk(fig48_run, tmp_path, capsys):
+    # What a run killed before its log was closed leaves (its .partial file): no summary, no index.
+    _sim, path = fig48_run
+    cut = tmp_path / ".run.partial.mcap"
+    cut.write_bytes(path.read_bytes()[:int(path.stat().st_size * 0.6)])
+    run = read_log(cut)
+    whole = read_log(path)
+    assert run.truncated and 0 < len(run.inputs) < len(whole.inputs) and run.summary == {}
+    assert run.inputs == whole.inputs[:len(run.inputs)]
+    assert main(["replay", str(cut)]) == 0
+    out = capsys.readouterr().out
+    assert "the log ends early" in out and "identical" in out

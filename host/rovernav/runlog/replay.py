@@ -49,43 +49,78 @@ class RecordedRun:
     summary: dict
     inputs: list[dict]      # host inputs and taken rover frames ("kind": "rx"), in the order they came
     sent: list[dict]        # the frames the host sent
+    truncated: bool = False  # the log's end is missing (a run cut off): read up to its last whole chunk
+
+
+#: The channels replay reads.
+_TOPICS = ("/host/inputs", "/link/rover_to_host", "/link/host_to_rover")
+
+
+def _read_indexed(f) -> tuple[dict, list]:
+    """Metadata by name and the replay's messages, by the file's index (a log that was closed)."""
+    from mcap.reader import make_reader
+
+    reader = make_reader(f)
+    metas = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
+    return metas, [(ch.topic, m.data) for _s, ch, m in reader.iter_messages(topics=list(_TOPICS))]
+
+
+def _read_streamed(f) -> tuple[dict, list]:
+    """The same, record by record from the start up to the first that cannot be read: what a run
+    cut off before its log was closed (power lost, the process killed) left in its .partial file."""
+    from mcap.records import Channel, Message, Metadata
+    from mcap.stream_reader import StreamReader
+
+    topics: dict[int, str] = {}
+    metas: dict[str, dict] = {}
+    messages: list = []
+    try:
+        for record in StreamReader(f, skip_magic=False).records:
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Metadata):
+                metas[record.name] = dict(record.metadata)
+            elif isinstance(record, Message) and topics.get(record.channel_id) in _TOPICS:
+                messages.append((topics[record.channel_id], record.data))
+    except Exception:   # noqa: BLE001 - the damage, whatever the reader makes of it, ends what can be read
+        pass
+    return metas, messages
 
 
 def read_log(path: str | Path) -> RecordedRun:
-    """The replayable part of a run log; LogFileError naming the problem."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
+    """The replayable part of a run log; LogFileError naming the problem. A log whose end is
+    missing (a run cut off) is read up to its last whole chunk (`RecordedRun.truncated`)."""
     path = Path(path)
     if not path.is_file():
         raise LogFileError(f"{path}: no such file" if not path.exists() else f"{path}: not a regular file")
     if path.stat().st_size > MAX_LOG_BYTES:
         raise LogFileError(f"{path}: {path.stat().st_size:,} bytes is past the {MAX_LOG_BYTES:,} replay reads")
+    truncated = False
+    with open(path, "rb") as f:
+        try:
+            metas, messages = _read_indexed(f)
+        except Exception as exc:   # noqa: BLE001 - any damage: read what comes before it
+            f.seek(0)
+            metas, messages = _read_streamed(f)
+            truncated = True
+            if META_RUN not in metas:
+                raise LogFileError(f"{path}: not a readable MCAP run log ({type(exc).__name__}: {exc})") from None
+    meta = metas.get(META_RUN)
+    if meta is None:
+        raise LogFileError(f"{path}: an MCAP file, but not a rovernav run log (no {META_RUN} metadata)")
     inputs, sent = [], []
-    meta = summary = None
     try:
-        with open(path, "rb") as f:
-            reader = make_reader(f)
-            for record in reader.iter_metadata():
-                if record.name == META_RUN:
-                    meta = dict(record.metadata)
-                elif record.name == "rovernav.summary":
-                    summary = {k: json.loads(v) for k, v in record.metadata.items()}
-            if meta is None:
-                raise LogFileError(f"{path}: an MCAP file, but not a rovernav run log (no {META_RUN} metadata)")
-            for _schema, channel, message in reader.iter_messages(
-                    topics=["/host/inputs", "/link/rover_to_host", "/link/host_to_rover"]):
-                record = json.loads(message.data)
-                if channel.topic == "/link/host_to_rover":
-                    sent.append(record)
-                elif channel.topic == "/link/rover_to_host":
-                    inputs.append({**record, "kind": "rx"})
-                else:
-                    inputs.append(record)
-    except LogFileError:
-        raise
-    except (McapError, OSError, ValueError, KeyError, TypeError, EOFError) as exc:
-        raise LogFileError(f"{path}: not a readable MCAP run log ({type(exc).__name__}: {exc})") from None
+        summary = {k: json.loads(v) for k, v in metas.get("rovernav.summary", {}).items()}
+        for topic, data in messages:
+            record = json.loads(data)
+            if topic == "/link/host_to_rover":
+                sent.append(record)
+            elif topic == "/link/rover_to_host":
+                inputs.append({**record, "kind": "rx"})
+            else:
+                inputs.append(record)
+    except (ValueError, TypeError, UnicodeDecodeError) as exc:
+        raise LogFileError(f"{path}: a record is not JSON ({exc})") from None
     if meta.get("format") != LOG_FORMAT:
         raise LogFileError(f"{path}: metadata format {meta.get('format')!r}, not {LOG_FORMAT}")
     if meta.get("version") != str(LOG_VERSION):
@@ -97,9 +132,12 @@ def read_log(path: str | Path) -> RecordedRun:
         spec = MissionSpec.from_json(meta["spec"])
     except (KeyError, ValueError) as exc:
         raise LogFileError(f"{path}: {exc}") from None
-    inputs.sort(key=lambda r: r["n"])
-    sent.sort(key=lambda r: r["n"])
-    return RecordedRun(spec, meta.get("source", "?"), meta, summary or {}, inputs, sent)
+    try:
+        inputs.sort(key=lambda r: r["n"])
+        sent.sort(key=lambda r: r["n"])
+    except (KeyError, TypeError) as exc:
+        raise LogFileError(f"{path}: a record without its order number ({exc})") from None
+    return RecordedRun(spec, meta.get("source", "?"), meta, summary, inputs, sent, truncated)
 
 
 class _ReplayLink:
@@ -157,7 +195,9 @@ class ReplayResult:
         for i in range(min(len(a), len(b))):
             if not _same(a[i], b[i]):
                 return i
-        return None if len(a) == len(b) else min(len(a), len(b))
+        if len(a) == len(b) or (self.run.truncated and len(b) > len(a)):
+            return None   # a cut-off log ends where its last whole chunk ends: the host may say more
+        return min(len(a), len(b))
 
     @property
     def identical(self) -> bool:
@@ -252,40 +292,47 @@ def replay(run: RecordedRun, spec: MissionSpec | None = None,
     with tempfile.TemporaryDirectory(prefix="rovernav-replay-") as workdir:
         link = _ReplayLink()
         mission = start_host(spec, link, Path(workdir), on_event=lambda t, text: None, recorder=outputs)
-        if "initial_map" in run.meta:   # `rovernav run --map`: what the sonar had found before
-            from ..mapping import SonarReading
+        try:
+            if "initial_map" in run.meta:   # `rovernav run --map`: what the sonar had found before
+                from ..mapping import SonarReading
 
-            mission.map.replay([SonarReading(**r) for r in json.loads(run.meta["initial_map"])])
-        inputs = run.inputs
-        next_progress = 30.0
-        i = 0
-        while i < len(inputs):
-            r = inputs[i]
-            i += 1
-            kind = r["kind"]
-            t = r["t_s"]
-            if progress is not None and t >= next_progress:
-                next_progress += 30.0
-                progress(t)
-            if kind == "tick":
-                link.frames.clear()
-                while i < len(inputs) and inputs[i]["kind"] == "rx":
-                    link.frames.append(_frame(inputs[i]))
-                    i += 1
-                mission.tick(t)
-            elif kind == "detection":
-                mission.on_detection(Detection(r["taken_s"], r["x_m"], r["y_m"], r["heading_deg"], r.get("reason")), t)
-            elif kind == "fail":
-                mission.fail(r["why"])
-            elif kind == "new_host":
-                link = _ReplayLink()
-                mission = start_host(spec.with_boot_id(r["host_boot_id"]), link, Path(workdir),
-                                     on_event=lambda t, text: None, recorder=outputs)
-            elif kind == "rx":
-                pass   # a frame taken outside a tick: none is (the mission reads only in tick)
-            else:
-                raise LogFileError(f"the log has a host input of unknown kind {kind!r}")
+                mission.map.replay([SonarReading(**r) for r in json.loads(run.meta["initial_map"])])
+            mission = _feed(spec, run.inputs, link, mission, outputs, workdir, progress)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise LogFileError(f"a host input of the log cannot be fed again ({type(exc).__name__}: {exc})") from None
     return ReplayResult(run, spec, outputs.sent, outputs.events, mission.outcome.value, mission.error, mission)
+
+
+def _feed(spec, inputs, link, mission, outputs, workdir, progress):
+    """Each recorded input to the mission, in order; returns the mission at the end (a host
+    restart starts a new one)."""
+    next_progress = 30.0
+    i = 0
+    while i < len(inputs):
+        r = inputs[i]
+        i += 1
+        kind = r["kind"]
+        t = r["t_s"]
+        if progress is not None and t >= next_progress:
+            next_progress += 30.0
+            progress(t)
+        if kind == "tick":
+            link.frames.clear()
+            while i < len(inputs) and inputs[i]["kind"] == "rx":
+                link.frames.append(_frame(inputs[i]))
+                i += 1
+            mission.tick(t)
+        elif kind == "detection":
+            mission.on_detection(Detection(r["taken_s"], r["x_m"], r["y_m"], r["heading_deg"], r.get("reason")), t)
+        elif kind == "fail":
+            mission.fail(r["why"])
+        elif kind == "new_host":
+            link = _ReplayLink()
+            mission = start_host(spec.with_boot_id(r["host_boot_id"]), link, Path(workdir),
+                                 on_event=lambda t, text: None, recorder=outputs)
+        elif kind != "rx":   # (a frame outside a tick: none is; the mission reads only in tick)
+            raise LogFileError(f"the log has a host input of unknown kind {kind!r}")
+    return mission
 
 
 # ------------------------------------------------------------ showing it
@@ -293,6 +340,9 @@ def replay(run: RecordedRun, spec: MissionSpec | None = None,
 def report_text(result: ReplayResult, limit: int = 12) -> str:
     run = result.run
     lines = []
+    if run.truncated:
+        lines.append(f"the log ends early (a run cut off before its log was closed): read up to its last whole "
+                     f"chunk, {run.inputs[-1]['t_s'] if run.inputs else 0:.1f} s of the mission")
     changes = _changes(run.spec, result.spec)
     if changes:
         lines.append("changed: " + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changes.items()))
