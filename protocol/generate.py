@@ -38,6 +38,9 @@ TYPES = {
     "u32": (4, "I", "uint32_t", 0, 0xFFFFFFFF),
     "i32": (4, "i", "int32_t", -0x80000000, 0x7FFFFFFF),
 }
+# A message field's C++ type: its integer as little-endian bytes (firmware/lib/link/wire_layout.h),
+# so that a message struct is laid out as its payload.
+WIRE_TYPES = {"u16": "wire::u16le", "i16": "wire::i16le", "u32": "wire::u32le", "i32": "wire::i32le"}
 HEADER_BYTES = 3  # version, msg_id, seq
 CRC_BYTES = 2
 IDENT = re.compile(r"^[a-z][a-z0-9_]*$")
@@ -212,7 +215,7 @@ def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
 def render_cpp(d: dict) -> str:
     p = d["protocol"]
     max_raw = HEADER_BYTES + p["max_payload"] + CRC_BYTES
-    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "le_bytes.h"\n', '#include "progmem.h"\n\n',
+    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "progmem.h"\n', '#include "wire_layout.h"\n\n',
            "namespace rovernav {\n\n",
            f"enum : uint8_t {{ kProtocolVersion = {p['version']} }};\n",
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
@@ -270,33 +273,25 @@ def render_cpp(d: dict) -> str:
                "  hi = flash_read_i32(row + 2);\n"
                "  return lo <= hi;\n"
                "}\n\n")
-    out.append("namespace msg {\n\n")
+    out.append("namespace msg {\n\n"
+               "// Each message's bytes are its payload on the wire (fields in order, little-endian, no\n"
+               "// padding: wire_layout.h), so encoding and decoding are one copy.\n\n")
     for m in d["messages"]:
         out.append(f"/// {m['doc']} ({m['direction'].replace('_', ' ')})\n")
         out.append(f"struct {camel(m['name'])} {{\n")
         out.append(f"  enum : uint8_t {{ kId = 0x{m['id']:02X}, kPayloadSize = {payload_size(m)} }};\n")
         for f in m["fields"]:
-            ctype = TYPES[f["type"]][2]
+            ctype = WIRE_TYPES.get(f["type"], TYPES[f["type"]][2])
             arr = f"[{f['count']}]" if "count" in f else ""
             unit = f" [{f['unit']}]" if f.get("unit") else ""
             out.append(f"  {ctype} {f['name']}{arr};  ///<{unit} {f.get('doc', '')}\n".replace(" \n", "\n"))
-        enc, dec, off = [], [], 0
-        for f in m["fields"]:
-            size = TYPES[f["type"]][0]
-            t = f["type"]
-            if "count" in f:
-                enc.append(f"    for (uint8_t i = 0; i < {f['count']}; ++i) le::put_{t}(p + {off} + i * {size}, {f['name']}[i]);\n")
-                dec.append(f"    for (uint8_t i = 0; i < {f['count']}; ++i) {f['name']}[i] = le::get_{t}(p + {off} + i * {size});\n")
-                off += size * f["count"]
-            else:
-                enc.append(f"    le::put_{t}(p + {off}, {f['name']});\n")
-                dec.append(f"    {f['name']} = le::get_{t}(p + {off});\n")
-                off += size
-        out.append("  /// Writes kPayloadSize bytes to p.\n  void encode(uint8_t* p) const {\n")
-        out.extend(enc or ["    (void)p;\n"])
-        out.append("  }\n  /// Reads kPayloadSize bytes from p.\n  void decode(const uint8_t* p) {\n")
-        out.extend(dec or ["    (void)p;\n"])
-        out.append("  }\n};\n\n")
+        out.append("  /// Writes kPayloadSize bytes to p.\n"
+                   "  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }\n"
+                   "  /// Reads kPayloadSize bytes from p.\n"
+                   "  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }\n"
+                   "};\n")
+        out.append(f"static_assert(sizeof({camel(m['name'])}) == {camel(m['name'])}::kPayloadSize, "
+                   f"\"{m['name']}: its layout is its payload\");\n\n")
     out.append("}  // namespace msg\n\n")
     # A table in flash, searched: the compiler turns a switch over these ids into a lookup table
     # in the Uno's SRAM.

@@ -48,59 +48,47 @@ uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
 }
 
 ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_t late_ms) {
+  // The decoder has checked the payload's length against the id's: one copy decodes any message.
+  union {
+    msg::Hello hello;
+    msg::Heartbeat heartbeat;
+    msg::Fix fix;
+    msg::Path path;
+    msg::Start start;
+    msg::Stop stop;
+    msg::Config config;
+    msg::Provision provision;
+  } m;
+  wire::copy(&m, f.payload, f.payload_len < sizeof m ? f.payload_len : static_cast<uint8_t>(sizeof m));
   switch (f.msg_id) {
-    case msg::Hello::kId: {
-      msg::Hello m{};
-      decode_message(f, m);
-      if (m.role == static_cast<uint8_t>(Role::Host)) {
-        schema_ok_ = m.schema_hash == kSchemaHash;
+    case msg::Hello::kId:
+      if (m.hello.role == static_cast<uint8_t>(Role::Host)) {
+        schema_ok_ = m.hello.schema_hash == kSchemaHash;
         send_hello();
       }
       break;
-    }
-    case msg::Heartbeat::kId: {
-      msg::Heartbeat m{};
-      decode_message(f, m);
-      camera_ = m.camera;
+    case msg::Heartbeat::kId:
+      camera_ = m.heartbeat.camera;
       break;
-    }
-    case msg::Fix::kId: {
-      msg::Fix m{};
-      decode_message(f, m);
-      m.age_ms = static_cast<uint16_t>(m.age_ms + late_ms);
-      on_fix(m, now);
+    case msg::Fix::kId:
+      m.fix.age_ms = static_cast<uint16_t>(m.fix.age_ms + late_ms);
+      on_fix(m.fix, now);
       break;
-    }
-    case msg::Path::kId: {
-      msg::Path m{};
-      decode_message(f, m);
-      on_path(m, f.seq);
+    case msg::Path::kId:
+      on_path(m.path, f.seq);
       break;
-    }
-    case msg::Start::kId: {
-      msg::Start m{};
-      decode_message(f, m);
-      on_start(m, f.seq);
+    case msg::Start::kId:
+      on_start(m.start, f.seq);
       break;
-    }
-    case msg::Stop::kId: {
-      msg::Stop m{};
-      decode_message(f, m);
-      on_stop(m, f.seq);
+    case msg::Stop::kId:
+      on_stop(m.stop, f.seq);
       break;
-    }
-    case msg::Config::kId: {
-      msg::Config m{};
-      decode_message(f, m);
-      on_config(m, f.seq);
+    case msg::Config::kId:
+      on_config(m.config, f.seq);
       break;
-    }
-    case msg::Provision::kId: {
-      msg::Provision m{};
-      decode_message(f, m);
-      on_provision(m, f.seq, now);
+    case msg::Provision::kId:
+      on_provision(m.provision, f.seq, now);
       break;
-    }
     default:
       break;  // a rover-to-host message echoed back: valid, not for us
   }

@@ -4,6 +4,7 @@
 
 #include "angles.h"
 #include "float_ops.h"
+#include "le_bytes.h"
 
 namespace rovernav {
 namespace core {

@@ -21,11 +21,10 @@ class TxQueue {
   enum : uint8_t { kCapacity = 128 };
   static_assert(kCapacity >= 2 * kMaxEncodedFrame, "room for two frames at least");
 
+  /// Queues a message: its bytes are its payload (wire_layout.h).
   template <typename Msg>
   void send(const Msg& m) {
-    uint8_t payload[Msg::kPayloadSize];
-    m.encode(payload);
-    send_payload(Msg::kId, payload, Msg::kPayloadSize);
+    send_payload(Msg::kId, reinterpret_cast<const uint8_t*>(&m), Msg::kPayloadSize);
   }
   /// Queues a payload as a raw frame (one copy of this code for every message type).
   void send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len);

@@ -2,8 +2,8 @@
 // change the definition and run `python3 protocol/generate.py`.
 #pragma once
 #include <stdint.h>
-#include "le_bytes.h"
 #include "progmem.h"
+#include "wire_layout.h"
 
 namespace rovernav {
 
@@ -225,160 +225,104 @@ inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {
 
 namespace msg {
 
+// Each message's bytes are its payload on the wire (fields in order, little-endian, no
+// padding: wire_layout.h), so encoding and decoding are one copy.
+
 /// Sent by each end at start and answered by the other. Carries the schema hash: ends built from different definitions refuse to start a mission. (both)
 struct Hello {
   enum : uint8_t { kId = 0x01, kPayloadSize = 19 };
-  uint32_t schema_hash;  ///< CRC-32 of the canonical protocol definition
-  uint32_t boot_id;  ///< changes at every reset (rover) or start (host)
-  uint16_t firmware_version;  ///< major * 256 + minor of the sender's software
+  wire::u32le schema_hash;  ///< CRC-32 of the canonical protocol definition
+  wire::u32le boot_id;  ///< changes at every reset (rover) or start (host)
+  wire::u16le firmware_version;  ///< major * 256 + minor of the sender's software
   uint8_t role;  ///< [enum role] host or rover
   uint8_t max_waypoints;  ///< waypoints the sender can hold in a path (host: 0)
   uint8_t signing;  ///< bit 0: the sender holds a link key and refuses unsigned commands ([signing])
-  uint32_t min_counter_lo;  ///< the least signing counter the sender accepts next, low 32 bits (0: any)
-  uint16_t min_counter_hi;  ///< ... and its high 16 bits
+  wire::u32le min_counter_lo;  ///< the least signing counter the sender accepts next, low 32 bits (0: any)
+  wire::u16le min_counter_hi;  ///< ... and its high 16 bits
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u32(p + 0, schema_hash);
-    le::put_u32(p + 4, boot_id);
-    le::put_u16(p + 8, firmware_version);
-    le::put_u8(p + 10, role);
-    le::put_u8(p + 11, max_waypoints);
-    le::put_u8(p + 12, signing);
-    le::put_u32(p + 13, min_counter_lo);
-    le::put_u16(p + 17, min_counter_hi);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    schema_hash = le::get_u32(p + 0);
-    boot_id = le::get_u32(p + 4);
-    firmware_version = le::get_u16(p + 8);
-    role = le::get_u8(p + 10);
-    max_waypoints = le::get_u8(p + 11);
-    signing = le::get_u8(p + 12);
-    min_counter_lo = le::get_u32(p + 13);
-    min_counter_hi = le::get_u16(p + 17);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Hello) == Hello::kPayloadSize, "hello: its layout is its payload");
 
 /// The host is alive. Sent at a few hertz even when the camera has no fix, so the rover can tell 'no camera' from 'no radio'. (host to rover)
 struct Heartbeat {
   enum : uint8_t { kId = 0x02, kPayloadSize = 5 };
-  uint32_t host_time_ms;  ///< [ms] host clock, for latency estimates
+  wire::u32le host_time_ms;  ///< [ms] host clock, for latency estimates
   uint8_t camera;  ///< [enum camera_state] what the camera sees
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u32(p + 0, host_time_ms);
-    le::put_u8(p + 4, camera);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    host_time_ms = le::get_u32(p + 0);
-    camera = le::get_u8(p + 4);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Heartbeat) == Heartbeat::kPayloadSize, "heartbeat: its layout is its payload");
 
 /// A camera fix of the rover's pose in arena coordinates. (host to rover)
 struct Fix {
   enum : uint8_t { kId = 0x03, kPayloadSize = 11 };
-  int16_t x_mm;  ///< [mm] rover centre, x
-  int16_t y_mm;  ///< [mm] rover centre, y
-  int16_t heading_cdeg;  ///< [cdeg] 0 = +y, clockwise positive
-  uint16_t age_ms;  ///< [ms] time from frame capture to sending
+  wire::i16le x_mm;  ///< [mm] rover centre, x
+  wire::i16le y_mm;  ///< [mm] rover centre, y
+  wire::i16le heading_cdeg;  ///< [cdeg] 0 = +y, clockwise positive
+  wire::u16le age_ms;  ///< [ms] time from frame capture to sending
   uint8_t sd_mm;  ///< [mm] one-sigma position error of the fix
-  uint16_t frame_seq;  ///< camera frame counter
+  wire::u16le frame_seq;  ///< camera frame counter
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_i16(p + 0, x_mm);
-    le::put_i16(p + 2, y_mm);
-    le::put_i16(p + 4, heading_cdeg);
-    le::put_u16(p + 6, age_ms);
-    le::put_u8(p + 8, sd_mm);
-    le::put_u16(p + 9, frame_seq);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    x_mm = le::get_i16(p + 0);
-    y_mm = le::get_i16(p + 2);
-    heading_cdeg = le::get_i16(p + 4);
-    age_ms = le::get_u16(p + 6);
-    sd_mm = le::get_u8(p + 8);
-    frame_seq = le::get_u16(p + 9);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Fix) == Fix::kPayloadSize, "fix: its layout is its payload");
 
 /// One chunk of a waypoint list. Chunks of one path share path_id and arrive in order; the rover ACKs each and switches to the new path only when it is complete. (host to rover)
 struct Path {
   enum : uint8_t { kId = 0x04, kPayloadSize = 37 };
-  uint16_t path_id;  ///< identifies the path; a new id starts a new path
+  wire::u16le path_id;  ///< identifies the path; a new id starts a new path
   uint8_t total;  ///< [waypoints] waypoints in the whole path
   uint8_t first_index;  ///< index of this chunk's first waypoint
   uint8_t count;  ///< [waypoints] waypoints used in this chunk (1..8)
-  int16_t x_mm[8];  ///< [mm] waypoint x
-  int16_t y_mm[8];  ///< [mm] waypoint y
+  wire::i16le x_mm[8];  ///< [mm] waypoint x
+  wire::i16le y_mm[8];  ///< [mm] waypoint y
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u16(p + 0, path_id);
-    le::put_u8(p + 2, total);
-    le::put_u8(p + 3, first_index);
-    le::put_u8(p + 4, count);
-    for (uint8_t i = 0; i < 8; ++i) le::put_i16(p + 5 + i * 2, x_mm[i]);
-    for (uint8_t i = 0; i < 8; ++i) le::put_i16(p + 21 + i * 2, y_mm[i]);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    path_id = le::get_u16(p + 0);
-    total = le::get_u8(p + 2);
-    first_index = le::get_u8(p + 3);
-    count = le::get_u8(p + 4);
-    for (uint8_t i = 0; i < 8; ++i) x_mm[i] = le::get_i16(p + 5 + i * 2);
-    for (uint8_t i = 0; i < 8; ++i) y_mm[i] = le::get_i16(p + 21 + i * 2);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Path) == Path::kPayloadSize, "path: its layout is its payload");
 
 /// Follow the complete path with this id. (host to rover)
 struct Start {
   enum : uint8_t { kId = 0x05, kPayloadSize = 2 };
-  uint16_t path_id;  ///< must match the path held
+  wire::u16le path_id;  ///< must match the path held
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u16(p + 0, path_id);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    path_id = le::get_u16(p + 0);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Start) == Start::kPayloadSize, "start: its layout is its payload");
 
 /// Stop the motors and end the mission. Always obeyed. (host to rover)
 struct Stop {
   enum : uint8_t { kId = 0x06, kPayloadSize = 1 };
   uint8_t reason;  ///< [enum stop_reason] why
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, reason);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    reason = le::get_u8(p + 0);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Stop) == Stop::kPayloadSize, "stop: its layout is its payload");
 
 /// Set one parameter (see [[params]]). (host to rover)
 struct Config {
   enum : uint8_t { kId = 0x07, kPayloadSize = 5 };
   uint8_t param;  ///< [param id] which parameter
-  int32_t value;  ///< [param's unit] new value
+  wire::i32le value;  ///< [param's unit] new value
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, param);
-    le::put_i32(p + 1, value);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    param = le::get_u8(p + 0);
-    value = le::get_i32(p + 1);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Config) == Config::kPayloadSize, "config: its layout is its payload");
 
 /// Store (or erase) the link key ([signing]). Taken unsigned, and only within provision_window_ms of a reset: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno (rovernav provision). (host to rover)
 struct Provision {
@@ -386,128 +330,61 @@ struct Provision {
   uint8_t key[16];  ///< the 128-bit key, as in the key file
   uint8_t erase;  ///< 1: forget the key (key ignored); the rover talks unsigned again
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    for (uint8_t i = 0; i < 16; ++i) le::put_u8(p + 0 + i * 1, key[i]);
-    le::put_u8(p + 16, erase);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    for (uint8_t i = 0; i < 16; ++i) key[i] = le::get_u8(p + 0 + i * 1);
-    erase = le::get_u8(p + 16);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Provision) == Provision::kPayloadSize, "provision: its layout is its payload");
 
 /// The rover's state, sent every status_period_ms. (rover to host)
 struct Status {
   enum : uint8_t { kId = 0x10, kPayloadSize = 45 };
-  uint32_t time_ms;  ///< [ms] rover clock
+  wire::u32le time_ms;  ///< [ms] rover clock
   uint8_t state;  ///< [enum rover_state]
-  uint16_t flags;  ///< [bits status_flag]
+  wire::u16le flags;  ///< [bits status_flag]
   uint8_t fault;  ///< [enum fault_code]
-  uint16_t path_id;  ///< path being followed (or held)
+  wire::u16le path_id;  ///< path being followed (or held)
   uint8_t waypoint_index;  ///< index of the waypoint being approached
-  int16_t x_mm;  ///< [mm] estimated position, x
-  int16_t y_mm;  ///< [mm] estimated position, y
-  int16_t heading_cdeg;  ///< [cdeg] estimated heading
-  uint16_t sd_x_mm;  ///< [mm] one-sigma of x
-  uint16_t sd_y_mm;  ///< [mm] one-sigma of y
-  int16_t corr_xy_permille;  ///< [per mille] correlation of x and y errors
-  uint16_t sd_heading_cdeg;  ///< [cdeg] one-sigma of heading
-  uint16_t dr_distance_mm;  ///< [mm] distance driven since the last fix
-  uint16_t fix_age_ms;  ///< [ms] time since the last fix (saturates)
-  int16_t left_pwm;  ///< [PWM] left motor command
-  int16_t right_pwm;  ///< [PWM] right motor command
-  uint16_t rx_ok;  ///< [frames] valid frames received (wraps)
-  uint16_t rx_bad_crc;  ///< [frames] frames dropped for a bad CRC
-  uint16_t rx_overlong;  ///< [frames] frames dropped for exceeding the maximum length
-  uint16_t rx_unknown_id;  ///< [frames] frames dropped for an unknown message id
-  uint16_t rx_malformed;  ///< [frames] frames dropped for bad COBS, version or length
-  uint16_t tx_dropped;  ///< [frames] frames the rover could not queue for sending
+  wire::i16le x_mm;  ///< [mm] estimated position, x
+  wire::i16le y_mm;  ///< [mm] estimated position, y
+  wire::i16le heading_cdeg;  ///< [cdeg] estimated heading
+  wire::u16le sd_x_mm;  ///< [mm] one-sigma of x
+  wire::u16le sd_y_mm;  ///< [mm] one-sigma of y
+  wire::i16le corr_xy_permille;  ///< [per mille] correlation of x and y errors
+  wire::u16le sd_heading_cdeg;  ///< [cdeg] one-sigma of heading
+  wire::u16le dr_distance_mm;  ///< [mm] distance driven since the last fix
+  wire::u16le fix_age_ms;  ///< [ms] time since the last fix (saturates)
+  wire::i16le left_pwm;  ///< [PWM] left motor command
+  wire::i16le right_pwm;  ///< [PWM] right motor command
+  wire::u16le rx_ok;  ///< [frames] valid frames received (wraps)
+  wire::u16le rx_bad_crc;  ///< [frames] frames dropped for a bad CRC
+  wire::u16le rx_overlong;  ///< [frames] frames dropped for exceeding the maximum length
+  wire::u16le rx_unknown_id;  ///< [frames] frames dropped for an unknown message id
+  wire::u16le rx_malformed;  ///< [frames] frames dropped for bad COBS, version or length
+  wire::u16le tx_dropped;  ///< [frames] frames the rover could not queue for sending
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u32(p + 0, time_ms);
-    le::put_u8(p + 4, state);
-    le::put_u16(p + 5, flags);
-    le::put_u8(p + 7, fault);
-    le::put_u16(p + 8, path_id);
-    le::put_u8(p + 10, waypoint_index);
-    le::put_i16(p + 11, x_mm);
-    le::put_i16(p + 13, y_mm);
-    le::put_i16(p + 15, heading_cdeg);
-    le::put_u16(p + 17, sd_x_mm);
-    le::put_u16(p + 19, sd_y_mm);
-    le::put_i16(p + 21, corr_xy_permille);
-    le::put_u16(p + 23, sd_heading_cdeg);
-    le::put_u16(p + 25, dr_distance_mm);
-    le::put_u16(p + 27, fix_age_ms);
-    le::put_i16(p + 29, left_pwm);
-    le::put_i16(p + 31, right_pwm);
-    le::put_u16(p + 33, rx_ok);
-    le::put_u16(p + 35, rx_bad_crc);
-    le::put_u16(p + 37, rx_overlong);
-    le::put_u16(p + 39, rx_unknown_id);
-    le::put_u16(p + 41, rx_malformed);
-    le::put_u16(p + 43, tx_dropped);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    time_ms = le::get_u32(p + 0);
-    state = le::get_u8(p + 4);
-    flags = le::get_u16(p + 5);
-    fault = le::get_u8(p + 7);
-    path_id = le::get_u16(p + 8);
-    waypoint_index = le::get_u8(p + 10);
-    x_mm = le::get_i16(p + 11);
-    y_mm = le::get_i16(p + 13);
-    heading_cdeg = le::get_i16(p + 15);
-    sd_x_mm = le::get_u16(p + 17);
-    sd_y_mm = le::get_u16(p + 19);
-    corr_xy_permille = le::get_i16(p + 21);
-    sd_heading_cdeg = le::get_u16(p + 23);
-    dr_distance_mm = le::get_u16(p + 25);
-    fix_age_ms = le::get_u16(p + 27);
-    left_pwm = le::get_i16(p + 29);
-    right_pwm = le::get_i16(p + 31);
-    rx_ok = le::get_u16(p + 33);
-    rx_bad_crc = le::get_u16(p + 35);
-    rx_overlong = le::get_u16(p + 37);
-    rx_unknown_id = le::get_u16(p + 39);
-    rx_malformed = le::get_u16(p + 41);
-    tx_dropped = le::get_u16(p + 43);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Status) == Status::kPayloadSize, "status: its layout is its payload");
 
 /// One sonar reading of a sweep (or the echo that set off the forward reflex), with the rover's pose estimate when it was taken: an echo within sonar_report_mm, or range_mm = 0 for none within that range (the cone is clear to it). (rover to host)
 struct Obstacle {
   enum : uint8_t { kId = 0x11, kPayloadSize = 14 };
-  uint16_t scan_id;  ///< counts sweeps since boot
-  int16_t bearing_cdeg;  ///< [cdeg] servo angle relative to the rover's heading, clockwise positive
-  uint16_t range_mm;  ///< [mm] echo range from the sensor; 0: no echo within sonar_report_mm
-  int16_t x_mm;  ///< [mm] rover position estimate, x
-  int16_t y_mm;  ///< [mm] rover position estimate, y
-  int16_t heading_cdeg;  ///< [cdeg] rover heading estimate
-  uint16_t sd_mm;  ///< [mm] one-sigma position uncertainty (larger axis)
+  wire::u16le scan_id;  ///< counts sweeps since boot
+  wire::i16le bearing_cdeg;  ///< [cdeg] servo angle relative to the rover's heading, clockwise positive
+  wire::u16le range_mm;  ///< [mm] echo range from the sensor; 0: no echo within sonar_report_mm
+  wire::i16le x_mm;  ///< [mm] rover position estimate, x
+  wire::i16le y_mm;  ///< [mm] rover position estimate, y
+  wire::i16le heading_cdeg;  ///< [cdeg] rover heading estimate
+  wire::u16le sd_mm;  ///< [mm] one-sigma position uncertainty (larger axis)
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u16(p + 0, scan_id);
-    le::put_i16(p + 2, bearing_cdeg);
-    le::put_u16(p + 4, range_mm);
-    le::put_i16(p + 6, x_mm);
-    le::put_i16(p + 8, y_mm);
-    le::put_i16(p + 10, heading_cdeg);
-    le::put_u16(p + 12, sd_mm);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    scan_id = le::get_u16(p + 0);
-    bearing_cdeg = le::get_i16(p + 2);
-    range_mm = le::get_u16(p + 4);
-    x_mm = le::get_i16(p + 6);
-    y_mm = le::get_i16(p + 8);
-    heading_cdeg = le::get_i16(p + 10);
-    sd_mm = le::get_u16(p + 12);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Obstacle) == Obstacle::kPayloadSize, "obstacle: its layout is its payload");
 
 /// A command was accepted. (rover to host)
 struct Ack {
@@ -515,16 +392,11 @@ struct Ack {
   uint8_t msg_id;  ///< id of the accepted message
   uint8_t seq;  ///< its sequence number
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, msg_id);
-    le::put_u8(p + 1, seq);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    msg_id = le::get_u8(p + 0);
-    seq = le::get_u8(p + 1);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Ack) == Ack::kPayloadSize, "ack: its layout is its payload");
 
 /// A command was refused, with the reason. (rover to host)
 struct Nack {
@@ -532,74 +404,43 @@ struct Nack {
   uint8_t msg_id;  ///< id of the refused message
   uint8_t seq;  ///< its sequence number
   uint8_t reason;  ///< [enum nack_reason] why
-  uint16_t detail;  ///< see the reason
+  wire::u16le detail;  ///< see the reason
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, msg_id);
-    le::put_u8(p + 1, seq);
-    le::put_u8(p + 2, reason);
-    le::put_u16(p + 3, detail);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    msg_id = le::get_u8(p + 0);
-    seq = le::get_u8(p + 1);
-    reason = le::get_u8(p + 2);
-    detail = le::get_u16(p + 3);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Nack) == Nack::kPayloadSize, "nack: its layout is its payload");
 
 /// Something happened on the rover. (rover to host)
 struct Event {
   enum : uint8_t { kId = 0x14, kPayloadSize = 11 };
   uint8_t kind;  ///< [enum event_kind]
-  uint16_t arg;  ///< see the kind
-  uint32_t time_ms;  ///< [ms] rover clock
-  int16_t x_mm;  ///< [mm] estimated position, x
-  int16_t y_mm;  ///< [mm] estimated position, y
+  wire::u16le arg;  ///< see the kind
+  wire::u32le time_ms;  ///< [ms] rover clock
+  wire::i16le x_mm;  ///< [mm] estimated position, x
+  wire::i16le y_mm;  ///< [mm] estimated position, y
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, kind);
-    le::put_u16(p + 1, arg);
-    le::put_u32(p + 3, time_ms);
-    le::put_i16(p + 7, x_mm);
-    le::put_i16(p + 9, y_mm);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    kind = le::get_u8(p + 0);
-    arg = le::get_u16(p + 1);
-    time_ms = le::get_u32(p + 3);
-    x_mm = le::get_i16(p + 7);
-    y_mm = le::get_i16(p + 9);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(Event) == Event::kPayloadSize, "event: its layout is its payload");
 
 /// Frames the rover refused for their signature ([signing]), sent in STATUS's place when a count has changed. (rover to host)
 struct LinkAuth {
   enum : uint8_t { kId = 0x15, kPayloadSize = 9 };
   uint8_t signing;  ///< bit 0: the rover holds a key
-  uint16_t bad_tag;  ///< [frames] signed with a wrong tag (forged or altered)
-  uint16_t replayed;  ///< [frames] a counter not above the last accepted (replayed or reordered; checked before the tag)
-  uint16_t not_signed;  ///< [frames] commands without a signature, to a rover with a key
-  uint16_t unverified;  ///< [frames] signed frames to a rover with no key
+  wire::u16le bad_tag;  ///< [frames] signed with a wrong tag (forged or altered)
+  wire::u16le replayed;  ///< [frames] a counter not above the last accepted (replayed or reordered; checked before the tag)
+  wire::u16le not_signed;  ///< [frames] commands without a signature, to a rover with a key
+  wire::u16le unverified;  ///< [frames] signed frames to a rover with no key
   /// Writes kPayloadSize bytes to p.
-  void encode(uint8_t* p) const {
-    le::put_u8(p + 0, signing);
-    le::put_u16(p + 1, bad_tag);
-    le::put_u16(p + 3, replayed);
-    le::put_u16(p + 5, not_signed);
-    le::put_u16(p + 7, unverified);
-  }
+  void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
-  void decode(const uint8_t* p) {
-    signing = le::get_u8(p + 0);
-    bad_tag = le::get_u16(p + 1);
-    replayed = le::get_u16(p + 3);
-    not_signed = le::get_u16(p + 5);
-    unverified = le::get_u16(p + 7);
-  }
+  void decode(const uint8_t* p) { wire::copy(this, p, kPayloadSize); }
 };
+static_assert(sizeof(LinkAuth) == LinkAuth::kPayloadSize, "link_auth: its layout is its payload");
 
 }  // namespace msg
 
