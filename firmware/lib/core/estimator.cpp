@@ -65,19 +65,22 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
   // The same increments, without the fixes' corrections (so in the estimate's frame).
   advance(odo_, d * s, d * c, dth);
 
-  // P' = Fq P Fq^T + Fv V Fv^T, written out for the symmetric 3x3 P.
-  const float a = d * c, b = -d * s;
+  // P' = Fq P Fq^T + Fv V Fv^T for the symmetric 3x3 P. With e = (d cos, -d sin), how the
+  // position moves with the heading, and the column c = (P_xt, P_yt): c' = c + e P_tt, and each
+  // entry of the position block gains e_i c_j + e_j c'_i (the products of Fq P Fq^T, regrouped)
+  // and the distance noise g_i g_j var_d, g = (sin, cos). A loop over the block's three entries
+  // (xx, xy, yy) is a third of the flash the products written out took.
+  const float e[2] = {d * c, -d * s};
+  const float g[2] = {s, c};
   float* P = p_;
-  const float xx = P[XX] + 2.0f * a * P[XT] + a * a * P[TT];
-  const float xy = P[XY] + a * P[YT] + b * P[XT] + a * b * P[TT];
-  const float xt = P[XT] + a * P[TT];
-  const float yy = P[YY] + 2.0f * b * P[YT] + b * b * P[TT];
-  const float yt = P[YT] + b * P[TT];
-  P[XX] = xx + s * s * var_d;
-  P[XY] = xy + s * c * var_d;
-  P[XT] = xt;
-  P[YY] = yy + c * c * var_d;
-  P[YT] = yt;
+  const float c_old[2] = {P[XT], P[YT]};
+  P[XT] += e[0] * P[TT];
+  P[YT] += e[1] * P[TT];
+  const float c_new[2] = {P[XT], P[YT]};
+  for (uint8_t k = 0; k < 3; ++k) {
+    const uint8_t i = static_cast<uint8_t>(k >> 1), j = static_cast<uint8_t>((k + 1) >> 1);  // xx, xy, yy
+    P[k + (k >> 1)] += e[i] * c_old[j] + e[j] * c_new[i] + g[i] * g[j] * var_d;
+  }
   P[TT] += var_th;
 
   if (history_count_ == 0 || now_ms - history_last_ms_ >= kHistoryPeriodMs) {

@@ -15,6 +15,17 @@ namespace core {
 /// Length of the vector (dx, dy): sqrt(dx^2 + dy^2), the plain formula (no overflow guard).
 inline ROVERNAV_NOINLINE float length(float dx, float dy) { return sqrtf(dx * dx + dy * dy); }
 
+/// The squared distance from point p to the segment from the origin to v (all relative to the
+/// segment's start), and in t the nearest point's place along it before clamping to [0, 1]
+/// (t <= 0: p lies before the start). One copy for the detour planner and the choice of leg.
+inline ROVERNAV_NOINLINE float segment_distance2(float px, float py, float vx, float vy, float& t) {
+  const float len2 = vx * vx + vy * vy;
+  t = len2 > 0.0f ? (px * vx + py * vy) / len2 : 0.0f;
+  const float tc = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+  const float ex = px - tc * vx, ey = py - tc * vy;
+  return ex * ex + ey * ey;
+}
+
 /// sqrt(v), or 0 when v is not positive (or is NaN).
 inline ROVERNAV_NOINLINE float sqrt_or_zero(float v) { return v > 0.0f ? sqrtf(v) : 0.0f; }
 

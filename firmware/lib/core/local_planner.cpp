@@ -1,5 +1,6 @@
 #include "local_planner.h"
 
+#include "float_ops.h"
 #include "progmem.h"
 
 namespace rovernav {
@@ -59,17 +60,21 @@ bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm) con
 }
 
 bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
+  // A disk whose centre lies farther than its radius outside the segment's bounding box cannot
+  // reach the segment: an integer test that spares most disks the float geometry (the walk back
+  // tests three cells a slice against every disk).
+  const int32_t lo_x = a.x_mm < b.x_mm ? a.x_mm : b.x_mm, hi_x = a.x_mm < b.x_mm ? b.x_mm : a.x_mm;
+  const int32_t lo_y = a.y_mm < b.y_mm ? a.y_mm : b.y_mm, hi_y = a.y_mm < b.y_mm ? b.y_mm : a.y_mm;
   const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
-  const float len2 = vx * vx + vy * vy;
   for (uint8_t i = 0; i < n_; ++i) {
     ++ops_;
     const Disk& d = disks_[i];
-    const float px = static_cast<float>(d.c.x_mm - a.x_mm), py = static_cast<float>(d.c.y_mm - a.y_mm);
-    float t = len2 > 0.0f ? (px * vx + py * vy) / len2 : 0.0f;
-    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
-    const float ex = px - t * vx, ey = py - t * vy;
-    const float r = static_cast<float>(d.r_mm) - static_cast<float>(shrink_mm);
-    if (r > 0.0f && ex * ex + ey * ey < r * r) return true;
+    const int32_t r = static_cast<int32_t>(d.r_mm) - shrink_mm;
+    if (r <= 0 || d.c.x_mm < lo_x - r || d.c.x_mm > hi_x + r || d.c.y_mm < lo_y - r || d.c.y_mm > hi_y + r) continue;
+    float t;
+    const float d2 = segment_distance2(static_cast<float>(d.c.x_mm - a.x_mm), static_cast<float>(d.c.y_mm - a.y_mm), vx, vy, t);
+    const float rf = static_cast<float>(r);
+    if (d2 < rf * rf) return true;
   }
   return false;
 }

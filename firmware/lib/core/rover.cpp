@@ -230,18 +230,13 @@ uint8_t Rover::closest_target() const {
   uint8_t target = 0;
   for (uint8_t i = 0; i + 1 < path_len_; ++i) {
     const Waypoint a = path_[i], b = path_[i + 1];
-    const float ax = a.x_mm, ay = a.y_mm;
     // Differences of int16 are exact as floats: one conversion each instead of two and a subtraction.
-    const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
-    const float len2 = vx * vx + vy * vy;
-    float t = len2 > 0.0f ? ((px - ax) * vx + (py - ay) * vy) / len2 : 0.0f;
-    const bool before_start = t <= 0.0f;
-    t = clamp(t, 0.0f, 1.0f);
-    const float cx = ax + t * vx - px, cy = ay + t * vy - py;
-    const float d2 = cx * cx + cy * cy;
+    float t;
+    const float d2 = segment_distance2(px - static_cast<float>(a.x_mm), py - static_cast<float>(a.y_mm),
+                                       static_cast<float>(b.x_mm - a.x_mm), static_cast<float>(b.y_mm - a.y_mm), t);
     if (d2 < best) {
       best = d2;
-      target = (i == 0 && before_start) ? 0 : static_cast<uint8_t>(i + 1);
+      target = (i == 0 && t <= 0.0f) ? 0 : static_cast<uint8_t>(i + 1);
     }
   }
   return target;
