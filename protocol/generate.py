@@ -212,6 +212,105 @@ def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
 
 # ---------------------------------------------------------------- C++
 
+# A parameter's storage on the rover: the least width its limits allow, in this order (the widest
+# first, so that a value's width and sign follow from where it lies in the store).
+PARAM_KINDS = (("i32", 4, True), ("u16", 2, False), ("i16", 2, True), ("u8", 1, False), ("i8", 1, True))
+
+
+def param_kind(prm: dict) -> tuple[str, int, bool]:
+    """(name, width, signed): the narrowest kind that holds min..max."""
+    for name, width, signed in reversed(PARAM_KINDS):
+        lo, hi = TYPES[name][3], TYPES[name][4]
+        if lo <= prm["min"] and prm["max"] <= hi:
+            return name, width, signed
+    return PARAM_KINDS[0]
+
+
+def param_layout(d: dict) -> tuple[dict[int, int], dict[str, int], int]:
+    """Each parameter's byte offset in the store (by id), where each kind's region begins, and
+    the store's size."""
+    offsets, starts, at = {}, {}, 0
+    for name, width, _ in PARAM_KINDS:
+        starts[name] = at
+        for prm in sorted(d.get("params", []), key=lambda x: x["id"]):
+            if param_kind(prm)[0] == name:
+                offsets[prm["id"]] = at
+                at += width
+    return offsets, starts, at
+
+
+def render_param_table(d: dict) -> str:
+    max_id = max(x["id"] for x in d["params"])
+    by_id = {x["id"]: x for x in d["params"]}
+    offsets, starts, size = param_layout(d)
+    if size * 3 > 0xFFFF or size >= 0xFF:
+        raise DefinitionError("[[params]]: the parameters need more than 254 bytes on the rover")
+    out = ["/// Where each parameter's value lies in the rover's store of kParamBytes bytes, by id - 1 (0xFF: no\n"
+           "/// such parameter). A value takes the least width its limits allow, little-endian, the widest first:\n"
+           "/// int32 from 0, then uint16 from kParamAtU16, int16 from kParamAtI16, uint8 from kParamAtU8 and\n"
+           "/// int8 from kParamAtI8 (param_width, param_signed). Its default, min and max lie in kParamLimits\n"
+           "/// at 3 x its offset, in its width. In flash on the AVR.\n",
+           "enum : uint8_t {\n"
+           f"  kParamBytes = {size},\n  kParamAtU16 = {starts['u16']},\n  kParamAtI16 = {starts['i16']},\n"
+           f"  kParamAtU8 = {starts['u8']},\n  kParamAtI8 = {starts['i8']},\n  kParamNone = 0xFF\n}};\n",
+           f"static const uint8_t kParamOffset[{max_id}] ROVERNAV_PROGMEM = {{\n"]
+    for pid in range(1, max_id + 1):
+        prm = by_id.get(pid)
+        if prm:
+            kind = param_kind(prm)[0]
+            out.append(f"  {offsets[pid]},  // {pid} {prm['name']} ({kind})\n")
+        else:
+            out.append(f"  kParamNone,  // {pid} unused\n")
+    out.append("};\n")
+    limits = bytearray(3 * size)
+    for pid, prm in by_id.items():
+        name, width, signed = param_kind(prm)
+        for k, key in enumerate(("default", "min", "max")):
+            at = 3 * offsets[pid] + k * width
+            limits[at:at + width] = prm[key].to_bytes(width, "little", signed=signed)
+    out.append(f"static const uint8_t kParamLimits[{len(limits)}] ROVERNAV_PROGMEM = {{\n")
+    for pid in sorted(by_id, key=lambda i: offsets[i]):
+        prm = by_id[pid]
+        name, width, signed = param_kind(prm)
+        at = 3 * offsets[pid]
+        row = ", ".join(f"0x{b:02X}" for b in limits[at:at + 3 * width])
+        out.append(f"  {row},  // {pid} {prm['name']}: {prm['default']}, {prm['min']}..{prm['max']}\n")
+    out.append("};\n")
+    printed = bytes(int(b, 16) for line in out if line.startswith("  0x") for b in line.split("//")[0].replace(",", " ").split())
+    assert printed == bytes(limits), "kParamLimits printed out of order"
+    out.append("\n/// The width in bytes, and the sign, of the value stored at `offset`.\n"
+               "inline uint8_t param_width(uint8_t offset) {\n"
+               "  return offset < kParamAtU16 ? 4 : (offset < kParamAtU8 ? 2 : 1);\n}\n"
+               "inline bool param_signed(uint8_t offset) {\n"
+               "  return offset < kParamAtU16 || (offset >= kParamAtI16 && offset < kParamAtU8) || offset >= kParamAtI8;\n}\n"
+               "/// The integer of `width` little-endian bytes at p (in flash if from_flash), sign-extended if\n"
+               "/// is_signed. One copy for the store and the limits (noinline: LTO would paste it everywhere).\n"
+               "__attribute__((noinline)) inline int32_t param_load(const uint8_t* p, uint8_t width, bool is_signed, bool from_flash) {\n"
+               "  uint8_t b[4];\n"
+               "  uint8_t fill = 0;\n"
+               "  for (uint8_t i = 0; i < 4; ++i) {\n"
+               "    if (i < width) {\n"
+               "      b[i] = from_flash ? flash_read_u8(p + i) : p[i];\n"
+               "      fill = is_signed && (b[i] & 0x80u) ? 0xFF : 0;\n"
+               "    } else {\n"
+               "      b[i] = fill;\n"
+               "    }\n"
+               "  }\n"
+               "  return static_cast<int32_t>(static_cast<uint32_t>(b[0]) | static_cast<uint32_t>(b[1]) << 8 |\n"
+               "                              static_cast<uint32_t>(b[2]) << 16 | static_cast<uint32_t>(b[3]) << 24);\n}\n\n"
+               "/// Default and limits of parameter `id`; false if there is no such parameter.\n"
+               "inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {\n"
+               "  if (id == 0 || id > kParamMaxId) return false;\n"
+               "  const uint8_t at = flash_read_u8(&kParamOffset[id - 1]);\n"
+               "  if (at == kParamNone) return false;\n"
+               "  const uint8_t w = param_width(at);\n"
+               "  const bool sgn = param_signed(at);\n"
+               "  int32_t* const to[3] = {&def, &lo, &hi};\n"
+               "  for (uint8_t k = 0; k < 3; ++k) *to[k] = param_load(kParamLimits + 3 * at + k * w, w, sgn, true);\n"
+               "  return true;\n}\n\n")
+    return "".join(out)
+
+
 def render_cpp(d: dict) -> str:
     p = d["protocol"]
     max_raw = HEADER_BYTES + p["max_payload"] + CRC_BYTES
@@ -252,27 +351,7 @@ def render_cpp(d: dict) -> str:
         out.append(f"  {camel(prm['name'])} = {prm['id']},  ///< [{prm['unit']}] {prm['doc']}\n")
     out.append("};\n")
     out.append(f"enum : uint8_t {{ kParamMaxId = {max(x['id'] for x in d['params'])} }};\n\n")
-    max_id = max(x["id"] for x in d["params"])
-    by_id = {x["id"]: x for x in d["params"]}
-    out.append("/// Default, min and max of every parameter, by id - 1; an unused id has min > max.\n"
-               "/// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).\n"
-               f"static const int32_t kParamTable[{max_id}][3] ROVERNAV_PROGMEM = {{\n")
-    for pid in range(1, max_id + 1):
-        prm = by_id.get(pid)
-        if prm:
-            out.append(f"  {{{prm['default']}L, {prm['min']}L, {prm['max']}L}},  // {pid} {prm['name']}\n")
-        else:
-            out.append(f"  {{0L, 1L, 0L}},  // {pid} unused\n")
-    out.append("};\n\n")
-    out.append("/// Default and limits of parameter `id`; false if there is no such parameter.\n"
-               "inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {\n"
-               "  if (id == 0 || id > kParamMaxId) return false;\n"
-               "  const int32_t* row = kParamTable[id - 1];\n"
-               "  def = flash_read_i32(row);\n"
-               "  lo = flash_read_i32(row + 1);\n"
-               "  hi = flash_read_i32(row + 2);\n"
-               "  return lo <= hi;\n"
-               "}\n\n")
+    out.append(render_param_table(d))
     out.append("namespace msg {\n\n"
                "// Each message's bytes are its payload on the wire (fields in order, little-endian, no\n"
                "// padding: wire_layout.h), so encoding and decoding are one copy.\n\n")
@@ -425,6 +504,13 @@ def render_vectors_h(d: dict, vectors: dict) -> str:
     tables.append("static const GoldenFrame kGoldenFrames[] = {\n")
     for i, v in enumerate(vectors["frames"]):
         tables.append(f'  {{"{v["name"]}", kGolden{i}, sizeof kGolden{i}}},\n')
+    tables.append("};\n\n")
+    tables.append("// Every parameter as the definition gives it, written from its numbers (not from the rover's\n"
+                  "// packed table, which test_params checks against this).\n"
+                  "struct ParamSpec { uint8_t id; int32_t def, lo, hi; };\n"
+                  "static const ParamSpec kParamSpecs[] = {\n")
+    for prm in sorted(d.get("params", []), key=lambda x: x["id"]):
+        tables.append(f"  {{{prm['id']}, {prm['default']}L, {prm['min']}L, {prm['max']}L}},  // {prm['name']}\n")
     tables.append("};\n")
     out[tables_at:tables_at] = tables + ["\n"]
     return "".join(out)

@@ -1,7 +1,8 @@
 // The rover's tunable parameters, set by CONFIG. Defaults and limits come from the protocol
 // definition (param_limits() in messages_gen.h), so there is one list of them. Values are kept
-// as the wire's integers (one int32 each) and turned into working units where they are read:
-// one small array instead of a field and a conversion per parameter keeps the Uno's flash free.
+// as the wire's integers, each in the least width its limits allow (kParamOffset: 86 bytes of the
+// Uno's RAM where an int32 each took 140), and turned into working units where they are read: one
+// small store instead of a field and a conversion per parameter keeps the Uno's flash free.
 #pragma once
 #include <stdint.h>
 
@@ -19,13 +20,15 @@ class Params {
   void reset();
   /// Sets parameter `id` to `value` after checking it against the definition's limits.
   SetResult set(uint8_t id, int32_t value);
-  int32_t raw(Param p) const { return raw_[static_cast<uint8_t>(p) - 1]; }
+  /// The value as its integer on the wire. Out of line: a read is a table look-up and a load of
+  /// one, two or four bytes.
+  ROVERNAV_NOINLINE int32_t raw(Param p) const;
 
-  float kp() const { return scaled(Param::PidKpX100, 0.01f); }         // PWM per degree
-  float ki() const { return scaled(Param::PidKiX100, 0.01f); }         // PWM per degree-second
-  float kd() const { return scaled(Param::PidKdX100, 0.01f); }         // PWM per degree/second
+  float kp() const { return hundredths(Param::PidKpX100); }         // PWM per degree
+  float ki() const { return hundredths(Param::PidKiX100); }         // PWM per degree-second
+  float kd() const { return hundredths(Param::PidKdX100); }         // PWM per degree/second
   float pid_out_max_pwm() const { return as_float(Param::PidOutMaxPwm); }
-  float right_bias() const { return scaled(Param::RightBiasPermille, 0.001f); }
+  float right_bias() const { return thousandths(Param::RightBiasPermille); }
   float drive_pwm() const { return as_float(Param::DrivePwm); }
   float cone_tol_mm() const { return as_float(Param::ConeTolMm); }
   float arrival_radius_mm() const { return as_float(Param::ArrivalRadiusMm); }
@@ -37,17 +40,17 @@ class Params {
   float dr_max_distance_mm() const { return as_float(Param::DrMaxDistanceMm); }
   float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
   uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
-  float rotate_done_deg() const { return scaled(Param::RotateDoneCdeg, 0.01f); }
+  float rotate_done_deg() const { return hundredths(Param::RotateDoneCdeg); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
   int32_t gyro_max_rate_cdeg_s() const { return raw(Param::GyroMaxRateCdegS); }
-  float speed_mm_s_per_pwm() const { return scaled(Param::SpeedMmSPerPwmX1000, 0.001f); }
+  float speed_mm_s_per_pwm() const { return thousandths(Param::SpeedMmSPerPwmX1000); }
   int16_t motor_deadband_pwm() const { return static_cast<int16_t>(raw(Param::MotorDeadbandPwm)); }
-  float wheel_mm_per_tick() const { return scaled(Param::WheelMmPerTickX1000, 0.001f); }
+  float wheel_mm_per_tick() const { return thousandths(Param::WheelMmPerTickX1000); }
   bool pose_law() const { return raw(Param::DriveMode) == static_cast<int32_t>(DriveMode::PoseLaw); }
-  float pose_k_rho() const { return scaled(Param::PoseKRhoX1000, 0.001f); }      // 1/s
-  float pose_k_alpha() const { return scaled(Param::PoseKAlphaX1000, 0.001f); }  // 1/s
-  float pose_k_beta() const { return scaled(Param::PoseKBetaX1000, 0.001f); }    // 1/s
-  float pose_pwm_per_dps() const { return scaled(Param::PosePwmPerDpsX1000, 0.001f); }
+  float pose_k_rho() const { return thousandths(Param::PoseKRhoX1000); }      // 1/s
+  float pose_k_alpha() const { return thousandths(Param::PoseKAlphaX1000); }  // 1/s
+  float pose_k_beta() const { return thousandths(Param::PoseKBetaX1000); }    // 1/s
+  float pose_pwm_per_dps() const { return thousandths(Param::PosePwmPerDpsX1000); }
   uint16_t reflex_ping_ms() const { return static_cast<uint16_t>(raw(Param::ReflexPingMs)); }
   float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
   float sweep_before_turn_deg() const { return as_float(Param::SweepBeforeTurnDeg); }
@@ -59,10 +62,13 @@ class Params {
 
  private:
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads
-  // costs the Uno more flash than the calls.
+  // costs the Uno more flash than the calls; so does a scale loaded at each (x100, per mille).
   ROVERNAV_NOINLINE float as_float(Param p) const { return static_cast<float>(raw(p)); }
   ROVERNAV_NOINLINE float scaled(Param p, float scale) const { return as_float(p) * scale; }
-  int32_t raw_[kParamMaxId];
+  ROVERNAV_NOINLINE float hundredths(Param p) const { return scaled(p, 0.01f); }
+  ROVERNAV_NOINLINE float thousandths(Param p) const { return scaled(p, 0.001f); }
+  void store(uint8_t id, int32_t value);
+  uint8_t store_[kParamBytes];
 };
 
 }  // namespace core

@@ -173,54 +173,128 @@ enum class Param : uint8_t {
 };
 enum : uint8_t { kParamMaxId = 35 };
 
-/// Default, min and max of every parameter, by id - 1; an unused id has min > max.
-/// In flash on the AVR (a switch or an SRAM table would cost the Uno dearly).
-static const int32_t kParamTable[35][3] ROVERNAV_PROGMEM = {
-  {3000L, 0L, 100000L},  // 1 pid_kp_x100
-  {300L, 0L, 100000L},  // 2 pid_ki_x100
-  {500L, 0L, 100000L},  // 3 pid_kd_x100
-  {130L, 0L, 255L},  // 4 pid_out_max_pwm
-  {800L, 500L, 1500L},  // 5 right_bias_permille
-  {70L, 0L, 255L},  // 6 drive_pwm
-  {18L, 1L, 1000L},  // 7 cone_tol_mm
-  {36L, 5L, 300L},  // 8 arrival_radius_mm
-  {300L, 0L, 10000L},  // 9 sweep_interval_mm
-  {90L, 20L, 5000L},  // 10 sweep_step_ms
-  {600L, 50L, 4000L},  // 11 sonar_report_mm
-  {500L, 50L, 60000L},  // 12 fix_timeout_ms
-  {1000L, 100L, 60000L},  // 13 radio_timeout_ms
-  {1500L, 0L, 100000L},  // 14 dr_max_distance_mm
-  {50L, 5L, 1000L},  // 15 clearance_margin_mm
-  {200L, 20L, 10000L},  // 16 status_period_ms
-  {0L, 0L, 1L},  // 17 drive_mode
-  {100L, 10L, 3000L},  // 18 rotate_done_cdeg
-  {50L, 5L, 1000L},  // 19 gyro_timeout_ms
-  {50000L, 1000L, 200000L},  // 20 gyro_max_rate_cdeg_s
-  {2000L, 0L, 100000L},  // 21 speed_mm_s_per_pwm_x1000
-  {30L, 0L, 255L},  // 22 motor_deadband_pwm
-  {0L, 0L, 100000L},  // 23 wheel_mm_per_tick_x1000
-  {500L, 1L, 100000L},  // 24 pose_k_rho_x1000
-  {1500L, 1L, 100000L},  // 25 pose_k_alpha_x1000
-  {-400L, -100000L, -1L},  // 26 pose_k_beta_x1000
-  {500L, 0L, 100000L},  // 27 pose_pwm_per_dps_x1000
-  {60L, 0L, 1000L},  // 28 reflex_ping_ms
-  {100L, 0L, 1000L},  // 29 reflex_margin_mm
-  {120L, 50L, 500L},  // 30 robot_radius_mm
-  {50L, 0L, 300L},  // 31 sonar_margin_mm
-  {100L, 0L, 300L},  // 32 sonar_offset_mm
-  {1500L, 100L, 9000L},  // 33 sonar_cone_cdeg
-  {1L, 0L, 1L},  // 34 sweep_at_start
-  {30L, 0L, 180L},  // 35 sweep_before_turn_deg
+/// Where each parameter's value lies in the rover's store of kParamBytes bytes, by id - 1 (0xFF: no
+/// such parameter). A value takes the least width its limits allow, little-endian, the widest first:
+/// int32 from 0, then uint16 from kParamAtU16, int16 from kParamAtI16, uint8 from kParamAtU8 and
+/// int8 from kParamAtI8 (param_width, param_signed). Its default, min and max lie in kParamLimits
+/// at 3 x its offset, in its width. In flash on the AVR.
+enum : uint8_t {
+  kParamBytes = 86,
+  kParamAtU16 = 44,
+  kParamAtI16 = 48,
+  kParamAtU8 = 80,
+  kParamAtI8 = 84,
+  kParamNone = 0xFF
 };
+static const uint8_t kParamOffset[35] ROVERNAV_PROGMEM = {
+  0,  // 1 pid_kp_x100 (i32)
+  4,  // 2 pid_ki_x100 (i32)
+  8,  // 3 pid_kd_x100 (i32)
+  80,  // 4 pid_out_max_pwm (u8)
+  48,  // 5 right_bias_permille (i16)
+  81,  // 6 drive_pwm (u8)
+  50,  // 7 cone_tol_mm (i16)
+  52,  // 8 arrival_radius_mm (i16)
+  54,  // 9 sweep_interval_mm (i16)
+  56,  // 10 sweep_step_ms (i16)
+  58,  // 11 sonar_report_mm (i16)
+  44,  // 12 fix_timeout_ms (u16)
+  46,  // 13 radio_timeout_ms (u16)
+  12,  // 14 dr_max_distance_mm (i32)
+  60,  // 15 clearance_margin_mm (i16)
+  62,  // 16 status_period_ms (i16)
+  84,  // 17 drive_mode (i8)
+  64,  // 18 rotate_done_cdeg (i16)
+  66,  // 19 gyro_timeout_ms (i16)
+  16,  // 20 gyro_max_rate_cdeg_s (i32)
+  20,  // 21 speed_mm_s_per_pwm_x1000 (i32)
+  82,  // 22 motor_deadband_pwm (u8)
+  24,  // 23 wheel_mm_per_tick_x1000 (i32)
+  28,  // 24 pose_k_rho_x1000 (i32)
+  32,  // 25 pose_k_alpha_x1000 (i32)
+  36,  // 26 pose_k_beta_x1000 (i32)
+  40,  // 27 pose_pwm_per_dps_x1000 (i32)
+  68,  // 28 reflex_ping_ms (i16)
+  70,  // 29 reflex_margin_mm (i16)
+  72,  // 30 robot_radius_mm (i16)
+  74,  // 31 sonar_margin_mm (i16)
+  76,  // 32 sonar_offset_mm (i16)
+  78,  // 33 sonar_cone_cdeg (i16)
+  85,  // 34 sweep_at_start (i8)
+  83,  // 35 sweep_before_turn_deg (u8)
+};
+static const uint8_t kParamLimits[258] ROVERNAV_PROGMEM = {
+  0xB8, 0x0B, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 1 pid_kp_x100: 3000, 0..100000
+  0x2C, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 2 pid_ki_x100: 300, 0..100000
+  0xF4, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 3 pid_kd_x100: 500, 0..100000
+  0xDC, 0x05, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 14 dr_max_distance_mm: 1500, 0..100000
+  0x50, 0xC3, 0x00, 0x00, 0xE8, 0x03, 0x00, 0x00, 0x40, 0x0D, 0x03, 0x00,  // 20 gyro_max_rate_cdeg_s: 50000, 1000..200000
+  0xD0, 0x07, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 21 speed_mm_s_per_pwm_x1000: 2000, 0..100000
+  0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 23 wheel_mm_per_tick_x1000: 0, 0..100000
+  0xF4, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 24 pose_k_rho_x1000: 500, 1..100000
+  0xDC, 0x05, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 25 pose_k_alpha_x1000: 1500, 1..100000
+  0x70, 0xFE, 0xFF, 0xFF, 0x60, 0x79, 0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,  // 26 pose_k_beta_x1000: -400, -100000..-1
+  0xF4, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xA0, 0x86, 0x01, 0x00,  // 27 pose_pwm_per_dps_x1000: 500, 0..100000
+  0xF4, 0x01, 0x32, 0x00, 0x60, 0xEA,  // 12 fix_timeout_ms: 500, 50..60000
+  0xE8, 0x03, 0x64, 0x00, 0x60, 0xEA,  // 13 radio_timeout_ms: 1000, 100..60000
+  0x20, 0x03, 0xF4, 0x01, 0xDC, 0x05,  // 5 right_bias_permille: 800, 500..1500
+  0x12, 0x00, 0x01, 0x00, 0xE8, 0x03,  // 7 cone_tol_mm: 18, 1..1000
+  0x24, 0x00, 0x05, 0x00, 0x2C, 0x01,  // 8 arrival_radius_mm: 36, 5..300
+  0x2C, 0x01, 0x00, 0x00, 0x10, 0x27,  // 9 sweep_interval_mm: 300, 0..10000
+  0x5A, 0x00, 0x14, 0x00, 0x88, 0x13,  // 10 sweep_step_ms: 90, 20..5000
+  0x58, 0x02, 0x32, 0x00, 0xA0, 0x0F,  // 11 sonar_report_mm: 600, 50..4000
+  0x32, 0x00, 0x05, 0x00, 0xE8, 0x03,  // 15 clearance_margin_mm: 50, 5..1000
+  0xC8, 0x00, 0x14, 0x00, 0x10, 0x27,  // 16 status_period_ms: 200, 20..10000
+  0x64, 0x00, 0x0A, 0x00, 0xB8, 0x0B,  // 18 rotate_done_cdeg: 100, 10..3000
+  0x32, 0x00, 0x05, 0x00, 0xE8, 0x03,  // 19 gyro_timeout_ms: 50, 5..1000
+  0x3C, 0x00, 0x00, 0x00, 0xE8, 0x03,  // 28 reflex_ping_ms: 60, 0..1000
+  0x64, 0x00, 0x00, 0x00, 0xE8, 0x03,  // 29 reflex_margin_mm: 100, 0..1000
+  0x78, 0x00, 0x32, 0x00, 0xF4, 0x01,  // 30 robot_radius_mm: 120, 50..500
+  0x32, 0x00, 0x00, 0x00, 0x2C, 0x01,  // 31 sonar_margin_mm: 50, 0..300
+  0x64, 0x00, 0x00, 0x00, 0x2C, 0x01,  // 32 sonar_offset_mm: 100, 0..300
+  0xDC, 0x05, 0x64, 0x00, 0x28, 0x23,  // 33 sonar_cone_cdeg: 1500, 100..9000
+  0x82, 0x00, 0xFF,  // 4 pid_out_max_pwm: 130, 0..255
+  0x46, 0x00, 0xFF,  // 6 drive_pwm: 70, 0..255
+  0x1E, 0x00, 0xFF,  // 22 motor_deadband_pwm: 30, 0..255
+  0x1E, 0x00, 0xB4,  // 35 sweep_before_turn_deg: 30, 0..180
+  0x00, 0x00, 0x01,  // 17 drive_mode: 0, 0..1
+  0x01, 0x00, 0x01,  // 34 sweep_at_start: 1, 0..1
+};
+
+/// The width in bytes, and the sign, of the value stored at `offset`.
+inline uint8_t param_width(uint8_t offset) {
+  return offset < kParamAtU16 ? 4 : (offset < kParamAtU8 ? 2 : 1);
+}
+inline bool param_signed(uint8_t offset) {
+  return offset < kParamAtU16 || (offset >= kParamAtI16 && offset < kParamAtU8) || offset >= kParamAtI8;
+}
+/// The integer of `width` little-endian bytes at p (in flash if from_flash), sign-extended if
+/// is_signed. One copy for the store and the limits (noinline: LTO would paste it everywhere).
+__attribute__((noinline)) inline int32_t param_load(const uint8_t* p, uint8_t width, bool is_signed, bool from_flash) {
+  uint8_t b[4];
+  uint8_t fill = 0;
+  for (uint8_t i = 0; i < 4; ++i) {
+    if (i < width) {
+      b[i] = from_flash ? flash_read_u8(p + i) : p[i];
+      fill = is_signed && (b[i] & 0x80u) ? 0xFF : 0;
+    } else {
+      b[i] = fill;
+    }
+  }
+  return static_cast<int32_t>(static_cast<uint32_t>(b[0]) | static_cast<uint32_t>(b[1]) << 8 |
+                              static_cast<uint32_t>(b[2]) << 16 | static_cast<uint32_t>(b[3]) << 24);
+}
 
 /// Default and limits of parameter `id`; false if there is no such parameter.
 inline bool param_limits(uint8_t id, int32_t& def, int32_t& lo, int32_t& hi) {
   if (id == 0 || id > kParamMaxId) return false;
-  const int32_t* row = kParamTable[id - 1];
-  def = flash_read_i32(row);
-  lo = flash_read_i32(row + 1);
-  hi = flash_read_i32(row + 2);
-  return lo <= hi;
+  const uint8_t at = flash_read_u8(&kParamOffset[id - 1]);
+  if (at == kParamNone) return false;
+  const uint8_t w = param_width(at);
+  const bool sgn = param_signed(at);
+  int32_t* const to[3] = {&def, &lo, &hi};
+  for (uint8_t k = 0; k < 3; ++k) *to[k] = param_load(kParamLimits + 3 * at + k * w, w, sgn, true);
+  return true;
 }
 
 namespace msg {

@@ -62,6 +62,47 @@ static const GoldenFrame kGoldenFrames[] = {
   {"link_auth", kGolden16, sizeof kGolden16},
 };
 
+// Every parameter as the definition gives it, written from its numbers (not from the rover's
+// packed table, which test_params checks against this).
+struct ParamSpec { uint8_t id; int32_t def, lo, hi; };
+static const ParamSpec kParamSpecs[] = {
+  {1, 3000L, 0L, 100000L},  // pid_kp_x100
+  {2, 300L, 0L, 100000L},  // pid_ki_x100
+  {3, 500L, 0L, 100000L},  // pid_kd_x100
+  {4, 130L, 0L, 255L},  // pid_out_max_pwm
+  {5, 800L, 500L, 1500L},  // right_bias_permille
+  {6, 70L, 0L, 255L},  // drive_pwm
+  {7, 18L, 1L, 1000L},  // cone_tol_mm
+  {8, 36L, 5L, 300L},  // arrival_radius_mm
+  {9, 300L, 0L, 10000L},  // sweep_interval_mm
+  {10, 90L, 20L, 5000L},  // sweep_step_ms
+  {11, 600L, 50L, 4000L},  // sonar_report_mm
+  {12, 500L, 50L, 60000L},  // fix_timeout_ms
+  {13, 1000L, 100L, 60000L},  // radio_timeout_ms
+  {14, 1500L, 0L, 100000L},  // dr_max_distance_mm
+  {15, 50L, 5L, 1000L},  // clearance_margin_mm
+  {16, 200L, 20L, 10000L},  // status_period_ms
+  {17, 0L, 0L, 1L},  // drive_mode
+  {18, 100L, 10L, 3000L},  // rotate_done_cdeg
+  {19, 50L, 5L, 1000L},  // gyro_timeout_ms
+  {20, 50000L, 1000L, 200000L},  // gyro_max_rate_cdeg_s
+  {21, 2000L, 0L, 100000L},  // speed_mm_s_per_pwm_x1000
+  {22, 30L, 0L, 255L},  // motor_deadband_pwm
+  {23, 0L, 0L, 100000L},  // wheel_mm_per_tick_x1000
+  {24, 500L, 1L, 100000L},  // pose_k_rho_x1000
+  {25, 1500L, 1L, 100000L},  // pose_k_alpha_x1000
+  {26, -400L, -100000L, -1L},  // pose_k_beta_x1000
+  {27, 500L, 0L, 100000L},  // pose_pwm_per_dps_x1000
+  {28, 60L, 0L, 1000L},  // reflex_ping_ms
+  {29, 100L, 0L, 1000L},  // reflex_margin_mm
+  {30, 120L, 50L, 500L},  // robot_radius_mm
+  {31, 50L, 0L, 300L},  // sonar_margin_mm
+  {32, 100L, 0L, 300L},  // sonar_offset_mm
+  {33, 1500L, 100L, 9000L},  // sonar_cone_cdeg
+  {34, 1L, 0L, 1L},  // sweep_at_start
+  {35, 30L, 0L, 180L},  // sweep_before_turn_deg
+};
+
 #ifdef ROVERNAV_GOLDEN_TEST_CASES
 TEST_CASE("golden frame hello-rover (hello) encodes and decodes byte for byte") {
   static const uint8_t frame[] = {0x03, 0x01, 0x01, 0x06, 0xEF, 0xBE, 0xAD, 0xDE, 0x02, 0x02, 0x01, 0x01, 0x04, 0x01, 0x01, 0x20, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x03, 0xA1, 0x36, 0x00};
