@@ -5,18 +5,15 @@
 namespace rovernav {
 namespace core {
 
-ROVERNAV_NOINLINE float HeadingPid::update(float error_deg, float rate_dps, float dt_s, float kp, float ki, float kd, float out_max) {
+ROVERNAV_NOINLINE float HeadingPid::update(float error_deg, float rate_dps, float dt_s, const PidGains& g) {
   // Integrate small errors only (the seed's tuning: "the integral gain was increased for small
   // errors only"): a large turn must not wind the integral up and overshoot.
-  if (ki > 0.0f && fabsf(error_deg) < kIntegrateBelowDeg) {
-    integral_ += error_deg * dt_s;
-    const float limit = out_max / ki;
-    integral_ = clamp(integral_, -limit, limit);
+  if (g.ki > 0.0f && fabsf(error_deg) < kIntegrateBelowDeg) {
+    integral_pwm_ = clamp(integral_pwm_ + g.ki * error_deg * dt_s, -g.out_max, g.out_max);
   } else {
-    integral_ = 0.0f;
+    integral_pwm_ = 0.0f;
   }
-  const float u = kp * error_deg + ki * integral_ - kd * rate_dps;
-  return clamp(u, -out_max, out_max);
+  return clamp(g.kp * error_deg + integral_pwm_ - g.kd * rate_dps, -g.out_max, g.out_max);
 }
 
 }  // namespace core

@@ -7,16 +7,24 @@
 namespace rovernav {
 namespace core {
 
+/// The PID's gains (Params::pid_gains()): PWM per degree, per degree-second, per degree/second,
+/// and the clamp on its output (PWM).
+struct PidGains {
+  float kp, ki, kd, out_max;
+};
+
 class HeadingPid {
  public:
-  void reset() { integral_ = 0.0f; }
+  void reset() { integral_pwm_ = 0.0f; }
   /// error_deg: target minus heading; rate_dps: measured yaw rate (clockwise); dt_s: step.
-  /// Returns the command in PWM, clamped to +-out_max.
-  float update(float error_deg, float rate_dps, float dt_s, float kp, float ki, float kd, float out_max);
+  /// Returns the command in PWM, clamped to +-g.out_max.
+  float update(float error_deg, float rate_dps, float dt_s, const PidGains& g);
 
  private:
   static constexpr float kIntegrateBelowDeg = 5.0f;
-  float integral_ = 0.0f;  // degree-seconds
+  // The integral term itself, ki times the degree-seconds (PWM): clamped to the output's range
+  // with no division by ki each step.
+  float integral_pwm_ = 0.0f;
 };
 
 }  // namespace core

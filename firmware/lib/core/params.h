@@ -6,6 +6,7 @@
 #pragma once
 #include <stdint.h>
 
+#include "heading_pid.h"
 #include "messages_gen.h"
 #include "noinline.h"
 
@@ -28,6 +29,7 @@ class Params {
   float ki() const { return hundredths(Param::PidKiX100); }         // PWM per degree-second
   float kd() const { return hundredths(Param::PidKdX100); }         // PWM per degree/second
   float pid_out_max_pwm() const { return as_float(Param::PidOutMaxPwm); }
+  PidGains pid_gains() const { return {kp(), ki(), kd(), pid_out_max_pwm()}; }
   float right_bias() const { return thousandths(Param::RightBiasPermille); }
   float drive_pwm() const { return as_float(Param::DrivePwm); }
   float cone_tol_mm() const { return as_float(Param::ConeTolMm); }

@@ -243,8 +243,7 @@ uint8_t Rover::closest_target() const {
 }
 
 float Rover::heading_command(float error_deg, float dt_s) {
-  const Params& p = params_;
-  return pid_.update(error_deg, rate_dps_, dt_s, p.kp(), p.ki(), p.kd(), p.pid_out_max_pwm());
+  return pid_.update(error_deg, rate_dps_, dt_s, params_.pid_gains());
 }
 
 }  // namespace core

@@ -11,31 +11,31 @@ using rovernav::test::Bench;
 
 TEST_CASE("heading PID: proportional to the error, damped by the gyro rate, clamped to +-130") {
   core::HeadingPid pid;
-  CHECK(pid.update(2.0f, 0.0f, 0.0f, 30, 3, 5, 130) == doctest::Approx(60.0f));
+  CHECK(pid.update(2.0f, 0.0f, 0.0f, {30, 3, 5, 130}) == doctest::Approx(60.0f));
   pid.reset();
-  CHECK(pid.update(2.0f, 4.0f, 0.0f, 30, 3, 5, 130) == doctest::Approx(40.0f));  // 60 - 5 * 4
+  CHECK(pid.update(2.0f, 4.0f, 0.0f, {30, 3, 5, 130}) == doctest::Approx(40.0f));  // 60 - 5 * 4
   pid.reset();
-  CHECK(pid.update(90.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(130.0f));
-  CHECK(pid.update(-90.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(-130.0f));
+  CHECK(pid.update(90.0f, 0.0f, 0.01f, {30, 3, 5, 130}) == doctest::Approx(130.0f));
+  CHECK(pid.update(-90.0f, 0.0f, 0.01f, {30, 3, 5, 130}) == doctest::Approx(-130.0f));
 }
 
 TEST_CASE("heading PID: the integral removes a steady error and cannot wind up past the output") {
   core::HeadingPid pid;
   float u = 0;
-  for (int i = 0; i < 100; ++i) u = pid.update(1.0f, 0.0f, 0.01f, 0, 3, 0, 130);  // 1 s of 1 degree
+  for (int i = 0; i < 100; ++i) u = pid.update(1.0f, 0.0f, 0.01f, {0, 3, 0, 130});  // 1 s of 1 degree
   CHECK(u == doctest::Approx(3.0f).epsilon(0.01));
-  for (int i = 0; i < 100000; ++i) pid.update(4.0f, 0.0f, 0.01f, 0, 3, 0, 130);
-  CHECK(pid.update(4.0f, 0.0f, 0.01f, 0, 3, 0, 130) == doctest::Approx(130.0f));
+  for (int i = 0; i < 100000; ++i) pid.update(4.0f, 0.0f, 0.01f, {0, 3, 0, 130});
+  CHECK(pid.update(4.0f, 0.0f, 0.01f, {0, 3, 0, 130}) == doctest::Approx(130.0f));
   // Wound to the limit, it comes back within one limit's worth of opposite error, not 1000 s.
   int steps = 0;
-  while (pid.update(-4.0f, 0.0f, 0.01f, 0, 3, 0, 130) > 0.0f && steps < 100000) ++steps;
+  while (pid.update(-4.0f, 0.0f, 0.01f, {0, 3, 0, 130}) > 0.0f && steps < 100000) ++steps;
   CHECK(steps < 1200);  // 43 degree-seconds at 4 degrees: about 11 s
 }
 
 TEST_CASE("heading PID: a large turn does not wind the integral up (it integrates small errors only)") {
   core::HeadingPid pid;
-  for (int i = 0; i < 200; ++i) pid.update(60.0f, 0.0f, 0.01f, 30, 3, 5, 130);  // 2 s saturated
-  CHECK(pid.update(0.0f, 0.0f, 0.01f, 30, 3, 5, 130) == doctest::Approx(0.0f));
+  for (int i = 0; i < 200; ++i) pid.update(60.0f, 0.0f, 0.01f, {30, 3, 5, 130});  // 2 s saturated
+  CHECK(pid.update(0.0f, 0.0f, 0.01f, {30, 3, 5, 130}) == doctest::Approx(0.0f));
 }
 
 TEST_CASE("the tolerance cone is atan(cone_tol_mm / L): 1 degree at a metre, 45 at 18 mm") {
