@@ -119,7 +119,7 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   const uint8_t id = msg::Path::kId;
   if (state_ == RoverState::Planning) no_detour();   // the staging buffer is the planner's scratch; the host's path will do
   // A repeat of the chunk just taken (its ACK was lost and the host sent it again): ACK again.
-  if (m.path_id == stage_id_ && m.first_index == last_chunk_first_ &&
+  if (m.path_id == stage_id_ && m.first_index + 1 == last_chunk_ &&
       (staging_ || (path_id_ == m.path_id && path_len_ == m.total))) {
     ack(id, seq);
     return;
@@ -145,7 +145,7 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
     stage_[m.first_index + i].y_mm = m.y_mm[i];
   }
   stage_count_ = static_cast<uint8_t>(stage_count_ + m.count);
-  last_chunk_first_ = m.first_index;
+  last_chunk_ = static_cast<uint8_t>(m.first_index + 1);
   ack(id, seq);
   if (stage_count_ < stage_total_) return;
 

@@ -75,7 +75,7 @@ class LocalPlanner {
 
   enum class Phase : uint8_t { Idle, Mark, Search, Walk };
 
-  Disk disks_[kMaxEchoes];
+  Disk disks_[kMaxEchoes] = {};
   uint8_t n_ = 0;
   Point origin_ = {0, 0};  // the grid's lower-left corner
   mutable uint32_t ops_ = 0;

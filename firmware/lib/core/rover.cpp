@@ -29,6 +29,7 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   // A Rover starts in its default state (it is a global on the Uno: no copy of ~800 bytes on
   // a 2 KB stack); begin() only sets what the default cannot know.
   params_.reset();
+  speed_scale_ = 1.0f;
   boot_id_ = boot_id;
   reset_cause_ = reset_cause;
   const bool keyed = secrets != nullptr && secrets->has_key;

@@ -28,11 +28,11 @@ namespace core {
 using Waypoint = Point;
 
 /// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
-/// and a base of the Rover's, so that the Rover's constructor sets it as one block
-/// (`RoverFields{}`): on the Uno that is a clearing loop and a few stores, where setting it field
-/// by field took four bytes of flash for every byte of state (some 600 bytes in all). Flags are
-/// one-bit fields without initialisers (value-initialisation clears them): a byte each would
-/// cost the Uno's static RAM.
+/// and a base of the Rover's, set as one block (`RoverFields{}`). Every field starts at zero (what
+/// is not zero at the start, begin() sets), so that the Uno's global Rover is constant-initialised
+/// into .bss: no start-up code at all, where setting it field by field took four bytes of flash
+/// for every byte of state. Flags are one-bit fields without initialisers (value-initialisation
+/// clears them): a byte each would cost the Uno's static RAM.
 struct RoverFields {
   // the mode (rover.cpp): one RoverState; the mission; the step's heavy jobs
   RoverState state_ = RoverState::Idle;
@@ -59,7 +59,7 @@ struct RoverFields {
   uint8_t stage_count_ = 0;
   uint16_t stage_id_ = 0;
   bool staging_ = false;
-  uint8_t last_chunk_first_ = 0xFF;
+  uint8_t last_chunk_ = 0;                   // first_index + 1 of the last chunk taken (0: none)
 
   // signatures (link_in.cpp, link_out.cpp): the key, the counters, what the shell must store
   FrameAuth auth_;
@@ -84,7 +84,7 @@ struct RoverFields {
   // odometry (odometry.cpp): the estimate, dead reckoning, the speed model's calibration
   Estimator est_;
   float dr_distance_mm_ = 0.0f;
-  float speed_scale_ = 1.0f;
+  float speed_scale_ = 0.0f;                 // the speed model's calibration (1 from begin())
   bool calib_anchor_ = false;
   uint32_t drive_since_ms_ = 0;
   int16_t calib_x_mm_ = 0, calib_y_mm_ = 0;  // the fix calibration measures from
@@ -159,7 +159,7 @@ class Rover : private RoverFields {
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
 
-  Rover() : RoverFields{} {}
+  constexpr Rover() : RoverFields{} {}
   /// boot_id must change at every reset; reset_cause goes out in the boot EVENT. secrets: the
   /// stored link key and counters (nullptr: no key, the link unsigned).
   void begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets = nullptr);

@@ -38,7 +38,7 @@ class LinkStore {
  private:
   void start(uint16_t addr, uint8_t n);
 
-  uint8_t buf_[19];
+  uint8_t buf_[19] = {};
   uint16_t addr_ = 0;   // the next byte's address
   uint8_t left_ = 0;
   uint8_t done_ = 0;

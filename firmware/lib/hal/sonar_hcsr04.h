@@ -65,7 +65,7 @@ class SonarHcsr04 {
   bool waiting_ : 1;
 
  public:
-  SonarHcsr04() : pinged_(false), waiting_(false) {}
+  constexpr SonarHcsr04() : pinged_(false), waiting_(false) {}
 };
 
 }  // namespace hal

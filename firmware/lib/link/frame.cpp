@@ -10,7 +10,6 @@ void FrameDecoder::reset() {
   encoded_len_ = 0;
   block_left_ = 0;
   zero_after_block_ = false;
-  cobs_ok_ = true;
   overlong_ = false;
 }
 

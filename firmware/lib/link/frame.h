@@ -61,7 +61,6 @@ struct FrameCounters {
 
 class FrameDecoder {
  public:
-  FrameDecoder() { reset(); }
 
   /// Feeds one byte. Returns true when it completes a valid frame, then readable by frame().
   bool push(uint8_t byte);
@@ -75,13 +74,13 @@ class FrameDecoder {
  private:
   bool finish();
 
-  uint8_t raw_[kMaxSignedRawFrame];
-  uint8_t raw_len_;
-  uint8_t encoded_len_;      // COBS bytes seen in this frame
-  uint8_t block_left_;       // data bytes still due in the current COBS block
-  bool zero_after_block_;    // the current block stands for data followed by a 0x00
-  bool cobs_ok_;
-  bool overlong_;
+  // All zero when nothing has come (a global decoder needs no start-up code).
+  uint8_t raw_[kMaxSignedRawFrame] = {};
+  uint8_t raw_len_ = 0;
+  uint8_t encoded_len_ = 0;      // COBS bytes seen in this frame
+  uint8_t block_left_ = 0;       // data bytes still due in the current COBS block
+  bool zero_after_block_ = false;  // the current block stands for data followed by a 0x00
+  bool overlong_ = false;
   Frame frame_ = {};
   FrameCounters counters_ = {};
   FrameError last_error_ = FrameError::None;
