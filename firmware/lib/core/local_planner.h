@@ -61,8 +61,9 @@ class LocalPlanner {
   PlanStatus step(Point* out, uint8_t& n_out);
   bool planning() const { return phase_ != Phase::Idle; }
   void cancel() { phase_ = Phase::Idle; }
-  /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests).
-  uint32_t ops() const { return ops_; }
+  /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests), modulo
+  /// 65,536 (a count of the Uno's size: a slice's is the difference of two, as uint16_t).
+  uint16_t ops() const { return ops_; }
 
  private:
   struct Disk {
@@ -78,7 +79,7 @@ class LocalPlanner {
   Disk disks_[kMaxEchoes] = {};
   uint8_t n_ = 0;
   Point origin_ = {0, 0};  // the grid's lower-left corner
-  mutable uint32_t ops_ = 0;
+  mutable uint16_t ops_ = 0;
   // The plan under way.
   uint8_t* scratch_ = nullptr;
   Point start_ = {0, 0}, goal_ = {0, 0};

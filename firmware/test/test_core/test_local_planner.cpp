@@ -58,12 +58,13 @@ TEST_CASE("planned in slices, a step each: the same detour, no slice more than o
   REQUIRE(lp.begin(start, goal, scratch));
   uint8_t n = 0;
   unsigned slices = 0;
-  uint32_t ops_before = 0, max_slice_ops = 0;
+  uint16_t ops_before = 0;
+  uint32_t max_slice_ops = 0;
   core::PlanStatus st = core::PlanStatus::Running;
   while (st == core::PlanStatus::Running && slices < 1000) {
     st = lp.step(out, n);
     ++slices;
-    const uint32_t slice_ops = lp.ops() - ops_before;
+    const uint16_t slice_ops = static_cast<uint16_t>(lp.ops() - ops_before);
     ops_before = lp.ops();
     if (slice_ops > max_slice_ops) max_slice_ops = slice_ops;
   }
