@@ -104,38 +104,28 @@ ROVERNAV_NOINLINE void Estimator::advance(float* pose, float dx, float dy, float
 ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms, float* d) const {
   d[X] = d[Y] = d[T] = 0.0f;
   const int32_t want = static_cast<int32_t>(now_ms - t_ms);
-  if (want <= 0 || history_count_ == 0) return;
-  // Bracket t_ms: the oldest sample no older than it ("newer", the odometry now at worst) and
-  // the youngest sample at least as old ("older"); interpolate between them.
+  if (want <= 0) return;
+  // The history is in time order: walk back from the odometry now (age 0) to the first sample
+  // at least `want` old, and interpolate between it and the one after it ("newer"). With none
+  // that old, the oldest sample will do.
   float n[3] = {odo_[X], odo_[Y], odo_[T]};
-  float o[3] = {0, 0, 0};
-  int32_t n_age = 0, o_age = -1;
-  for (uint8_t i = 0; i < history_count_; ++i) {
-    const Past& h = history_[i];
+  int32_t n_age = 0;
+  for (uint8_t k = 1; k <= history_count_; ++k) {
+    const Past& h = history_[(history_next_ + kHistory - k) % kHistory];
     const int32_t age = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - h.t_ms);
-    const bool newer = age <= want && age > n_age;
-    const bool older = age >= want && (o_age < 0 || age < o_age);
-    if (!newer && !older) continue;
-    float* to = o;
-    if (newer) {
-      n_age = age;
-      to = n;
-    } else {
-      o_age = age;
+    const float o[3] = {static_cast<float>(h.x_mm), static_cast<float>(h.y_mm), cdeg_to_rad(h.heading_cdeg)};
+    if (age >= want) {
+      if (age > n_age) {
+        const float f = static_cast<float>(want - n_age) / static_cast<float>(age - n_age);
+        for (uint8_t i = 0; i < 3; ++i) n[i] += f * (i == T ? wrap_rad(o[T] - n[T]) : o[i] - n[i]);
+      }
+      break;
     }
-    to[X] = h.x_mm;
-    to[Y] = h.y_mm;
-    to[T] = cdeg_to_rad(h.heading_cdeg);
+    for (uint8_t i = 0; i < 3; ++i) n[i] = o[i];
+    n_age = age;
   }
-  if (o_age > n_age) {
-    const float f = static_cast<float>(want - n_age) / static_cast<float>(o_age - n_age);
-    n[X] += f * (o[X] - n[X]);
-    n[Y] += f * (o[Y] - n[Y]);
-    n[T] += f * wrap_rad(o[T] - n[T]);
-  }
-  d[X] = odo_[X] - n[X];
-  d[Y] = odo_[Y] - n[Y];
-  d[T] = wrap_rad(odo_[T] - n[T]);
+  for (uint8_t i = 0; i < 3; ++i) d[i] = odo_[i] - n[i];
+  d[T] = wrap_rad(d[T]);
 }
 
 FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
@@ -160,11 +150,9 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
     ++rejected_total_;
     if (++rejects_in_row_ < kMaxRejects) return FixResult::Rejected;
     // The camera has insisted: we were wrong (moved by hand, or lost). Start again from it.
-    last_correction_mm_ = last_innovation_mm_;
     return start_from(z, r_pos);
   }
   rejects_in_row_ = 0;
-  last_correction_mm_ = length(q[X] - q_[X], q[Y] - q_[Y]);
   q_[X] = q[X];
   q_[Y] = q[Y];
   q_[T] = wrap_rad(q[T]);

@@ -49,8 +49,6 @@ class Estimator {
   float p(uint8_t i) const { return p_[i]; }
   /// Standard deviation along the worst direction of the position error (mm).
   float position_sd_mm() const;
-  /// Size of the last accepted fix's correction to the position (mm).
-  float last_correction_mm() const { return last_correction_mm_; }
   /// Distance between the last fix and the pose it was compared with (mm): after an outage,
   /// the dead-reckoning error the fix revealed.
   float last_innovation_mm() const { return last_innovation_mm_; }
@@ -75,7 +73,6 @@ class Estimator {
   float q_[3] = {};    // the pose: x, y (mm), theta (rad)
   float odo_[3] = {};  // the same by dead reckoning alone, never corrected
   float p_[6] = {};  // xx xy xt yy yt tt
-  float last_correction_mm_ = 0;
   float last_innovation_mm_ = 0;
   uint8_t rejects_in_row_ = 0;
   uint16_t rejected_total_ = 0;
