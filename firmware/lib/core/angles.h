@@ -38,8 +38,6 @@ inline int16_t rad_to_cdeg(float rad) {
 /// the rover called two or three times a step. (0, 0) gives 0.
 float fast_atan2(float y, float x);
 
-/// Bearing from (x0, y0) to (x1, y1), clockwise from +y.
-inline float bearing_rad(float x0, float y0, float x1, float y1) { return fast_atan2(x1 - x0, y1 - y0); }
 
 }  // namespace core
 }  // namespace rovernav

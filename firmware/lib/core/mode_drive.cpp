@@ -26,7 +26,7 @@ void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_
       enter(RoverState::Rotate);
       return;
     }
-    pose_command(l, out);
+    pose_command(l, err, out);
     return;
   }
 
@@ -59,8 +59,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
     }
     enter(RoverState::Rotate);
     if (pick_target_) return false;
-    l = distance_to(target());
-    err = error_to_deg(target());
+    l = aim(target(), &err);
     return true;
   }
   send_event(EventKind::WaypointReached, wp_);
@@ -71,8 +70,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
   }
   ++wp_;
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
-  l = distance_to(target());
-  err = error_to_deg(target());
+  l = aim(target(), &err);
   const float turn_deg = fabsf(err);
   if (state_ == RoverState::Drive && (params_.pose_law() || turn_deg <= cone_deg(l))) {
     min_distance_mm_ = l;
@@ -94,23 +92,22 @@ bool Rover::reached_waypoint(float& l, float& err) {
 // the goal): rho, alpha, beta in the usual counter-clockwise frame from our clockwise headings,
 // v = K_rho rho, omega = K_alpha alpha + K_beta beta; v through the speed model to a forward
 // command, omega to a wheel difference. The goal heading at a waypoint is its next leg's.
-void Rover::pose_command(float rho_mm, Outputs& out) {
+void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   const Params& p = params_;
   const Waypoint w = target();
-  float goal_cw = est_.heading_rad();
   const bool in_detour = detour_i_ < detour_n_;
-  if (!in_detour && wp_ + 1 < path_len_) {
-    goal_cw = bearing_rad(w.x_mm, w.y_mm, path_[wp_ + 1].x_mm, path_[wp_ + 1].y_mm);
-  } else if (!in_detour && wp_ > 0) {
-    goal_cw = bearing_rad(path_[wp_ - 1].x_mm, path_[wp_ - 1].y_mm, w.x_mm, w.y_mm);
-  } else {
-    goal_cw = bearing_rad(est_.x_mm(), est_.y_mm(), w.x_mm, w.y_mm);
+  // In the counter-clockwise frame (theta = pi/2 - our clockwise heading): alpha, the goal's
+  // bearing from the rover less theta, is minus the heading error; beta = -alpha - theta +
+  // theta_goal = err + heading - goal heading. A detour's point, or a one-waypoint path, asks for
+  // no heading but facing it: beta = 0.
+  const float err_rad = err_deg * kRadPerDeg;
+  const float alpha = -err_rad;
+  float beta = 0.0f;
+  if (!in_detour && path_len_ > 1) {
+    const bool next = wp_ + 1 < path_len_;
+    const float goal_cw = bearing_rad(next ? w : path_[wp_ - 1], next ? path_[wp_ + 1] : w);
+    beta = wrap_rad(err_rad + est_.heading_rad() - goal_cw);
   }
-  // Counter-clockwise from +x: theta = pi/2 - clockwise-from-+y.
-  const float theta = 0.5f * kPi - est_.heading_rad();
-  const float theta_goal = 0.5f * kPi - goal_cw;
-  const float alpha = wrap_rad(fast_atan2(static_cast<float>(w.y_mm) - est_.y_mm(), static_cast<float>(w.x_mm) - est_.x_mm()) - theta);
-  const float beta = wrap_rad(-alpha - theta + theta_goal);
   const float v_max = drive_speed_mm_s();
   // Slow down for the last waypoint only: the others are passed through at speed.
   const bool last = !in_detour && wp_ + 1 >= path_len_;

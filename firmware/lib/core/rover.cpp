@@ -174,13 +174,9 @@ void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) 
     start_sweep(now);
     return;
   }
-  float l = distance_to(target());
   float err = 0.0f;
-  if (l <= params_.arrival_radius_mm()) {
-    if (!reached_waypoint(l, err)) return;
-  } else {
-    err = error_to_deg(target());
-  }
+  float l = aim(target(), &err);
+  if (l <= params_.arrival_radius_mm() && !reached_waypoint(l, err)) return;
   if (state_ == RoverState::Rotate && mode_rotate(err, l, dt_s, out)) return;
   mode_drive(in, err, l, dt_s, now, out);
 }
@@ -196,7 +192,7 @@ ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s == RoverState::Drive && state_ != RoverState::Drive) {
     calib_anchor_ = false;
     drive_since_ms_ = last_ms_;
-    min_distance_mm_ = wp_ < path_len_ ? distance_to(target()) : 0.0f;
+    min_distance_mm_ = wp_ < path_len_ ? aim(target()) : 0.0f;
   }
   state_ = s;
   if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_ = false;
@@ -209,13 +205,15 @@ ROVERNAV_NOINLINE Point Rover::here_mm() const { return {saturate_i16(est_.x_mm(
 
 Waypoint Rover::target() const { return detour_i_ < detour_n_ ? detour_[detour_i_] : path_[wp_]; }
 
-float Rover::distance_to(Waypoint w) const {
-  return length(static_cast<float>(w.x_mm) - est_.x_mm(), static_cast<float>(w.y_mm) - est_.y_mm());
+ROVERNAV_NOINLINE float Rover::aim(Waypoint w, float* err_deg) const {
+  const float dx = static_cast<float>(w.x_mm) - est_.x_mm(), dy = static_cast<float>(w.y_mm) - est_.y_mm();
+  if (err_deg != nullptr) *err_deg = wrap_rad(fast_atan2(dx, dy) - est_.heading_rad()) * kDegPerRad;
+  return length(dx, dy);
 }
 
-float Rover::error_to_deg(Waypoint w) const {
-  const float b = bearing_rad(est_.x_mm(), est_.y_mm(), w.x_mm, w.y_mm);
-  return wrap_rad(b - est_.heading_rad()) * kDegPerRad;
+ROVERNAV_NOINLINE float bearing_rad(Point a, Point b) {
+  // Differences of int16 are exact as floats: one conversion each.
+  return fast_atan2(static_cast<float>(b.x_mm - a.x_mm), static_cast<float>(b.y_mm - a.y_mm));
 }
 
 float Rover::cone_deg(float distance_mm) const {

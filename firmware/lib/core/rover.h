@@ -27,6 +27,9 @@ namespace core {
 // A waypoint is a point of the plane in mm: the host's, or one of the rover's own detour.
 using Waypoint = Point;
 
+/// Bearing from a to b (radians, clockwise from +y).
+float bearing_rad(Point a, Point b);
+
 /// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
 /// and a base of the Rover's, set as one block (`RoverFields{}`). Every field starts at zero (what
 /// is not zero at the start, begin() sets), so that the Uno's global Rover is constant-initialised
@@ -212,8 +215,8 @@ class Rover : private RoverFields {
   void enter(RoverState s);
   Point here_mm() const;
   Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
-  float distance_to(Waypoint w) const;
-  float error_to_deg(Waypoint w) const;
+  /// The distance to w (mm) and, when err_deg is given, the heading error towards it (degrees).
+  float aim(Waypoint w, float* err_deg = nullptr) const;
   float cone_deg(float distance_mm) const;
   uint8_t closest_target() const;
   float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
@@ -255,7 +258,7 @@ class Rover : private RoverFields {
   // mode_drive.cpp
   void mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_t now, Outputs& out);
   bool reached_waypoint(float& l, float& err);
-  void pose_command(float rho_mm, Outputs& out);
+  void pose_command(float rho_mm, float err_deg, Outputs& out);
   // reflex.cpp
   bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
   bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;

@@ -3,6 +3,7 @@
 #include <math.h>
 
 #include "angles.h"
+#include "rover.h"
 
 using namespace rovernav::core;
 
@@ -33,5 +34,7 @@ TEST_CASE("fast_atan2 on the axes, at the origin and on the diagonals") {
   CHECK(fast_atan2(0.0f, -5.0f) == doctest::Approx(4 * q).epsilon(1e-6));
   CHECK(fast_atan2(1.0f, 1.0f) == doctest::Approx(q).epsilon(2e-5));
   CHECK(fast_atan2(-1.0f, -1.0f) == doctest::Approx(-3 * q).epsilon(2e-5));
-  CHECK(bearing_rad(0.0f, 0.0f, 10.0f, 0.0f) == doctest::Approx(2 * q).epsilon(1e-6));   // +x is 90 degrees clockwise from +y
+  // +x is 90 degrees clockwise from +y; -y is 180 degrees.
+  CHECK(bearing_rad(Point{100, 200}, Point{110, 200}) == doctest::Approx(2 * q).epsilon(1e-6));
+  CHECK(bearing_rad(Point{100, 200}, Point{100, 150}) == doctest::Approx(4 * q).epsilon(1e-6));
 }
