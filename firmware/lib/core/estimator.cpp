@@ -1,6 +1,7 @@
 #include "estimator.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "angles.h"
 #include "float_ops.h"
@@ -18,7 +19,7 @@ const float kFixHeadingVar = kFixHeadingSdRad * kFixHeadingSdRad;
 // (chi-square, 3 degrees of freedom, p < 1e-5).
 const float kGateChi2 = 25.0f;
 enum { X = 0, Y = 1, T = 2 };  // the pose q
-enum { XX = 0, XY = 1, XT = 2, YY = 3, YT = 4, TT = 5 };
+enum { XX = Estimator::kXX, XY = Estimator::kXY, YY = Estimator::kYY, XT = Estimator::kXT, YT = Estimator::kYT, TT = Estimator::kTT };
 // Where entry (row, column) of the symmetric P is stored, by 3 * row + column.
 const uint8_t kIndex[9] ROVERNAV_PROGMEM = {XX, XY, XT, XY, YY, YT, XT, YT, TT};
 
@@ -73,13 +74,14 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
   const float e[2] = {d * c, -d * s};
   const float g[2] = {s, c};
   float* P = p_;
-  const float c_old[2] = {P[XT], P[YT]};
-  P[XT] += e[0] * P[TT];
-  P[YT] += e[1] * P[TT];
-  const float c_new[2] = {P[XT], P[YT]};
+  static_assert(XT + 1 == YT && XX + 1 == XY && XY + 1 == YY, "the column and the block lie in order");
+  float c_old[2];
+  memcpy(c_old, P + XT, sizeof c_old);
+  for (uint8_t i = 0; i < 2; ++i) P[XT + i] += e[i] * P[TT];
+  const float* c_new = P + XT;
   for (uint8_t k = 0; k < 3; ++k) {
     const uint8_t i = static_cast<uint8_t>(k >> 1), j = static_cast<uint8_t>((k + 1) >> 1);  // xx, xy, yy
-    P[k + (k >> 1)] += e[i] * c_old[j] + e[j] * c_new[i] + g[i] * g[j] * var_d;
+    P[XX + k] += e[i] * c_old[j] + e[j] * c_new[i] + g[i] * g[j] * var_d;
   }
   P[TT] += var_th;
 
@@ -108,7 +110,8 @@ ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms,
   // The history is in time order: walk back from the odometry now (age 0) to the first sample
   // at least `want` old, and interpolate between it and the one after it ("newer"). With none
   // that old, the oldest sample will do.
-  float n[3] = {odo_[X], odo_[Y], odo_[T]};
+  float n[3];
+  memcpy(n, odo_, sizeof n);
   int32_t n_age = 0;
   for (uint8_t k = 1; k <= history_count_; ++k) {
     const Past& h = history_[(history_next_ + kHistory - k) % kHistory];
@@ -141,7 +144,8 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   // H = I and R diagonal, so the update is done one component at a time: three scalar updates
   // give exactly the batch result, in a loop that fits the Uno's flash. It runs on a copy, so
   // that a fix failing the gate changes nothing.
-  float q[3] = {q_[X], q_[Y], q_[T]};
+  float q[3];
+  memcpy(q, q_, sizeof q);   // a copy loop: the three floats written out took 100 bytes
   float P[9];
   for (uint8_t i = 0; i < 9; ++i) P[i] = p_[flash_read_u8(&kIndex[i])];
   const float chi2 = sequential_update(z, h, q_, r_pos, q, P);
@@ -153,9 +157,8 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
     return start_from(z, r_pos);
   }
   rejects_in_row_ = 0;
-  q_[X] = q[X];
-  q_[Y] = q[Y];
-  q_[T] = wrap_rad(q[T]);
+  q[T] = wrap_rad(q[T]);
+  memcpy(q_, q, sizeof q_);
   for (uint8_t r = 0; r < 3; ++r)
     for (uint8_t c = r; c < 3; ++c) p_[flash_read_u8(&kIndex[3 * r + c])] = 0.5f * (P[3 * r + c] + P[3 * c + r]);
   return FixResult::Accepted;

@@ -45,7 +45,8 @@ class Estimator {
   float x_mm() const { return q_[0]; }
   float y_mm() const { return q_[1]; }
   float heading_rad() const { return q_[2]; }
-  /// Covariance entries: xx, xy, xt, yy, yt, tt (mm^2, mm*rad, rad^2).
+  /// Covariance entries (mm^2, mm*rad, rad^2), by kXX ... kTT.
+  enum : uint8_t { kXX, kXY, kYY, kXT, kYT, kTT };
   float p(uint8_t i) const { return p_[i]; }
   /// Standard deviation along the worst direction of the position error (mm).
   float position_sd_mm() const;
@@ -72,7 +73,7 @@ class Estimator {
   bool initialised_ = false;
   float q_[3] = {};    // the pose: x, y (mm), theta (rad)
   float odo_[3] = {};  // the same by dead reckoning alone, never corrected
-  float p_[6] = {};  // xx xy xt yy yt tt
+  float p_[6] = {};  // xx xy yy xt yt: the position block, then its column with theta, then tt
   float last_innovation_mm_ = 0;
   uint8_t rejects_in_row_ = 0;
   uint16_t rejected_total_ = 0;

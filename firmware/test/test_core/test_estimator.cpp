@@ -49,19 +49,19 @@ TEST_CASE("dead reckoning: heading 0 is +y, 90 degrees is +x (clockwise)") {
 TEST_CASE("covariance follows P' = Fq P Fq^T + Fv V Fv^T: heading doubt becomes cross-track doubt") {
   Estimator e;
   e.update(fix(0, 0, 0, 0, 1), 0);
-  const float xx0 = e.p(0), yy0 = e.p(3), tt0 = e.p(5);
+  const float xx0 = e.p(Estimator::kXX), yy0 = e.p(Estimator::kYY), tt0 = e.p(Estimator::kTT);
   // Drive 1 m north with no distance noise: only the heading's variance spreads x (cross-track).
   for (int i = 0; i < 100; ++i) e.predict(10, 0, 0, 0, static_cast<uint32_t>(i));
   const float expected_xx = xx0 + tt0 * 1000.0f * 1000.0f;  // var(x) grows by L^2 var(theta)
-  CHECK(e.p(0) == doctest::Approx(expected_xx).epsilon(0.02));
-  CHECK(e.p(3) == doctest::Approx(yy0).epsilon(1e-3));     // along-track unchanged
-  CHECK(e.p(2) == doctest::Approx(1000.0f * tt0).epsilon(0.02));  // x-theta correlation
+  CHECK(e.p(Estimator::kXX) == doctest::Approx(expected_xx).epsilon(0.02));
+  CHECK(e.p(Estimator::kYY) == doctest::Approx(yy0).epsilon(1e-3));     // along-track unchanged
+  CHECK(e.p(Estimator::kXT) == doctest::Approx(1000.0f * tt0).epsilon(0.02));  // x-theta correlation
   // Distance noise goes along the track only.
   Estimator f;
   f.update(fix(0, 0, 9000, 0, 1), 0);
-  const float f_xx0 = f.p(0);
+  const float f_xx0 = f.p(Estimator::kXX);
   f.predict(100, 0, 50, 0, 1);
-  CHECK(f.p(0) == doctest::Approx(f_xx0 + 50).epsilon(1e-3));  // heading east: along-track is x
+  CHECK(f.p(Estimator::kXX) == doctest::Approx(f_xx0 + 50).epsilon(1e-3));  // heading east: along-track is x
 }
 
 TEST_CASE("a fix pulls the estimate to it in proportion to the uncertainties") {
@@ -116,7 +116,9 @@ TEST_CASE("a fix's update equals the batch Kalman update, correlations included"
   Estimator e;
   e.update(fix(100, 200, 3000, 0, 3), 0);
   for (uint32_t t = 10; t <= 1000; t += 10) e.predict(2.0f, 0.3f * kRadPerDeg, 2.0f, 1e-5f, t);
-  const int idx[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  const int idx[3][3] = {{Estimator::kXX, Estimator::kXY, Estimator::kXT},
+                         {Estimator::kXY, Estimator::kYY, Estimator::kYT},
+                         {Estimator::kXT, Estimator::kYT, Estimator::kTT}};
   double P[3][3], S[3][3], Si[3][3], K[3][3];
   const double r[3] = {16.0, 16.0, double(kRadPerDeg) * double(kRadPerDeg)};  // sd 4 mm, 1 degree
   for (int i = 0; i < 3; ++i)
