@@ -13,7 +13,7 @@ namespace core {
 // for the next step (the shell gives them again); a step kept for a put-off job, or with a
 // sonar result, takes no signed frame at all. A rover with no key computes no tag and takes
 // everything at once.
-uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
+ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
   if (fix_verified_) {
     // The FIX whose tag the last step checked (still in the decoder: nothing is pushed until it
     // is taken) is this step's job, unless a sonar result was put off too: the sweep waits for

@@ -115,7 +115,7 @@ ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_
   tx_.send(o);
 }
 
-void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+ROVERNAV_NOINLINE void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   send_reading(bearing_cdeg, range_mm);
   ++scan_echoes_;
   remember_echo(bearing_cdeg, range_mm);

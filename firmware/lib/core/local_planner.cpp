@@ -79,7 +79,7 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
   return false;
 }
 
-Point LocalPlanner::cell_centre(int16_t ix, int16_t iy) const {
+ROVERNAV_NOINLINE Point LocalPlanner::cell_centre(int16_t ix, int16_t iy) const {
   Point p;
   p.x_mm = static_cast<int16_t>(origin_.x_mm + ix * kCellMm + kCellMm / 2);
   p.y_mm = static_cast<int16_t>(origin_.y_mm + iy * kCellMm + kCellMm / 2);

@@ -24,7 +24,7 @@ void Params::reset() {
 }
 
 // Writes value (within the parameter's limits, so within its width) little-endian into its place.
-void Params::store(uint8_t id, int32_t value) {
+ROVERNAV_NOINLINE void Params::store(uint8_t id, int32_t value) {
   const uint8_t at = flash_read_u8(&kParamOffset[id - 1]);
   uint32_t u = static_cast<uint32_t>(value);
   for (uint8_t i = 0; i < param_width(at); ++i, u >>= 8) store_[at + i] = static_cast<uint8_t>(u);

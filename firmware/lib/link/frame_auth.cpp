@@ -21,7 +21,7 @@ bool counter_above(const Counter48& a, const Counter48& b) {
   return false;
 }
 
-void FrameAuth::begin(const uint8_t* key) {
+__attribute__((noinline)) void FrameAuth::begin(const uint8_t* key) {
   keyed_ = key != nullptr;
   for (uint8_t i = 0; i < kSipKeyBytes; ++i) key_[i] = keyed_ ? key[i] : 0;
 }
