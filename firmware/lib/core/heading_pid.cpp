@@ -5,7 +5,7 @@
 namespace rovernav {
 namespace core {
 
-ROVERNAV_NOINLINE float HeadingPid::update(float error_deg, float rate_dps, float dt_s, const PidGains& g) {
+float HeadingPid::update(float error_deg, float rate_dps, float dt_s, const PidGains& g) {
   // Integrate small errors only (the seed's tuning: "the integral gain was increased for small
   // errors only"): a large turn must not wind the integral up and overshoot.
   if (g.ki > 0.0f && fabsf(error_deg) < kIntegrateBelowDeg) {

@@ -66,7 +66,7 @@ class Params {
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads
   // costs the Uno more flash than the calls; so does a scale loaded at each (x100, per mille).
   ROVERNAV_NOINLINE float as_float(Param p) const { return static_cast<float>(raw(p)); }
-  ROVERNAV_NOINLINE float scaled(Param p, float scale) const { return as_float(p) * scale; }
+  float scaled(Param p, float scale) const { return as_float(p) * scale; }
   ROVERNAV_NOINLINE float hundredths(Param p) const { return scaled(p, 0.01f); }
   ROVERNAV_NOINLINE float thousandths(Param p) const { return scaled(p, 0.001f); }
   void store(uint8_t id, int32_t value);

@@ -211,7 +211,7 @@ ROVERNAV_NOINLINE float Rover::aim(Waypoint w, float* err_deg) const {
   return length(dx, dy);
 }
 
-ROVERNAV_NOINLINE float bearing_rad(Point a, Point b) {
+float bearing_rad(Point a, Point b) {
   // Differences of int16 are exact as floats: one conversion each.
   return fast_atan2(static_cast<float>(b.x_mm - a.x_mm), static_cast<float>(b.y_mm - a.y_mm));
 }

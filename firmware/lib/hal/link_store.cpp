@@ -52,7 +52,7 @@ void LinkStore::load(core::LinkSecrets& out) {
   }
 }
 
-void LinkStore::start(uint16_t addr, uint8_t n) {
+__attribute__((noinline)) void LinkStore::start(uint16_t addr, uint8_t n) {
   addr_ = addr;
   left_ = n;
   done_ = 0;

@@ -74,7 +74,7 @@ MpuResult Mpu6050::begin() {
   return identity;
 }
 
-MpuResult Mpu6050::read_chip_rate_mdps(int32_t& rate_mdps) {
+__attribute__((noinline)) MpuResult Mpu6050::read_chip_rate_mdps(int32_t& rate_mdps) {
   if (!started_) return MpuResult::NotStarted;
   uint8_t bytes[2];
   const MpuResult r = read_regs(kRegGyroZoutH, bytes, 2);

@@ -45,9 +45,8 @@ typedef LittleEndian<uint32_t> u32le;
 typedef LittleEndian<int32_t> i32le;
 static_assert(sizeof(u32le) == 4 && alignof(u32le) == 1, "a wire integer is its bytes");
 
-/// Copies n bytes (a message's payload into or out of its struct): one copy of the loop for all
-/// (noinline: LTO would paste it into every caller).
-__attribute__((noinline)) inline void copy(void* to, const void* from, uint8_t n) {
+/// Copies n bytes (a message's payload into or out of its struct).
+inline void copy(void* to, const void* from, uint8_t n) {
   uint8_t* d = static_cast<uint8_t*>(to);
   const uint8_t* s = static_cast<const uint8_t*>(from);
   for (uint8_t i = 0; i < n; ++i) d[i] = s[i];
