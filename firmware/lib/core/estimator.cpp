@@ -85,7 +85,7 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
   }
   P[TT] += var_th;
 
-  if (history_count_ == 0 || now_ms - history_last_ms_ >= kHistoryPeriodMs) {
+  if (history_count_ == 0 || static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - history_last_ms_) >= kHistoryPeriodMs) {
     Past& h = history_[history_next_];
     h.x_mm = static_cast<int16_t>(lroundf(odo_[X]));
     h.y_mm = static_cast<int16_t>(lroundf(odo_[Y]));
@@ -93,7 +93,7 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
     h.t_ms = static_cast<uint16_t>(now_ms);
     history_next_ = static_cast<uint8_t>((history_next_ + 1) % kHistory);
     if (history_count_ < kHistory) ++history_count_;
-    history_last_ms_ = now_ms;
+    history_last_ms_ = static_cast<uint16_t>(now_ms);
   }
 }
 

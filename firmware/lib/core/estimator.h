@@ -80,7 +80,7 @@ class Estimator {
   Past history_[kHistory] = {};
   uint8_t history_next_ = 0;
   uint8_t history_count_ = 0;
-  uint32_t history_last_ms_ = 0;
+  uint16_t history_last_ms_ = 0;   // modulo 65,536: predict() runs every step, 40 ms apart at most
 };
 
 }  // namespace core

@@ -21,9 +21,9 @@ void Rover::update_gyro(const Inputs& in, uint32_t now) {
     rate_dps_ = static_cast<float>(in.gyro_rate_mdps) / 1000.0f;
     if (!gyro_good_run_) {
       gyro_good_run_ = true;
-      gyro_good_since_ms_ = now;
+      gyro_good_since_ms_ = static_cast<uint16_t>(now);
     }
-    if (fault_ != FaultCode::None && now - gyro_good_since_ms_ >= kGyroRecoverMs) {
+    if (fault_ != FaultCode::None && static_cast<uint16_t>(static_cast<uint16_t>(now) - gyro_good_since_ms_) >= kGyroRecoverMs) {
       const FaultCode cleared = fault_;
       fault_ = FaultCode::None;
       send_event(EventKind::FaultCleared, static_cast<uint16_t>(cleared));

@@ -81,7 +81,8 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   last_ms_ = now;
   if (!booted_) {
     booted_ = have_time_ = true;
-    last_rx_ms_ = gyro_last_ms_ = last_status_ms_ = boot_ms_ = now;
+    last_rx_ms_ = gyro_last_ms_ = boot_ms_ = now;
+    last_status_ms_ = static_cast<uint16_t>(now);
     send_hello();
     send_event(EventKind::Boot, reset_cause_);
   }
@@ -125,11 +126,11 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   right_cmd_ = out.right_pwm;
   out.servo_cdeg = servo_cdeg_;
 
-  if (now - last_status_ms_ >= params_.status_period_ms()) {
+  if (static_cast<uint16_t>(static_cast<uint16_t>(now) - last_status_ms_) >= params_.status_period_ms()) {
     if (step_work_ & (kWorkFix | kWorkOther | kWorkTag)) {
       put_off_ = true;
     } else {
-      last_status_ms_ = now;
+      last_status_ms_ = static_cast<uint16_t>(now);
       if (!send_link_auth()) send_status();
     }
   }

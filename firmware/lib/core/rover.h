@@ -52,7 +52,7 @@ struct RoverFields {
   uint16_t reset_cause_ = 0;
   bool schema_ok_ = false;
   uint8_t camera_ = 0;                        // CameraState from HEARTBEAT
-  uint32_t last_status_ms_ = 0;
+  uint16_t last_status_ms_ = 0;               // modulo 65,536: STATUS goes every status_period_ms (<= 10 s)
   Waypoint path_[kMaxWaypoints] = {};
   uint8_t path_len_ = 0;
   uint16_t path_id_ = 0;
@@ -74,7 +74,7 @@ struct RoverFields {
   // failsafe (failsafe.cpp): the gyro's and the radio's watchdogs, faults
   FaultCode fault_ = FaultCode::None;
   uint32_t gyro_last_ms_ = 0;
-  uint32_t gyro_good_since_ms_ = 0;
+  uint16_t gyro_good_since_ms_ = 0;           // modulo 65,536: a faulted gyro's good run (cleared at 500 ms)
   bool gyro_good_run_ = false;
   float rate_dps_ = 0.0f;
   uint32_t last_rx_ms_ = 0;

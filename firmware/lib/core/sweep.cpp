@@ -9,7 +9,7 @@ ROVERNAV_NOINLINE void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to)
   const int32_t moved = to > from ? to - from : from - to;
   const int32_t steps = (moved + kStepCdeg - 1) / kStepCdeg;
   angle_cdeg_ = to;
-  phase_start_ms_ = now_ms;
+  phase_start_ms_ = static_cast<uint16_t>(now_ms);
   const int32_t slew_ms = step_ms_ < kSlewMsPerStep ? static_cast<int32_t>(step_ms_) : static_cast<int32_t>(kSlewMsPerStep);
   const int32_t wait_ms = static_cast<int32_t>(step_ms_) + (steps > 1 ? (steps - 1) * slew_ms : 0);
   // The HC-SR04 needs about 60 ms between pings for the last echo to die away.
@@ -30,12 +30,12 @@ Sweep::Echo Sweep::step(uint32_t now_ms, bool sonar_valid, uint16_t sonar_range_
   fire = false;
   if (!running_) return echo;
   servo_cdeg = angle_cdeg_;
-  const uint32_t elapsed = now_ms - phase_start_ms_;
+  const uint16_t elapsed = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - phase_start_ms_);
   if (!waiting_echo_) {
     if (elapsed >= phase_ms_) {
       fire = true;
       waiting_echo_ = true;
-      phase_start_ms_ = now_ms;
+      phase_start_ms_ = static_cast<uint16_t>(now_ms);
       ++pings_;
     }
     return echo;

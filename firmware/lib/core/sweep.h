@@ -38,7 +38,7 @@ class Sweep {
   bool running_ = false;
   bool waiting_echo_ = false;
   int16_t angle_cdeg_ = 0;
-  uint32_t phase_start_ms_ = 0;
+  uint16_t phase_start_ms_ = 0;   // modulo 65,536: a phase lasts sweep_step_ms and a slew (< 6 s) at most
   uint16_t phase_ms_ = 0;
   uint16_t step_ms_ = 0;
   uint8_t pings_ = 0;
