@@ -139,7 +139,7 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   float h[3];
   odometry_since(fix.taken_ms, now_ms, h);
   for (uint8_t i = 0; i < 3; ++i) h[i] = q_[i] - h[i];
-  last_innovation_mm_ = length(z[X] - h[X], z[Y] - h[Y]);
+  last_innovation_mm_ = saturate_u16(length(z[X] - h[X], z[Y] - h[Y]));
 
   // H = I and R diagonal, so the update is done one component at a time: three scalar updates
   // give exactly the batch result, in a loop that fits the Uno's flash. It runs on a copy, so

@@ -52,7 +52,7 @@ class Estimator {
   float position_sd_mm() const;
   /// Distance between the last fix and the pose it was compared with (mm): after an outage,
   /// the dead-reckoning error the fix revealed.
-  float last_innovation_mm() const { return last_innovation_mm_; }
+  uint16_t last_innovation_mm() const { return last_innovation_mm_; }
   uint16_t rejected_fixes() const { return rejected_total_; }
 
   enum : uint8_t { kHistory = 6, kMaxRejects = 10 };
@@ -74,7 +74,7 @@ class Estimator {
   float q_[3] = {};    // the pose: x, y (mm), theta (rad)
   float odo_[3] = {};  // the same by dead reckoning alone, never corrected
   float p_[6] = {};  // xx xy yy xt yt: the position block, then its column with theta, then tt
-  float last_innovation_mm_ = 0;
+  uint16_t last_innovation_mm_ = 0;   // saturated
   uint8_t rejects_in_row_ = 0;
   uint16_t rejected_total_ = 0;
   Past history_[kHistory] = {};

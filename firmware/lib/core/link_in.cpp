@@ -109,7 +109,7 @@ void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   had_fix_ = true;
   if (dead_reckoning_) {
     dead_reckoning_ = false;
-    send_event(EventKind::CameraBack, saturate_u16(est_.last_innovation_mm()));
+    send_event(EventKind::CameraBack, est_.last_innovation_mm());
   }
   dr_distance_mm_ = 0.0f;
   calibrate_speed(m, now, r);

@@ -107,7 +107,7 @@ bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
   if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return false;
   if (inside(goal)) return false;
   scratch_ = scratch;
-  start_ = start;
+  anchor_ = prev_ = start;   // where the walk back starts
   goal_ = goal;
   start_i_ = static_cast<uint16_t>(sy * kCells + sx);
   goal_i_ = static_cast<uint16_t>(gy * kCells + gx);
@@ -184,7 +184,6 @@ PlanStatus LocalPlanner::step(Point* out, uint8_t& n_out) {
   if (walk_init_) {
     walk_init_ = false;
     n_walk_ = 0;
-    anchor_ = prev_ = start_;
     i_ = start_i_;
   }
   for (uint8_t k = 0; k < kWalkCells; ++k) {

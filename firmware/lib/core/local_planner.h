@@ -82,7 +82,7 @@ class LocalPlanner {
   mutable uint16_t ops_ = 0;
   // The plan under way.
   uint8_t* scratch_ = nullptr;
-  Point start_ = {0, 0}, goal_ = {0, 0};
+  Point goal_ = {0, 0};
   Point anchor_ = {0, 0}, prev_ = {0, 0};   // the walk back: last kept point, last cell
   uint16_t start_i_ = 0, goal_i_ = 0;
   uint16_t i_ = 0;                          // Mark: next cell; Walk: the cell reached
