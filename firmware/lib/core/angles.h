@@ -13,15 +13,10 @@ static const float kPi = 3.14159265f;
 static const float kRadPerDeg = kPi / 180.0f;
 static const float kDegPerRad = 180.0f / kPi;
 
-/// Wraps to (-pi, pi]. No loop: a NaN or a huge value cannot stall the rover. Most angles are
-/// in range or one turn out: those skip the division and floor (62 us on the Uno, measured).
-inline float wrap_rad(float a) {
-  if (a > -kPi && a <= kPi) return a;
-  if (a > kPi && a <= 3.0f * kPi) return a - 2.0f * kPi;
-  if (a <= -kPi && a > -3.0f * kPi) return a + 2.0f * kPi;
-  a -= 2.0f * kPi * floorf((a + kPi) / (2.0f * kPi));
-  return a <= -kPi ? a + 2.0f * kPi : (a > kPi ? a - 2.0f * kPi : a);
-}
+/// Wraps to (-pi, pi]. No loop: a NaN or a huge value cannot stall the rover. An angle in range
+/// costs two comparisons; one out of range, the whole turns taken off (a multiplication, not a
+/// division, and the integer part, not libm's floor), then one turn at most.
+float wrap_rad(float a);
 
 inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }
 

@@ -16,8 +16,10 @@ void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_
   const Params& p = params_;
   if (reflex(in, now, l, out)) return;
 
+  const float sweep_mm = p.sweep_interval_mm();
+  const bool sweep_due = sweep_mm > 0.0f && sweep_distance_mm_ >= sweep_mm;   // 0 disables sweeps
   if (p.pose_law()) {
-    if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+    if (sweep_due) {
       start_sweep(now);
       return;
     }
@@ -35,7 +37,7 @@ void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_
     enter(RoverState::Rotate);
     return;
   }
-  if (p.sweep_interval_mm() > 0.0f && sweep_distance_mm_ >= p.sweep_interval_mm()) {
+  if (sweep_due) {
     start_sweep(now);
     return;
   }
@@ -114,7 +116,7 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   float v = last ? p.pose_k_rho() * rho_mm : v_max;
   if (v > v_max) v = v_max;
   const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s
-  const float per_pwm = p.speed_mm_s_per_pwm() * speed_scale_;
+  const float per_pwm = mm_s_per_pwm();
   float base = per_pwm > 0.0f ? static_cast<float>(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
   const float floor_pwm = static_cast<float>(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
   if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall

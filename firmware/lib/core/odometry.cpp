@@ -43,7 +43,7 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   } else {
     const int16_t deadband = params_.motor_deadband_pwm();
     const float pwm = 0.5f * (effective_pwm(left_cmd_, deadband) + effective_pwm(right_cmd_, deadband));
-    d_mm = speed_scale_ * params_.speed_mm_s_per_pwm() * pwm * dt_s;
+    d_mm = mm_s_per_pwm() * pwm * dt_s;
     var_d = kModelVarPerMm * fabsf(d_mm);
   }
   const float dth = fault_ == FaultCode::None ? rate_dps_ * kRadPerDeg * dt_s : 0.0f;
@@ -75,16 +75,18 @@ void Rover::calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r) {
   if (calib_model_mm_ >= static_cast<float>(kCalibrateMinMm)) {
     const float fix_mm = length(static_cast<float>(m.x_mm - calib_x_mm_), static_cast<float>(m.y_mm - calib_y_mm_));
     const float ratio = fix_mm / calib_model_mm_;
-    speed_scale_ = clamp(speed_scale_ * (1.0f + 0.3f * (ratio - 1.0f)), 0.3f, 3.0f);
+    speed_scale_ = clamp(speed_scale_ * (0.7f + 0.3f * ratio), 0.3f, 3.0f);   // 30 % of the way to the ratio
     calib_x_mm_ = m.x_mm;
     calib_y_mm_ = m.y_mm;
     calib_model_mm_ = 0.0f;
   }
 }
 
+ROVERNAV_NOINLINE float Rover::mm_s_per_pwm() const { return params_.speed_mm_s_per_pwm() * speed_scale_; }
+
 float Rover::drive_speed_mm_s() const {
   const Params& p = params_;
-  const float v_mm_s = p.speed_mm_s_per_pwm() * speed_scale_ * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  const float v_mm_s = mm_s_per_pwm() * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
   return v_mm_s > 0.0f ? v_mm_s : 0.0f;
 }
 

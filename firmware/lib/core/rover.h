@@ -206,6 +206,8 @@ class Rover : private RoverFields {
   float dr_distance_mm() const { return dr_distance_mm_; }
   /// The speed the rover cruises at (mm/s), from its drive command and speed model.
   float drive_speed_mm_s() const;
+  /// The speed model: mm/s per PWM above the dead band, as calibrated.
+  float mm_s_per_pwm() const;
   /// The forward reflex's range from the sensor: stopping distance at cruise speed plus the margin.
   float reflex_range_mm() const;
 
