@@ -40,17 +40,13 @@ void LocalPlanner::add(Point p, uint16_t radius_mm) {
   disks_[i].r_mm = radius_mm;
 }
 
-bool LocalPlanner::inside(Point p) const {
-  for (uint8_t i = 0; i < n_; ++i) {
-    ++ops_;
-    const Disk& d = disks_[i];
-    if (sq(p.x_mm - d.c.x_mm) + sq(p.y_mm - d.c.y_mm) < sq(d.r_mm)) return true;
-  }
-  return false;
-}
+// A disk whose arc comes within reach is one whose radius, less the clearance plus the reach,
+// covers p; inside() is within() with neither: one loop for both.
+bool LocalPlanner::inside(Point p) const { return within(p, 0, 0); }
 
 bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const {
   for (uint8_t i = 0; i < n_; ++i) {
+    ++ops_;
     const Disk& d = disks_[i];
     const int32_t arc = d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0;   // half the arc's width
     const int32_t r = arc + reach_mm;
