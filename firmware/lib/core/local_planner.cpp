@@ -21,6 +21,15 @@ inline void set_nibble(uint8_t* n, uint16_t i, uint8_t v) {
 
 int32_t sq(int32_t v) { return v * v; }
 
+// How far c lies outside the span between a and b (0 within it), in 16 bits without overflow:
+// the difference of two int16 is at most 65,535.
+uint16_t outside_span(int16_t c, int16_t a, int16_t b) {
+  const int16_t lo = a < b ? a : b, hi = a < b ? b : a;
+  if (c < lo) return static_cast<uint16_t>(static_cast<uint16_t>(lo) - static_cast<uint16_t>(c));
+  if (c > hi) return static_cast<uint16_t>(static_cast<uint16_t>(c) - static_cast<uint16_t>(hi));
+  return 0;
+}
+
 }  // namespace
 
 void LocalPlanner::add(Point p, uint16_t radius_mm) {
@@ -59,14 +68,13 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
   // A disk whose centre lies farther than its radius outside the segment's bounding box cannot
   // reach the segment: an integer test that spares most disks the float geometry (the walk back
   // tests three cells a slice against every disk).
-  const int32_t lo_x = a.x_mm < b.x_mm ? a.x_mm : b.x_mm, hi_x = a.x_mm < b.x_mm ? b.x_mm : a.x_mm;
-  const int32_t lo_y = a.y_mm < b.y_mm ? a.y_mm : b.y_mm, hi_y = a.y_mm < b.y_mm ? b.y_mm : a.y_mm;
   const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
   for (uint8_t i = 0; i < n_; ++i) {
     ++ops_;
     const Disk& d = disks_[i];
-    const int32_t r = static_cast<int32_t>(d.r_mm) - shrink_mm;
-    if (r <= 0 || d.c.x_mm < lo_x - r || d.c.x_mm > hi_x + r || d.c.y_mm < lo_y - r || d.c.y_mm > hi_y + r) continue;
+    if (d.r_mm <= shrink_mm) continue;
+    const uint16_t r = static_cast<uint16_t>(d.r_mm - shrink_mm);
+    if (outside_span(d.c.x_mm, a.x_mm, b.x_mm) > r || outside_span(d.c.y_mm, a.y_mm, b.y_mm) > r) continue;
     float t;
     const float d2 = segment_distance2(static_cast<float>(d.c.x_mm - a.x_mm), static_cast<float>(d.c.y_mm - a.y_mm), vx, vy, t);
     const float rf = static_cast<float>(r);
