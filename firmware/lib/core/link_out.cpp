@@ -2,6 +2,9 @@
 // sonar's readings as OBSTACLE frames.
 #include "rover.h"
 
+#include <stddef.h>
+#include <string.h>
+
 #include "angles.h"
 #include "float_ops.h"
 #include "le_bytes.h"
@@ -76,12 +79,10 @@ ROVERNAV_NOINLINE void Rover::send_status() {
   s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;
   s.left_pwm = left_cmd_;
   s.right_pwm = right_cmd_;
-  const FrameCounters& c = decoder_.counters();
-  s.rx_ok = c.frames_ok;
-  s.rx_bad_crc = c.bad_crc;
-  s.rx_overlong = c.overlong;
-  s.rx_unknown_id = c.unknown_id;
-  s.rx_malformed = c.malformed;
+  // The decoder's five counters are STATUS's five rx fields, in the same order and width.
+  static_assert(sizeof(FrameCounters) == 10 && offsetof(msg::Status, rx_malformed) == offsetof(msg::Status, rx_ok) + 8,
+                "FrameCounters lies as STATUS's rx_ok .. rx_malformed");
+  memcpy(static_cast<void*>(&s.rx_ok), &decoder_.counters(), sizeof(FrameCounters));
   s.tx_dropped = tx_.dropped();
   tx_.send(s);
 }
@@ -94,10 +95,9 @@ bool Rover::send_link_auth() {
   auth_reported_ = sum;
   msg::LinkAuth a;
   a.signing = auth_.keyed() ? 1 : 0;
-  a.bad_tag = c.bad_tag;
-  a.replayed = c.replayed;
-  a.not_signed = c.not_signed;
-  a.unverified = c.unverified;
+  static_assert(sizeof(AuthCounters) == 8 && offsetof(msg::LinkAuth, unverified) == offsetof(msg::LinkAuth, bad_tag) + 6,
+                "AuthCounters lies as LINK_AUTH's bad_tag .. unverified");
+  memcpy(static_cast<void*>(&a.bad_tag), &c, sizeof c);
   tx_.send(a);
   return true;
 }
