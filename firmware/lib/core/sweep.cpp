@@ -6,15 +6,16 @@ namespace rovernav {
 namespace core {
 
 ROVERNAV_NOINLINE void Sweep::move_to(uint32_t now_ms, int16_t from, int16_t to) {
-  const int32_t moved = to > from ? to - from : from - to;
-  const int32_t steps = (moved + kStepCdeg - 1) / kStepCdeg;
+  // In 16 bits: a move is at most 180 degrees (12 steps), a phase sweep_step_ms (<= 5 s) and
+  // the slew.
+  const uint16_t moved = static_cast<uint16_t>(to > from ? to - from : from - to);
+  const uint8_t steps = static_cast<uint8_t>((moved + kStepCdeg - 1) / kStepCdeg);
   angle_cdeg_ = to;
   phase_start_ms_ = static_cast<uint16_t>(now_ms);
-  const int32_t slew_ms = step_ms_ < kSlewMsPerStep ? static_cast<int32_t>(step_ms_) : static_cast<int32_t>(kSlewMsPerStep);
-  const int32_t wait_ms = static_cast<int32_t>(step_ms_) + (steps > 1 ? (steps - 1) * slew_ms : 0);
+  const uint16_t slew_ms = step_ms_ < kSlewMsPerStep ? step_ms_ : static_cast<uint16_t>(kSlewMsPerStep);
+  const uint16_t wait_ms = static_cast<uint16_t>(step_ms_ + (steps > 1 ? (steps - 1) * slew_ms : 0));
   // The HC-SR04 needs about 60 ms between pings for the last echo to die away.
-  const int32_t min_gap_ms = kPingTimeoutMs;
-  phase_ms_ = static_cast<uint16_t>(wait_ms < min_gap_ms ? min_gap_ms : wait_ms);
+  phase_ms_ = wait_ms < kPingTimeoutMs ? static_cast<uint16_t>(kPingTimeoutMs) : wait_ms;
   waiting_echo_ = false;
 }
 
