@@ -31,11 +31,11 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
   float left = ahead_mm;
   for (uint8_t i = wp_; i < path_len_; ++i) {
     const Waypoint to = path_[i];
-    const float seg = length(static_cast<float>(to.x_mm - from.x_mm), static_cast<float>(to.y_mm - from.y_mm));
+    const float dx = static_cast<float>(to.x_mm - from.x_mm), dy = static_cast<float>(to.y_mm - from.y_mm);
+    const float seg = length(dx, dy);
     if (seg >= left && seg > 0.0f) {
       const float f = left / seg;
-      Waypoint w = {saturate_i16(from.x_mm + f * static_cast<float>(to.x_mm - from.x_mm)),
-                    saturate_i16(from.y_mm + f * static_cast<float>(to.y_mm - from.y_mm))};
+      Waypoint w = {saturate_i16(from.x_mm + f * dx), saturate_i16(from.y_mm + f * dy)};
       return w;
     }
     left -= seg;
