@@ -12,25 +12,28 @@
 namespace rovernav {
 namespace core {
 
+/// v clamped to [lo, hi].
+inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/// dx^2 + dy^2.
+inline ROVERNAV_NOINLINE float norm2(float dx, float dy) { return dx * dx + dy * dy; }
+
 /// Length of the vector (dx, dy): sqrt(dx^2 + dy^2), the plain formula (no overflow guard).
-inline ROVERNAV_NOINLINE float length(float dx, float dy) { return sqrtf(dx * dx + dy * dy); }
+inline ROVERNAV_NOINLINE float length(float dx, float dy) { return sqrtf(norm2(dx, dy)); }
 
 /// The squared distance from point p to the segment from the origin to v (all relative to the
 /// segment's start), and in t the nearest point's place along it before clamping to [0, 1]
 /// (t <= 0: p lies before the start). One copy for the detour planner and the choice of leg.
 inline ROVERNAV_NOINLINE float segment_distance2(float px, float py, float vx, float vy, float& t) {
-  const float len2 = vx * vx + vy * vy;
+  const float len2 = norm2(vx, vy);
   t = len2 > 0.0f ? (px * vx + py * vy) / len2 : 0.0f;
-  const float tc = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
-  const float ex = px - tc * vx, ey = py - tc * vy;
-  return ex * ex + ey * ey;
+  const float tc = clamp(t, 0.0f, 1.0f);
+  return norm2(px - tc * vx, py - tc * vy);
 }
 
 /// sqrt(v), or 0 when v is not positive (or is NaN).
 inline ROVERNAV_NOINLINE float sqrt_or_zero(float v) { return v > 0.0f ? sqrtf(v) : 0.0f; }
 
-/// v clamped to [lo, hi].
-inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
 /// A motor command: v rounded and clamped to -255..255.
 inline ROVERNAV_NOINLINE int16_t clamp_pwm(float v) {
