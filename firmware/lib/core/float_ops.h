@@ -15,6 +15,9 @@ namespace core {
 /// v clamped to [lo, hi].
 inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/// acc += v, out of line: a float member's += written out is two four-byte moves and a call.
+inline ROVERNAV_NOINLINE void add_to(float& acc, float v) { acc += v; }
+
 /// dx^2 + dy^2.
 inline ROVERNAV_NOINLINE float norm2(float dx, float dy) { return dx * dx + dy * dy; }
 

@@ -62,7 +62,7 @@ bool Rover::room_to_turn() const {
 // kBackOffMaxMm at most; then the turn it put off.
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  back_off_mm_ += drive_speed_mm_s() * dt_s;
+  add_to(back_off_mm_, drive_speed_mm_s() * dt_s);
   if (room_to_turn() || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
     enter(RoverState::Rotate);
     rotate_checked_ = true;

@@ -50,10 +50,10 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   const float var_th = kGyroVarPerS * dt_s + (kGyroScaleSd * dth) * (kGyroScaleSd * dth);
   est_.predict(d_mm, dth, var_d, var_th, now);
   const float ad = fabsf(d_mm);
-  if (dead_reckoning_) dr_distance_mm_ += ad;
+  if (dead_reckoning_) add_to(dr_distance_mm_, ad);
   if (state_ == RoverState::Drive) {
-    sweep_distance_mm_ += ad;
-    calib_model_mm_ += d_mm;
+    add_to(sweep_distance_mm_, ad);
+    add_to(calib_model_mm_, d_mm);
   }
 }
 
