@@ -18,7 +18,7 @@ void Rover::update_gyro(const Inputs& in, uint32_t now) {
       return;
     }
     gyro_last_ms_ = now;
-    rate_dps_ = static_cast<float>(in.gyro_rate_mdps) / 1000.0f;
+    rate_mdps_ = in.gyro_rate_mdps;
     if (!gyro_good_run_) {
       gyro_good_run_ = true;
       gyro_good_since_ms_ = static_cast<uint16_t>(now);
@@ -33,7 +33,7 @@ void Rover::update_gyro(const Inputs& in, uint32_t now) {
   }
   if (now - gyro_last_ms_ > params_.gyro_timeout_ms()) {
     gyro_good_run_ = false;
-    rate_dps_ = 0.0f;
+    rate_mdps_ = 0;
     if (fault_ == FaultCode::None) raise_fault(FaultCode::GyroSilent);
   }
 }

@@ -9,8 +9,9 @@ namespace rovernav {
 namespace core {
 
 namespace {
-// Rotation counts as done when also this slow (deg/s), so the rover does not coast past it.
-const float kRotateSettledDps = 10.0f;
+// Rotation counts as done when also this slow (10 deg/s, in the gyro's mdps), so the rover does not
+// coast past it.
+const int32_t kRotateSettledMdps = 10000;
 }  // namespace
 
 // Rotate: the gyro PID turns the rover on the spot towards the target. Returns false once it
@@ -35,7 +36,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     const float half_cone = 0.5f * cone_deg(l);
     if (half_cone < done_deg) done_deg = half_cone;
   }
-  if (fabsf(err) <= done_deg && fabsf(rate_dps_) < kRotateSettledDps) {
+  if (fabsf(err) <= done_deg && rate_mdps_ < kRotateSettledMdps && rate_mdps_ > -kRotateSettledMdps) {
     enter(RoverState::Drive);
     return false;
   }

@@ -46,7 +46,7 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
     d_mm = mm_s_per_pwm() * pwm * dt_s;
     var_d = kModelVarPerMm * fabsf(d_mm);
   }
-  const float dth = fault_ == FaultCode::None ? rate_dps_ * kRadPerDeg * dt_s : 0.0f;
+  const float dth = fault_ == FaultCode::None ? static_cast<float>(rate_mdps_) * (kRadPerDeg / 1000.0f) * dt_s : 0.0f;
   const float var_th = kGyroVarPerS * dt_s + (kGyroScaleSd * dth) * (kGyroScaleSd * dth);
   est_.predict(d_mm, dth, var_d, var_th, now);
   const float ad = fabsf(d_mm);

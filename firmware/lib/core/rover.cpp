@@ -243,7 +243,7 @@ uint8_t Rover::closest_target() const {
 }
 
 float Rover::heading_command(float error_deg, float dt_s) {
-  return pid_.update(error_deg, rate_dps_, dt_s, params_.pid_gains());
+  return pid_.update(error_deg, static_cast<float>(rate_mdps_) * 0.001f, dt_s, params_.pid_gains());
 }
 
 }  // namespace core

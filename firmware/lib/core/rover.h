@@ -76,7 +76,7 @@ struct RoverFields {
   uint32_t gyro_last_ms_ = 0;
   uint16_t gyro_good_since_ms_ = 0;           // modulo 65,536: a faulted gyro's good run (cleared at 500 ms)
   bool gyro_good_run_ = false;
-  float rate_dps_ = 0.0f;
+  int32_t rate_mdps_ = 0;                    // the gyro's last good yaw rate, as it came
   uint32_t last_rx_ms_ = 0;
   uint32_t last_fix_ms_ = 0;
   uint32_t radio_lost_since_ms_ = 0;
