@@ -44,8 +44,7 @@ void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_
   if (l < min_distance_mm_) min_distance_mm_ = l;
   const float u = heading_command(err, dt_s);
   const float base = p.drive_pwm();
-  out.left_pwm = clamp_pwm(base + u);
-  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+  set_wheels(base, u, true, out);
 }
 
 // The target was reached: on to the next. Returns false when this step is done with motion (the
@@ -121,8 +120,7 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   const float floor_pwm = static_cast<float>(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
   if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
   const float u = -omega_ccw * kDegPerRad * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
-  out.left_pwm = clamp_pwm(base + u);
-  out.right_pwm = clamp_pwm(base - u * p.right_bias());
+  set_wheels(base, u, true, out);
 }
 
 }  // namespace core

@@ -47,8 +47,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     if (!(lifted < out_max)) lifted = out_max;
     u = u > 0.0f ? lifted : -lifted;
   }
-  out.left_pwm = clamp_pwm(u);
-  out.right_pwm = clamp_pwm(-u);
+  set_wheels(0.0f, u, false, out);
   return true;
 }
 
@@ -70,8 +69,7 @@ void Rover::back_off(float dt_s, Outputs& out) {
     return;
   }
   const float u = heading_command(0.0f, dt_s);   // hold the heading: damp any turn
-  out.left_pwm = clamp_pwm(-p.drive_pwm() + u);
-  out.right_pwm = clamp_pwm(-p.drive_pwm() - u * p.right_bias());
+  set_wheels(-p.drive_pwm(), u, true, out);
 }
 
 }  // namespace core

@@ -242,6 +242,13 @@ uint8_t Rover::closest_target() const {
   return target;
 }
 
+// The motor commands for a forward command `base` and a turn `u` (PWM; clockwise: left faster),
+// the right side's turn scaled by right_bias (the stronger motor's correction) when `biased`.
+ROVERNAV_NOINLINE void Rover::set_wheels(float base, float u, bool biased, Outputs& out) const {
+  out.left_pwm = clamp_pwm(base + u);
+  out.right_pwm = clamp_pwm(base - (biased ? u * params_.right_bias() : u));
+}
+
 float Rover::heading_command(float error_deg, float dt_s) {
   return pid_.update(error_deg, static_cast<float>(rate_mdps_) * 0.001f, dt_s, params_.pid_gains());
 }
