@@ -69,11 +69,12 @@ bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) con
   const Params& p = params_;
   const float r = static_cast<float>(range_mm);
   const float look = fabsf(cdeg_to_rad(look_cdeg));
-  if (r * cosf(look) > reflex_range_mm()) return false;   // the stopping range, measured along the way
+  const float along_mm = r * cosf(look);
+  if (along_mm > reflex_range_mm()) return false;   // the stopping range, measured along the way
   const float nearest_side = look - p.sonar_half_cone_rad();
   const float lateral_mm = nearest_side > 0.0f ? r * sinf(nearest_side) : 0.0f;
   if (lateral_mm > p.robot_radius_mm()) return false;
-  return r * cosf(look) + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
+  return along_mm + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
 }
 
 }  // namespace core
