@@ -18,7 +18,7 @@ static const float kDegPerRad = 180.0f / kPi;
 /// division, and the integer part, not libm's floor), then one turn at most.
 float wrap_rad(float a);
 
-inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }
+ROVERNAV_NOINLINE inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }
 
 /// To centidegrees in (-18000, 18000].
 inline int16_t rad_to_cdeg(float rad) {

@@ -15,6 +15,8 @@
 #pragma once
 #include <stdint.h>
 
+#include "noinline.h"
+
 namespace rovernav {
 namespace core {
 
@@ -44,10 +46,10 @@ class Estimator {
 
   float x_mm() const { return q_[0]; }
   float y_mm() const { return q_[1]; }
-  float heading_rad() const { return q_[2]; }
+  ROVERNAV_NOINLINE float heading_rad() const { return q_[2]; }
   /// Covariance entries (mm^2, mm*rad, rad^2), by kXX ... kTT.
   enum : uint8_t { kXX, kXY, kYY, kXT, kYT, kTT };
-  float p(uint8_t i) const { return p_[i]; }
+  ROVERNAV_NOINLINE float p(uint8_t i) const { return p_[i]; }
   /// Standard deviation along the worst direction of the position error (mm).
   float position_sd_mm() const;
   /// Distance between the last fix and the pose it was compared with (mm): after an outage,

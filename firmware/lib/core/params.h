@@ -40,7 +40,7 @@ class Params {
   uint32_t fix_timeout_ms() const { return static_cast<uint32_t>(raw(Param::FixTimeoutMs)); }
   uint32_t radio_timeout_ms() const { return static_cast<uint32_t>(raw(Param::RadioTimeoutMs)); }
   float dr_max_distance_mm() const { return as_float(Param::DrMaxDistanceMm); }
-  float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
+  ROVERNAV_NOINLINE float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
   uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
   float rotate_done_deg() const { return hundredths(Param::RotateDoneCdeg); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
@@ -57,10 +57,10 @@ class Params {
   float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
   float sweep_before_turn_deg() const { return as_float(Param::SweepBeforeTurnDeg); }
   bool sweep_at_start() const { return raw(Param::SweepAtStart) != 0; }
-  float robot_radius_mm() const { return as_float(Param::RobotRadiusMm); }
-  float clearance_mm() const { return as_float(Param::RobotRadiusMm) + as_float(Param::SonarMarginMm); }
+  ROVERNAV_NOINLINE float robot_radius_mm() const { return as_float(Param::RobotRadiusMm); }
+  ROVERNAV_NOINLINE float clearance_mm() const { return as_float(Param::RobotRadiusMm) + as_float(Param::SonarMarginMm); }
   float sonar_offset_mm() const { return as_float(Param::SonarOffsetMm); }
-  float sonar_half_cone_rad() const { return scaled(Param::SonarConeCdeg, 0.5f * 0.01f * 0.017453292f); }
+  ROVERNAV_NOINLINE float sonar_half_cone_rad() const { return scaled(Param::SonarConeCdeg, 0.5f * 0.01f * 0.017453292f); }
 
  private:
   // Out of line: a conversion (and a multiplication) written out at each of some thirty reads

@@ -223,7 +223,7 @@ class Rover : private RoverFields {
   uint8_t closest_target() const;
   float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
   void set_wheels(float base, float u, bool biased, Outputs& out) const;
-  float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
+  ROVERNAV_NOINLINE float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
   // link_in.cpp
   void handle_frame(const Frame& f, uint32_t now, uint16_t late_ms);
   void on_fix(const msg::Fix& m, uint32_t now);
