@@ -161,8 +161,9 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   rejects_in_row_ = 0;
   q[T] = wrap_rad(q[T]);
   memcpy(q_, q, sizeof q_);
-  for (uint8_t r = 0; r < 3; ++r)
-    for (uint8_t c = r; c < 3; ++c) p_[flash_read_u8(&kIndex[3 * r + c])] = 0.5f * (P[3 * r + c] + P[3 * c + r]);
+  // Back into the six entries (the lower triangle's copy of an off-diagonal entry, written last,
+  // is kept: the two differ by rounding only).
+  for (uint8_t i = 0; i < 9; ++i) p_[flash_read_u8(&kIndex[i])] = P[i];
   return FixResult::Accepted;
 }
 
