@@ -82,15 +82,11 @@ void Motors::begin() {
 }
 
 void Motors::set(int16_t left_pwm, int16_t right_pwm) {
-  left_pwm_ = clamp_pwm(left_pwm);
-  right_pwm_ = clamp_pwm(right_pwm);
-  drive_side(Input::LeftBack, Input::LeftFwd, left_pwm_);
-  drive_side(Input::RightBack, Input::RightFwd, right_pwm_);
+  drive_side(Input::LeftBack, Input::LeftFwd, clamp_pwm(left_pwm));
+  drive_side(Input::RightBack, Input::RightFwd, clamp_pwm(right_pwm));
 }
 
 void Motors::stop() {
-  left_pwm_ = 0;
-  right_pwm_ = 0;
   write_duty(Input::LeftBack, 0);
   write_duty(Input::LeftFwd, 0);
   write_duty(Input::RightBack, 0);

@@ -31,13 +31,6 @@ class Motors {
   // left_pwm, right_pwm: -255..255, positive drives forward; values beyond are clamped.
   void set(int16_t left_pwm, int16_t right_pwm);
   void stop();
-
-  int16_t left_pwm() const { return left_pwm_; }
-  int16_t right_pwm() const { return right_pwm_; }
-
- private:
-  int16_t left_pwm_ = 0;
-  int16_t right_pwm_ = 0;
 };
 
 }  // namespace hal
