@@ -33,6 +33,7 @@ constexpr uint8_t kStepMs = 10;  // the core runs at 100 Hz
 constexpr uint8_t kRxChunk = 64;
 
 core::Rover rover;
+core::Outputs out;
 hal::Motors motors;
 hal::ServoTimer1 servo;
 hal::SonarHcsr04 sonar;
@@ -55,8 +56,6 @@ enum : uint8_t {
   kDidRx = 1u << 7,
 };
 
-core::Inputs in;
-core::Outputs out;
 uint8_t rx[kRxChunk];
 uint8_t rx_len = 0;   // bytes in rx the core has not taken yet (it takes one signed frame a step)
 
@@ -111,6 +110,7 @@ void loop() {
     did |= kDidSonar;
   }
 
+  core::Inputs in;   // what this step reads, on the stack for the step only
   in.now_ms = now_ms;
   int32_t rate_mdps = 0;
   in.gyro_valid = hal::mpu_usable(gyro_state) && gyro.read_rate_mdps(rate_mdps) == hal::MpuResult::Ok;
