@@ -42,7 +42,7 @@ hal::LinkSerial serial_link;
 hal::LinkStore link_store;
 
 hal::MpuResult gyro_state = hal::MpuResult::NotStarted;
-uint32_t last_step_ms = 0;
+uint16_t last_step_ms = 0;   // modulo 65,536: loop() looks at it every few microseconds
 
 // A ping the core asked for is triggered after its step; the result, collected by the poll at
 // the start of a later step (the next one, for echoes within 1 m), goes to the core in that step.
@@ -89,16 +89,17 @@ void setup() {
     link_store.load(secrets);
     rover.begin(boot_id, hal::HwWatchdog::reset_flags(), &secrets);
   }
-  last_step_ms = millis();
+  last_step_ms = static_cast<uint16_t>(millis());
 }
 
 void loop() {
   hal::HwWatchdog::kick();
   const uint32_t now_ms = millis();
-  if (now_ms - last_step_ms < kStepMs) return;
+  const uint16_t since_ms = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - last_step_ms);
+  if (since_ms < kStepMs) return;
   // On the 10 ms grid, not 10 ms after whenever this step began: millis() moves in 1.024 ms
   // ticks, and `last = now` let the period drift to 10.04 ms. Far behind (a stall), resync.
-  last_step_ms = now_ms - last_step_ms < 2 * kStepMs ? last_step_ms + kStepMs : now_ms;
+  last_step_ms = since_ms < 2 * kStepMs ? static_cast<uint16_t>(last_step_ms + kStepMs) : static_cast<uint16_t>(now_ms);
   PORTB = static_cast<uint8_t>(PORTB | _BV(PORTB0));
   uint8_t did = 0;
 
