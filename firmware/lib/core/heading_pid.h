@@ -15,7 +15,7 @@ struct PidGains {
 
 class HeadingPid {
  public:
-  void reset() { integral_pwm_ = 0.0f; }
+  __attribute__((noinline)) void reset() { integral_pwm_ = 0.0f; }
   /// error_deg: target minus heading; rate_dps: measured yaw rate (clockwise); dt_s: step.
   /// Returns the command in PWM, clamped to +-g.out_max.
   float update(float error_deg, float rate_dps, float dt_s, const PidGains& g);

@@ -40,7 +40,7 @@ class Params {
   uint32_t fix_timeout_ms() const { return static_cast<uint32_t>(raw(Param::FixTimeoutMs)); }
   uint32_t radio_timeout_ms() const { return static_cast<uint32_t>(raw(Param::RadioTimeoutMs)); }
   float dr_max_distance_mm() const { return as_float(Param::DrMaxDistanceMm); }
-  ROVERNAV_NOINLINE float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
+  float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
   uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
   float rotate_done_deg() const { return hundredths(Param::RotateDoneCdeg); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
