@@ -31,7 +31,7 @@ enum class PlanStatus : uint8_t { Running, Found, NoWay };
 
 class LocalPlanner {
  public:
-  enum : uint8_t { kCells = 12, kMaxEchoes = 9, kMaxDetour = 4, kMarkCells = 18, kWalkCells = 3 };
+  enum : uint8_t { kCells = 12, kMaxEchoes = 9, kMaxDetour = 4, kMarkCells = 18, kWalkCells = 2 };
   enum : int16_t { kCellMm = 80 };
   enum : uint16_t {
     kCellCount = kCells * kCells,

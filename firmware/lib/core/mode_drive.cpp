@@ -12,7 +12,7 @@ namespace core {
 // Drive: towards the target holding the heading with the gyro PID inside the tolerance cone
 // atan(cone_tol_mm / L) (or steered by the pose law), the reflex watching ahead, a sweep every
 // sweep_interval_mm; back to Rotate outside the cone or once moving away from the target.
-void Rover::mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_t now, Outputs& out) {
+void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32_t now, Outputs& out) {
   const Params& p = params_;
   if (reflex(in, now, l, out)) return;
 

@@ -20,7 +20,7 @@ void Rover::stop_sweep() {
 
 // Scan: one step of the sweep; each ping's result reported (an echo within sonar_report_mm, or
 // "nothing there" for the host to clear the cone); at the end, the leg checked against what it saw.
-void Rover::mode_scan(const Inputs& in, uint32_t now, Outputs& out) {
+void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
   const Params& p = params_;
   if (step_work_ & kWorkFix) {   // the sweep goes on next step (a result that came is held)
     put_off_ = true;
@@ -28,7 +28,7 @@ void Rover::mode_scan(const Inputs& in, uint32_t now, Outputs& out) {
   }
   int16_t servo = servo_cdeg_;
   bool fire = false;
-  const Sweep::Echo echo = sweep_.step(now, in.sonar_valid, in.sonar_range_mm, servo, fire);
+  const Sweep::Echo echo = sweep_.step(now, in.valid, in.range_mm, servo, fire);
   servo_cdeg_ = servo;
   out.fire_sonar = fire;
   if (echo.valid) {

@@ -21,16 +21,16 @@ float Rover::reflex_range_mm() const {
 // host's new path). Returns whether it stopped the rover. An echo from beyond the waypoint
 // being approached (by more than the robot's radius) is no threat to this leg: the goal in
 // front of a wall is reached, not refused.
-bool Rover::reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out) {
+bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
   const Params& p = params_;
   const uint16_t period_ms = p.reflex_ping_ms();
   if (period_ms == 0) return false;
   // Ahead, right 15 and 30 degrees, ahead, left 15 and 30: at close range the 15-degree cone is
   // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
   static const int16_t kLookCdeg[kReflexLooks] ROVERNAV_PROGMEM = {0, 1500, 3000, 0, -1500, -3000};
-  if (reflex_waiting_ && in.sonar_valid) {
+  if (reflex_waiting_ && in.valid) {
     reflex_waiting_ = false;
-    const uint16_t r = in.sonar_range_mm;
+    const uint16_t r = in.range_mm;
     const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
     if (r > 0 && reflex_on_path(look, r, l_mm)) {

@@ -109,19 +109,19 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   // dropped (the camera's next comes within 33 ms), and STATUS waits a step. A step that puts a
   // job off keeps the next for it: a FIX that comes then is dropped, so that fixes arriving every
   // step cannot starve the sweep, the planner or STATUS.
-  Inputs now_in = in;
+  SonarIn sonar = {in.sonar_valid, in.sonar_range_mm};
   if (sonar_held_) {
-    now_in.sonar_valid = true;
-    now_in.sonar_range_mm = held_sonar_mm_;
+    sonar.valid = true;
+    sonar.range_mm = held_sonar_mm_;
     sonar_held_ = false;
   }
-  if (now_in.sonar_valid && (step_work_ & (kWorkFix | kWorkTag))) {
+  if (sonar.valid && (step_work_ & (kWorkFix | kWorkTag))) {
     sonar_held_ = put_off_ = true;
-    held_sonar_mm_ = now_in.sonar_range_mm;
-    now_in.sonar_valid = false;
+    held_sonar_mm_ = sonar.range_mm;
+    sonar.valid = false;
   }
   out.fire_sonar = false;
-  run_state(now_in, dt_s, now, out);
+  run_state(sonar, dt_s, now, out);
   left_cmd_ = out.left_pwm;
   right_cmd_ = out.right_pwm;
   out.servo_cdeg = servo_cdeg_;
@@ -141,7 +141,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.
-void Rover::run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out) {
+void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out) {
   out.left_pwm = out.right_pwm = 0;
   if (pick_target_) {
     // A new path, a detour's end, a start or a resume: the nearest leg's end, when this step has

@@ -27,6 +27,12 @@ namespace core {
 // A waypoint is a point of the plane in mm: the host's, or one of the rover's own detour.
 using Waypoint = Point;
 
+/// The sonar's result as a step's modes see it (one put off from the step before, or none).
+struct SonarIn {
+  bool valid;
+  uint16_t range_mm;   ///< 0 = no echo
+};
+
 /// Bearing from a to b (radians, clockwise from +y).
 float bearing_rad(Point a, Point b);
 
@@ -213,7 +219,7 @@ class Rover : private RoverFields {
 
  private:
   // rover.cpp: the step, the mode, helpers of every mode
-  void run_state(const Inputs& in, float dt_s, uint32_t now, Outputs& out);
+  void run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out);
   void enter(RoverState s);
   Point here_mm() const;
   Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
@@ -253,17 +259,17 @@ class Rover : private RoverFields {
   // mode_scan.cpp
   void start_sweep(uint32_t now);
   void stop_sweep();  // ends a sweep and points the sonar ahead
-  void mode_scan(const Inputs& in, uint32_t now, Outputs& out);
+  void mode_scan(const SonarIn& in, uint32_t now, Outputs& out);
   // mode_rotate.cpp
   bool mode_rotate(float err, float l, float dt_s, Outputs& out);
   bool room_to_turn() const;
   void back_off(float dt_s, Outputs& out);
   // mode_drive.cpp
-  void mode_drive(const Inputs& in, float err, float l, float dt_s, uint32_t now, Outputs& out);
+  void mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32_t now, Outputs& out);
   bool reached_waypoint(float& l, float& err);
   void pose_command(float rho_mm, float err_deg, Outputs& out);
   // reflex.cpp
-  bool reflex(const Inputs& in, uint32_t now, float l_mm, Outputs& out);
+  bool reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out);
   bool reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const;
   // detour.cpp
   void remember_echo(int16_t bearing_cdeg, uint16_t range_mm);
