@@ -3,6 +3,11 @@
     python benchmarks/uno_table.py [--seeds 1 2 3] [--jobs 2] [--json FILE]
     python benchmarks/uno_table.py --arenas DIR [--sample K] --seeds 1     # arenas nobody tuned for
 
+Besides the shared scenarios it runs the rover's own detours (the host's replanning off, as
+`rovernav sim SCENARIO --no-host-replan`): Figure 4.8, and a wall and a row of posts that fill all
+nine of the rover's obstacle disks in one sweep (scenarios/full-echoes-*.toml), the detour
+planner's worst case (`--no-detours` leaves them out).
+
 The Uno image (build/uno/firmware.elf, built if missing) runs in simavr with the simulated world on
 its pins (`rovernav sim SCENARIO --rover uno`). For each scenario, over the seeds, it prints both
 outcomes, the median mission times and their difference, and the image's own step times measured
@@ -22,7 +27,12 @@ import sys
 import time
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ["seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles", "out-and-back"]
+# The rover alone: its own detour planner, the obstacle list full on the last two.
+DETOURS = ["seed-fig4-8-unknown-obstacle", str(ROOT / "scenarios" / "full-echoes-wall.toml"),
+           str(ROOT / "scenarios" / "full-echoes-posts.toml")]
+ALONE = " (rover alone)"
 STEP_LIMIT_US = 5000.0
 JITTER_LIMIT_MS = 1.0
 STACK_MARGIN_MIN = 256
@@ -34,7 +44,9 @@ def run_one(scenario: str, rover: str, seed: int) -> dict:
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()
-    sim = Simulation(load_scenario(scenario), SimOptions(seed=seed, rover=rover, max_time_s=1500))
+    alone = scenario.endswith(ALONE)
+    name = scenario[: -len(ALONE)] if alone else scenario
+    sim = Simulation(load_scenario(name), SimOptions(seed=seed, rover=rover, max_time_s=1500, host_replan=not alone))
     sim.run()
     report = build_report(sim, time.monotonic() - started)
     report.pop("events", None)
@@ -54,8 +66,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenarios", nargs="+", default=SCENARIOS, help="names or files (default: the four shared)")
     ap.add_argument("--arenas", type=Path, help="instead, the arena files (*.toml) of this folder (`rovernav arenas`)")
     ap.add_argument("--sample", type=int, help="with --arenas: only K of them, evenly spaced in name order")
+    ap.add_argument("--no-detours", action="store_true", help="leave out the rover-alone detours")
     ap.add_argument("--json", type=Path, help="write every run's report here")
     args = ap.parse_args(argv)
+    if args.arenas is None and not args.no_detours:
+        args.scenarios = list(args.scenarios) + [d + ALONE for d in DETOURS]
     if args.arenas is not None:
         files = sorted(args.arenas.glob("*.toml"))
         if not files:
@@ -92,7 +107,8 @@ def main(argv: list[str] | None = None) -> int:
         did = ", ".join(worst["flags"] or []) or "nothing flagged"
         dt = f" ({100 * (t_uno - t_nat) / t_nat:+.1f} %)" if t_nat and t_uno else ""
         fmt = lambda t: f"{t:.1f} s" if t is not None else "no time"
-        print(f"| {Path(sc).stem} | {ok(nat)}/{len(nat)} reached, 0 collisions, {fmt(t_nat)} | {ok(uno)}/{len(uno)} reached, "
+        label = Path(sc[: -len(ALONE)]).stem + ALONE if sc.endswith(ALONE) else Path(sc).stem
+        print(f"| {label} | {ok(nat)}/{len(nat)} reached, 0 collisions, {fmt(t_nat)} | {ok(uno)}/{len(uno)} reached, "
               f"0 collisions, {fmt(t_uno)}{dt} | "
               f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
               f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "

@@ -287,6 +287,38 @@ def test_the_images_own_detour_planner_fits_the_step_period(built, tmp_path):
     assert t["stack"]["margin_bytes"] >= 256
 
 
+@pytest.mark.mission
+@pytest.mark.parametrize("scenario", ["full-echoes-posts", "full-echoes-wall"])
+def test_the_images_detour_planner_with_its_obstacle_list_full_fits_the_step_period(built, scenario):
+    # The detour planner's worst case: a sweep that echoes off more things than the rover keeps
+    # obstacle disks (a row of 8 cm posts; a wall), then a detour of the rover's own (the host's
+    # replanning off). Every planner slice, and every other step, within half the 10 ms period.
+    from pathlib import Path
+
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.runner import SimOptions, Simulation
+
+    root = Path(__file__).resolve().parents[1]
+    header = (root / "firmware" / "lib" / "core" / "local_planner.h").read_text()
+    max_echoes = int(re.search(r"kMaxEchoes = (\d+)", header).group(1))
+    sim = Simulation(load_scenario(str(root / "scenarios" / f"{scenario}.toml")),
+                     SimOptions(seed=1, rover="uno", host_replan=False, max_time_s=300))
+    sim.run()
+    t = sim.uno_timing()
+    if not t["hooks"]["step_probe_pb0"]:
+        pytest.skip("this image has no PB0 step probe: no step times to check")
+    echoes = [m.arg for _, m in sim.mission.events if m.kind == mg.EventKind.SCAN_DONE]
+    detours = [m.arg for _, m in sim.mission.events if m.kind == mg.EventKind.REPLANNED]
+    assert max(echoes) > max_echoes                 # one sweep filled the obstacle list
+    assert detours and max(detours) >= 2            # and the rover planned its way round
+    assert all(leg.reached for leg in sim.mission.legs) and sim.collisions == 0
+    assert t["by_flag"]["replanning"]["count"] >= 5
+    assert t["by_flag"]["replanning"]["max_us"] <= 5000
+    assert t["step_time"]["max_us"] <= 5000
+    assert t["period_jitter"]["max_abs_us"] <= 1000
+    assert t["stack"]["margin_bytes"] >= 256
+
+
 # ---------------------------------------------------------------- the cycle profile (--profile)
 
 PROFILE_PROGRAM = r"""
