@@ -127,7 +127,7 @@ void Rover::continue_detour() {
     return;
   }
   uint8_t n = 0;
-  const PlanStatus st = local_.step(detour_, n);
+  const PlanStatus st = local_.step(reinterpret_cast<uint8_t*>(stage_), detour_, n);
   if (st == PlanStatus::Running) return;
   if (st == PlanStatus::NoWay) {
     next_detour_goal();

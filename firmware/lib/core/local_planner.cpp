@@ -110,7 +110,6 @@ bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
   const int16_t gy = static_cast<int16_t>((goal.y_mm - origin_.y_mm) / kCellMm);
   if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return false;
   if (inside(goal)) return false;
-  scratch_ = scratch;
   anchor_ = prev_ = start;   // where the walk back starts
   goal_ = goal;
   start_i_ = static_cast<uint16_t>(sy * kCells + sx);
@@ -121,9 +120,9 @@ bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
   return true;
 }
 
-PlanStatus LocalPlanner::step(Point* out, uint8_t& n_out) {
-  uint8_t* dir = scratch_;
-  uint8_t* blocked = scratch_ + kCellCount / 2;
+PlanStatus LocalPlanner::step(uint8_t* scratch, Point* out, uint8_t& n_out) {
+  uint8_t* dir = scratch;
+  uint8_t* blocked = scratch + kCellCount / 2;
   uint8_t* cur = blocked + kBits + (flip_ ? kBits : 0);
   uint8_t* nxt = blocked + kBits + (flip_ ? 0 : kBits);
   switch (phase_) {
@@ -223,7 +222,7 @@ uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out
   if (!begin(start, goal, scratch)) return 0;
   uint8_t n = 0;
   for (;;) {
-    const PlanStatus st = step(out, n);
+    const PlanStatus st = step(scratch, out, n);
     if (st == PlanStatus::Found) return n;
     if (st == PlanStatus::NoWay) return 0;
   }

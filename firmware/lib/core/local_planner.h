@@ -55,10 +55,10 @@ class LocalPlanner {
   /// the grid. scratch: kScratchBytes bytes the planner may use.
   uint8_t plan(Point start, Point goal, uint8_t* scratch, Point* out);
   /// The same in slices: begin() returns false when start or goal is off the grid or the goal
-  /// is blocked (no plan); then step() until it returns Found (n_out waypoints in out) or
-  /// NoWay. The scratch buffer must stay untouched until then.
+  /// is blocked (no plan); then step(), with the same scratch, until it returns Found (n_out
+  /// waypoints in out) or NoWay. The scratch buffer must stay untouched until then.
   bool begin(Point start, Point goal, uint8_t* scratch);
-  PlanStatus step(Point* out, uint8_t& n_out);
+  PlanStatus step(uint8_t* scratch, Point* out, uint8_t& n_out);
   bool planning() const { return phase_ != Phase::Idle; }
   void cancel() { phase_ = Phase::Idle; }
   /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests), modulo
@@ -81,7 +81,6 @@ class LocalPlanner {
   Point origin_ = {0, 0};  // the grid's lower-left corner
   mutable uint16_t ops_ = 0;
   // The plan under way.
-  uint8_t* scratch_ = nullptr;
   Point goal_ = {0, 0};
   Point anchor_ = {0, 0}, prev_ = {0, 0};   // the walk back: last kept point, last cell
   uint16_t start_i_ = 0, goal_i_ = 0;

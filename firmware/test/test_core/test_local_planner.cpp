@@ -62,7 +62,7 @@ TEST_CASE("planned in slices, a step each: the same detour, no slice more than o
   uint32_t max_slice_ops = 0;
   core::PlanStatus st = core::PlanStatus::Running;
   while (st == core::PlanStatus::Running && slices < 1000) {
-    st = lp.step(out, n);
+    st = lp.step(scratch, out, n);
     ++slices;
     const uint16_t slice_ops = static_cast<uint16_t>(lp.ops() - ops_before);
     ops_before = lp.ops();
