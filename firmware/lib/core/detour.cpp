@@ -120,7 +120,7 @@ void Rover::continue_detour() {
   }
   // A frame to sign (a sweep's readings, STATUS) goes first: a plan runs for dozens of steps,
   // and frames held back all that while would fill the queue and be lost.
-  if (tx_.wants_signing()) return;
+  if (tx_.wants_signing(auth_)) return;
   step_work_ = static_cast<uint8_t>(step_work_ | kWorkPlanned);
   if (staging_) {   // the host's path is arriving: it will do
     no_detour();

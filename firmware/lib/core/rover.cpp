@@ -35,7 +35,6 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   const bool keyed = secrets != nullptr && secrets->has_key;
   auth_.begin(keyed ? secrets->key : nullptr);
   if (secrets != nullptr) auth_.resume(secrets->tx_counter, secrets->rx_counter);
-  tx_.sign_with(&auth_);
 }
 
 bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) {
@@ -137,7 +136,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
   // Frames are framed (signed) on their way out, and not in a step that took a FIX, a sonar
   // result or a planner slice: what that step said leaves a step later (TxQueue).
-  out.tx = tx_.take(room, !(step_work_ & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
+  out.tx = tx_.take(auth_, room, !(step_work_ & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.

@@ -33,11 +33,11 @@ void TxQueue::drop_taken() {
 
 // Frames the first raw frame in place (it grows by the signature, the CRC, COBS's code byte
 // and the delimiter: the raw frames behind it move up). False if there is none, or no room.
-ROVERNAV_NOINLINE bool TxQueue::frame_next() {
+ROVERNAV_NOINLINE bool TxQueue::frame_next(FrameAuth& auth) {
   if (ready_ == count_) return false;
   uint8_t* raw = buf_ + ready_;
   const uint8_t len = raw[0];
-  const bool sign = auth_ != nullptr && auth_->keyed();
+  const bool sign = auth.keyed();
   const uint8_t framed = static_cast<uint8_t>(len + kFrameHeader + kFrameCrc + (sign ? kFrameSignature : 0) + 2);
   const uint8_t grow = static_cast<uint8_t>(framed - (kRawHead + len));
   if (grow > kCapacity - count_) return false;
@@ -46,18 +46,18 @@ ROVERNAV_NOINLINE bool TxQueue::frame_next() {
   for (uint8_t i = static_cast<uint8_t>(count_ - ready_ - kRawHead - len); i > 0; --i) {
     raw[framed + i - 1] = raw[kRawHead + len + i - 1];   // the raw frames behind, moved up
   }
-  encode_frame(head[1], head[2], head + kRawHead, len, raw, auth_);
+  encode_frame(head[1], head[2], head + kRawHead, len, raw, &auth);
   ready_ = static_cast<uint8_t>(ready_ + framed);
   count_ = static_cast<uint8_t>(count_ + grow);
   return true;
 }
 
-const uint8_t* TxQueue::take(uint8_t max, bool may_frame, uint8_t& n) {
+const uint8_t* TxQueue::take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n) {
   drop_taken();
-  if (auth_ != nullptr && auth_->keyed()) {
-    if (may_frame && ready_ < max) frame_next();
+  if (auth.keyed()) {
+    if (may_frame && ready_ < max) frame_next(auth);
   } else {
-    while (ready_ < max && frame_next()) {   // a CRC, 1.3 us a byte: all that fit go at once
+    while (ready_ < max && frame_next(auth)) {   // a CRC, 1.3 us a byte: all that fit go at once
     }
   }
   n = ready_ < max ? ready_ : max;

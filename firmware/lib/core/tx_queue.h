@@ -28,22 +28,21 @@ class TxQueue {
   }
   /// Queues a payload as a raw frame (one copy of this code for every message type).
   void send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len);
-  /// Frames from now on are signed with auth's key, when it has one.
-  void sign_with(FrameAuth* auth) { auth_ = auth; }
-  /// Frames what is due (with a key: one at most, none if !may_frame), then takes up to max
-  /// framed bytes: n of them at the pointer returned, valid until the next send_payload() or
-  /// take() (the shell writes them to the serial port right after the step).
-  const uint8_t* take(uint8_t max, bool may_frame, uint8_t& n);
+  /// Frames what is due, signed with auth's key when it has one (then one frame at most, none if
+  /// !may_frame), then takes up to max framed bytes: n of them at the pointer returned, valid
+  /// until the next send_payload() or take() (the shell writes them to the serial port right
+  /// after the step).
+  const uint8_t* take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n);
   uint16_t dropped() const { return dropped_; }
   /// A keyed queue whose framed bytes have all gone and whose next frame waits to be signed: a
   /// step that can do without its heavy job (a planner slice) leaves the time to take() for it.
-  bool wants_signing() const { return ready_ == 0 && count_ > taken_ && auth_ != nullptr && auth_->keyed(); }
+  bool wants_signing(const FrameAuth& auth) const { return ready_ == 0 && count_ > taken_ && auth.keyed(); }
   /// Bytes queued, framed or not.
   uint8_t size() const { return static_cast<uint8_t>(count_ - taken_); }
 
  private:
   void drop_taken();
-  bool frame_next();
+  bool frame_next(FrameAuth& auth);
 
   // buf_[0, ready_) framed bytes, then raw frames to count_: (len, id, seq, payload[len]).
   uint8_t buf_[kCapacity] = {};
@@ -52,7 +51,6 @@ class TxQueue {
   uint8_t taken_ = 0;             // bytes at the front given out by the last take(), dropped before the next change
   uint8_t seq_ = 0;
   uint16_t dropped_ = 0;
-  FrameAuth* auth_ = nullptr;
 };
 
 }  // namespace core
