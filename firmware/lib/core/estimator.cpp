@@ -24,16 +24,15 @@ enum { XX = Estimator::kXX, XY = Estimator::kXY, YY = Estimator::kYY, XT = Estim
 const uint8_t kIndex[9] ROVERNAV_PROGMEM = {XX, XY, XT, XY, YY, YT, XT, YT, TT};
 
 // The sequential scalar updates of the pose q and the full covariance P (row-major, 3x3) by the
-// fix carried forward to now, zc (the fix plus the odometry since its frame: the fix against the
-// past pose is zc against the pose now). Returns the gate statistic: the sum of the normalised
-// squared innovations of the sequence, which equals the batch's v^T S^-1 v. Negative if an
-// innovation variance is not positive. (A function of its own: its few locals stay within the
-// AVR's short stack offsets.)
-ROVERNAV_NOINLINE float sequential_update(const float* zc, float r_pos, float* q, float* P) {
+// fix z, seen against h, the pose when its frame was taken; q0 is the pose before the update.
+// Returns the gate statistic: the sum of the normalised squared innovations of the sequence,
+// which equals the batch's v^T S^-1 v. Negative if an innovation variance is not positive.
+// (A function of its own: its few locals stay within the AVR's short stack offsets.)
+ROVERNAV_NOINLINE float sequential_update(const float* z, const float* h, const float* q0, float r_pos, float* q, float* P) {
   float chi2 = 0.0f;
   for (uint8_t j = 0; j < 3; ++j) {
-    // The innovation of component j against the (already partly corrected) pose.
-    float v = zc[j] - q[j];
+    // The innovation of component j against the (already partly corrected) past pose.
+    float v = z[j] - (h[j] + (q[j] - q0[j]));
     if (j == T) v = wrap_rad(v);
     const float* pj = P + 3 * j;
     const float sj = pj[j] + (j == T ? kFixHeadingVar : r_pos);
@@ -136,12 +135,11 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   const float z[3] = {static_cast<float>(fix.x_mm), static_cast<float>(fix.y_mm), cdeg_to_rad(fix.heading_cdeg)};
   const float r_pos = fix.sd_mm > 0 ? static_cast<float>(fix.sd_mm) * static_cast<float>(fix.sd_mm) : 4.0f;
   if (!initialised_) return start_from(z, r_pos);
-  // The fix against the pose when its frame was taken (the estimate less the odometry since) is
-  // the fix plus that odometry against the estimate now.
-  float zc[3];
-  odometry_since(fix.taken_ms, now_ms, zc);
-  for (uint8_t i = 0; i < 3; ++i) zc[i] += z[i];
-  last_innovation_mm_ = saturate_u16(length(zc[X] - q_[X], zc[Y] - q_[Y]));
+  // Innovation against the pose when the frame was taken: the estimate less the odometry since.
+  float h[3];
+  odometry_since(fix.taken_ms, now_ms, h);
+  for (uint8_t i = 0; i < 3; ++i) h[i] = q_[i] - h[i];
+  last_innovation_mm_ = saturate_u16(length(z[X] - h[X], z[Y] - h[Y]));
 
   // H = I and R diagonal, so the update is done one component at a time: three scalar updates
   // give exactly the batch result, in a loop that fits the Uno's flash. It runs on a copy, so
@@ -150,7 +148,7 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   memcpy(q, q_, sizeof q);   // a copy loop: the three floats written out took 100 bytes
   float P[9];
   for (uint8_t i = 0; i < 9; ++i) P[i] = p_[flash_read_u8(&kIndex[i])];
-  const float chi2 = sequential_update(zc, r_pos, q, P);
+  const float chi2 = sequential_update(z, h, q_, r_pos, q, P);
   if (chi2 < 0.0f) return FixResult::Rejected;  // a degenerate covariance: not the fix's fault
   if (!(chi2 <= kGateChi2)) {
     ++rejected_total_;
