@@ -1,11 +1,26 @@
 #include "params.h"
 
+#include <string.h>
+
 namespace rovernav {
 namespace core {
 
 int32_t Params::raw(Param p) const {
+  // Read straight from RAM by the region the value lies in (the widest first): a few comparisons
+  // and a load, where the generic loader's byte loop cost the Uno some 8 us a read, 25 reads a step.
   const uint8_t at = flash_read_u8(&kParamOffset[static_cast<uint8_t>(p) - 1]);
-  return param_load(store_ + at, param_width(at), param_signed(at), false);
+  const uint8_t* v = store_ + at;
+  if (at < kParamAtU16) {
+    int32_t x;
+    memcpy(&x, v, sizeof x);
+    return x;
+  }
+  if (at < kParamAtU8) {
+    uint16_t x;
+    memcpy(&x, v, sizeof x);
+    return at < kParamAtI16 ? static_cast<int32_t>(x) : static_cast<int32_t>(static_cast<int16_t>(x));
+  }
+  return at < kParamAtI8 ? static_cast<int32_t>(*v) : static_cast<int32_t>(static_cast<int8_t>(*v));
 }
 
 SetResult Params::set(uint8_t id, int32_t value) {
