@@ -204,7 +204,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
             say(0.0, f"loaded {mission.map.replay(readings)} sonar readings from {map_file}")
         t0 = time.monotonic()
         try:
-            while not mission.done and time.monotonic() - t0 < max_time_s:
+            while not mission.finished and time.monotonic() - t0 < max_time_s:
                 ok, frame = cap.read()
                 now = time.monotonic() - t0
                 if runlog is not None:

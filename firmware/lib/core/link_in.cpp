@@ -118,9 +118,11 @@ void Rover::on_fix(const msg::Fix& m, uint32_t now) {
 void Rover::on_path(const msg::Path& m, uint8_t seq) {
   const uint8_t id = msg::Path::kId;
   if (state_ == RoverState::Planning) no_detour();   // the staging buffer is the planner's scratch; the host's path will do
-  // A repeat of the chunk just taken (its ACK was lost and the host sent it again): ACK again.
-  if (m.path_id == stage_id_ && m.first_index + 1 == last_chunk_ &&
-      (staging_ || (path_id_ == m.path_id && path_len_ == m.total))) {
+  // A repeat (its ACK was lost and the host sent it again): ACK again. While staging, of the
+  // chunk just taken; once the path is held whole, of any of its chunks (staging it anew would
+  // leave a part-staged copy that keeps the rover from planning its own detours).
+  if (m.path_id == stage_id_ &&
+      (staging_ ? m.first_index + 1 == last_chunk_ : (path_id_ == m.path_id && path_len_ == m.total))) {
     ack(id, seq);
     return;
   }

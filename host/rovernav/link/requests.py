@@ -86,6 +86,15 @@ class RequestTracker:
         p = self._by_seq.get(reply.seq)
         return p is not None and p.message.ID == reply.msg_id
 
+    def again(self, pending: Pending) -> None:
+        """An answered request is outstanding again (it was refused for a reason that passes:
+        the rover did not yet know this host, or had no fix): due resend_s after its last
+        attempt, keeping its attempts."""
+        if pending not in self._pending:
+            self._pending.append(pending)
+            for s in pending.seqs:
+                self._remember(s, pending)
+
     def due(self, now_s: float) -> list[Pending]:
         """Requests whose resend time has come, oldest first."""
         return [p for p in self._pending if now_s - p.last_sent_s >= self.resend_s]

@@ -26,6 +26,7 @@ from ..angles import heading_cdeg
 from ..link import messages_gen as mg
 from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
+from ..link.path_upload import Answer, PathUpload
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..mapping import SonarReading
@@ -35,10 +36,16 @@ from .strategies import RovernavStrategy, Strategy
 
 log = logging.getLogger("rovernav.mission")
 
+# Every exchange is made for a radio that loses frames (protocol/README.md, "Exchanges and
+# their retry rules"): a request goes again after RESEND_S, and fails after MAX_TRIES attempts
+# made while the rover is heard (an attempt while it is silent does not count: it is carrying
+# on alone and answers once the radio is back). At 1 % of bytes lost a signed request and its
+# answer get through together about half the time: 30 attempts fail together once in 10^7.
 RESEND_S = 0.4        # an un-ACKed request goes again after this long
-MAX_TRIES = 8         # ... this many times, then the mission fails
+MAX_TRIES = 30        # ... this many times while the rover is heard, then the mission fails
 HELLO_EVERY_S = 0.5
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
+CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
 MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
 
 
@@ -176,6 +183,12 @@ class Mission:
         self.fixes_sent = 0
         self.replans = 0
         self.requests = RequestTracker(RESEND_S, MAX_TRIES)
+        self.upload: PathUpload | None = None    # the path on its way to the rover
+        self.sent: dict[str, int] = {}           # frames sent, by message kind
+        self.sent_again: dict[str, int] = {}     # ... of which re-sent for want of an answer
+        self.hellos_again = 0                    # HELLOs said again because the rover did not know this host
+        self._closed = False                     # the ended mission's STOP was ACKed (or given up on)
+        self._done_at: float | None = None
         self._now = 0.0
         self._phase_since: float | None = None   # set by the first tick: the mission's clock starts there
         self._hello_at = -1e9
@@ -212,7 +225,14 @@ class Mission:
 
     @property
     def done(self) -> bool:
+        """The mission has ended, reached or failed (its STOP may still be on its way: `finished`)."""
         return self.phase in (Phase.DONE, Phase.FAILED)
+
+    @property
+    def finished(self) -> bool:
+        """Ended, and the rover has acknowledged the STOP that ended it (or CLOSE_S has passed
+        trying): whoever runs the mission ticks it until then."""
+        return self.done and (self._closed or not self.requests)
 
     @property
     def current_leg(self) -> Leg:
@@ -230,6 +250,8 @@ class Mission:
         self.recorder.host_input("detection", now_s, taken_s=detection.t_s, x_m=detection.x_m, y_m=detection.y_m,
                                  heading_deg=detection.heading_deg, reason=detection.reason)
         self._last_frame_s = now_s
+        if self.done:
+            return
         if detection.x_m is None:
             self._last_detection = detection if self._last_detection is None else self._last_detection
             return
@@ -250,14 +272,18 @@ class Mission:
             self._phase_since = self._last_heard_s = now_s
             self.recorder.host_map(now_s, self.map)   # the map the mission starts from
         for _ in range(MAX_FRAMES_PER_TICK):   # a flood cannot hold one tick forever
-            if self.done:
+            if self.finished:
                 break
             frame = self.link.recv(timeout_s=0)
             if frame is None:
                 break
             self.recorder.host_rx(now_s, frame)
-            self._handle(frame)
+            if self.done:
+                self._on_answer(frame.message)   # only the STOP's ACK matters now
+            else:
+                self._handle(frame)
         if self.done:
+            self._close(now_s)
             return
         if now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
@@ -298,7 +324,7 @@ class Mission:
             elif in_phase_s > d.locate_s:
                 self._fail(f"the camera has not seen the rover for {d.locate_s:.0f} s", Failure.NO_CAMERA)
         if self.phase is Phase.LOAD:
-            if not self.requests and self._accepted_path_id == self.path_id:
+            if self.upload is not None and self.upload.complete and not self.requests:
                 if self._start_sent_for != self.path_id:
                     self._start_sent_for = self.path_id
                     self._request(mg.Start(path_id=self.path_id))
@@ -355,6 +381,7 @@ class Mission:
                                      "re-sending parameters and path")
             self.rover_boot_id = m.boot_id
             self.requests.clear()
+            self.upload = None
             self._send(host_hello(self.host_boot_id))
             resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
             self._configure()
@@ -372,18 +399,61 @@ class Mission:
             self._configure()
 
     def _on_answer(self, m) -> None:
+        if self.upload is not None and not self.done:
+            answer = self.upload.answer(m)
+            if answer is Answer.RESUME:
+                self._send_chunks()   # from where the rover stopped, at once
+                return
+            if answer is Answer.REFUSED:
+                self.nacks.append(m)
+                self.cause = Nacked(mg.Path.NAME, m.reason, m.detail)
+                self._fail(str(self.cause), Failure.REFUSED)
+                return
+            if answer is Answer.TAKEN:
+                return
         pending = self.requests.answer(m)
         if pending is None:
             return
+        message = pending.message
         if isinstance(m, mg.Nack):
+            if isinstance(message, mg.Start) and message.path_id != self.path_id:
+                return   # a START for a path since replaced: its answer no longer matters
+            if m.reason == mg.NackReason.SCHEMA_MISMATCH or (m.reason == mg.NackReason.NO_FIX
+                                                             and isinstance(message, mg.Start)):
+                # The rover does not know this host (our HELLO was lost), or has not had a fix
+                # yet (FIXes were lost): say HELLO again, and ask again; the attempts still count.
+                if m.reason == mg.NackReason.SCHEMA_MISMATCH:
+                    self._say_hello_again()
+                self._ask_again(pending)
+                return
             self.nacks.append(m)
-            self.cause = Nacked(pending.message.NAME, m.reason, m.detail)
+            self.cause = Nacked(message.NAME, m.reason, m.detail)
             self._fail(str(self.cause), Failure.REFUSED)
-        elif isinstance(pending.message, mg.Start):
-            self._start_acked_for = pending.message.path_id
+        elif isinstance(message, mg.Start):
+            self._start_acked_for = message.path_id
+        elif isinstance(message, mg.Stop) and self.done:
+            self._closed = True
+
+    def _ask_again(self, pending) -> None:
+        """A refused request goes again, with its attempt counted, once its resend time comes."""
+        if self.requests.exhausted(pending):
+            self._fail(f"the rover refused {pending.message.NAME.upper()} {pending.tries} times",
+                       Failure.NOT_ANSWERED)
+            return
+        self.requests.again(pending)   # due RESEND_S after its last attempt (re-sent by _resend)
+
+    def _say_hello_again(self) -> None:
+        """The rover does not know this host (a NACK schema_mismatch, or STATUS without schema_ok):
+        our HELLO was lost. Say it again (at most every HELLO_EVERY_S)."""
+        if self._now - self._hello_at >= HELLO_EVERY_S:
+            self._hello_at = self._now
+            self.hellos_again += 1
+            self._send(host_hello(self.host_boot_id))
 
     def _on_status(self, m: mg.Status) -> None:
         self.last_status = m
+        if self.phase is not Phase.HELLO and not m.flags & mg.StatusFlag.SCHEMA_OK:
+            self._say_hello_again()
         # A STATUS after START was acknowledged that says the rover has arrived on this path:
         # the ARRIVED event itself was lost on the radio.
         if (m.state == mg.RoverState.ARRIVED and m.path_id == self.path_id
@@ -417,6 +487,8 @@ class Mission:
                 self._map_changed()
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
+            if self.upload is not None and self.upload.path_id == m.arg:
+                self.upload.mark_complete()   # its last ACKs may be lost: this says it all
         elif kind is mg.EventKind.FAULT:
             self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}",
                        Failure.ROVER_FAULT)
@@ -450,7 +522,7 @@ class Mission:
         if len(self.legs) >= self.legs_asked:
             self._set_phase(Phase.DONE)
             self.outcome = Outcome.REACHED
-            self._send(mg.Stop(reason=mg.StopReason.MISSION_DONE))
+            self._end_with_stop(mg.StopReason.MISSION_DONE)
         else:
             self._next_leg()
 
@@ -512,13 +584,18 @@ class Mission:
         self.recorder.host_path(self._now, self.path_id, path)
         self._accepted_path_id = None
         self._set_phase(Phase.LOAD)
-        n = mg.WAYPOINTS_PER_CHUNK
-        for first in range(0, len(path), n):
-            chunk = path[first:first + n]
-            xs = tuple(_mm(x) for x, _ in chunk) + (0,) * (n - len(chunk))
-            ys = tuple(_mm(y) for _, y in chunk) + (0,) * (n - len(chunk))
-            self._request(mg.Path(path_id=self.path_id, total=len(path), first_index=first, count=len(chunk),
-                                  x_mm=xs, y_mm=ys))
+        # What was on its way for an earlier path no longer matters: its chunks, and its START
+        # (which, arriving late, would restart a leg the rover has finished).
+        for pending in self.requests:
+            if isinstance(pending.message, (mg.Path, mg.Start)):
+                self.requests.drop(pending)
+        self.upload = PathUpload(self.path_id, [(_mm(x), _mm(y)) for x, y in path], RESEND_S)
+        self._send_chunks()
+
+    def _send_chunks(self, count: bool = True) -> None:
+        """The upload's chunks that are due, in order."""
+        for message in self.upload.due(self._now):
+            self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
 
     def replanned(self, path: list[tuple[float, float]], what: str) -> None:
         """A strategy replanned the current leg after the map changed."""
@@ -580,9 +657,12 @@ class Mission:
         wp = self.last_status.waypoint_index if self.last_status else 0
         return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):] + self.path_rest
 
-    def _send(self, message) -> int:
+    def _send(self, message, again: bool = False) -> int:
         seq = self.link.send(message)
         self.recorder.host_tx(self._now, message, seq)
+        self.sent[message.NAME] = self.sent.get(message.NAME, 0) + 1
+        if again:
+            self.sent_again[message.NAME] = self.sent_again.get(message.NAME, 0) + 1
         return seq
 
     def _request(self, message) -> None:
@@ -607,7 +687,14 @@ class Mission:
                 self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries",
                            Failure.NOT_ANSWERED)
                 return
-            self.requests.resent(pending, self._send(pending.message), now_s, count=not silent)
+            self.requests.resent(pending, self._send(pending.message, again=True), now_s, count=not silent)
+        if self.upload is not None and not self.upload.complete:
+            if self.upload.tries() >= MAX_TRIES and not silent:
+                self._fail(f"the rover did not take path {self.upload.path_id} after {self.upload.tries()} tries "
+                           f"of a chunk ({self.upload.taken} of {self.upload.chunks} chunks taken)",
+                           Failure.NOT_ANSWERED)
+                return
+            self._send_chunks(count=not silent)
 
     def _fail(self, why: str, failure: Failure) -> None:
         if self.phase is Phase.FAILED:
@@ -619,9 +706,30 @@ class Mission:
         self._set_phase(Phase.FAILED)
         self.on_event(self._now, f"mission failed: {why}")
         try:
-            self._send(mg.Stop(reason=mg.StopReason.HOST_SHUTDOWN))
+            self._end_with_stop(mg.StopReason.HOST_SHUTDOWN)
         except LinkError:
-            pass   # the link itself is what failed: nothing more to tell the rover
+            self._closed = True   # the link itself is what failed: nothing more to tell the rover
+
+    def _end_with_stop(self, reason: int) -> None:
+        """The mission has ended: STOP, re-sent until the rover ACKs it (see `_close`); nothing
+        else is asked of the rover any more."""
+        self.requests.clear()
+        self.upload = None
+        self._done_at = self._now
+        self._request(mg.Stop(reason=reason))
+
+    def _close(self, now_s: float) -> None:
+        """An ended mission: the STOP again while unanswered, for at most CLOSE_S. A rover that
+        never hears it drives on by dead reckoning and stops safely (HOLD) once that has gone as far
+        as its estimate can vouch for (its failsafe)."""
+        if self.finished:
+            return
+        if now_s - (self._done_at if self._done_at is not None else now_s) > CLOSE_S:
+            self._closed = True
+            self.on_event(now_s, f"the rover did not acknowledge STOP within {CLOSE_S:.0f} s")
+            return
+        for pending in self.requests.due(now_s):
+            self.requests.resent(pending, self._send(pending.message, again=True), now_s)
 
     def fail(self, why: str) -> None:
         """End the mission from outside (an operator, or the simulator's time limit)."""

@@ -236,7 +236,7 @@ class Simulation:
         resets = sorted(f.firmware_resets)
         next_progress = 30.0
         wall0 = time.monotonic()
-        while not self.mission.done and self.crash is None:
+        while not self.mission.finished and self.crash is None:
             if self.t >= self.opt.max_time_s:
                 self.timed_out = True
                 self._sim_event(self.t, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)", "error")
