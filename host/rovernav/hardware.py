@@ -35,6 +35,8 @@ log = logging.getLogger("rovernav.run")
 
 #: Highest camera index accepted (OpenCV numbers devices from 0).
 MAX_CAMERA_INDEX = 999
+#: `rovernav run` prints the mission's status line (phase, rover, frames through both ways) this often [s].
+STATUS_LINE_S = 5.0
 
 
 def camera_source(source: object) -> int | str:
@@ -203,6 +205,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
         if readings is not None:
             say(0.0, f"loaded {mission.map.replay(readings)} sonar readings from {map_file}")
         t0 = time.monotonic()
+        next_status_s = STATUS_LINE_S
         try:
             while not mission.finished and time.monotonic() - t0 < max_time_s:
                 ok, frame = cap.read()
@@ -218,6 +221,9 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
                     else:
                         mission.on_detection(Detection(now, None, None, None, det.reason), now)
                 mission.tick(now)
+                if now >= next_status_s:   # the status line: where the mission is, and the radio both ways
+                    next_status_s = now + STATUS_LINE_S
+                    say(now, mission.status_line())
                 if mission.phase is Phase.HELLO and now > 5.0:
                     raise LinkError(f"no HELLO from the rover on {name}: is it powered, flashed, and on this port "
                                     f"at {baud} baud?")

@@ -27,6 +27,7 @@ from ..link import messages_gen as mg
 from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
 from ..link.path_upload import Answer, PathUpload
+from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..mapping import SonarReading
@@ -185,6 +186,8 @@ class Mission:
         self.requests = RequestTracker(RESEND_S, MAX_TRIES)
         self.upload: PathUpload | None = None    # the path on its way to the rover
         self.sent: dict[str, int] = {}           # frames sent, by message kind
+        self.frames_sent = 0
+        self.quality = LinkQuality()             # frames through, both ways (link/quality.py)
         self.sent_again: dict[str, int] = {}     # ... of which re-sent for want of an answer
         self.hellos_again = 0                    # HELLOs said again because the rover did not know this host
         self._closed = False                     # the ended mission's STOP was ACKed (or given up on)
@@ -357,6 +360,9 @@ class Mission:
             self._heard_again_s = self._now
         self._last_heard_s = self._now
         m = frame.message
+        if isinstance(m, mg.Hello) and m.role == mg.Role.ROVER and m.boot_id != self.rover_boot_id:
+            self.quality.restart()   # a rover that restarted numbers its frames from 0 again
+        self.quality.on_frame(frame.seq, self._now)
         if isinstance(m, mg.Hello):
             self._on_hello(m)
         elif isinstance(m, (mg.Ack, mg.Nack)):
@@ -452,6 +458,7 @@ class Mission:
 
     def _on_status(self, m: mg.Status) -> None:
         self.last_status = m
+        self.quality.on_status(m, self.frames_sent, self._now)
         if self.phase is not Phase.HELLO and not m.flags & mg.StatusFlag.SCHEMA_OK:
             self._say_hello_again()
         # A STATUS after START was acknowledged that says the rover has arrived on this path:
@@ -661,6 +668,7 @@ class Mission:
         seq = self.link.send(message)
         self.recorder.host_tx(self._now, message, seq)
         self.sent[message.NAME] = self.sent.get(message.NAME, 0) + 1
+        self.frames_sent += 1
         if again:
             self.sent_again[message.NAME] = self.sent_again.get(message.NAME, 0) + 1
         return seq
@@ -735,6 +743,23 @@ class Mission:
         """End the mission from outside (an operator, or the simulator's time limit)."""
         self.recorder.host_input("fail", self._now, why=why)
         self._fail(why, Failure.FROM_OUTSIDE)
+
+    def status_line(self) -> str:
+        """One line on how the mission goes: phase, the rover's state and leg, the link both ways."""
+        st = self.last_status
+        rover = "-"
+        if st is not None:
+            state = mg.RoverState(st.state).name.lower() if st.state in mg.RoverState._value2member_map_ else st.state
+            rover = f"{state} wp {st.waypoint_index} at ({st.x_mm / 1000:.2f}, {st.y_mm / 1000:.2f}) m"
+        legs = f"leg {len(self.legs)}/{self.legs_asked}" if self.legs else f"0/{self.legs_asked} legs"
+        again = sum(self.sent_again.values())
+        return f"{self.phase.value}, {legs}, rover {rover}; {self.quality.line()}; {again} frames sent again"
+
+    def link_summary(self) -> dict:
+        """What the link did, for report.json and the run log: frames through both ways, and the
+        frames the host sent and sent again, per message kind."""
+        return {**self.quality.summary(), "host_sent": dict(sorted(self.sent.items())),
+                "host_sent_again": dict(sorted(self.sent_again.items())), "hellos_again": self.hellos_again}
 
     def _rover_seen(self) -> bool:
         d = self._last_detection
