@@ -94,7 +94,7 @@ def load(path: Path = DEFINITION) -> dict:
     if not isinstance(sig, dict):
         raise DefinitionError("[signing] is missing")
     for key in ("flag", "counter_bytes", "tag_bytes", "epoch_unix_s", "persist_step", "reset_margin",
-                "provision_window_ms", "host_to_rover", "rover_to_host"):
+                "provision_window_ms", "host_to_rover", "rover_to_host", "consent_pin", "consent_reset_bit"):
         if not isinstance(sig.get(key), int) or isinstance(sig.get(key), bool) or sig[key] < 0:
             raise DefinitionError(f"[signing].{key} must be a non-negative integer")
     if not 0 < sig["tag_bytes"] <= 8 or not 0 < sig["counter_bytes"] <= 8:
@@ -105,6 +105,11 @@ def load(path: Path = DEFINITION) -> dict:
         raise DefinitionError("[signing].persist_step must be 65536: the rover compares the counters' bytes 2-5")
     if sig["reset_margin"] <= sig["persist_step"]:
         raise DefinitionError("[signing].reset_margin must exceed persist_step: a counter would repeat after a reset")
+    if not sig["consent_pin"] <= 19:
+        raise DefinitionError("[signing].consent_pin must be an Uno pin, 0..19 (A0-A5 are 14-19)")
+    bit = sig["consent_reset_bit"]
+    if bit < 0x10 or bit > 0x8000 or bit & (bit - 1):
+        raise DefinitionError("[signing].consent_reset_bit must be one bit above MCUSR's reset flags (0x10..0x8000)")
     for name in sig.get("unsigned", []):
         if name not in seen_names:
             raise DefinitionError(f"[signing].unsigned: no message {name!r}")
@@ -327,11 +332,14 @@ def render_cpp(d: dict) -> str:
                f"enum : uint8_t {{\n  kSignFlag = 0x{sig['flag']:02X},\n  kSignCounterBytes = {sig['counter_bytes']},\n"
                f"  kSignTagBytes = {sig['tag_bytes']},\n  kSignHostToRover = {sig['host_to_rover']},\n"
                f"  kSignRoverToHost = {sig['rover_to_host']},\n"
+               f"  kSignConsentPin = {sig['consent_pin']},  // held to GND at a reset: consent to an unsigned PROVISION\n"
                f"  kMaxSignedRawFrame = {max_raw + sig['counter_bytes'] + sig['tag_bytes']}  // a signed frame, CRC included\n}};\n"
                f"static const uint32_t kSignEpochUnixS = {sig['epoch_unix_s']}UL;\n"
                f"static const uint32_t kSignResetMargin = {sig['reset_margin']}UL;\n"
                f"static const uint32_t kSignPersistStep = {sig['persist_step']}UL;\n"
                f"static const uint16_t kSignProvisionWindowMs = {sig['provision_window_ms']};\n"
+               f"/// The reset cause bit (Rover::begin, the boot EVENT) that says the consent pin was held to GND.\n"
+               f"static const uint16_t kSignConsentResetBit = 0x{sig['consent_reset_bit']:02X};\n"
                "/// Whether a rover with a key takes host message `id` unsigned.\n"
                "inline bool may_be_unsigned(uint8_t id) {\n  return "
                + " || ".join(f"id == 0x{by_name[n]:02X}" for n in sig.get("unsigned", [])) + ";\n}\n\n")
@@ -407,6 +415,8 @@ def render_py(d: dict) -> str:
            f"SIGN_PROVISION_WINDOW_MS = {d['signing']['provision_window_ms']}\n",
            f"SIGN_HOST_TO_ROVER = {d['signing']['host_to_rover']}\n",
            f"SIGN_ROVER_TO_HOST = {d['signing']['rover_to_host']}\n",
+           f"SIGN_CONSENT_PIN = {d['signing']['consent_pin']}\n",
+           f"SIGN_CONSENT_RESET_BIT = 0x{d['signing']['consent_reset_bit']:02X}\n",
            "SIGN_UNSIGNED_IDS = frozenset({" + ", ".join(
                f"0x{m['id']:02X}" for m in d["messages"] if m["name"] in d["signing"].get("unsigned", [])) + "})\n",
            f"MAX_SIGNED_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES + d['signing']['counter_bytes'] + d['signing']['tag_bytes']}\n",

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x30D2B0E8UL;
+static const uint32_t kSchemaHash = 0xEEA007ECUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -24,12 +24,15 @@ enum : uint8_t {
   kSignTagBytes = 6,
   kSignHostToRover = 1,
   kSignRoverToHost = 2,
+  kSignConsentPin = 7,  // held to GND at a reset: consent to an unsigned PROVISION
   kMaxSignedRawFrame = 62  // a signed frame, CRC included
 };
 static const uint32_t kSignEpochUnixS = 1767225600UL;
 static const uint32_t kSignResetMargin = 70000UL;
 static const uint32_t kSignPersistStep = 65536UL;
 static const uint16_t kSignProvisionWindowMs = 5000;
+/// The reset cause bit (Rover::begin, the boot EVENT) that says the consent pin was held to GND.
+static const uint16_t kSignConsentResetBit = 0x80;
 /// Whether a rover with a key takes host message `id` unsigned.
 inline bool may_be_unsigned(uint8_t id) {
   return id == 0x01 || id == 0x08;
@@ -71,7 +74,7 @@ struct StatusFlag {
 
 /// What an EVENT reports.
 enum class EventKind : uint8_t {
-  Boot = 0,  ///< the rover started; arg = reset cause bits
+  Boot = 0,  ///< the rover started; arg = reset cause bits: the AVR's MCUSR as the sketch found it (1 power-on, 2 external, 4 brown-out, 8 watchdog; behind the Uno's optiboot always 0) and [signing].consent_reset_bit if the consent pin was held to GND
   Arrived = 1,  ///< the last waypoint was reached; arg = waypoint index
   WaypointReached = 2,  ///< arg = index of the waypoint reached
   ScanDone = 3,  ///< a sonar sweep finished; arg = echoes reported
@@ -109,7 +112,8 @@ enum class NackReason : uint8_t {
   SchemaMismatch = 8,  ///< START before a HELLO with our schema hash
   Faulted = 9,  ///< START while in the fault state; detail = fault code
   NoFix = 10,  ///< START before the rover has had a camera fix: it does not know where it is
-  NotNow = 11,  ///< PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)
+  NotNow = 11,  ///< an unsigned PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)
+  NeedsConsent = 12,  ///< an unsigned PROVISION to a rover that holds a key, with no consent: sign the PROVISION with the key the rover holds (rovernav provision --current-key-file), or hold pin D<detail> to GND while resetting the rover and send it within provision_window_ms; detail = that pin ([signing].consent_pin)
 };
 
 /// What the host's camera sees, sent in HEARTBEAT.
@@ -398,7 +402,7 @@ struct Config {
 };
 static_assert(sizeof(Config) == Config::kPayloadSize, "config: its layout is its payload");
 
-/// Store (or erase) the link key ([signing]). Taken unsigned, and only within provision_window_ms of a reset: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno (rovernav provision). (host to rover)
+/// Store (or erase) the link key ([signing]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio. (host to rover)
 struct Provision {
   enum : uint8_t { kId = 0x08, kPayloadSize = 17 };
   uint8_t key[16];  ///< the 128-bit key, as in the key file

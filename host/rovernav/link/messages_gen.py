@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x30D2B0E8
+SCHEMA_HASH = 0xEEA007EC
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -22,6 +22,8 @@ SIGN_RESET_MARGIN = 70000
 SIGN_PROVISION_WINDOW_MS = 5000
 SIGN_HOST_TO_ROVER = 1
 SIGN_ROVER_TO_HOST = 2
+SIGN_CONSENT_PIN = 7
+SIGN_CONSENT_RESET_BIT = 0x80
 SIGN_UNSIGNED_IDS = frozenset({0x01, 0x08})
 MAX_SIGNED_RAW_FRAME = 62
 MAX_PAYLOAD = 45
@@ -85,7 +87,7 @@ class EventKind(enum.IntEnum):
     """What an EVENT reports."""
 
     BOOT = 0
-    """the rover started; arg = reset cause bits"""
+    """the rover started; arg = reset cause bits: the AVR's MCUSR as the sketch found it (1 power-on, 2 external, 4 brown-out, 8 watchdog; behind the Uno's optiboot always 0) and [signing].consent_reset_bit if the consent pin was held to GND"""
     ARRIVED = 1
     """the last waypoint was reached; arg = waypoint index"""
     WAYPOINT_REACHED = 2
@@ -152,7 +154,9 @@ class NackReason(enum.IntEnum):
     NO_FIX = 10
     """START before the rover has had a camera fix: it does not know where it is"""
     NOT_NOW = 11
-    """PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)"""
+    """an unsigned PROVISION later than [signing].provision_window_ms after a reset; detail = seconds since the reset (saturates)"""
+    NEEDS_CONSENT = 12
+    """an unsigned PROVISION to a rover that holds a key, with no consent: sign the PROVISION with the key the rover holds (rovernav provision --current-key-file), or hold pin D<detail> to GND while resetting the rover and send it within provision_window_ms; detail = that pin ([signing].consent_pin)"""
 
 class CameraState(enum.IntEnum):
     """What the host's camera sees, sent in HEARTBEAT."""
@@ -406,7 +410,7 @@ class Config(Message):
 
 @dataclasses.dataclass
 class Provision(Message):
-    """Store (or erase) the link key ([signing]). Taken unsigned, and only within provision_window_ms of a reset: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno (rovernav provision)."""
+    """Store (or erase) the link key ([signing]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio."""
 
     ID: ClassVar[int] = 0x08
     NAME: ClassVar[str] = 'provision'
