@@ -8,7 +8,8 @@ Writes, with a banner naming this file and the definition:
 
     python3 protocol/generate.py                 write the outputs
     python3 protocol/generate.py --check         exit 1 if a committed output drifted
-    python3 protocol/generate.py --update-vectors  recompute frame_hex in vectors.json
+    python3 protocol/generate.py --update-vectors  recompute frame_hex (and the signed frames' bytes
+                                                   and tags) in vectors.json
 
 Standard library only: it runs before anything is installed.
 """
@@ -200,8 +201,9 @@ def _cobs(data: bytes) -> bytes:
     return bytes(out)
 
 
-def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
-    body = bytearray([d["protocol"]["version"], message["id"], seq])
+def _reference_body(d: dict, message: dict, seq: int, fields: dict, version: int) -> bytearray:
+    """version, msg_id, seq and the payload, each field little-endian in order."""
+    body = bytearray([version, message["id"], seq])
     for f in message["fields"]:
         size, _, _, lo, hi = TYPES[f["type"]]
         values = fields[f["name"]] if "count" in f else [fields[f["name"]]]
@@ -211,8 +213,94 @@ def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
             if not lo <= v <= hi:
                 raise DefinitionError(f"vector for {message['name']}.{f['name']}: {v} out of range")
             body += int(v).to_bytes(size, "little", signed=lo < 0)
+    return body
+
+
+def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
+    body = _reference_body(d, message, seq, fields, d["protocol"]["version"])
     body += _crc16_ccitt_false(bytes(body)).to_bytes(2, "little")
     return _cobs(bytes(body)) + b"\x00"
+
+
+# SipHash-2-4, written from the paper's definition (Aumasson and Bernstein, "SipHash: a fast
+# short-input PRF", 2012, section 2), not from either runtime, and checked against the paper's
+# test vector (its appendix A) before it signs anything.
+_U64 = (1 << 64) - 1
+
+
+def _rotl64(x: int, b: int) -> int:
+    return ((x << b) | (x >> (64 - b))) & _U64
+
+
+def _sip_round(v0: int, v1: int, v2: int, v3: int) -> tuple[int, int, int, int]:
+    """One SipRound: the paper's two half-rounds side by side (add, rotate, xor; v0 and v2 rotated by 32)."""
+    v0 = (v0 + v1) & _U64
+    v2 = (v2 + v3) & _U64
+    v1 = _rotl64(v1, 13) ^ v0
+    v3 = _rotl64(v3, 16) ^ v2
+    v0 = _rotl64(v0, 32)
+    v2 = (v2 + v1) & _U64
+    v0 = (v0 + v3) & _U64
+    v1 = _rotl64(v1, 17) ^ v2
+    v3 = _rotl64(v3, 21) ^ v0
+    v2 = _rotl64(v2, 32)
+    return v0, v1, v2, v3
+
+
+def reference_siphash24(key: bytes, m: bytes) -> bytes:
+    """SipHash-2-4 of m under the 16-byte key: the 64-bit result's 8 bytes, little-endian."""
+    if len(key) != 16:
+        raise ValueError("a SipHash key is 16 bytes")
+    k0, k1 = int.from_bytes(key[:8], "little"), int.from_bytes(key[8:], "little")
+    # Initialisation: the key xor the constants "somepseudorandomlygeneratedbytes".
+    v = (k0 ^ 0x736F6D6570736575, k1 ^ 0x646F72616E646F6D, k0 ^ 0x6C7967656E657261, k1 ^ 0x7465646279746573)
+    # m is parsed as w = ceil((b + 1) / 8) little-endian words, the last one holding m's last
+    # 0-7 bytes, then zeros, then b mod 256 in its top byte.
+    b = len(m)
+    padded = m + bytes(-(b + 1) % 8) + bytes((b % 256,))
+    for i in range(0, len(padded), 8):
+        mi = int.from_bytes(padded[i:i + 8], "little")
+        v0, v1, v2, v3 = v[0], v[1], v[2], v[3] ^ mi
+        for _ in range(2):                      # c = 2 compression rounds
+            v0, v1, v2, v3 = _sip_round(v0, v1, v2, v3)
+        v = (v0 ^ mi, v1, v2, v3)
+    v0, v1, v2, v3 = v[0], v[1], v[2] ^ 0xFF, v[3]
+    for _ in range(4):                          # d = 4 finalisation rounds
+        v0, v1, v2, v3 = _sip_round(v0, v1, v2, v3)
+    return (v0 ^ v1 ^ v2 ^ v3).to_bytes(8, "little")
+
+
+# The paper's appendix A: key 00 01 .. 0f, message 00 01 .. 0e (15 bytes), SipHash-2-4 =
+# 0xa129ca6149be45e5 (so its bytes, little-endian, are e5 45 be 49 61 ca 29 a1).
+SIPHASH_PAPER_VECTOR = (bytes(range(16)), bytes(range(15)), 0xA129CA6149BE45E5)
+
+
+def check_reference_siphash() -> None:
+    key, m, expected = SIPHASH_PAPER_VECTOR
+    got = int.from_bytes(reference_siphash24(key, m), "little")
+    if got != expected:
+        raise AssertionError(f"reference SipHash-2-4 gives 0x{got:016x} on the paper's vector, not 0x{expected:016x}")
+
+
+def reference_signed_frame(d: dict, message: dict, seq: int, fields: dict, key: bytes, counter: int,
+                           direction: str) -> tuple[bytes, bytes, bytes]:
+    """A signed frame ([signing]): its bytes on the wire (delimiter included), its tag, and what
+    the tag is SipHash-2-4 of (the direction byte, then version|flag .. counter)."""
+    sig = d["signing"]
+    if direction not in ("host_to_rover", "rover_to_host"):
+        raise DefinitionError(f"signed vector for {message['name']}: direction {direction!r}")
+    if message["direction"] not in (direction, "both"):
+        raise DefinitionError(f"signed vector: {message['name']} is not sent {direction}")
+    if not 0 <= counter < 1 << (8 * sig["counter_bytes"]):
+        raise DefinitionError(f"signed vector for {message['name']}: counter {counter} out of range")
+    check_reference_siphash()
+    body = _reference_body(d, message, seq, fields, d["protocol"]["version"] | sig["flag"])
+    body += counter.to_bytes(sig["counter_bytes"], "little")
+    mac_input = bytes((sig[direction],)) + bytes(body)
+    tag = reference_siphash24(key, mac_input)[:sig["tag_bytes"]]
+    body += tag
+    body += _crc16_ccitt_false(bytes(body)).to_bytes(2, "little")
+    return _cobs(bytes(body)) + b"\x00", tag, mac_input
 
 
 # ---------------------------------------------------------------- C++
@@ -515,6 +603,26 @@ def render_vectors_h(d: dict, vectors: dict) -> str:
     for i, v in enumerate(vectors["frames"]):
         tables.append(f'  {{"{v["name"]}", kGolden{i}, sizeof kGolden{i}}},\n')
     tables.append("};\n\n")
+    sig = d["signing"]
+    tables.append("// Signed frames (vectors.json signed_frames): the key, the counter (little-endian, as on the wire),\n"
+                  "// the direction byte, the frame's bytes on the wire (delimiter included), its tag, and what the tag\n"
+                  "// is SipHash-2-4 of (the direction byte, then version|flag .. counter).\n"
+                  f"struct SignedVector {{ const char* name; uint8_t direction; uint8_t msg_id; uint8_t key[16]; "
+                  f"uint8_t counter[{sig['counter_bytes']}]; const uint8_t* wire; uint8_t wire_len; "
+                  f"uint8_t tag[{sig['tag_bytes']}]; const uint8_t* mac_input; uint8_t mac_input_len; }};\n")
+    signed = vectors.get("signed_frames", [])
+    for i, s in enumerate(signed):
+        tables.append(f"static const uint8_t kSignedWire{i}[] = {{{_hex_bytes(bytes.fromhex(s['frame_hex']))}}};\n")
+        tables.append(f"static const uint8_t kSignedMacInput{i}[] = {{{_hex_bytes(bytes.fromhex(s['mac_input_hex']))}}};\n")
+    tables.append(f"static const SignedVector kSignedVectors[{max(1, len(signed))}] = {{\n")
+    for i, s in enumerate(signed):
+        counter = s["counter"].to_bytes(sig["counter_bytes"], "little")
+        tables.append(f'  {{"{s["name"]}", {sig[s["direction"]]}, 0x{by_name[s["message"]]["id"]:02X},\n'
+                      f'   {{{_hex_bytes(bytes.fromhex(s["key_hex"]))}}},\n'
+                      f'   {{{_hex_bytes(counter)}}},  // {s["counter"]}\n'
+                      f'   kSignedWire{i}, sizeof kSignedWire{i}, {{{_hex_bytes(bytes.fromhex(s["tag_hex"]))}}},\n'
+                      f'   kSignedMacInput{i}, sizeof kSignedMacInput{i}}},\n')
+    tables.append("};\n\n")
     tables.append("// Every parameter as the definition gives it, written from its numbers (not from the rover's\n"
                   "// packed table, which test_params checks against this).\n"
                   "struct ParamSpec { uint8_t id; int32_t def, lo, hi; };\n"
@@ -556,6 +664,10 @@ def update_vectors(d: dict, vectors: dict) -> dict:
     bad.append({"name": "COBS block runs past the delimiter", "counter": "malformed", "hex": "05112233" + "00"})
     bad.append({"name": "longer than any frame", "counter": "overlong", "hex": ("41" * 70) + "00"})
     vectors["bad_frames"] = bad
+    for s in vectors.get("signed_frames", []):
+        frame, tag, mac_input = reference_signed_frame(d, by_name[s["message"]], s["seq"], s["fields"],
+                                                       bytes.fromhex(s["key_hex"]), s["counter"], s["direction"])
+        s["frame_hex"], s["tag_hex"], s["mac_input_hex"] = frame.hex(), tag.hex(), mac_input.hex()
     return vectors
 
 
@@ -600,6 +712,9 @@ def main(argv: list[str] | None = None) -> int:
                 path.write_text(text)
                 print(f"wrote {path.relative_to(ROOT)}")
     if args.check:
+        vectors = json.loads(VECTORS.read_text())
+        if update_vectors(d, json.loads(VECTORS.read_text())) != vectors:
+            drifted.append(str(VECTORS.relative_to(ROOT)) + " (its computed bytes: run --update-vectors)")
         if drifted:
             print("generated files drifted from protocol/messages.toml: " + ", ".join(drifted)
                   + "\nrun: python3 protocol/generate.py", file=sys.stderr)
