@@ -74,7 +74,10 @@ bool Rover::mode_blocked(uint32_t now) {
     plan_detour();   // the radio went down while it waited: no path will come
     return false;
   }
-  if (radio_lost_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
+  // Once the reflex has stopped it on the host's path and it found no way round, it does not
+  // drive into what stopped it on the host's word again: it holds still until a new path comes
+  // (a host that never heard the sweep's reports, on a lossy radio, holds that path clear).
+  if (radio_lost_ || reflex_after_trust_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
   awaiting_host_ = false;
   trusted_host_ = true;
   enter(RoverState::Rotate);
