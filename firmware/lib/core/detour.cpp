@@ -54,7 +54,10 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
 void Rover::replan_locally() {
   awaiting_host_ = false;
   if (!mission_ || local_.echoes() == 0) return;
-  if (!local_.blocks(here_mm(), target(), static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
+  // (With the full clearance once the reflex has stopped the rover on the host's path: that path
+  // passed the echo by the host's margin, so the host's map did not hold it.)
+  if (!local_.blocks(here_mm(), target(),
+                     reflex_after_trust_ ? 0 : static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
   const bool on_own_detour = detour_i_ < detour_n_;
   if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
     awaiting_host_ = true;
