@@ -629,3 +629,19 @@ def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
     assert not r["reached"]
     assert _rover_events(sim, mg.EventKind.STOPPED) >= 10
     assert r["link"]["signing"]["rover_refused"]["unverified"] == r["link"]["signing"]["attacker"]["injected"]["forged"]
+
+
+@pytest.mark.mission
+def test_a_mission_at_one_percent_byte_loss_reaches_its_target():
+    # 1 % of bytes lost and 0.1 % with a flipped bit, both ways: about two in five signed PATH
+    # chunks, and one FIX in four, do not arrive. Every exchange is retried (protocol/README.md).
+    from rovernav.sim.channel import ChannelConfig
+
+    clean, _ = _simulate("seed-fig4-8-unknown-obstacle", seed=2)
+    r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=2, channel=ChannelConfig(byte_loss=0.01, bit_error=0.001))
+    assert r["reached"] and r["collisions"] == 0
+    assert r["mission_time_s"] < 1.3 * clean["mission_time_s"]
+    link = sim.mission.link_summary()
+    assert 0.5 < link["host_to_rover"]["success"] < 0.95 and 0.5 < link["rover_to_host"]["success"] < 0.95
+    assert sum(link["host_sent_again"].values()) > 0
+    assert sim.mission.finished and sim.core.probe().state in (mg.RoverState.ARRIVED, mg.RoverState.IDLE)
