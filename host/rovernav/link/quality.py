@@ -71,9 +71,10 @@ class LinkQuality:
             ok0, broken0, sent0 = self._last_status
             got = (status.rx_ok - ok0) & 0xFFFF
             sent = host_sent - sent0
-            # Frames still on the air when the STATUS left are counted in the next interval.
-            if sent > 0:
-                self._count("to_rover", sent, min(got, sent), now_s)
+            # Frames still on the air when the STATUS left are counted in the next interval (so
+            # one interval may count more arrived than sent: the sums even out; rates clamp at 1).
+            if sent > 0 or got > 0:
+                self._count("to_rover", sent, got, now_s)
             self.rover_broken += (broken - broken0) & 0xFFFF
         self._last_status = (status.rx_ok, broken, host_sent)
 
