@@ -38,7 +38,8 @@ void Rover::send_hello() {
   if (auth_.keyed()) {
     // The host's counter must pass ours: after a reset we take none below the stored one plus
     // the margin, so that a recording of the last session cannot be played back.
-    const Counter48 least = counter_plus(auth_.rx_last(), 1);
+    Counter48 least = auth_.rx_last();
+    counter_add(least, 1);
     h.signing = 1;
     h.min_counter_lo = le::get_u32(least.b);
     h.min_counter_hi = le::get_u16(least.b + 4);

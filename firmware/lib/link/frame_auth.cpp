@@ -2,16 +2,14 @@
 
 namespace rovernav {
 
-Counter48 counter_plus(const Counter48& a, uint32_t ms) {
-  Counter48 r;
+void counter_add(Counter48& c, uint32_t ms) {
   uint16_t carry = 0;
   for (uint8_t i = 0; i < kSignCounterBytes; ++i) {
-    carry = static_cast<uint16_t>(carry + a.b[i] + (ms & 0xFFu));
-    r.b[i] = static_cast<uint8_t>(carry);
+    carry = static_cast<uint16_t>(carry + c.b[i] + (ms & 0xFFu));
+    c.b[i] = static_cast<uint8_t>(carry);
     carry >>= 8;
     ms >>= 8;
   }
-  return r;
 }
 
 bool counter_above(const Counter48& a, const Counter48& b) {
@@ -27,8 +25,10 @@ __attribute__((noinline)) void FrameAuth::begin(const uint8_t* key) {
 }
 
 void FrameAuth::resume(const Counter48& tx_persisted, const Counter48& rx_persisted) {
-  tx_last_ = counter_plus(tx_persisted, kSignResetMargin);
-  rx_last_ = counter_plus(rx_persisted, kSignResetMargin);
+  tx_last_ = tx_persisted;
+  counter_add(tx_last_, kSignResetMargin);
+  rx_last_ = rx_persisted;
+  counter_add(rx_last_, kSignResetMargin);
 }
 
 void FrameAuth::tag_of(uint8_t direction, const uint8_t* data, uint8_t len, uint8_t* tag) const {
@@ -68,7 +68,7 @@ AuthResult FrameAuth::check(const Frame& f) {
 }
 
 uint8_t FrameAuth::sign(uint8_t* raw, uint8_t n) {
-  tx_last_ = counter_plus(tx_last_, 1);
+  counter_add(tx_last_, 1);
   for (uint8_t i = 0; i < kSignCounterBytes; ++i) raw[n++] = tx_last_.b[i];
   uint8_t tag[kSipTagBytes];
   tag_of(kSignRoverToHost, raw, n, tag);

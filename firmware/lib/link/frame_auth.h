@@ -27,8 +27,15 @@ struct Counter48 {
   uint8_t b[kSignCounterBytes];
 };
 static_assert(sizeof(Counter48) == kSignCounterBytes && alignof(Counter48) == 1, "a Counter48 is its bytes");
+/// c += ms (modulo 2^48), in place: a Counter48 returned by value costs the Uno a stack frame
+/// and a copy at every call.
+void counter_add(Counter48& c, uint32_t ms);
 /// a + ms (modulo 2^48).
-Counter48 counter_plus(const Counter48& a, uint32_t ms);
+inline Counter48 counter_plus(const Counter48& a, uint32_t ms) {
+  Counter48 r = a;
+  counter_add(r, ms);
+  return r;
+}
 /// Whether a > b.
 bool counter_above(const Counter48& a, const Counter48& b);
 /// The counter in 6 bytes (as on the wire, or as stored).
