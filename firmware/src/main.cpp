@@ -65,6 +65,7 @@ void setup() {
   hal::HwWatchdog::enable();
   hal::StatusLed::begin(true);
   DDRB = static_cast<uint8_t>(DDRB | _BV(DDB0));   // the step probe (board::kPinStepProbe)
+  PORTD = static_cast<uint8_t>(PORTD | _BV(PORTD7));   // the consent pin's pull-up (board::kPinConsent), read below
   motors.begin();
   servo.begin(0);
   sonar.begin();
@@ -87,7 +88,12 @@ void setup() {
   {
     core::LinkSecrets secrets;   // on the stack for setup() only: the core keeps its own copy
     link_store.load(secrets);
-    rover.begin(boot_id, hal::HwWatchdog::reset_flags(), &secrets);
+    // The consent pin held to GND (its pull-up has had the gyro's calibration to settle): the
+    // owner's consent to an unsigned PROVISION, for the core (a bit of the reset cause: PD7 low
+    // is that bit set, as it is the same bit).
+    static_assert(kSignConsentResetBit == _BV(PIND7), "the consent pin's bit in PIND is its reset cause bit");
+    const uint8_t consent = static_cast<uint8_t>(~PIND & _BV(PIND7));
+    rover.begin(boot_id, static_cast<uint8_t>(hal::HwWatchdog::reset_flags() | consent), &secrets);
   }
   last_step_ms = static_cast<uint16_t>(millis());
 }

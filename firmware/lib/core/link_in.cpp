@@ -87,7 +87,8 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
       on_config(m.config, f.seq);
       break;
     case msg::Provision::kId:
-      on_provision(m.provision, f.seq, now);
+      // Signed and taken: its tag passed under the key held (a rover with no key takes no signed frame).
+      on_provision(m.provision, f.seq, now, f.signed_len != 0);
       break;
     default:
       break;  // a rover-to-host message echoed back: valid, not for us
@@ -211,15 +212,23 @@ void Rover::on_config(const msg::Config& m, uint8_t seq) {
   }
 }
 
-// PROVISION: only within kSignProvisionWindowMs of a reset. The radio cannot reset the rover;
-// a person can (the reset button, or opening the USB port, which resets the Uno through DTR:
-// `rovernav provision`). The new key signs the ACK already.
-void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now) {
+// PROVISION. A rover with a key changes it (or forgets it) only with its owner's consent: the
+// frame signed with that key (its tag checked: at any time), or the consent pin held to GND at
+// the reset (kSignConsentResetBit in the reset cause the shell gave begin()); else NACK
+// needs_consent, whatever the reset was: a power-on, a brown-out or the watchdog's opens no
+// door, and behind the Uno's optiboot the sketch cannot tell them from the reset button anyway.
+// A rover with no key takes it unsigned (first use). Unsigned, only within kSignProvisionWindowMs
+// of a reset: the radio cannot reset the rover; a person can (the reset button, or opening the
+// USB port, which resets the Uno through DTR: `rovernav provision`). The new key signs the ACK.
+void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now, bool verified) {
   const uint8_t id = msg::Provision::kId;
-  const uint32_t since_ms = now - boot_ms_;
-  if (since_ms > kSignProvisionWindowMs) {
-    const uint32_t s = since_ms / 1000;
-    return nack(id, seq, NackReason::NotNow, s > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(s));
+  if (!verified) {
+    if (auth_.keyed() && !(reset_cause_ & kSignConsentResetBit)) return nack(id, seq, NackReason::NeedsConsent, kSignConsentPin);
+    const uint32_t since_ms = now - boot_ms_;
+    if (since_ms > kSignProvisionWindowMs) {
+      const uint32_t s = since_ms / 1000;
+      return nack(id, seq, NackReason::NotNow, s > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(s));
+    }
   }
   if (m.erase > 1) return nack(id, seq, NackReason::BadValue, 2);
   const Counter48 tx = auth_.tx_last(), rx = auth_.rx_last();

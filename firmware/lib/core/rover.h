@@ -169,8 +169,10 @@ class Rover : private RoverFields {
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
 
   constexpr Rover() : RoverFields{} {}
-  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT. secrets: the
-  /// stored link key and counters (nullptr: no key, the link unsigned).
+  /// boot_id must change at every reset; reset_cause goes out in the boot EVENT: the reset's
+  /// flags, and kSignConsentResetBit when the shell found the consent pin held to GND at start-up
+  /// (a keyed rover then takes an unsigned PROVISION; see on_provision). secrets: the stored link
+  /// key and counters (nullptr: no key, the link unsigned).
   void begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets = nullptr);
   void step(const Inputs& in, Outputs& out);
 
@@ -237,7 +239,7 @@ class Rover : private RoverFields {
   void on_start(const msg::Start& m, uint8_t seq);
   void on_stop(const msg::Stop& m, uint8_t seq);
   void on_config(const msg::Config& m, uint8_t seq);
-  void on_provision(const msg::Provision& m, uint8_t seq, uint32_t now);
+  void on_provision(const msg::Provision& m, uint8_t seq, uint32_t now, bool verified);
   uint8_t take_frames(const Inputs& in, uint32_t now);
   // link_out.cpp
   void ack(uint8_t msg_id, uint8_t seq);

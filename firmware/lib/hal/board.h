@@ -59,6 +59,12 @@ constexpr uint8_t kPinLed = 13;
 // --- Step probe: high while a 10 ms step works (a scope on D8, or the AVR simulator, times it).
 constexpr uint8_t kPinStepProbe = 8;   // PB0
 
+// --- Consent pin: a jumper from D7 to GND while the rover resets is its owner's consent to a new
+// link key (or an erase) sent unsigned ([signing].consent_pin; link_in.cpp's on_provision). Read
+// once at start-up with the pull-up on; take the jumper off after provisioning. Free in the seed's
+// wiring (as are 4, 10, 12, A2 and A3).
+constexpr uint8_t kPinConsent = 7;     // PD7
+
 // --- Watchdog: the loop must kick it at least this often.
 constexpr uint16_t kWatchdogTimeoutMs = 250;
 
