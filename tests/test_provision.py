@@ -1,5 +1,7 @@
 """`rovernav provision` against the rover's firmware core (its C ABI), in simulated time: the key
-is sent only after the rover is seen to boot, and the rover takes it only soon after a reset."""
+is sent only after the rover is seen to boot, a rover with no key takes it only soon after a
+reset, and a rover with a key changes it only with its owner's consent (the PROVISION signed with
+its current key, or the consent pin held to GND at its reset)."""
 from __future__ import annotations
 
 import pytest
@@ -7,11 +9,14 @@ import pytest
 from rovernav.firmware import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
-from rovernav.link.provision import ProvisionError, provision
+from rovernav.link.provision import NeedsConsent, ProvisionError, WrongCurrentKey, provision
 
 from tests.core_transport import CoreTransport
 
 KEY = bytes(range(50, 66))
+NEW_KEY = bytes(range(90, 106))
+# MCUSR's reset flags: power-on, external (button, DTR), brown-out, watchdog; none (behind optiboot)
+RESET_CAUSES = (0x01, 0x02, 0x04, 0x08, 0x00)
 
 
 def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it():
@@ -48,10 +53,99 @@ def test_a_key_sent_after_the_window_is_refused_by_the_rover():
     assert port.core.take_key_change() is None
 
 
-def test_erase_forgets_the_key():
-    port = CoreTransport(RoverCore(key=KEY))
+def test_erase_of_a_rover_with_no_key_is_taken_as_before():
+    port = CoreTransport(RoverCore())
     assert provision(port, None, clock=port.clock).startswith("the rover's link key is erased")
     assert port.core.take_key_change() == ("erase", None)
+
+
+@pytest.mark.parametrize("cause", RESET_CAUSES)
+def test_a_keyed_rover_refuses_a_new_key_or_an_erase_without_consent_after_any_reset(cause):
+    for new in (NEW_KEY, None):
+        port = CoreTransport(RoverCore(key=KEY, reset_cause=cause))
+        with pytest.raises(NeedsConsent) as info:
+            provision(port, new, clock=port.clock)
+        assert port.core.take_key_change() is None
+        line = str(info.value)
+        assert "\n" not in line and "--current-key-file" in line and f"pin D{mg.SIGN_CONSENT_PIN} to GND" in line
+        assert info.value.exit_code == 2 and info.value.pin == mg.SIGN_CONSENT_PIN
+        # it still obeys the key it holds
+        port.from_rover = b""
+        port.write(encode_frame(mg.Stop(reason=0), 7, Signer(KEY, mg.SIGN_HOST_TO_ROVER)))
+        port.run_ms(100)
+        heard = FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST))
+        assert [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)] == [7]
+
+
+@pytest.mark.parametrize("cause", RESET_CAUSES)
+def test_a_keyed_rover_takes_a_new_key_signed_with_its_current_one(cause):
+    port = CoreTransport(RoverCore(key=KEY, reset_cause=cause))
+    line = provision(port, NEW_KEY, clock=port.clock, current_key=KEY)
+    assert line.startswith("stored the key") and "current key's signature" in line
+    assert port.core.take_key_change() == ("store", NEW_KEY)
+    # the frame that went out was signed (a keyed rover takes no other without the pin)
+    sent = FrameDecoder(Verifier(KEY, mg.SIGN_HOST_TO_ROVER)).feed(port.sent_to_rover)
+    assert [type(f.message) for f in sent] == [mg.Provision] and sent[0].counter is not None
+
+
+def test_a_keyed_rover_erases_its_key_for_an_erase_signed_with_it():
+    port = CoreTransport(RoverCore(key=KEY, reset_cause=0x01))
+    assert provision(port, None, clock=port.clock, current_key=KEY).startswith("the rover's link key is erased")
+    assert port.core.take_key_change() == ("erase", None)
+
+
+def test_a_wrong_current_key_is_named_before_anything_is_sent():
+    port = CoreTransport(RoverCore(key=KEY))
+    with pytest.raises(WrongCurrentKey, match="not the one given with --current-key-file") as info:
+        provision(port, NEW_KEY, clock=port.clock, current_key=NEW_KEY)
+    assert info.value.exit_code == 2
+    assert port.sent_to_rover == b"" and port.core.take_key_change() is None
+
+
+@pytest.mark.parametrize("cause", RESET_CAUSES)
+def test_a_keyed_rover_reset_with_the_consent_pin_held_takes_an_unsigned_key(cause):
+    port = CoreTransport(RoverCore(key=KEY, reset_cause=cause | mg.SIGN_CONSENT_RESET_BIT))
+    line = provision(port, NEW_KEY, clock=port.clock)
+    assert "consent pin (D7) held at its reset: take the jumper off" in line
+    assert port.core.take_key_change() == ("store", NEW_KEY)
+
+
+def test_a_rover_with_no_key_is_given_one_unsigned_even_with_a_current_key_named():
+    port = CoreTransport(RoverCore())
+    assert provision(port, NEW_KEY, clock=port.clock, current_key=KEY).startswith("stored the key")
+    assert port.core.take_key_change() == ("store", NEW_KEY)
+    assert all(f.counter is None for f in FrameDecoder().feed(port.sent_to_rover))
+
+
+def _key_file(path, key: bytes):
+    path.write_text(key.hex() + "\n")
+    path.chmod(0o600)
+    return str(path)
+
+
+def test_the_command_says_the_two_ways_to_consent_in_one_line_and_exits_2(tmp_path, monkeypatch, capsys):
+    import rovernav.link.transport as transport
+    from rovernav.cli import main
+
+    monkeypatch.setattr(transport, "open_transport", lambda spec: CoreTransport(RoverCore(key=KEY, reset_cause=1)))
+    new = _key_file(tmp_path / "new.key", NEW_KEY)
+    assert main(["provision", "--port", "/dev/ttyACM0", "--key-file", new]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and err[0].startswith("rovernav provision: the rover holds a link key")
+    assert "--current-key-file" in err[0] and "pin D7 to GND" in err[0]
+
+    cores = []
+
+    def rover(spec):
+        cores.append(RoverCore(key=KEY, reset_cause=1))
+        return CoreTransport(cores[-1])
+
+    monkeypatch.setattr(transport, "open_transport", rover)
+    current = _key_file(tmp_path / "current.key", KEY)
+    assert main(["provision", "--port", "/dev/ttyACM0", "--key-file", new, "--current-key-file", current]) == 0
+    assert cores[-1].take_key_change() == ("store", NEW_KEY)
+    assert main(["provision", "--port", "/dev/ttyACM0", "--key-file", new, "--current-key-file", new]) == 2
+    assert "not the one given with --current-key-file" in capsys.readouterr().err
 
 
 def test_the_command_refuses_a_missing_key_file_and_needs_key_or_erase(tmp_path, capsys):
@@ -64,3 +158,15 @@ def test_the_command_refuses_a_missing_key_file_and_needs_key_or_erase(tmp_path,
         assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "--key-file" in err and "none.key" in err
+    with pytest.raises(SystemExit) as exc:
+        main(["provision", "--port", "loop://", "--erase", "--current-key-file", str(tmp_path / "none.key")])
+    assert exc.value.code == 2 and "none.key" in capsys.readouterr().err
+
+
+def test_the_commands_help_names_the_current_key_file_and_the_consent_pin(capsys):
+    from rovernav.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["provision", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--current-key-file FILE" in out and "pin D7 held to GND" in out

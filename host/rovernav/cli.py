@@ -85,13 +85,14 @@ def _cmd_provision(args: argparse.Namespace) -> int:
     from .link.transport import open_transport
 
     key = None if args.erase else load_key_file(args.key_file)
+    current_key = load_key_file(args.current_key_file) if args.current_key_file else None
     transport = open_transport(args.port)
     try:
         print(f"opened {args.port}: waiting up to {args.boot_wait:g} s for the rover to boot ...")
-        print(provision(transport, key, boot_wait_s=args.boot_wait))
+        print(provision(transport, key, boot_wait_s=args.boot_wait, current_key=current_key))
     except ProvisionError as exc:
         print(f"rovernav provision: {exc}", file=sys.stderr)
-        return 1
+        return exc.exit_code
     finally:
         transport.close()
     return 0
@@ -193,13 +194,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace an existing key file")
     p.set_defaults(func=_cmd_keygen)
 
+    from .link.messages_gen import SIGN_CONSENT_PIN
+
+    pin = f"D{SIGN_CONSENT_PIN}"
     p = sub.add_parser("provision", help="store the link key on the rover, over its USB cable",
                        description="Open PORT (the Uno's USB cable: opening it resets the board), wait for the "
                                    "rover to boot, and send it the key in FILE (PROVISION, protocol/messages.toml). "
                                    "The rover stores it in EEPROM and from then on takes only frames signed with "
-                                   "it. It takes a key only within 5 s of a reset, so a radio, which cannot reset "
-                                   "it, cannot change its key: over a port that does not reset the rover nothing "
-                                   "is sent. The rover's answer comes signed with the new key, which confirms it.")
+                                   "it. A rover with no key takes one only within 5 s of a reset, so a radio, "
+                                   "which cannot reset it, cannot give it one: over a port that does not reset the "
+                                   "rover nothing is sent. A rover that holds a key changes it, or erases it, only "
+                                   "with its owner's consent: the command signed with the key it holds "
+                                   f"(--current-key-file), or pin {pin} held to GND while it resets (a jumper from "
+                                   f"{pin} to GND while this opens the port; take it off afterwards). Without "
+                                   "either it refuses (exit 2). The rover's answer comes signed with the new key, "
+                                   "which confirms it.")
     p.add_argument("--port", required=True, type=port_spec,
                    help="the rover's USB serial port, e.g. /dev/ttyACM0 or COM3 (or PORT@BAUD)")
     key_or_erase = p.add_mutually_exclusive_group(required=True)
@@ -207,6 +216,11 @@ def build_parser() -> argparse.ArgumentParser:
                               help="the key file `rovernav keygen` wrote")
     key_or_erase.add_argument("--erase", action="store_true",
                               help="forget the rover's key: it takes unsigned commands again")
+    p.add_argument("--current-key-file", type=input_file, metavar="FILE",
+                   help="the key file of the key the rover holds now: the new key (or --erase) is sent signed "
+                        "with it, the owner's consent a rover with a key needs (else: pin "
+                        f"{pin} held to GND at its reset). Checked against the rover's boot HELLO before "
+                        "anything is sent; a rover with no key does not need it")
     p.add_argument("--boot-wait", type=seconds(60.0, positive=True), default=4.0, metavar="S",
                    help="how long to wait for the rover's boot HELLO after opening the port, up to 60 s (default 4)")
     p.set_defaults(func=_cmd_provision)
