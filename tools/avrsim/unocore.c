@@ -68,6 +68,17 @@
  *      correct mode of the same resolution (TOP 0xFF, 0x1FF, 0x3FF), which simavr models
  *      with a period of TOP+1 ticks instead of the hardware's 2*TOP: the compare values, which
  *      are what the harness reads for the motors, are the same.
+ *   5. Pull-ups across a reset. A port's pin IRQs are filtered (a raise that repeats the IRQ's
+ *      last value notifies nobody), and a reset clears PINx but leaves the IRQs' last values. An
+ *      input whose pull-up had made it high stays low after the reset: the firmware sets the
+ *      pull-up again, the port raises 1, the IRQ already holds 1, and PINx is never set. The
+ *      image would read the consent pin (board.h kPinConsent, D7) as held to GND after every
+ *      reset. After each reset the harness sets every port pin IRQ's value to its PINx bit
+ *      (without notifying), so the next raise of a different level reaches PINx.
+ *
+ * A pin held to GND: unocore_hold_pin_low sets the port's "external" state (simavr's model of
+ * something driving an input), which wins over the pull-up while the DDR bit is clear and
+ * outlives resets, as a jumper to GND does.
  *
  * Speed: idle fast-forward (exact)
  *   The firmware spends most of each 10 ms busy-waiting for millis() to move: loop() kicks the
@@ -138,7 +149,7 @@
 #include "sim_irq.h"
 
 #define UNOCORE_API __attribute__((visibility("default")))
-#define UNOCORE_ABI_VERSION 2
+#define UNOCORE_ABI_VERSION 3
 
 /* ATmega328P data-space addresses (datasheet register summary) */
 enum {
@@ -369,6 +380,7 @@ typedef struct unocore {
 	uint32_t pings_total, echoes_total;
 
 	prof_t prof;
+	uint8_t held_low[3];           /* pins held to GND by the host, ports B, C, D (unocore_hold_pin_low) */
 } unocore;
 
 /* ------------------------------------------------------------------------------ logging */
@@ -1199,6 +1211,15 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 	extint_polling_off(u);
 	stack_paint(u);
 	arm_feed_timer(u);
+	/* 5: the pin IRQs' values as PINx now has them (see the head of this file) */
+	for (int i = 0; i < 3; i++) {
+		const uint8_t pin = avr->data[A_PINB + 3 * i];
+		for (int b = 0; b < 8; b++) {
+			avr_irq_t *irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ((char)('B' + i)), b);
+			if (irq)
+				irq->value = (pin >> b) & 1u;
+		}
+	}
 }
 
 /* ------------------------------------------------------------------------------ API */
@@ -1344,6 +1365,31 @@ UNOCORE_API void unocore_set_gyro(unocore *u, int alive, int32_t chip_mdps)
 {
 	u->gyro_alive = alive != 0;
 	u->gyro_chip_mdps = chip_mdps;
+}
+
+/* An input pin held to GND (held != 0), as a jumper does, or let go (its pull-up, if the firmware
+ * set one, makes it high again): the consent pin (board.h kPinConsent) a keyed image reads at
+ * start-up. simavr 1.6 models an input's pull-up (PORT bit set, DDR bit clear) as a high pin; the
+ * port's "external" state, set here, drives the pin instead while the DDR bit is clear, and
+ * outlives resets (avr_reset leaves it), as a jumper does. Returns 0, or -1 for an unknown port. */
+UNOCORE_API int unocore_hold_pin_low(unocore *u, char port, uint8_t bit, int held)
+{
+	int i = port - 'B';
+	if (i < 0 || i > 2 || bit > 7)
+		return -1;
+	if (held)
+		u->held_low[i] |= (uint8_t)(1u << bit);
+	else
+		u->held_low[i] &= (uint8_t)~(1u << bit);
+	avr_ioport_external_t ext = { .name = (unsigned long)port, .mask = u->held_low[i], .value = 0 };
+	if (avr_ioctl(u->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL(port), &ext) != 0)
+		return -1;
+	/* Now, too, if the firmware already reads it as an input */
+	const uint8_t ddr = u->avr->data[A_DDRB + 3 * i], prt = u->avr->data[A_PORTB + 3 * i];
+	if (!(ddr & (1u << bit)))
+		avr_raise_irq(avr_io_getirq(u->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit),
+		              held ? 0 : (prt >> bit) & 1u);
+	return 0;
 }
 
 UNOCORE_API uint32_t unocore_rx(unocore *u, const uint8_t *data, uint32_t len)

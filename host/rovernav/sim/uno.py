@@ -61,7 +61,7 @@ SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 CLOCK_HZ = 16_000_000
 CYCLES_PER_MS = CLOCK_HZ // 1000
-ABI_VERSION = 2
+ABI_VERSION = 3
 STEP_US = 10_000               # the image's step period (main.cpp kStepMs)
 
 # Step descriptor (GPIOR0) bits, written by main.cpp at the end of each step.
@@ -236,6 +236,8 @@ def load_library() -> ctypes.CDLL:
     lib.unocore_run_to.restype = ctypes.c_int
     lib.unocore_reset.argtypes = [P, ctypes.c_uint8]
     lib.unocore_reset.restype = None
+    lib.unocore_hold_pin_low.argtypes = [P, ctypes.c_char, ctypes.c_uint8, ctypes.c_int]
+    lib.unocore_hold_pin_low.restype = ctypes.c_int
     lib.unocore_regs_read.argtypes = [P, ctypes.POINTER(_Regs)]
     lib.unocore_regs_read.restype = None
     lib.unocore_steps.argtypes = [P, ctypes.POINTER(_Step), ctypes.c_uint32, ctypes.c_int]
@@ -291,6 +293,18 @@ class Board:
     mpu_address: int
     serial_baud: int
     eeprom_link_addr: int
+    pin_consent: int          # held to GND at a reset: the owner's consent to a new link key
+
+
+def uno_pin_port(pin: int) -> tuple[str, int]:
+    """An Arduino Uno pin number's AVR port and bit: D0-D7 on PORTD, D8-D13 on PORTB, A0-A5 (14-19) on PORTC."""
+    if 0 <= pin <= 7:
+        return "D", pin
+    if 8 <= pin <= 13:
+        return "B", pin - 8
+    if 14 <= pin <= 19:
+        return "C", pin - 14
+    raise ValueError(f"the Uno has no pin {pin}")
 
 
 def board_constants(path: Path = BOARD_H) -> Board:
@@ -304,7 +318,7 @@ def board_constants(path: Path = BOARD_H) -> Board:
 
     return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
                  value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
-                 value("kSerialBaud"), value("kEepromLinkAddr"))
+                 value("kSerialBaud"), value("kEepromLinkAddr"), value("kPinConsent"))
 
 
 def link_key_record(key: bytes) -> bytes:
@@ -669,6 +683,14 @@ class UnoCore:
         sd = math.sqrt(max(0.0, 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)))
         return Probe(state, s.fault, s.flags, s.waypoint_index, 0, float(s.x_mm), float(s.y_mm),
                      math.radians(s.heading_cdeg / 100.0), sd, 0.0, float(s.dr_distance_mm))
+
+    def hold_consent_pin(self, held: bool = True) -> None:
+        """A jumper from the consent pin (board.h kPinConsent, D7) to GND, on (held) or off: the image
+        reads the pin once as it starts, so it counts from the next reset (`reset`) on. It stays
+        held across resets until let go, as a jumper does."""
+        port, bit = uno_pin_port(self.board.pin_consent)
+        if self._lib.unocore_hold_pin_low(self._h, port.encode(), bit, int(held)) != 0:
+            raise UnoSetupError(f"simavr cannot hold pin {self.board.pin_consent} (port {port}, bit {bit})")
 
     def reset(self, reset_cause: int) -> None:
         """A reset of the board (power, button): the EEPROM's boot counter and .noinit survive;
