@@ -21,8 +21,10 @@ class HwWatchdog {
   static void kick();
   static void disable();
 
-  // True when the last reset came from the watchdog, as far as MCUSR still tells (optiboot
-  // clears MCUSR before starting the sketch, so behind it this is usually false).
+  // True when the last reset came from the watchdog, as far as MCUSR still tells. The Uno's
+  // optiboot (4.4) clears MCUSR before it starts the sketch after every kind of reset, and an
+  // external one reaches the sketch as its own watchdog reset, so behind it this is always
+  // false and reset_flags() 0; without a bootloader (an ISP-flashed board, simavr) they tell.
   static bool reset_by_watchdog();
   static uint8_t reset_flags();  // MCUSR as found at start-up
 };
