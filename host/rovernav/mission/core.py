@@ -41,12 +41,16 @@ log = logging.getLogger("rovernav.mission")
 # their retry rules"): a request goes again after RESEND_S, and fails after MAX_TRIES attempts
 # made while the rover is heard (an attempt while it is silent does not count: it is carrying
 # on alone and answers once the radio is back). At 1 % of bytes lost a signed request and its
-# answer get through together about half the time: 30 attempts fail together once in 10^7.
+# answer get through together about half the time: 30 attempts fail together once in 10^7; 75
+# (30 s) give a 5 % radio, where a PATH chunk and its ACK get through together 2 % of the time,
+# a fair chance.
 RESEND_S = 0.4        # an un-ACKed request goes again after this long
-MAX_TRIES = 30        # ... this many times while the rover is heard, then the mission fails
+MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, then the mission fails
 HELLO_EVERY_S = 0.5
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
+HEARD_RECENTLY_S = 5.0    # a rover heard this recently is alive, if the radio is lossy
+HELLO_ALIVE_FACTOR = 4    # no HELLO from a rover that is heard: the deadline is this many times longer
 MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
 
 
@@ -206,6 +210,7 @@ class Mission:
         self._resume_leg = False
         self._last_heard_s = 0.0
         self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
+        self._heard_any = False     # any valid frame from the rover yet
 
     # ---------------------------------------------------------------- views
 
@@ -307,8 +312,13 @@ class Mission:
         d = self.deadlines
         in_phase_s = now_s - self._phase_since
         if self.phase is Phase.HELLO:
-            if in_phase_s > d.hello_s:
-                self._fail(f"no HELLO from the rover within {d.hello_s:.0f} s", Failure.NO_HELLO)
+            # A rover that is heard (its STATUS gets through, its HELLO has not yet) is on a lossy
+            # radio, not a dead one: it is given up to HELLO_ALIVE_FACTOR times the deadline.
+            heard = self._heard_any and now_s - self._last_heard_s < HEARD_RECENTLY_S
+            if in_phase_s > d.hello_s * (HELLO_ALIVE_FACTOR if heard else 1):
+                self._fail(f"no HELLO from the rover within {in_phase_s:.0f} s"
+                           + (" (other frames of its came through: the radio loses most frames)" if heard else ""),
+                           Failure.NO_HELLO)
             elif now_s - self._hello_at >= HELLO_EVERY_S:
                 self._hello_at = now_s
                 self._send(host_hello(self.host_boot_id))
@@ -359,6 +369,7 @@ class Mission:
         if self._silent():
             self._heard_again_s = self._now
         self._last_heard_s = self._now
+        self._heard_any = True
         m = frame.message
         if isinstance(m, mg.Hello) and m.role == mg.Role.ROVER and m.boot_id != self.rover_boot_id:
             self.quality.restart()   # a rover that restarted numbers its frames from 0 again
