@@ -8,6 +8,7 @@
     rovernav pose / rovernav study        the Russo (2024) study: moving to a pose, A* on a crater map, EKF
     rovernav protocol [--json]            the link protocol's messages and parameters
     rovernav link-check --port PORT       say HELLO to a rover and watch what it sends
+    rovernav link-check --port P --soak S measure the radio: frames lost, round trip, path load time
     rovernav demo                         the Uno firmware in an AVR simulator, talking to the host
 
 Errors a user can cause (a bad flag or file, a missing port, a rover built from another
@@ -23,7 +24,7 @@ import logging
 import sys
 
 from . import __version__
-from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, output_file, port_spec, seconds
+from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, number, output_file, port_spec, seconds
 
 log = logging.getLogger("rovernav")
 
@@ -64,9 +65,20 @@ def _cmd_link_check(args: argparse.Namespace) -> int:
     from .link.link import Link
     from .link.transport import open_transport
 
+    if args.json is not None and args.soak is None:
+        print("rovernav link-check: --json writes a soak's figures: give --soak SECONDS too", file=sys.stderr)
+        return 2
+    if args.soak is not None and args.seconds is not None:
+        print("rovernav link-check: --seconds is how long to listen without a soak; with --soak give one of them",
+              file=sys.stderr)
+        return 2
     key = load_key_file(args.key_file) if args.key_file else None
     with open_transport(args.port) as transport:
-        talk_to_rover(Link(transport, key=key), args.seconds, args.timeout)
+        if args.soak is not None:
+            from .link.soak import soak_rover
+
+            return soak_rover(Link(transport, key=key), args.soak, args.timeout, args.json)
+        talk_to_rover(Link(transport, key=key), 3.0 if args.seconds is None else args.seconds, args.timeout)
     return 0
 
 
@@ -168,14 +180,23 @@ def build_parser() -> argparse.ArgumentParser:
     add_pose_parser(sub)
     add_study_parser(sub)
 
-    p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends",
-                       description="Open PORT at 57,600 baud, exchange HELLO with the rover (checking that both "
-                                   "were built from the same protocol definition), then print every message "
-                                   "the rover sends for a few seconds, and the link's error counters.")
+    from .link import soak as sk
+
+    p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends, or soak the radio",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description=sk.wrap("Open PORT at 57,600 baud, exchange HELLO with the rover (checking that "
+                                           "both were built from the same protocol definition), then print every "
+                                           "message the rover sends for a few seconds, and the link's error "
+                                           "counters.") + "\n\n" + sk.help_text())
     p.add_argument("--port", required=True, type=port_spec,
                    help="serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@57600")
-    p.add_argument("--seconds", type=seconds(3600.0), default=3.0,
+    p.add_argument("--seconds", type=seconds(3600.0), default=None,
                    help="how long to listen after the HELLO, 0 to 3600 (default 3)")
+    p.add_argument("--soak", type=number(sk.MIN_SOAK_S, sk.MAX_SOAK_S), metavar="SECONDS",
+                   help=f"measure the radio for SECONDS ({sk.MIN_SOAK_S:g} to {sk.MAX_SOAK_S:,.0f}) instead of "
+                        "listening: frame loss both ways, round trip, path load time, advice (see above)")
+    p.add_argument("--json", type=output_file(".json"), metavar="FILE",
+                   help="with --soak: write the soak's figures to FILE (.json)")
     p.add_argument("--timeout", type=seconds(600.0, positive=True), default=3.0,
                    help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)")
     p.add_argument("--key-file", type=input_file, metavar="FILE",

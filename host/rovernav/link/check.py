@@ -26,15 +26,24 @@ def describe(message) -> str:
     return f"{m.NAME.upper()} {fields}"
 
 
+def greet(link, hello_timeout_s: float, boot_id: int | None = None):
+    """HELLO with the schema check (and the signing check, for a Link with a key); print what the
+    rover said. Returns the rover's HELLO."""
+    started = time.monotonic()
+    boot_id = int.from_bytes(os.urandom(4), "little") if boot_id is None else boot_id
+    hello = link.handshake(boot_id=boot_id, timeout_s=hello_timeout_s)
+    print(f"rover says HELLO after {time.monotonic() - started:.2f} s: firmware "
+          f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, boot id {hello.boot_id}, "
+          f"holds {hello.max_waypoints} waypoints, schema hash 0x{hello.schema_hash:08X} (matches ours)"
+          + (", signed frames" if link.signer is not None else ""))
+    return hello
+
+
 def talk_to_rover(link, seconds: float, hello_timeout_s: float, listening_note: str = "") -> None:
     """HELLO (with the schema check), then print what the rover says for `seconds` while sending
     heartbeats (the host is alive, with no camera), then the link's counters. Shared by
     `link-check` (a real rover) and `demo` (the Uno image in simavr)."""
-    started = time.monotonic()
-    hello = link.handshake(boot_id=int.from_bytes(os.urandom(4), "little"), timeout_s=hello_timeout_s)
-    print(f"rover says HELLO after {time.monotonic() - started:.2f} s: firmware "
-          f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}, boot id {hello.boot_id}, "
-          f"holds {hello.max_waypoints} waypoints, schema hash 0x{hello.schema_hash:08X} (matches ours)")
+    greet(link, hello_timeout_s)
     print(f"listening for {seconds:g} s{listening_note}:")
     end = time.monotonic() + seconds
     next_heartbeat = 0.0
