@@ -57,7 +57,7 @@ from . import messages_gen as mg
 from .errors import LinkError
 from .framing import CRC_BYTES, HEADER_BYTES, SIGNATURE_BYTES
 from .link import host_hello
-from .path_upload import Answer, PathUpload
+from .path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from .quality import LinkQuality
 
 #: The round-trip probe: a CONFIG naming no parameter, which the rover refuses (NACK
@@ -209,6 +209,7 @@ class Soak:
         """clock: seconds, for every figure; poll_s: the longest wait for the rover in one go (0:
         only poll, for a simulated rover that moves on as it is read)."""
         self.link, self.clock, self.poll_s = link, clock, poll_s
+        self._chunk_at = -1e9   # when the last PATH chunk went out
         self.probe_every_s = 1.0 / probe_hz
         self.path_every_s = path_every_s
         self.progress, self.progress_s = progress, progress_s
@@ -363,8 +364,10 @@ class Soak:
             return
         up = self._upload
         assert up is not None
-        for message in up.due(now):
-            up.sent(message, self._send(message), now)
+        if now - self._chunk_at >= CHUNK_SPACING_S:   # one at a time, as a mission sends them
+            for message in up.due(now)[:1]:
+                self._chunk_at = now
+                up.sent(message, self._send(message), now)
 
     # ---------------------------------------------------------------- figures
 

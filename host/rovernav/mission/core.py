@@ -26,7 +26,7 @@ from ..angles import heading_cdeg
 from ..link import messages_gen as mg
 from ..link.errors import LinkError, Nacked, SchemaMismatch
 from ..link.link import host_hello
-from ..link.path_upload import Answer, PathUpload
+from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
@@ -211,6 +211,7 @@ class Mission:
         self._last_heard_s = 0.0
         self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
         self._heard_any = False     # any valid frame from the rover yet
+        self._chunk_at = -1e9        # when the last PATH chunk went out
 
     # ---------------------------------------------------------------- views
 
@@ -611,8 +612,11 @@ class Mission:
         self._send_chunks()
 
     def _send_chunks(self, count: bool = True) -> None:
-        """The upload's chunks that are due, in order."""
-        for message in self.upload.due(self._now):
+        """The upload's next due chunk, at most one every CHUNK_SPACING_S (path_upload.py)."""
+        if self._now - self._chunk_at < CHUNK_SPACING_S:
+            return
+        for message in self.upload.due(self._now)[:1]:
+            self._chunk_at = self._now
             self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
 
     def replanned(self, path: list[tuple[float, float]], what: str) -> None:
