@@ -7,6 +7,8 @@
     [planner]  resolution_m, robot_radius_m, ...       (rovernav.planning.PlannerConfig)
     [mission]  trips, heartbeat_hz, fix_sd_mm, map     what the mission does
     [rover]    any CONFIG parameter by name = value    sent to the rover at the start
+    [radio]    loss_pct, ber_pct, burst_mean_s,        the simulated radio (`rovernav sim`; its
+               burst_share, jitter_ms, half_duplex     --radio-* flags win over these)
 
 Every section and key is optional; a missing one takes its default. An unknown section or key,
 or a value of the wrong type or out of range, raises ConfigError naming it
@@ -57,6 +59,17 @@ class MissionConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class RadioConfig:
+    """The simulated radio (rovernav.sim.channel): `rovernav sim` only; hardware has its own."""
+    loss_pct: float = 0.0        # mean share of bytes lost [%]
+    ber_pct: float = 0.0         # mean share of bytes arriving with one bit flipped [%]
+    burst_mean_s: float = 0.0    # mean burst length [s]; 0: no bursts
+    burst_share: float = 0.0     # share of time in bursts, in (0, 1) with bursts
+    jitter_ms: float = 0.0       # mean extra delay per frame [ms] (exponential)
+    half_duplex: bool = False    # both ends share one medium: bytes sent at once collide
+
+
+@dataclasses.dataclass(frozen=True)
 class Config:
     arena: ArenaConfig = ArenaConfig()
     link: LinkConfig = LinkConfig()
@@ -65,6 +78,7 @@ class Config:
     vision: Any = None    # VisionConfig
     planner: Any = None   # PlannerConfig
     rover: dict = dataclasses.field(default_factory=dict)  # Param -> int
+    radio: RadioConfig = RadioConfig()
 
     def rover_params(self) -> list[tuple[mg.Param, int]]:
         return sorted(self.rover.items())
@@ -114,7 +128,7 @@ def config_from_dict(data: dict, where: str = "") -> Config:
     from .planning import PlannerConfig
     from .vision.config import VisionConfig
 
-    known = {"arena", "link", "camera", "vision", "planner", "mission", "rover"}
+    known = {"arena", "link", "camera", "vision", "planner", "mission", "rover", "radio"}
     for name in data:
         if name == "sonar":   # where the ranger sits is the planner's (and the rover's) geometry
             raise ConfigError(f"{where}[sonar] is gone: the ranger's offset is [planner] sonar_offset_m (metres), "
@@ -152,7 +166,24 @@ def config_from_dict(data: dict, where: str = "") -> Config:
             raise ConfigError(f"{where}[rover] {key} = {value} is outside [{spec.min}, {spec.max}] ({spec.unit})")
         rover[by_name[key]] = value
     _check_pose_gains(rover, where)
-    return Config(arena, link, camera, mission, vision, planner, rover)
+    radio = _radio(data.get("radio", {}), where)
+    return Config(arena, link, camera, mission, vision, planner, rover, radio)
+
+
+def _radio(table: Any, where: str) -> RadioConfig:
+    """[radio]: each value in its range, then together as rovernav.sim.channel.radio_config
+    checks them (bursts need both keys; the loss inside bursts cannot pass 100 %)."""
+    from .sim.channel import MAX_BURST_MEAN_S, MAX_JITTER_MS, radio_config
+
+    radio = _section(RadioConfig, "radio", table, where,
+                     {"loss_pct": (0.0, 100.0, False), "ber_pct": (0.0, 100.0, False),
+                      "burst_mean_s": (0.0, MAX_BURST_MEAN_S, False), "burst_share": (0.0, 1.0, False),
+                      "jitter_ms": (0.0, MAX_JITTER_MS, False)})
+    try:
+        radio_config(**dataclasses.asdict(radio), names={k: f"{where}[radio] {k}" for k in dataclasses.asdict(radio)})
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+    return radio
 
 
 def _check_pose_gains(rover: dict, where: str) -> None:

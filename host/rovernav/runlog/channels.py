@@ -58,6 +58,13 @@ _JSON = {
                                           "kind": {"type": "string",
                                                    "enum": ["tick", "detection", "fail", "new_host"]}}},
     "rovernav.Sample": {"type": "object", "title": "rovernav.Sample"},
+    "rovernav.Radio": {"type": "object", "title": "rovernav.Radio", "properties": {
+        "t_s": {"type": "number", "description": "mission time [s]"},
+        "to_rover": {"type": "object", "description": "host to rover, counts since the start: bytes_sent, "
+                                                      "bytes_lost, bytes_corrupted, frames_sent, frames_damaged, "
+                                                      "frames (by message kind: sent, damaged), ..."},
+        "to_host": {"type": "object", "description": "rover to host, the same counts"},
+        "bursts": {"type": ["object", "null"], "description": "bursts begun so far and the time in them"}}},
 }
 
 CHANNELS: tuple[ChannelSpec, ...] = (
@@ -73,6 +80,9 @@ CHANNELS: tuple[ChannelSpec, ...] = (
     ChannelSpec("/rover/estimate", "foxglove.PoseInFrame", "the rover's own estimate, from its STATUS"),
     ChannelSpec("/rover/status", "rovernav.Sample", "the rover's STATUS as numbers to plot: state, speeds, sd"),
     ChannelSpec("/sim/true_pose", "foxglove.PoseInFrame", "the simulated rover's true pose (20 Hz)", sim_only=True),
+    ChannelSpec("/sim/radio", "rovernav.Radio",
+                "the simulated radio's counts so far, each way: bytes sent, lost and corrupted, frames sent and "
+                "damaged by message kind, bursts (1 Hz)", sim_only=True),
     ChannelSpec("/rover/driven_path", "foxglove.PosesInFrame",
                 "the path driven so far (true pose in the simulator, the camera's fixes on hardware), once a second"),
     ChannelSpec("/plan/path", "foxglove.PosesInFrame", "each path the host sent the rover"),

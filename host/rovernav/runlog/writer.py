@@ -36,6 +36,8 @@ TRUE_POSE_EVERY_S = 0.05
 #: The driven path is republished this often [s], thinned to points this far apart [m].
 DRIVEN_PATH_EVERY_S = 1.0
 DRIVEN_PATH_STEP_M = 0.01
+#: The simulated radio's counts are logged this often [s].
+RADIO_EVERY_S = 1.0
 #: Live only: the arena is republished this often [s] for viewers that join late.
 LIVE_ARENA_EVERY_S = 2.0
 #: Live only: the server's clock is moved on this often [s].
@@ -111,6 +113,8 @@ class RunLog(Recorder):
         self._next_arena_s = 0.0
         self._next_time_s = 0.0
         self._driven: list[tuple[float, float, float]] = []
+        self._radio = None          # the simulator's radio counts (watch_radio)
+        self._next_radio_s = 0.0
         self._echoes = 0
         self._closed = False
         self.ctx = foxglove.Context()
@@ -171,6 +175,9 @@ class RunLog(Recorder):
     def set_time(self, t_s: float) -> None:
         """The run's time now (for the raw bytes the transport moves); live: the viewer's clock."""
         self.t_s = t_s
+        if self._radio is not None and t_s >= self._next_radio_s:
+            self._next_radio_s = t_s + RADIO_EVERY_S
+            self._publish_radio(t_s)
         if self.server is not None:
             if t_s >= self._next_time_s:
                 self._next_time_s = t_s + LIVE_TIME_EVERY_S
@@ -257,6 +264,16 @@ class RunLog(Recorder):
             self._log(f"/link/raw/{direction}", self.t_s,
                       _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}))
 
+    def watch_radio(self, counts) -> None:
+        """Log `counts()` (the simulated radio's figures, sim/channel.radio_figures) on /sim/radio
+        every RADIO_EVERY_S of run time, and once more at the end."""
+        self._radio = counts
+
+    def _publish_radio(self, t_s: float) -> None:
+        figures = self._radio()
+        self._log("/sim/radio", t_s, _json({"t_s": t_s, "to_rover": figures["to_rover"],
+                                            "to_host": figures["to_host"], "bursts": figures["bursts"]}))
+
     def camera_image(self, t_s: float, frame_bgr: np.ndarray) -> None:
         """A camera frame; kept when the image rate allows (the first, then every 1/image_hz s)."""
         if t_s + 1e-9 < self._next_image_s:
@@ -295,6 +312,8 @@ class RunLog(Recorder):
             return
         if self._driven:
             self._publish_driven(self.t_s)
+        if self._radio is not None:
+            self._publish_radio(self.t_s)
         self._closed = True
         if self.server is not None:
             self.server.stop()

@@ -1,49 +1,373 @@
-"""The radio link in the simulator: bytes at the line rate, with delay, loss, corruption and
-outages, in simulated time.
+"""The radio link in the simulator: bytes at the line rate, with delay, loss, corruption, bursts,
+jitter, collisions and outages, in simulated time.
 
 A `Channel` carries one direction. Bytes written at time t leave the sender's queue at the line
 rate (57,600 baud 8N1 is 5,760 bytes/s), arrive `delay_s` later, and meanwhile may be dropped or
 have a bit flipped. During an outage nothing gets through either way (bytes sent are lost).
 `SimTransport` puts a Channel pair behind the host's Transport interface, so the host's Link
-runs unchanged.
+runs unchanged; `channel_pair` makes the pair the simulator uses.
+
+What can be set (`ChannelConfig`; `rovernav sim`'s --radio-* flags and the [radio] table):
+
+byte_loss   the long-run mean share of the bytes sent that are lost. Without bursts each byte is
+            lost independently with that probability (as before bursts existed).
+bit_error   the long-run mean share of the bytes sent that arrive with one bit flipped (a byte
+            is lost or corrupted, never both: the bytes that get through are corrupted with
+            probability bit_error / (1 - byte_loss), the same as bit_error when nothing is lost).
+bursts      a two-state Gilbert-Elliott process (`BurstProcess`): good and burst states whose
+            sojourns are exponential in simulated time, with mean burst_mean_s in a burst and
+            burst_mean_s x (1 - share) / share between bursts, so the long-run share of time in
+            bursts is burst_share. With bursts, bytes are lost and corrupted ONLY inside them, at
+            byte_loss / burst_share and bit_error / burst_share (so the means stay those set);
+            that must not pass 1. Bit errors are concentrated in the bursts as losses are: both
+            come from the same fade or interferer, and between bursts the link is clean.
+            ONE process serves both directions: a burst is the path between the two antennas
+            fading, or interference at the rover's site (its own motors, another 433 MHz
+            transmitter nearby), and the path is reciprocal, so when the rover cannot hear the
+            host the host mostly cannot hear the rover either, as the rover's LINK_LOST logic
+            assumes. (Each direction still draws its own byte losses within a burst.)
+jitter_s    a per-frame extra delay, exponential with this mean, drawn when a frame's first byte
+            goes on the air. Order is kept: no byte arrives before one sent before it (a serial
+            modem is a FIFO), so a late frame also holds up the frames queued behind it.
+half_duplex both directions share one 57,600-baud medium (`Medium`), as 433 MHz transparent serial
+            modems (HC-12, APC220, 3DR-style) do: a byte on the air from one end while the other's
+            is on the air collides, and both are lost (no carrier sense: either end sends when its
+            serial port has bytes). Off by default: today's figures were made full duplex (two
+            independent 57,600-baud directions), and the default keeps them comparable.
+
+Every feature draws from the simulation's random generator only when it is on: a run with the
+defaults makes exactly the draws it made before any of them existed (same seed, same run).
+
+Each Channel also follows the frames its sender writes (COBS-encoded bodies ending in 0x00,
+body = version | msg_id | seq | ...): `counters()` gives bytes sent, delivered, lost (by cause)
+and corrupted, and per message kind the frames that went on the air and those damaged (any byte
+of the frame, its delimiter included, lost or corrupted).
 """
 from __future__ import annotations
 
 import collections
 import dataclasses
+import math
+from typing import TYPE_CHECKING
 
-import numpy as np
-
+from ..errors import InputError
+from ..link.framing import cobs_decode
+from ..link.messages_gen import MESSAGES
 from ..link.transport import Transport
+
+if TYPE_CHECKING:   # the simulation's generator; this module needs no numpy of its own
+    import numpy as np
+
+#: Limits of what a user may set (flags and the [radio] table).
+MAX_BURST_MEAN_S = 3600.0
+MIN_BURST_MEAN_S = 0.001      # a burst shorter than a few bytes is just independent loss
+MAX_JITTER_MS = 5000.0
+#: The longest run of bytes without a delimiter the frame counter keeps (longer: "malformed").
+_MAX_PARTIAL = 1024
+#: Past this many switch times kept, the burst process forgets those every direction has passed.
+_PRUNE_EDGES = 4096
 
 
 @dataclasses.dataclass(frozen=True)
 class ChannelConfig:
     baud: int = 57600
     delay_s: float = 0.015          # radio modem latency, one way
-    byte_loss: float = 0.0          # probability a byte is lost
-    bit_error: float = 0.0          # probability a byte has one bit flipped
+    byte_loss: float = 0.0          # long-run mean share of the bytes sent that are lost
+    bit_error: float = 0.0          # long-run mean share of the bytes sent that arrive with one bit flipped
+    burst_mean_s: float = 0.0       # mean burst length [s]; 0: no bursts (loss and bit errors independent)
+    burst_share: float = 0.0        # long-run share of time in bursts, in (0, 1) with bursts
+    jitter_s: float = 0.0           # mean extra delay per frame [s] (exponential); 0: none
+    half_duplex: bool = False       # both directions share one medium: simultaneous bytes collide
 
     @property
     def bytes_per_s(self) -> float:
         return self.baud / 10.0      # 8N1: ten bits a byte
 
+    @property
+    def bursts(self) -> bool:
+        """Whether a burst process runs: bursts set, and something for them to do."""
+        return self.burst_mean_s > 0 and self.burst_share > 0 and bool(self.byte_loss or self.bit_error)
+
+    def settings(self) -> dict:
+        """The settings in the units users give them (report.json, the run log, trials.json)."""
+        def pct(v: float) -> float:   # percent, without float noise
+            return round(v * 100, 9)
+
+        burst = None
+        if self.burst_mean_s > 0 and self.burst_share > 0:
+            burst = {"mean_s": self.burst_mean_s, "share": self.burst_share,
+                     "loss_in_burst_pct": pct(self.byte_loss / self.burst_share),
+                     "ber_in_burst_pct": pct(self.bit_error / self.burst_share),
+                     "bit_errors": "in bursts only, as losses",
+                     "process": "one Gilbert-Elliott process shared by both directions"}
+        return {"baud": self.baud, "delay_ms": round(self.delay_s * 1000, 9),
+                "loss_pct": pct(self.byte_loss), "ber_pct": pct(self.bit_error), "burst": burst,
+                "jitter_ms": round(self.jitter_s * 1000, 9),
+                "jitter": "exponential per frame, order kept" if self.jitter_s > 0 else None,
+                "half_duplex": self.half_duplex}
+
+
+# ---------------------------------------------------------------- what users set
+
+#: The names of the settings as `rovernav sim` and `rovernav trials` take them.
+FLAG_NAMES = {"loss_pct": "--radio-loss", "ber_pct": "--radio-ber", "burst_mean_s": "--radio-burst MEAN_S",
+              "burst_share": "--radio-burst SHARE", "jitter_ms": "--radio-jitter-ms",
+              "half_duplex": "--radio-half-duplex"}
+
+
+def radio_config(loss_pct: float = 0.0, ber_pct: float = 0.0, burst_mean_s: float = 0.0, burst_share: float = 0.0,
+                 jitter_ms: float = 0.0, half_duplex: bool = False, *, names: dict | None = None,
+                 base: ChannelConfig = ChannelConfig()) -> ChannelConfig:
+    """A ChannelConfig from the settings in users' units, or InputError (one line) naming what is
+    wrong by `names` (setting -> its flag or key; the flags by default). Each value is checked on
+    its own (finite, in range) and together: bursts need a mean > 0 and a share in (0, 1), and the
+    loss and bit errors inside a burst, (loss + ber) / share, cannot pass 100 %."""
+    n = FLAG_NAMES | (names or {})
+
+    def finite(key: str, value: float, lo: float, hi: float, what: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                or not lo <= value <= hi:
+            raise InputError(f"{n[key]}: {what} must be a number from {lo:g} to {hi:g}, got {value!r}")
+        return float(value)
+
+    loss = finite("loss_pct", loss_pct, 0.0, 100.0, "the mean byte loss (%)")
+    ber = finite("ber_pct", ber_pct, 0.0, 100.0, "the share of bytes with a bit flipped (%)")
+    jitter = finite("jitter_ms", jitter_ms, 0.0, MAX_JITTER_MS, "the mean extra delay per frame (ms)")
+    mean = finite("burst_mean_s", burst_mean_s, 0.0, MAX_BURST_MEAN_S, "the mean burst length (s)")
+    share = finite("burst_share", burst_share, 0.0, 1.0, "the share of time in bursts")
+    if mean or share:   # bursts: both set
+        if not MIN_BURST_MEAN_S <= mean:
+            raise InputError(f"{n['burst_mean_s']}: with bursts, the mean burst length must be from "
+                             f"{MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g} s, got {mean:g}")
+        if not 0.0 < share < 1.0:
+            raise InputError(f"{n['burst_share']}: with bursts, the share of time in them must be above 0 and "
+                             f"below 1, got {share:g}")
+    if loss + ber > 100.0 + 1e-9:
+        raise InputError(f"{n['loss_pct']} {loss:g} % and {n['ber_pct']} {ber:g} %: a byte is lost or corrupted, "
+                         f"not both, so together they cannot pass 100 %")
+    if share and (loss + ber) / 100.0 > share * (1 + 1e-12):
+        what = " and ".join(f"{n[k]} {v:g} %" for k, v in (("loss_pct", loss), ("ber_pct", ber)) if v)
+        raise InputError(f"{what} with {n['burst_share']} {share:g}: bytes are lost or corrupted only inside "
+                         f"bursts, at {(loss + ber) / share:g} % there, more than 100 %; with bursts "
+                         f"{100 * share:g} % of the time, loss and bit errors can be at most {100 * share:g} % in all")
+    if not isinstance(half_duplex, bool):
+        raise InputError(f"{n['half_duplex']}: true or false, got {half_duplex!r}")
+    return dataclasses.replace(base, byte_loss=loss / 100.0, bit_error=ber / 100.0, burst_mean_s=mean,
+                               burst_share=share, jitter_s=jitter / 1000.0, half_duplex=half_duplex)
+
+
+# ---------------------------------------------------------------- bursts
+
+class BurstProcess:
+    """A two-state (good, burst) Gilbert-Elliott process in simulated time, drawn lazily from the
+    simulation's generator: the state at time 0 from the long-run shares, then exponential
+    sojourns (mean `mean_s` in a burst, mean_s (1 - share) / share between bursts). Each reader
+    (a Channel) asks through its own `view()`, in its own time order; the switch times are kept
+    until every view has passed them, so two directions read the same bursts."""
+
+    FORGET_LAG_S = 60.0
+
+    def __init__(self, mean_s: float, share: float, rng: np.random.Generator):
+        if not (mean_s > 0 and 0 < share < 1):
+            raise ValueError(f"bursts need a mean > 0 and a share in (0, 1), got {mean_s}, {share}")
+        self.mean_s, self.share = mean_s, share
+        self.mean_good_s = mean_s * (1 - share) / share
+        self.rng = rng
+        self._bad0: bool | None = None      # the state at time 0 (drawn at the first question)
+        self._edges: list[float] = []       # switch times not yet forgotten
+        self._base = 0                      # absolute index of _edges[0]
+        self._last = 0.0                    # the last switch time drawn (0: none yet)
+        self._dropped_end = 0.0             # the last forgotten switch time
+        self._dropped_bursts = 0            # bursts that ended at a forgotten switch, and their time
+        self._dropped_burst_s = 0.0
+        self._views: list[BurstView] = []
+
+    def view(self) -> BurstView:
+        v = BurstView(self)
+        self._views.append(v)
+        return v
+
+    def _bad_after(self, k: int) -> bool:
+        """The state after the first k switches."""
+        return self._bad0 ^ bool(k & 1)
+
+    def _passed(self, k: int, t_s: float) -> tuple[int, float]:
+        """How many switches there are at or before t_s, counting on from k (those before k are),
+        and when the next one is; switch times are drawn as needed."""
+        if len(self._edges) > _PRUNE_EDGES:
+            self._forget()
+        k = max(k, self._base)
+        edges = self._edges
+        while True:
+            i = k - self._base
+            if i == len(edges):
+                if self._bad0 is None:
+                    self._bad0 = bool(self.rng.random() < self.share)
+                bad = self._bad_after(k)
+                self._last += float(self.rng.exponential(self.mean_s if bad else self.mean_good_s))
+                edges.append(self._last)
+            if edges[i] > t_s:
+                return k, edges[i]
+            k += 1
+
+    def _forget(self) -> None:
+        """Drop the switch times every view has passed, keeping their totals for stats(). A view
+        more than FORGET_LAG_S behind the others is not waited for (a direction that has sent
+        nothing for that long): when it asks again it starts from the first switch kept."""
+        if not self._views:
+            return
+        lead = max(v.t for v in self._views)
+        cutoff = max(min(v.t for v in self._views), lead - self.FORGET_LAG_S)
+        upto = self._base
+        while upto - self._base < len(self._edges) - 1 and self._edges[upto - self._base] <= cutoff:
+            upto += 1
+        for j in range(self._base, upto):
+            end = self._edges[j - self._base]
+            if self._bad_after(j):   # the interval that ends at switch j
+                self._dropped_bursts += 1
+                self._dropped_burst_s += end - self._dropped_end
+            self._dropped_end = end
+        del self._edges[:upto - self._base]
+        self._base = upto
+
+    def stats(self, t_s: float) -> dict:
+        """Bursts begun by t_s, the time spent in them, and that time's share of [0, t_s] (no draws)."""
+        if self._bad0 is None:
+            return {"bursts": 0, "burst_time_s": 0.0, "share_measured": 0.0 if t_s > 0 else None}
+        bursts, burst_s = self._dropped_bursts, self._dropped_burst_s
+        start, k = self._dropped_end, self._base
+        for end in self._edges:
+            if start >= t_s:
+                break
+            if self._bad_after(k):
+                bursts += 1
+                burst_s += min(end, t_s) - start
+            start, k = end, k + 1
+        else:
+            if start < t_s and self._bad_after(k):   # past the last switch drawn
+                bursts += 1
+                burst_s += t_s - start
+        return {"bursts": bursts, "burst_time_s": round(burst_s, 6),
+                "share_measured": round(burst_s / t_s, 6) if t_s > 0 else None}
+
+
+class BurstView:
+    """One reader's place in a BurstProcess: `bad(t)` for nondecreasing t."""
+
+    __slots__ = ("proc", "k", "t", "_next", "_bad")
+
+    def __init__(self, proc: BurstProcess):
+        self.proc = proc
+        self.k = 0              # switches at or before the last time asked
+        self.t = 0.0            # the last time asked
+        self._next = -math.inf  # when the state last found ends
+        self._bad = False
+
+    def bad(self, t_s: float) -> bool:
+        self.t = t_s
+        if t_s < self._next:
+            return self._bad
+        self.k, self._next = self.proc._passed(self.k, t_s)
+        self._bad = self.proc._bad_after(self.k)
+        return self._bad
+
+
+# ---------------------------------------------------------------- the shared medium
+
+class Medium:
+    """One half-duplex radio medium that both directions' Channels transmit on. It puts their
+    bytes on the air in the order their stop bits go out, and a byte whose time on the air
+    [end - 1/bytes_per_s, end) overlaps one from the other end is lost, with that one."""
+
+    def __init__(self) -> None:
+        self.ends: list[Channel] = []
+
+    def attach(self, channel: Channel) -> None:
+        if len(self.ends) == 2:
+            raise ValueError("a half-duplex medium has two ends")
+        self.ends.append(channel)
+
+    def advance(self, now_s: float) -> None:
+        ends = self.ends
+        if len(ends) == 1:
+            ends[0]._advance_alone(now_s)
+            return
+        a, b = ends
+        while True:
+            sa, sb = a._next_start(), b._next_start()
+            ta, tb = sa + a._per_byte, sb + b._per_byte
+            if ta <= tb:
+                x, y, s, t = a, b, sa, ta
+            else:
+                x, y, s, t = b, a, sb, tb
+            if t > now_s:   # also when both are idle (inf)
+                return
+            # y's last byte ended after x's started, or y's next starts before x's ends.
+            collided = y._last_end > s or y._next_start() < t
+            x._take(t, collided)
+
+
+# ---------------------------------------------------------------- one direction
+
+def frame_kind(encoded: bytes) -> str:
+    """The message name of a COBS-encoded frame (its delimiter left off), "unknown" for a message
+    id the protocol lacks, "malformed" for bytes that are no frame."""
+    body = cobs_decode(encoded) if len(encoded) <= _MAX_PARTIAL else None
+    if body is None or len(body) < 3:
+        return "malformed"
+    cls = MESSAGES.get(body[1])
+    return cls.NAME if cls is not None else "unknown"
+
 
 class Channel:
-    """One direction of the radio, in simulated time."""
+    """One direction of the radio, in simulated time. `bursts`: the BurstProcess it shares with
+    the other direction (None: its own when the config has bursts); `medium`: the half-duplex
+    Medium it shares (None: its own when the config is half duplex, with no other end)."""
 
-    def __init__(self, config: ChannelConfig, rng: np.random.Generator, outages: list[tuple[float, float]] = ()):
+    def __init__(self, config: ChannelConfig, rng: np.random.Generator, outages: list[tuple[float, float]] = (),
+                 *, bursts: BurstProcess | None = None, medium: Medium | None = None):
         self.config = config
         self.rng = rng
         self.outages = list(outages)    # (start_s, end_s)
         self._sending: collections.deque[tuple[float, int]] = collections.deque()  # (written at, byte)
         self._in_flight: collections.deque[tuple[float, int]] = collections.deque()
         self._line_free_at = 0.0
+        self._per_byte = 1.0 / config.bytes_per_s
         self.bytes_sent = 0
         self.bytes_delivered = 0
         self.bytes_lost = 0
         self.bytes_corrupted = 0
+        self.lost_by = {"outage": 0, "noise": 0, "collision": 0}
+        self.bytes_in_bursts = 0
         self.tap = None   # called with (data, now_s) for every write: an eavesdropper (attacker.py)
+        # What each byte risks: outside bursts (and without them) the configured shares; inside
+        # bursts those over the burst share.
+        self.bursts = None
+        self._burst = None
+        p_loss, p_err = config.byte_loss, config.bit_error
+        if config.bursts:
+            self.bursts = bursts or BurstProcess(config.burst_mean_s, config.burst_share, rng)
+            self._burst = self.bursts.view()
+            p_loss, p_err = p_loss / config.burst_share, p_err / config.burst_share
+        self._p_loss = p_loss
+        if p_err and p_loss:   # among the bytes that get through
+            p_err = p_err / (1.0 - p_loss) if p_loss < 1.0 else 0.0
+        self._p_err = p_err
+        self._jitter_s = config.jitter_s
+        self._last_arrival = -math.inf
+        self._extra_s = 0.0
+        self.medium = None
+        self._last_end = -math.inf      # when this end's last byte left the air (the medium's)
+        if config.half_duplex:
+            self.medium = medium or Medium()
+            self.medium.attach(self)
+        # The frames: kinds of those the sender finished writing, in order, and the one on the air.
+        self._partial = bytearray()
+        self._partial_over = False
+        self._kinds: collections.deque[str] = collections.deque()
+        self._frame_len = 0              # bytes of the frame now going on the air, so far
+        self._frame_damaged = False
+        self.frames: dict[str, list[int]] = {}   # kind -> [on the air, damaged]
 
     def in_outage(self, t_s: float) -> bool:
         return any(a <= t_s < b for a, b in self.outages)
@@ -53,27 +377,106 @@ class Channel:
             self.tap(data, now_s)
         self._sending.extend((now_s, b) for b in data)
         self.bytes_sent += len(data)
+        self._follow_frames(data)
+
+    def _follow_frames(self, data: bytes) -> None:
+        """Note the kind of each frame the sender finishes (at its 0x00) for the per-kind counts."""
+        start = 0
+        while True:
+            i = data.find(0, start)
+            piece = data[start:] if i < 0 else data[start:i]
+            if not self._partial_over:
+                if len(self._partial) + len(piece) > _MAX_PARTIAL:
+                    self._partial_over = True
+                    self._partial.clear()
+                else:
+                    self._partial += piece
+            if i < 0:
+                return
+            if self._partial_over:
+                self._kinds.append("malformed")
+            elif self._partial:   # an empty frame (two delimiters) is none
+                self._kinds.append(frame_kind(bytes(self._partial)))
+            self._partial.clear()
+            self._partial_over = False
+            start = i + 1
 
     def queued(self) -> int:
         return len(self._sending)
 
     def advance(self, now_s: float) -> None:
         """Put on the air every byte the line rate allows up to now."""
-        per_byte = 1.0 / self.config.bytes_per_s
-        while self._sending:
-            written_at, byte = self._sending[0]
+        if self.medium is not None:
+            self.medium.advance(now_s)
+        else:
+            self._advance_alone(now_s)
+
+    def _advance_alone(self, now_s: float) -> None:
+        per_byte = self._per_byte
+        sending = self._sending
+        while sending:
+            written_at, byte = sending[0]
             t = max(self._line_free_at, written_at) + per_byte  # when its stop bit is out
             if t > now_s:
                 break
-            self._sending.popleft()
+            sending.popleft()
             self._line_free_at = t
-            if self.in_outage(t) or (self.config.byte_loss and self.rng.random() < self.config.byte_loss):
-                self.bytes_lost += 1
-                continue
-            if self.config.bit_error and self.rng.random() < self.config.bit_error:
-                byte ^= 1 << int(self.rng.integers(8))
-                self.bytes_corrupted += 1
+            self._air(t, byte, False)
+
+    # The medium's side: when the next byte starts, and taking it.
+    def _next_start(self) -> float:
+        if not self._sending:
+            return math.inf
+        return max(self._line_free_at, self._sending[0][0])
+
+    def _take(self, t: float, collided: bool) -> None:
+        _, byte = self._sending.popleft()
+        self._line_free_at = self._last_end = t
+        self._air(t, byte, collided)
+
+    def _air(self, t: float, byte: int, collided: bool) -> None:
+        """One byte whose stop bit leaves at t: lost, corrupted or on its way; counted to its frame."""
+        if self._frame_len == 0 and self._jitter_s:   # a frame's first byte: its extra delay
+            self._extra_s = float(self.rng.exponential(self._jitter_s))
+        self._frame_len += 1
+        original = byte
+        lost = None
+        if collided:
+            lost = "collision"
+        elif self.outages and self.in_outage(t):
+            lost = "outage"
+        elif self._p_loss or self._p_err:
+            in_burst = True
+            if self._burst is not None:
+                in_burst = self._burst.bad(t)
+                self.bytes_in_bursts += in_burst
+            if in_burst:
+                if self._p_loss and self.rng.random() < self._p_loss:
+                    lost = "noise"
+                elif self._p_err and self.rng.random() < self._p_err:
+                    byte ^= 1 << int(self.rng.integers(8))
+                    self.bytes_corrupted += 1
+                    self._frame_damaged = True
+        if lost is not None:
+            self.bytes_lost += 1
+            self.lost_by[lost] += 1
+            self._frame_damaged = True
+        elif self._jitter_s:
+            arrival = max(t + self.config.delay_s + self._extra_s, self._last_arrival)   # never overtakes
+            self._last_arrival = arrival
+            self._in_flight.append((arrival, byte))
+        else:
             self._in_flight.append((t + self.config.delay_s, byte))
+        if original == 0:   # the frame's delimiter
+            if self._frame_len > 1:
+                kind = self._kinds.popleft() if self._kinds else "malformed"
+                counts = self.frames.get(kind)
+                if counts is None:
+                    counts = self.frames[kind] = [0, 0]
+                counts[0] += 1
+                counts[1] += self._frame_damaged
+            self._frame_len = 0
+            self._frame_damaged = False
 
     def receive(self, now_s: float, max_bytes: int = 1 << 30) -> bytes:
         """The bytes that have arrived by now (at most max_bytes)."""
@@ -84,9 +487,36 @@ class Channel:
         self.bytes_delivered += len(out)
         return bytes(out)
 
-    def counters(self) -> dict:
+    def byte_counters(self) -> dict:
+        """The byte counts (report.json's link.to_rover and link.to_host)."""
         return {"bytes_sent": self.bytes_sent, "bytes_delivered": self.bytes_delivered,
                 "bytes_lost": self.bytes_lost, "bytes_corrupted": self.bytes_corrupted}
+
+    def counters(self) -> dict:
+        """Bytes (lost by cause), and frames on the air and damaged, in all and by message kind."""
+        frames = {kind: {"sent": c[0], "damaged": c[1]} for kind, c in sorted(self.frames.items())}
+        return {**self.byte_counters(), "bytes_lost_by": dict(self.lost_by), "bytes_in_bursts": self.bytes_in_bursts,
+                "frames_sent": sum(c[0] for c in self.frames.values()),
+                "frames_damaged": sum(c[1] for c in self.frames.values()),
+                "frames": frames}
+
+
+def channel_pair(config: ChannelConfig, rng: np.random.Generator,
+                 outages: list[tuple[float, float]] = ()) -> tuple[Channel, Channel]:
+    """The simulator's radio: (to_rover, to_host), sharing one burst process and, half duplex,
+    one medium. Nothing is drawn here."""
+    bursts = BurstProcess(config.burst_mean_s, config.burst_share, rng) if config.bursts else None
+    medium = Medium() if config.half_duplex else None
+    return (Channel(config, rng, outages, bursts=bursts, medium=medium),
+            Channel(config, rng, outages, bursts=bursts, medium=medium))
+
+
+def radio_figures(to_rover: Channel, to_host: Channel, t_s: float) -> dict:
+    """report.json's "radio": the settings, the bursts as they fell, and each direction's counts."""
+    bursts = to_rover.bursts or to_host.bursts
+    return {"settings": to_rover.config.settings(),
+            "bursts": None if bursts is None else bursts.stats(t_s),
+            "to_rover": to_rover.counters(), "to_host": to_host.counters()}
 
 
 class SimTransport(Transport):

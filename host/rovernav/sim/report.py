@@ -11,6 +11,7 @@ import numpy as np
 from ..link import messages_gen as mg
 from ..files import write_atomic, write_json_atomic
 from ..mission.legs import legs_per_trip
+from .channel import radio_figures
 from .world import footprint
 
 TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
@@ -133,7 +134,7 @@ def build_report(sim, wall_time_s: float) -> dict:
                    "frames": sim.frames_rendered, "dropped": sim.frames_dropped, "fixes_sent": m.fixes_sent},
         "link": {
             "baud": sim.opt.channel.baud, "delay_s": sim.opt.channel.delay_s,
-            "to_rover": sim.to_rover.counters(), "to_host": sim.to_host.counters(),
+            "to_rover": sim.to_rover.byte_counters(), "to_host": sim.to_host.byte_counters(),
             "host_decoder": {"frames_ok": c.frames_ok, "bad_crc": c.bad_crc, "overlong": c.overlong,
                              "unknown_id": c.unknown_id, "malformed": c.malformed},
             "rover_decoder": None if status is None else {
@@ -142,6 +143,8 @@ def build_report(sim, wall_time_s: float) -> dict:
                 "tx_dropped": status.tx_dropped},
             "signing": signing_figures(sim),
         },
+        # The radio as set, and what it did each way (bytes, frames by message kind, bursts).
+        "radio": radio_figures(sim.to_rover, sim.to_host, sim.t),
         "faults": fault_figures(sim),
         "events": [{"t_s": round(t, 2), "text": text} for t, text in sim.events],
     }

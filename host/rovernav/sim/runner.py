@@ -30,7 +30,7 @@ from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
 from ..vision import Locator
-from .channel import Channel, ChannelConfig, SimTransport
+from .channel import ChannelConfig, SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
 from .world import World
 
@@ -110,8 +110,8 @@ class Simulation:
                                 f"{self.world.touching(self.plant.x, self.plant.y, self.plant.heading)}")
         self.frame_sink = frame_sink
         self.progress = progress or (lambda t, text: None)
-        self.to_rover = Channel(options.channel, self.rng, self._outages())
-        self.to_host = Channel(options.channel, self.rng, self._outages())
+        # Both directions share one burst process and, half duplex, one medium (sim/channel.py).
+        self.to_rover, self.to_host = channel_pair(options.channel, self.rng, self._outages())
         # The link key, as `rovernav keygen` would make it and `provision` store it (from its own
         # generator: the simulation's random draws stay those of an unsigned run), and the
         # counters the rover last stored (its EEPROM; the Uno image keeps its own in simavr).
@@ -166,7 +166,8 @@ class Simulation:
                                  live_port=options.live_port, image_hz=options.log_image_hz,
                                  meta={"scenario": scenario.name, "seed": options.seed, "strategy": options.strategy,
                                        "drive_mode": self.drive_mode, "rover": options.rover,
-                                       "signed": options.signed})
+                                       "signed": options.signed, "radio": options.channel.settings()})
+            self.runlog.watch_radio(lambda: radio_figures(self.to_rover, self.to_host, self.runlog.t_s))
         self.mission = self._new_host()
         self._clairvoyant: OccupancyGrid | None = None
 

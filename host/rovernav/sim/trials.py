@@ -3,6 +3,8 @@
     rovernav trials ARENAS_DIR [--strategy rovernav|seed|both] [--seeds K] [--sample K] [--out DIR]
                     [--workers N | --serial | --scheduler ADDRESS] [--max-time S] [--run-timeout S]
                     [--fail-on crash,false_unreachable,timeout,error]
+                    [--radio-loss PCT] [--radio-ber PCT] [--radio-burst MEAN_S:SHARE]
+                    [--radio-jitter-ms MS] [--radio-half-duplex]
 
 Every arena (the *.toml files of ARENAS_DIR, in name order; `--sample K` keeps K of them, see
 sample_arenas: every family in turn, evenly spaced within a family) runs with each strategy
@@ -11,6 +13,9 @@ default a local one on this machine (--workers processes of one thread each, no 
 or the one whose scheduler is
 at --scheduler ADDRESS, whose workers must see ARENAS_DIR and --out at the same paths (a shared
 file system). `--serial` (or `--workers 0`) runs them one after another in this process.
+
+The --radio-* flags set every run's simulated radio as they do `rovernav sim`'s (sim/channel.py);
+trials.json's settings.radio and trials.md say what it was.
 
 Written into --out:
     trials.csv, trials.json   one row per run (ROW_FIELDS); the JSON (strict: no NaN) adds the
@@ -123,6 +128,7 @@ class TrialJob:
     max_time_s: float
     run_timeout_s: float | None
     meta: dict | None = None
+    radio: tuple = ()     # the simulated radio's settings, (name, value) pairs for radio_config (): defaults
 
     @property
     def arena(self) -> str:
@@ -135,8 +141,9 @@ class TrialJob:
     @property
     def args(self) -> tuple:
         """run_trial's arguments, plain values that pickle to any worker."""
-        return (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s,
+        args = (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s,
                 self.run_timeout_s)
+        return args + (dict(self.radio),) if self.radio else args
 
 
 # ---------------------------------------------------------------- arenas and jobs
@@ -180,18 +187,20 @@ def sample_arenas(arenas: list[tuple[Path, dict | None]], count: int) -> list[tu
 
 
 def make_jobs(arenas: list[tuple[Path, dict | None]], strategies: Iterable[str], seeds: Iterable[int],
-              out_dir: Path, max_time_s: float, run_timeout_s: float | None) -> list[TrialJob]:
-    """One job per arena, strategy and seed; runs go to out_dir/runs/<strategy>/<arena>-s<seed>/."""
+              out_dir: Path, max_time_s: float, run_timeout_s: float | None, radio: dict | None = None) -> list[TrialJob]:
+    """One job per arena, strategy and seed; runs go to out_dir/runs/<strategy>/<arena>-s<seed>/.
+    `radio`: radio_config's settings for the simulated radio (None: its defaults)."""
     runs = Path(out_dir).resolve() / "runs"
+    radio_items = tuple(sorted((radio or {}).items()))
     return [TrialJob(path.resolve(), strategy, seed, runs / strategy / f"{path.stem}-s{seed}", max_time_s,
-                     run_timeout_s, meta)
+                     run_timeout_s, meta, radio_items)
             for path, meta in arenas for strategy in strategies for seed in seeds]
 
 
 # ---------------------------------------------------------------- one run
 
 def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_time_s: float,
-              run_timeout_s: float | None = None) -> dict:
+              run_timeout_s: float | None = None, radio: dict | None = None) -> dict:
     """Simulate one mission headless and return its row (ROW_FIELDS).
 
     Writes out_dir/report.json (strict JSON) and out_dir/summary.png, each atomically. The
@@ -199,8 +208,10 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
     seconds of wall time it stops at the simulator's next event or 30-second mark (outcome
     "hung", with the report so far). Safe in a dask worker process: it imports what it needs
     and keeps no state. Exceptions from the simulator propagate (the caller records an error).
+    `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     """
     from ..scenario import load_scenario
+    from .channel import ChannelConfig, radio_config
     from .report import build_report, summary_picture, write_report
     from .runner import SimOptions, Simulation
 
@@ -214,7 +225,9 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    sim = Simulation(load_scenario(scenario_path), SimOptions(seed=seed, strategy=strategy, max_time_s=max_time_s), progress=guard)
+    channel = radio_config(**radio) if radio else ChannelConfig()
+    sim = Simulation(load_scenario(scenario_path),
+                     SimOptions(seed=seed, strategy=strategy, max_time_s=max_time_s, channel=channel), progress=guard)
     stopped = None
     try:
         sim.run()
@@ -602,6 +615,8 @@ def render_markdown(summary: dict) -> str:
              f"{s['started_utc']}, {s['wall_time_s']:.0f} s wall, {s['settings']['runner']}; "
              f"rovernav {s['versions']['rovernav']}.",
              "",
+             f"Radio: {radio_text(s['settings'].get('radio'))}.",
+             "",
              "## Headline",
              "",
              markdown_table("strategy", s["headline"]),
@@ -743,7 +758,24 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
     p.add_argument("--fail-on", default=",".join(DEFAULT_FAIL_ON), metavar="LIST",
                    help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
                         f"(default {','.join(DEFAULT_FAIL_ON)})")
+    from .cli import add_radio_flags
+
+    add_radio_flags(p, config=False)   # every run's radio; trials.json's settings.radio says what it was
     p.set_defaults(func=cmd_trials)
+
+
+def radio_text(st: dict | None) -> str:
+    """The radio's settings in a few words (trials.md)."""
+    if not st:
+        return "the simulator's default"
+    parts = [f"{st['baud']:,} baud", f"{st['delay_ms']:g} ms latency", f"byte loss {st['loss_pct']:g} %",
+             f"bit errors {st['ber_pct']:g} % of bytes"]
+    burst = st["burst"]
+    parts.append(f"in bursts of {burst['mean_s']:g} s mean, {100 * burst['share']:g} % of the time, one process "
+                 "both ways" if burst else "independent, no bursts")
+    parts.append(f"jitter {st['jitter_ms']:g} ms mean per frame" if st["jitter_ms"] else "no jitter")
+    parts.append("half duplex (collisions)" if st["half_duplex"] else "full duplex")
+    return ", ".join(parts)
 
 
 def _command_line(args: argparse.Namespace, runner_flag: str) -> str:
@@ -752,6 +784,14 @@ def _command_line(args: argparse.Namespace, runner_flag: str) -> str:
         parts += ["--sample", str(args.sample)]
     parts += ["--out", str(args.out), *runner_flag.split(), "--max-time", f"{args.max_time:g}",
               "--run-timeout", f"{args.run_timeout:g}", "--fail-on", args.fail_on]
+    for flag, value in (("--radio-loss", args.radio_loss), ("--radio-ber", args.radio_ber),
+                        ("--radio-jitter-ms", args.radio_jitter_ms)):
+        if value is not None:
+            parts += [flag, f"{value:g}"]
+    if args.radio_burst is not None:
+        parts += ["--radio-burst", f"{args.radio_burst[0]:g}:{args.radio_burst[1]:g}" if args.radio_burst[1] else "off"]
+    if args.radio_half_duplex is not None:
+        parts.append("--radio-half-duplex" if args.radio_half_duplex else "--no-radio-half-duplex")
     return " ".join(parts)
 
 
@@ -777,11 +817,17 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if args.max_time <= 0 or args.run_timeout <= 0:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)
+    from .channel import ChannelConfig, radio_config
+    from .cli import radio_values
+
+    values, names = radio_values(args)
+    channel = radio_config(**values, names=names)   # refused here (one line, exit 2), before any run
+    radio = None if channel == ChannelConfig() else values   # as given: each run makes the same ChannelConfig
     arenas = find_arenas(args.arenas_dir)
     if args.sample is not None:
         arenas = sample_arenas(arenas, args.sample)
     strategies = list(STRATEGIES) if args.strategy == "both" else [args.strategy]
-    jobs = make_jobs(arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout)
+    jobs = make_jobs(arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout, radio)
     workers = 0 if args.serial else args.workers
     if args.scheduler:
         runner, runner_flag = f"the dask cluster at {args.scheduler}", f"--scheduler {args.scheduler}"
@@ -818,7 +864,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         "wall_time_s": round(wall_time_s, 1),
         "settings": {"arenas_dir": str(args.arenas_dir), "arenas": len(arenas), "sample": args.sample,
                      "strategies": strategies, "seeds": list(range(1, args.seeds + 1)), "max_time_s": args.max_time,
-                     "run_timeout_s": args.run_timeout, "runner": runner}}
+                     "run_timeout_s": args.run_timeout, "runner": runner, "radio": channel.settings()}}
     summary = write_outputs(args.out, rows, context, fail_on)
     print()
     print(markdown_table("strategy", summary["headline"]))
