@@ -91,6 +91,12 @@ def test_a_simulated_run_logs_every_channel_with_its_schema_and_count(fig48_run)
     assert count["/sonar/echo"] == len(m.echoes) > 0
     assert count["/events"] == len(sim.events)
     assert count["/arena"] == 1 and count["/rover/driven_path"] >= sim.t - 1
+    # The link's quality as the host measured it, once a second; a clean radio carries every frame.
+    quality = _json_messages(path, "/host/link")
+    assert abs(count["/host/link"] - sim.t) <= 2
+    last = quality[-1]
+    assert last["host_to_rover"]["success"] > 0.98 and last["rover_to_host"]["success"] == 1.0
+    assert last["host_sent"]["fix"] > 900 and last["host_sent_again"] == {}
     # What it was made of, to replay it.
     run = meta[META_RUN]
     assert MissionSpec.from_json(run["spec"]) == sim.spec

@@ -49,6 +49,7 @@ MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, the
 HELLO_EVERY_S = 0.5
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
+LINK_LOG_S = 1.0          # the link's quality goes to the run log this often
 HEARD_RECENTLY_S = 5.0    # a rover heard this recently is alive, if the radio is lossy
 HELLO_ALIVE_FACTOR = 4    # no HELLO from a rover that is heard: the deadline is this many times longer
 MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
@@ -131,6 +132,9 @@ class Recorder:
     def host_map(self, t_s: float, learned_map: LearnedMap) -> None:
         pass
 
+    def host_link(self, t_s: float, quality: dict) -> None:
+        """Frames through both ways (recent and whole-run) and frames sent again: once a second."""
+
 
 class Mission:
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
@@ -212,6 +216,7 @@ class Mission:
         self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
         self._heard_any = False     # any valid frame from the rover yet
         self._chunk_at = -1e9        # when the last PATH chunk went out
+        self._link_logged_at = -1e9
 
     # ---------------------------------------------------------------- views
 
@@ -294,6 +299,13 @@ class Mission:
         if self.done:
             self._close(now_s)
             return
+        if now_s - self._link_logged_at >= LINK_LOG_S:
+            self._link_logged_at = now_s
+            q = self.quality
+            self.recorder.host_link(now_s, {
+                "to_rover_pct": None if q.recent("to_rover") is None else round(100 * q.recent("to_rover"), 2),
+                "to_host_pct": None if q.recent("to_host") is None else round(100 * q.recent("to_host"), 2),
+                **self.link_summary()})
         if now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
             self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))

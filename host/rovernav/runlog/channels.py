@@ -65,6 +65,13 @@ _JSON = {
                                                       "frames (by message kind: sent, damaged), ..."},
         "to_host": {"type": "object", "description": "rover to host, the same counts"},
         "bursts": {"type": ["object", "null"], "description": "bursts begun so far and the time in them"}}},
+    "rovernav.LinkQuality": {"type": "object", "title": "rovernav.LinkQuality", "properties": {
+        "t_s": {"type": "number", "description": "mission time [s]"},
+        "to_rover_pct": {"type": ["number", "null"], "description": "frames through host to rover, last 10 s [%]"},
+        "to_host_pct": {"type": ["number", "null"], "description": "frames through rover to host, last 10 s [%]"},
+        "host_to_rover": {"type": "object", "description": "since the start: frames_sent, frames_arrived, success"},
+        "rover_to_host": {"type": "object", "description": "the same, rover to host"},
+        "host_sent_again": {"type": "object", "description": "frames the host sent again, by message kind"}}},
 }
 
 CHANNELS: tuple[ChannelSpec, ...] = (
@@ -79,6 +86,9 @@ CHANNELS: tuple[ChannelSpec, ...] = (
     ChannelSpec("/camera/fix", "foxglove.PoseInFrame", "where the host's vision located the rover"),
     ChannelSpec("/rover/estimate", "foxglove.PoseInFrame", "the rover's own estimate, from its STATUS"),
     ChannelSpec("/rover/status", "rovernav.Sample", "the rover's STATUS as numbers to plot: state, speeds, sd"),
+    ChannelSpec("/host/link", "rovernav.LinkQuality",
+                "frames through both ways as the host measures them (last 10 s and since the start), and the frames "
+                "it sent again by kind (1 Hz)"),
     ChannelSpec("/sim/true_pose", "foxglove.PoseInFrame", "the simulated rover's true pose (20 Hz)", sim_only=True),
     ChannelSpec("/sim/radio", "rovernav.Radio",
                 "the simulated radio's counts so far, each way: bytes sent, lost and corrupted, frames sent and "

@@ -213,6 +213,9 @@ class RunLog(Recorder):
     def host_event(self, t_s: float, text: str) -> None:
         self.event(t_s, text, source="host")
 
+    def host_link(self, t_s: float, quality: dict) -> None:
+        self._log("/host/link", t_s, _json({"t_s": t_s, **quality}))
+
     def host_path(self, t_s: float, path_id: int, path) -> None:
         from foxglove.messages import PosesInFrame
 

@@ -142,6 +142,9 @@ def build_report(sim, wall_time_s: float) -> dict:
                 "unknown_id": status.rx_unknown_id, "malformed": status.rx_malformed,
                 "tx_dropped": status.tx_dropped},
             "signing": signing_figures(sim),
+            # As the host measured it (what `rovernav run` shows too): frames through both ways,
+            # and what it sent and sent again, per message kind.
+            "quality": m.link_summary(),
         },
         # The radio as set, and what it did each way (bytes, frames by message kind, bursts).
         "radio": radio_figures(sim.to_rover, sim.to_host, sim.t),
