@@ -37,6 +37,7 @@ from .world import World
 
 STEP_S = 0.010
 HOST_PERIOD_S = 0.030
+ROVER_CLOCK_SKEW = 0.005   # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
 HOST_BOOT_ID = 0x484F5354   # "HOST": the simulated host's boot id (+1 per restart)
 
 
@@ -343,7 +344,13 @@ class Simulation:
         # (The Uno image pings the plant itself, through UnoCore's sonar callback.)
         self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar and self.opt.rover == "native" else None
         if out.tx:
-            self.to_host.write(out.tx, now)
+            at = now
+            if self.opt.channel.half_duplex:
+                # The rover's clock is not the host's: its 10 ms steps slide against the host's
+                # loop (a ceramic resonator is off by up to 0.5 %), so on a shared medium the two
+                # ends do not write in lock step, as they would on the simulator's common step.
+                at = now + (now * ROVER_CLOCK_SKEW) % STEP_S
+            self.to_host.write(out.tx, at)
         if self.opt.rover == "native":
             stored = self.core.take_persist()
             if stored is not None:
