@@ -53,11 +53,15 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
 // of its own, a sweep that finds the next detour point blocked plans the detour again from here.
 void Rover::replan_locally() {
   awaiting_host_ = false;
+  // Once the reflex has stopped the rover on the host's path, the leg is checked with the full
+  // clearance (that path passed the echo by the host's margin, so the host's map did not hold
+  // it); a sweep that finds the leg clear ends that distrust.
+  const bool distrust = reflex_after_trust_;
+  reflex_after_trust_ = false;
   if (!mission_ || local_.echoes() == 0) return;
-  // (With the full clearance once the reflex has stopped the rover on the host's path: that path
-  // passed the echo by the host's margin, so the host's map did not hold it.)
-  if (!local_.blocks(here_mm(), target(),
-                     reflex_after_trust_ ? 0 : static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
+  if (!local_.blocks(here_mm(), target(), distrust ? 0 : static_cast<uint16_t>(params_.raw(Param::SonarMarginMm))))
+    return;
+  reflex_after_trust_ = distrust;
   const bool on_own_detour = detour_i_ < detour_n_;
   if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
     awaiting_host_ = true;
