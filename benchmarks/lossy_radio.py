@@ -75,9 +75,23 @@ def arenas(count: int) -> list[str]:
     return [str(p) for p, _ in sample_arenas(find_arenas(folder), count)]
 
 
+def solvable(scenario: str) -> bool:
+    """A generated arena's [generated] solvable (the shared scenarios are)."""
+    import tomllib
+
+    with open(scenario, "rb") as f:
+        return tomllib.load(f).get("generated", {}).get("solvable", True)
+
+
+def right(row: dict) -> bool:
+    """Reached, or, on an arena built with no way through, the host's verdict that there is none."""
+    return row["outcome"] == "reached" or (row["outcome"] == "no_path" and not solvable(row["scenario"]))
+
+
 def summarise(rows: list[dict], radio: str, clean: dict[tuple, float]) -> dict:
     mine = [r for r in rows if r["radio"] == radio]
     reached = [r for r in mine if r["outcome"] == "reached"]
+    unsolvable = [r for r in mine if not solvable(r["scenario"])]
     times = [r["mission_time_s"] for r in reached]
     ratios = [r["mission_time_s"] / clean[(r["scenario"], r["seed"])] for r in reached
               if (r["scenario"], r["seed"]) in clean]
@@ -86,7 +100,8 @@ def summarise(rows: list[dict], radio: str, clean: dict[tuple, float]) -> dict:
     def med(values):
         values = [v for v in values if v is not None]
         return statistics.median(values) if values else None
-    return {"radio": radio, "runs": len(mine), "reached": len(reached),
+    return {"radio": radio, "runs": len(mine), "reached": len(reached), "right": sum(right(r) for r in mine),
+            "unsolvable": len(unsolvable), "unsolvable_right": sum(right(r) for r in unsolvable),
             "crashed": sum(r["outcome"] == "crashed" for r in mine),
             "timeout": sum(r["outcome"] == "timeout" for r in mine),
             "failed_named": sum(r["outcome"] == "failed" for r in mine),
@@ -95,7 +110,8 @@ def summarise(rows: list[dict], radio: str, clean: dict[tuple, float]) -> dict:
             "median_ratio": med(ratios), "ratio_of_medians": (med(times) / med(clean_times)) if times else None,
             "to_rover": med([r["to_rover"] for r in mine]), "to_host": med([r["to_host"] for r in mine]),
             "sent_again_share": (sum(r["sent_again"] for r in mine) / max(1, sum(r["frames_sent"] for r in mine))),
-            "failures": sorted({(r["error"] or r["outcome"]) for r in mine if r["outcome"] != "reached"})}
+            "failures": sorted({f"{Path(r['scenario']).stem} seed {r['seed']}: {r['error'] or r['outcome']}"
+                                for r in mine if not right(r)})}
 
 
 def main() -> int:
@@ -106,6 +122,7 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", help="write every run and the summaries here")
     ap.add_argument("--rows", help="append each run to this JSON-lines file as it ends")
+    ap.add_argument("--from-json", help="print the tables again from a --json file of an earlier run, running nothing")
     a = ap.parse_args()
     radios = a.radios.split(",")
     unknown = [r for r in radios if r not in RADIOS]
@@ -114,13 +131,20 @@ def main() -> int:
     if "clean" not in radios:
         radios.insert(0, "clean")   # the time ratios need it
     seeds = [int(s) for s in a.seeds.split(",")]
-    scenarios = [str(ROOT / "scenarios" / f"{s}.toml") for s in SHARED] + (arenas(a.arenas) if a.arenas else [])
-    # Each scenario and seed under every radio in turn: runs cut short still compare like with like.
-    jobs = [(s, k, r) for s in scenarios for k in seeds for r in radios]
-    print(f"{len(scenarios)} scenarios x {len(seeds)} seeds x {len(radios)} radios = {len(jobs)} runs, "
-          f"{a.jobs} processes", file=sys.stderr)
     t0 = time.monotonic()
     rows = []
+    if a.from_json:
+        rows = json.loads(Path(a.from_json).read_text())["runs"]
+        jobs = []
+        scenarios = sorted({r["scenario"] for r in rows})
+        radios = [r for r in RADIOS if any(row["radio"] == r for row in rows)]
+        a.seeds = ",".join(map(str, sorted({r["seed"] for r in rows})))
+    else:
+        scenarios = [str(ROOT / "scenarios" / f"{s}.toml") for s in SHARED] + (arenas(a.arenas) if a.arenas else [])
+        # Each scenario and seed under every radio in turn: runs cut short still compare like with like.
+        jobs = [(s, k, r) for s in scenarios for k in seeds for r in radios]
+        print(f"{len(scenarios)} scenarios x {len(seeds)} seeds x {len(radios)} radios = {len(jobs)} runs, "
+              f"{a.jobs} processes", file=sys.stderr)
     with concurrent.futures.ProcessPoolExecutor(max_workers=a.jobs) as pool:
         for n, row in enumerate(pool.map(run_one, jobs, chunksize=1), 1):
             rows.append(row)
@@ -134,13 +158,14 @@ def main() -> int:
     summaries = [summarise(rows, radio, clean) for radio in radios]
     print(f"\n{len(scenarios)} scenarios ({len(SHARED)} shared, {len(scenarios) - len(SHARED)} generated) x seeds "
           f"{a.seeds}; {time.monotonic() - t0:.0f} s with {a.jobs} processes\n")
-    print("| radio | reached | crashed | time limit | named failure | rover left moving | median time (s) | "
-          "x clean (median of ratios) | frames through to rover / from rover | frames sent again |")
+    print("| radio | right (reached, or 'no path' where there is none) | crashed | time limit | named failure | "
+          "rover left moving | median time (s) | x clean (median of ratios) | frames through to rover / from rover | "
+          "frames sent again |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for s in summaries:
         def f(v, fmt):
             return "-" if v is None else format(v, fmt)
-        print(f"| {s['radio']} | {s['reached']}/{s['runs']} | {s['crashed']} | {s['timeout']} | {s['failed_named']} | "
+        print(f"| {s['radio']} | {s['right']}/{s['runs']} ({s['unsolvable_right']}/{s['unsolvable']} 'no path') | {s['crashed']} | {s['timeout']} | {s['failed_named']} | "
               f"{s['not_stopped']} | {f(s['median_time_s'], '.1f')} | {f(s['median_ratio'], '.2f')} | "
               f"{f(s['to_rover'] and 100 * s['to_rover'], '.1f')} % / {f(s['to_host'] and 100 * s['to_host'], '.1f')} % | "
               f"{100 * s['sent_again_share']:.1f} % |")
@@ -154,11 +179,11 @@ def main() -> int:
         rule = ACCEPT.get(s["radio"])
         if rule is not None:
             least, ratio = rule
-            if s["runs"] and s["reached"] / s["runs"] < least:
-                missed.append(f"{s['radio']}: reached {s['reached']}/{s['runs']} < {least:.0%}")
+            if s["runs"] and s["right"] / s["runs"] < least:
+                missed.append(f"{s['radio']}: right {s['right']}/{s['runs']} < {least:.0%}")
             if ratio is not None and s["median_ratio"] is not None and s["median_ratio"] > ratio:
                 missed.append(f"{s['radio']}: median time {s['median_ratio']:.2f} x clean > {ratio}")
-    if a.json:
+    if a.json and not a.from_json:
         Path(a.json).write_text(json.dumps({"runs": rows, "summaries": summaries}, indent=1))
     for line in missed:
         print(f"MISSED {line}")
