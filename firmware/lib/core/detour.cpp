@@ -53,8 +53,15 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
 // of its own, a sweep that finds the next detour point blocked plans the detour again from here.
 void Rover::replan_locally() {
   awaiting_host_ = false;
+  // Once the reflex has stopped the rover on the host's path, the leg is checked with the full
+  // clearance (that path passed the echo by the host's margin, so the host's map did not hold
+  // it); a sweep that finds the leg clear ends that distrust.
+  const bool distrust = reflex_after_trust_;
+  reflex_after_trust_ = false;
   if (!mission_ || local_.echoes() == 0) return;
-  if (!local_.blocks(here_mm(), target(), static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)))) return;
+  if (!local_.blocks(here_mm(), target(), distrust ? 0 : static_cast<uint16_t>(params_.raw(Param::SonarMarginMm))))
+    return;
+  reflex_after_trust_ = distrust;
   const bool on_own_detour = detour_i_ < detour_n_;
   if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
     awaiting_host_ = true;
@@ -74,7 +81,10 @@ bool Rover::mode_blocked(uint32_t now) {
     plan_detour();   // the radio went down while it waited: no path will come
     return false;
   }
-  if (radio_lost_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
+  // Once the reflex has stopped it on the host's path and it found no way round, it does not
+  // drive into what stopped it on the host's word again: it holds still until a new path comes
+  // (a host that never heard the sweep's reports, on a lossy radio, holds that path clear).
+  if (radio_lost_ || reflex_after_trust_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
   awaiting_host_ = false;
   trusted_host_ = true;
   enter(RoverState::Rotate);

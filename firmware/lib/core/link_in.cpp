@@ -160,12 +160,18 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   path_len_ = stage_total_;
   path_id_ = stage_id_;
   detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
-  awaiting_host_ = trusted_host_ = reflex_after_trust_ = false;
+  awaiting_host_ = trusted_host_ = false;
   send_event(EventKind::PathAccepted, path_id_);
   if (mission_ && est_.initialised()) {
     pick_target_ = true;
-    if (state_ == RoverState::Drive || state_ == RoverState::Rotate || state_ == RoverState::Blocked)
+    // A rover its reflex stopped on the host's last path looks before it takes a new one: a host
+    // that never heard the sweep (its reports lost on a lossy radio) sends the same way again.
+    // The sweep's check (replan_locally) then finds its own way round, or holds it Blocked.
+    if (reflex_after_trust_) {
+      start_sweep(last_ms_);
+    } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate || state_ == RoverState::Blocked) {
       enter(RoverState::Rotate);
+    }
   }
 }
 
