@@ -1,8 +1,10 @@
 """A test helper: the rover's firmware core (its C ABI) behind a Transport, in simulated time.
-Used by the provisioning, Uno and run-log tests."""
+Used by the provisioning, Uno, run-log, mission and lossy-exchange tests."""
 from __future__ import annotations
 
 from rovernav.firmware import RoverCore
+from rovernav.link import framing
+from rovernav.link import messages_gen as mg
 from rovernav.link.transport import Transport
 
 
@@ -53,3 +55,50 @@ def firmware_hello(**changes):
         core.close()
     hello = next(f.message for f in frames if isinstance(f.message, mg.Hello))
     return dataclasses.replace(hello, **changes)
+
+
+class CoreRover:
+    """The rover's firmware core behind one end of a pipe, stepped every 10 ms up to the time it is served.
+    It stands still (nothing moves it), so sonar reports and arrivals a test needs are said for it
+    (`say`). What the host sent is kept, decoded, for the test to look at."""
+
+    def __init__(self, end, boot_id=11):
+        self.end, self.core, self.t_ms = end, RoverCore(boot_id=boot_id), 0
+        self.decoder = framing.FrameDecoder()
+        self.got: list = []
+        self.said: list = []    # what the rover itself sent, decoded
+        self._out = framing.FrameDecoder()
+        self.seq = 128   # frames said for the rover, numbered apart from its own
+
+    def serve(self, t_s):
+        data = self.end.read(65536, 0)
+        self.got += [f.message for f in self.decoder.feed(data)]
+        while self.t_ms <= t_s * 1000:
+            out = self.core.step(self.t_ms, gyro_rate_mdps=0, rx=data)
+            data = b""
+            if out.tx:
+                self.said += [f.message for f in self._out.feed(out.tx)]
+                self.end.write(out.tx)
+            self.t_ms += 10
+
+    def reboot(self, boot_id):
+        self.core.close()
+        self.core = RoverCore(boot_id=boot_id, reset_cause=4)
+
+    def say(self, m):
+        self.end.write(framing.encode_frame(m, self.seq))
+        self.seq = (self.seq + 1) & 0xFF
+
+    def of(self, cls):
+        return [m for m in self.got if isinstance(m, cls)]
+
+    @property
+    def paths(self) -> dict[int, list]:
+        out: dict[int, list] = {}
+        for m in self.of(mg.Path):
+            out.setdefault(m.path_id, {})[m.first_index] = [(m.x_mm[i] / 1000, m.y_mm[i] / 1000) for i in range(m.count)]
+        return {k: [p for first in sorted(v) for p in v[first]] for k, v in out.items()}
+
+    @property
+    def state(self) -> int:
+        return self.core.probe().state

@@ -8,7 +8,6 @@ test_sim.py (`test_a_mission_at_one_percent_byte_loss_reaches_its_target`).
 """
 from __future__ import annotations
 
-from rovernav.firmware import RoverCore
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
@@ -16,6 +15,8 @@ from rovernav.link.path_upload import Answer, PathUpload, path_chunks
 from rovernav.link.transport import PipeTransport, Transport
 from rovernav.mission import Detection, Mission, Phase
 from rovernav.planning import OccupancyGrid, PlannerConfig
+
+from tests.core_transport import CoreRover
 
 
 def _frames(data: bytes) -> list[tuple[bytes, object]]:
@@ -89,35 +90,10 @@ def answers(cls):
     return lambda f: isinstance(f.message, (mg.Ack, mg.Nack)) and f.message.msg_id == cls.ID
 
 
-class Rover:
-    """The firmware core behind the pipe, stepped every 10 ms; what it was sent, decoded."""
-
-    def __init__(self, end):
-        self.end, self.core, self.t_ms = end, RoverCore(boot_id=7), 0
-        self.decoder = framing.FrameDecoder()
-        self.got: list = []
-        self.said: list = []
-        self._out = framing.FrameDecoder()
-
-    def serve(self, t_s):
-        data = self.end.read(65536, 0)
-        self.got += [f.message for f in self.decoder.feed(data)]
-        while self.t_ms <= t_s * 1000:
-            out = self.core.step(self.t_ms, gyro_rate_mdps=0, rx=data)
-            data = b""
-            if out.tx:
-                self.said += [f.message for f in self._out.feed(out.tx)]
-                self.end.write(out.tx)
-            self.t_ms += 10
-
-    def of(self, cls):
-        return [m for m in self.got if isinstance(m, cls)]
-
-
 def _mission(to_rover=(), to_host=()):
     host_end, rover_end = PipeTransport.pair()
     lossy = LossyEnd(host_end, to_rover, to_host)
-    rover = Rover(rover_end)
+    rover = CoreRover(rover_end, boot_id=7)
     notes: list[str] = []
     mission = Mission(Link(lossy), OccupancyGrid(2.36, 1.75, PlannerConfig()), (0.3, 0.3), (2.0, 1.4),
                       on_event=lambda t, text: notes.append(text))
@@ -182,7 +158,7 @@ def _path(n):
     return [(100 + 40 * i, 200 + 30 * i) for i in range(n)]
 
 
-def _upload(upload: PathUpload, rover: Rover, lossy: LossyEnd, host: Link, seconds=10.0):
+def _upload(upload: PathUpload, rover: CoreRover, lossy: LossyEnd, host: Link, seconds=10.0):
     """Drive an upload to the rover over the lossy pipe as the mission does: send what is due,
     take the answers, until the rover holds the whole path."""
     t = 0.0
@@ -204,10 +180,10 @@ def _upload(upload: PathUpload, rover: Rover, lossy: LossyEnd, host: Link, secon
 def _upload_setup(to_rover=(), to_host=()):
     host_end, rover_end = PipeTransport.pair()
     lossy = LossyEnd(host_end, to_rover, to_host)
-    return Link(lossy), lossy, Rover(rover_end)
+    return Link(lossy), lossy, CoreRover(rover_end, boot_id=7)
 
 
-def _held_path(rover: Rover, upload: PathUpload):
+def _held_path(rover: CoreRover, upload: PathUpload):
     accepted = [m.arg for m in rover.said if isinstance(m, mg.Event) and m.kind == mg.EventKind.PATH_ACCEPTED]
     return upload.path_id in accepted
 

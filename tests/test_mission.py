@@ -9,7 +9,6 @@ import math
 import pytest
 
 from rovernav.errors import MapFileError
-from rovernav.firmware import RoverCore
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
@@ -18,51 +17,7 @@ from rovernav.mission import Detection, Failure, Mission, Outcome, Phase
 from rovernav.mission import core
 from rovernav.planning import OccupancyGrid, PlannerConfig
 
-from tests.core_transport import firmware_hello
-
-
-class CoreRover:
-    """The rover's firmware core behind the pipe, stepped every 10 ms up to the time it is served.
-    It stands still (nothing moves it), so sonar reports and arrivals a test needs are said for it
-    (`say`). What the host sent is kept, decoded, for the test to look at."""
-
-    def __init__(self, end, boot_id=11):
-        self.end, self.core, self.t_ms = end, RoverCore(boot_id=boot_id), 0
-        self.decoder = framing.FrameDecoder()
-        self.got: list = []
-        self.seq = 128   # frames said for the rover, numbered apart from its own
-
-    def serve(self, t_s):
-        data = self.end.read(65536, 0)
-        self.got += [f.message for f in self.decoder.feed(data)]
-        while self.t_ms <= t_s * 1000:
-            out = self.core.step(self.t_ms, gyro_rate_mdps=0, rx=data)
-            data = b""
-            if out.tx:
-                self.end.write(out.tx)
-            self.t_ms += 10
-
-    def reboot(self, boot_id):
-        self.core.close()
-        self.core = RoverCore(boot_id=boot_id, reset_cause=4)
-
-    def say(self, m):
-        self.end.write(framing.encode_frame(m, self.seq))
-        self.seq = (self.seq + 1) & 0xFF
-
-    def of(self, cls):
-        return [m for m in self.got if isinstance(m, cls)]
-
-    @property
-    def paths(self) -> dict[int, list]:
-        out: dict[int, list] = {}
-        for m in self.of(mg.Path):
-            out.setdefault(m.path_id, {})[m.first_index] = [(m.x_mm[i] / 1000, m.y_mm[i] / 1000) for i in range(m.count)]
-        return {k: [p for first in sorted(v) for p in v[first]] for k, v in out.items()}
-
-    @property
-    def state(self) -> int:
-        return self.core.probe().state
+from tests.core_transport import CoreRover, firmware_hello
 
 
 class ScriptedRover:
