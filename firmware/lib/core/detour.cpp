@@ -44,23 +44,21 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
   return path_[path_len_ - 1];
 }
 
-// After a sweep: does the leg run into what the sonar saw (by more than the sonar's placement
-// margin: the host plans with the full clearance, and an echo off a face it already keeps clear of
-// must not set the rover off on its own)? With the radio up the host, whose map knows more,
-// replans after the sweep: the rover holds still and waits for its path. It plans its own
-// detour when the radio is down, or when it trusted the host's path once this leg and its
-// forward reflex stopped it on that path all the same (a host that cannot replan). On a detour
-// of its own, a sweep that finds the next detour point blocked plans the detour again from here.
+// After a sweep: does the leg run into what the sonar saw, by the full clearance the host plans
+// with? With the radio up the host, whose map knows more, replans after the sweep: the rover holds
+// still and waits for its path, or for its word that it heard this sweep whole and keeps the path
+// the rover holds (HEARTBEAT's scan_heard and path_id, host_knows_). The rover plans its own detour
+// at once when the radio is down, on a detour of its own, or when its forward reflex stopped it on a
+// path it trusted all the same (a host that cannot replan). On a detour of its own, a sweep that
+// finds the next detour point blocked plans the detour again from here.
 void Rover::replan_locally() {
   awaiting_host_ = false;
-  // Once the reflex has stopped the rover on the host's path, the leg is checked with the full
-  // clearance (that path passed the echo by the host's margin, so the host's map did not hold
-  // it); a sweep that finds the leg clear ends that distrust.
+  // Once the reflex has stopped the rover on the host's path, it does not take the host's word
+  // again until a sweep finds the leg clear.
   const bool distrust = reflex_after_trust_;
   reflex_after_trust_ = false;
   if (!mission_ || local_.echoes() == 0) return;
-  if (!local_.blocks(here_mm(), target(), distrust ? 0 : static_cast<uint16_t>(params_.raw(Param::SonarMarginMm))))
-    return;
+  if (!local_.blocks(here_mm(), target())) return;
   reflex_after_trust_ = distrust;
   const bool on_own_detour = detour_i_ < detour_n_;
   if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
@@ -74,19 +72,31 @@ void Rover::replan_locally() {
 
 // Blocked: returns true when the wait is over and the rover goes on along the leg.
 bool Rover::mode_blocked(uint32_t now) {
-  // Waiting for the host's new path (or no way round on the rover's grid). If none comes, the
-  // host (whose map knows more) holds the path clear: the rover goes on, once trusting it.
   if (awaiting_host_ && radio_lost_) {
     awaiting_host_ = false;
     plan_detour();   // the radio went down while it waited: no path will come
     return false;
   }
   // Once the reflex has stopped it on the host's path and it found no way round, it does not
-  // drive into what stopped it on the host's word again: it holds still until a new path comes
-  // (a host that never heard the sweep's reports, on a lossy radio, holds that path clear).
-  if (radio_lost_ || reflex_after_trust_ || now - blocked_since_ms_ < kBlockedWaitMs) return false;
+  // drive into what stopped it on the host's word again: it holds still until a new path comes.
+  if (radio_lost_ || reflex_after_trust_) return false;
+  // On at once when the leg (a new path's, say) clears the echoes by the full clearance, or by
+  // the sonar's placement margin when the host heard the sweep and keeps this path (an echo off a
+  // face it already keeps clear of). Else, after the wait: with the host's word, on, trusting it
+  // (its map knows more); without it (the sweep's reports lost on a lossy radio, or a host that
+  // does not replan), the rover sweeps again: the readings said again, and the leg seen afresh.
+  // It does not set off on its own way round while the radio is up: its sonar sees ahead only,
+  // and the host's map holds what stands beside it.
+  if (local_.blocks(here_mm(), target(), host_knows_ ? static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)) : 0)) {
+    const uint32_t waited_ms = now - blocked_since_ms_;
+    if (!host_knows_) {
+      if (waited_ms >= kUnheardWaitMs) start_sweep(now);
+      return false;
+    }
+    if (waited_ms < kBlockedWaitMs) return false;
+    trusted_host_ = true;
+  }
   awaiting_host_ = false;
-  trusted_host_ = true;
   enter(RoverState::Rotate);
   return true;
 }

@@ -69,6 +69,7 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
       break;
     case msg::Heartbeat::kId:
       camera_ = m.heartbeat.camera;
+      host_knows_ = m.heartbeat.scan_heard == scan_id_ && m.heartbeat.path_id == path_id_;
       break;
     case msg::Fix::kId:
       m.fix.age_ms = static_cast<uint16_t>(m.fix.age_ms + late_ms);
@@ -160,16 +161,20 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   path_len_ = stage_total_;
   path_id_ = stage_id_;
   detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
-  awaiting_host_ = trusted_host_ = false;
+  trusted_host_ = host_knows_ = false;
   send_event(EventKind::PathAccepted, path_id_);
   if (mission_ && est_.initialised()) {
     pick_target_ = true;
     // A rover its reflex stopped on the host's last path looks before it takes a new one: a host
     // that never heard the sweep (its reports lost on a lossy radio) sends the same way again.
     // The sweep's check (replan_locally) then finds its own way round, or holds it Blocked.
+    // A rover Blocked stays so until the new leg is seen to clear what the sweep saw (mode_blocked).
     if (reflex_after_trust_) {
       start_sweep(last_ms_);
-    } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate || state_ == RoverState::Blocked) {
+    } else if (state_ == RoverState::Blocked) {
+      awaiting_host_ = true;
+      blocked_since_ms_ = last_ms_;
+    } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate) {
       enter(RoverState::Rotate);
     }
   }

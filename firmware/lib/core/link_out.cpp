@@ -117,7 +117,10 @@ ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_
 }
 
 ROVERNAV_NOINLINE void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
-  send_reading(bearing_cdeg, range_mm);
+  // Said kSayTimes times: the host plans with what it heard, and the rover takes its path on the
+  // host's word only when it heard every echo of the sweep (HEARTBEAT's scan_heard). The host
+  // drops the copies.
+  for (uint8_t i = 0; i < kSayTimes; ++i) send_reading(bearing_cdeg, range_mm);
   ++scan_echoes_;
   remember_echo(bearing_cdeg, range_mm);
 }

@@ -8,6 +8,7 @@ void Rover::start_sweep(uint32_t now) {
   reflex_waiting_ = false;   // a ping still out belongs to the reflex, not to the sweep
   ++scan_id_;
   scan_echoes_ = 0;
+  host_knows_ = false;   // until a HEARTBEAT says the host heard this sweep
   enter(RoverState::Scan);   // ends a detour being planned
   local_.clear();
   sweep_.start(now, servo_cdeg_, params_.sweep_step_ms());
@@ -46,7 +47,7 @@ void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
       put_off_ = true;
       return;
     }
-    send_event(EventKind::ScanDone, scan_echoes_);
+    for (uint8_t i = 0; i < kSayTimes; ++i) send_event(EventKind::ScanDone, scan_echoes_);   // as the echoes (report_echo)
     sweep_distance_mm_ = 0.0f;
     enter(RoverState::Rotate);
     replan_locally();

@@ -134,6 +134,7 @@ struct RoverFields {
   bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
   bool trusted_host_ : 1;                     // detour: the host sent no new path once this leg: it holds it clear
   bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
+  bool host_knows_ : 1;                       // detour: HEARTBEAT says the host heard the last sweep whole and holds our path
   bool persist_due_ : 1;                      // signatures: the counters are to be stored (persist_due())
   bool persisted_once_ : 1;                   // signatures: ... and have been since boot
   bool fix_verified_ : 1;                     // signatures: the decoder holds a FIX whose tag passed: next step's job
@@ -158,6 +159,8 @@ class Rover : private RoverFields {
     kCalibrateAfterMs = 300,    // speed-model calibration starts this long into a straight drive
     kCalibrateMinMm = 100,      // and needs this much model distance between two fixes
     kBlockedWaitMs = 3000,      // blocked with no way round: how long to wait for the host's path
+    kUnheardWaitMs = 1500,      // blocked, and the host has not said it heard the sweep: how long before sweeping again
+    kSayTimes = 3,              // each echo and SCAN_DONE is said this many times (a lossy radio)
     kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
     kReflexLooks = 6,           // the directions the reflex's pings cycle through
     kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent

@@ -6,12 +6,19 @@ namespace rovernav {
 namespace core {
 
 namespace {
-enum : uint8_t { kRawHead = 3 };   // length, id, seq
+enum : uint8_t {
+  kRawHead = 3,   // length, id, seq
+  // What framing adds to a raw frame at most (a signature, the CRC, COBS's code byte and the
+  // delimiter, less the raw head). A frame is queued only if this much room is left behind it: a
+  // queue filled with raw frames to the last byte could frame none of them, and would never
+  // say anything again.
+  kFramingGrowth = kFrameHeader + kFrameCrc + kFrameSignature + 2 - kRawHead,
+};
 }  // namespace
 
 ROVERNAV_NOINLINE void TxQueue::send_payload(uint8_t msg_id, const uint8_t* payload, uint8_t len) {
   drop_taken();
-  if (len > kMaxPayload || kRawHead + len > kCapacity - count_) {
+  if (len > kMaxPayload || kRawHead + kFramingGrowth + len > kCapacity - count_) {
     ++dropped_;
     return;
   }

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0xEEA007ECUL;
+static const uint32_t kSchemaHash = 0x44269077UL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -326,9 +326,11 @@ static_assert(sizeof(Hello) == Hello::kPayloadSize, "hello: its layout is its pa
 
 /// The host is alive. Sent at a few hertz even when the camera has no fix, so the rover can tell 'no camera' from 'no radio'. (host to rover)
 struct Heartbeat {
-  enum : uint8_t { kId = 0x02, kPayloadSize = 5 };
+  enum : uint8_t { kId = 0x02, kPayloadSize = 9 };
   wire::u32le host_time_ms;  ///< [ms] host clock, for latency estimates
   uint8_t camera;  ///< [enum camera_state] what the camera sees
+  wire::u16le scan_heard;  ///< the last sweep (OBSTACLE's scan_id) the host heard every echo of (its SCAN_DONE and as many echoes as that counted) and has planned with; 0: none. A rover trusts a path held near its echoes only when this is its last sweep
+  wire::u16le path_id;  ///< the path the host means the rover to hold (0: none): its word on scan_heard is about this path
   /// Writes kPayloadSize bytes to p.
   void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
@@ -525,7 +527,7 @@ static_assert(sizeof(LinkAuth) == LinkAuth::kPayloadSize, "link_auth: its layout
 /// Message ids and payload sizes, in flash.
 static const uint8_t kPayloadSizes[14][2] ROVERNAV_PROGMEM = {
   {0x01, 19},  // hello
-  {0x02, 5},  // heartbeat
+  {0x02, 9},  // heartbeat
   {0x03, 11},  // fix
   {0x04, 37},  // path
   {0x05, 2},  // start

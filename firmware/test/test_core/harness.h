@@ -78,6 +78,10 @@ class Bench {
   bool stream_fixes = false;    // a FIX every fix_period_ms from the plant's true pose
   uint16_t fix_period_ms = 33;
   bool heartbeats = false;
+  // The host's word in its HEARTBEATs: it heard every sweep whole (scan_heard: the last sweep whose
+  // SCAN_DONE it was said) and holds the last path loaded; false: it heard none (a lossy radio).
+  bool hears_sweeps = true;
+  uint16_t scan_heard = 0, last_scan_seen = 0, host_path_id = 0;
   uint16_t sonar_range_mm = 0;  // what the next ping returns (0 = nothing), unless a box is set
   bool has_box = false;         // an obstacle in the world: the sonar sees it, the host does not
   float box_x0 = 0, box_y0 = 0, box_x1 = 0, box_y1 = 0;
@@ -169,6 +173,7 @@ class Bench {
   }
   /// Sends a path (in chunks of 8) and runs until every chunk is answered.
   void load_path(uint16_t path_id, const core::Waypoint* wps, uint8_t n) {
+    host_path_id = path_id;
     for (uint8_t first = 0; first < n; first = static_cast<uint8_t>(first + kWaypointsPerChunk)) {
       msg::Path p{};
       p.path_id = path_id;
@@ -212,6 +217,8 @@ class Bench {
       msg::Heartbeat h{};
       h.host_time_ms = now_ms;
       h.camera = static_cast<uint8_t>(camera ? CameraState::Ok : CameraState::NoRover);
+      h.scan_heard = scan_heard;
+      h.path_id = host_path_id;
       send_auto(h);
     }
     // 57,600 baud brings about 57 bytes in a 10 ms step; the rest waits for the next one.
@@ -234,6 +241,15 @@ class Bench {
         s.seq = decoder_.frame().seq;
         s.len = decoder_.frame().payload_len;
         memcpy(s.payload, decoder_.frame().payload, s.len);
+        if (s.msg_id == msg::Obstacle::kId) {
+          msg::Obstacle o;
+          o.decode(s.payload);
+          last_scan_seen = o.scan_id;
+        } else if (s.msg_id == msg::Event::kId && hears_sweeps) {
+          msg::Event e;
+          e.decode(s.payload);
+          if (e.kind == static_cast<uint8_t>(EventKind::ScanDone)) scan_heard = last_scan_seen;
+        }
       }
     }
     plant.advance(out.left_pwm, out.right_pwm, static_cast<float>(step_ms) / 1000.0f);
@@ -264,17 +280,29 @@ class Bench {
   int count(Msg* last = nullptr) const {
     int n = 0;
     for (int i = 0; i < said_count; ++i) {
-      if (said[i].msg_id == Msg::kId) {
+      if (said[i].msg_id == Msg::kId && !copy_of_previous(i)) {
         ++n;
         if (last) last->decode(said[i].payload);
       }
     }
     return n;
   }
+  /// Whether message i is a copy of the one said just before it (the rover says each echo and
+  /// SCAN_DONE twice): count() and events() count such a pair once; copies() counts the copies.
+  bool copy_of_previous(int i) const {
+    return i > 0 && said[i - 1].msg_id == said[i].msg_id && said[i - 1].len == said[i].len &&
+           memcmp(said[i - 1].payload, said[i].payload, said[i].len) == 0;
+  }
+  template <typename Msg>
+  int copies() const {
+    int n = 0;
+    for (int i = 0; i < said_count; ++i) n += said[i].msg_id == Msg::kId && copy_of_previous(i);
+    return n;
+  }
   int events(EventKind kind, msg::Event* last = nullptr) const {
     int n = 0;
     for (int i = 0; i < said_count; ++i) {
-      if (said[i].msg_id != msg::Event::kId) continue;
+      if (said[i].msg_id != msg::Event::kId || copy_of_previous(i)) continue;
       msg::Event e;
       e.decode(said[i].payload);
       if (e.kind == static_cast<uint8_t>(kind)) {

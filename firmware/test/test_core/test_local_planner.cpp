@@ -83,6 +83,7 @@ TEST_CASE("planned in slices, a step each: the same detour, no slice more than o
 TEST_CASE("while the rover plans its own detour it keeps stepping: STOP is served at once") {
   Bench b;
   b.stream_fixes = true;
+  b.heartbeats = true;   // a host that heard every sweep and holds its path: it does not replan
   b.set_box(300, 1050, 200, 200);  // dead ahead; no path comes from the host
   const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
   b.start_mission(wps, 2);
@@ -114,6 +115,7 @@ TEST_CASE("no way round on the grid: the planner says so instead of guessing") {
 TEST_CASE("the rover gets round an obstacle its sonar found, with no new path from the host") {
   Bench b;
   b.stream_fixes = true;
+  b.heartbeats = true;   // a host that heard every sweep and holds its path: it does not replan
   b.set_box(300, 1050, 200, 200);  // dead ahead on the leg; the host's path runs through it
   const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
   b.start_mission(wps, 2);
@@ -130,6 +132,7 @@ TEST_CASE("the rover gets round an obstacle its sonar found, with no new path fr
 TEST_CASE("a path from the host replaces the rover's own detour") {
   Bench b;
   b.stream_fixes = true;
+  b.heartbeats = true;   // a host that heard every sweep and holds its path: it does not replan
   b.set_box(300, 1050, 200, 200);
   const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
   b.start_mission(wps, 2);

@@ -233,6 +233,7 @@ bool corner_in_box(const test::Bench& b) {
 TEST_CASE("with something within reach of its corners the rover backs out before it turns on the spot") {
   Bench b;
   b.without_periodic_sweeps();
+  b.heartbeats = true;   // the host heard the sweep (the box, off the leg, it keeps clear of)
   // Facing north; a box whose corner is 110 mm from the centre, ahead and to the right, clear of
   // the body (whose side is 75 mm out). Turning clockwise would swing the front-right corner into it.
   b.set_box(300.0f + 85.0f + 100.0f, 300.0f + 70.0f + 100.0f, 200.0f, 200.0f);

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xEEA007EC
+SCHEMA_HASH = 0x44269077
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -301,14 +301,18 @@ class Heartbeat(Message):
     ID: ClassVar[int] = 0x02
     NAME: ClassVar[str] = 'heartbeat'
     DIRECTION: ClassVar[str] = 'host_to_rover'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IB')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<IBHH')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('host_time_ms', 'u32', 0, 'ms', 'host clock, for latency estimates'),
         FieldSpec('camera', 'u8', 0, 'enum camera_state', 'what the camera sees'),
+        FieldSpec('scan_heard', 'u16', 0, '', "the last sweep (OBSTACLE's scan_id) the host heard every echo of (its SCAN_DONE and as many echoes as that counted) and has planned with; 0: none. A rover trusts a path held near its echoes only when this is its last sweep"),
+        FieldSpec('path_id', 'u16', 0, '', 'the path the host means the rover to hold (0: none): its word on scan_heard is about this path'),
     )
 
     host_time_ms: int = 0
     camera: int = 0
+    scan_heard: int = 0
+    path_id: int = 0
 
 
 @dataclasses.dataclass

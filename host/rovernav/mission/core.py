@@ -211,6 +211,16 @@ class Mission:
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
         self._map_unsaved = False
+        # The rover's sweeps as heard: the latest sweep's id and its echoes heard so far; the last
+        # sweep heard whole (its SCAN_DONE and as many echoes as that counted) and planned with,
+        # said in every HEARTBEAT (scan_heard): the rover trusts a path near its echoes only then.
+        self._scan_latest: int | None = None
+        self._scan_echoes_heard = 0
+        self._scan_echoes_seen: set[tuple] = set()   # its echoes as said (each is said twice): a copy is dropped
+        self._scan_done_for: int | None = None
+        self.scan_heard = 0
+        self.scans_heard_whole = 0
+        self.scans_heard_part = 0
         self._resume_leg = False
         self._last_heard_s = 0.0
         self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
@@ -308,7 +318,8 @@ class Mission:
                 **self.link_summary()})
         if now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
-            self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state()))
+            self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state(),
+                                    scan_heard=self.scan_heard, path_id=self.path_id & 0xFFFF))
         if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
             self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s", Failure.SILENT)
             return
@@ -492,6 +503,15 @@ class Mission:
             self._arrived()
 
     def _on_obstacle(self, m: mg.Obstacle) -> None:
+        if m.scan_id != self._scan_latest:
+            self._scan_latest, self._scan_echoes_heard, self._scan_echoes_seen = m.scan_id, 0, set()
+        if m.range_mm:
+            # The rover says each echo twice (its word is taken only on a sweep heard whole): once is enough.
+            said = (m.bearing_cdeg, m.range_mm, m.x_mm, m.y_mm, m.heading_cdeg)
+            if said in self._scan_echoes_seen:
+                return
+            self._scan_echoes_seen.add(said)
+            self._scan_echoes_heard += 1
         reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
                                m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
         changed = self.map.add(reading)
@@ -516,6 +536,7 @@ class Mission:
             self.recorder.host_map(self._now, self.map)
             if self._map_changed_at is not None:
                 self._map_changed()
+            self._scan_done(m.arg)
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
             if self.upload is not None and self.upload.path_id == m.arg:
@@ -556,6 +577,19 @@ class Mission:
             self._end_with_stop(mg.StopReason.MISSION_DONE)
         else:
             self._next_leg()
+
+    def _scan_done(self, echoes: int) -> None:
+        """A sweep's SCAN_DONE: the host's word that it heard the sweep whole, once its map holds every
+        echo the sweep counted and the path was checked against them (_map_changed, just before).
+        A host that does not replan gives its word too: it heard, and keeps its path."""
+        if self._scan_latest is None or self._scan_latest == self._scan_done_for:
+            return   # its copy (the rover says SCAN_DONE twice), or a sweep none of whose readings came
+        self._scan_done_for = self._scan_latest
+        if self._scan_echoes_heard == echoes:
+            self.scans_heard_whole += 1
+            self.scan_heard = self._scan_latest
+        else:
+            self.scans_heard_part += 1
 
     def _map_changed(self) -> None:
         self._map_changed_at = None
@@ -786,7 +820,8 @@ class Mission:
         """What the link did, for report.json and the run log: frames through both ways, and the
         frames the host sent and sent again, per message kind."""
         return {**self.quality.summary(), "host_sent": dict(sorted(self.sent.items())),
-                "host_sent_again": dict(sorted(self.sent_again.items())), "hellos_again": self.hellos_again}
+                "host_sent_again": dict(sorted(self.sent_again.items())), "hellos_again": self.hellos_again,
+                "sweeps_heard": {"whole": self.scans_heard_whole, "part": self.scans_heard_part}}
 
     def _rover_seen(self) -> bool:
         d = self._last_detection

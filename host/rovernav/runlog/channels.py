@@ -71,7 +71,9 @@ _JSON = {
         "to_host_pct": {"type": ["number", "null"], "description": "frames through rover to host, last 10 s [%]"},
         "host_to_rover": {"type": "object", "description": "since the start: frames_sent, frames_arrived, success"},
         "rover_to_host": {"type": "object", "description": "the same, rover to host"},
-        "host_sent_again": {"type": "object", "description": "frames the host sent again, by message kind"}}},
+        "host_sent_again": {"type": "object", "description": "frames the host sent again, by message kind"},
+        "sweeps_heard": {"type": "object", "description": "the rover's sweeps whose SCAN_DONE the host heard: whole "
+                         "(every echo it counted heard too, so HEARTBEAT's scan_heard names it) or part"}}},
 }
 
 CHANNELS: tuple[ChannelSpec, ...] = (
