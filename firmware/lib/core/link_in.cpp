@@ -171,9 +171,6 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
     // A rover Blocked stays so until the new leg is seen to clear what the sweep saw (mode_blocked).
     if (reflex_after_trust_) {
       start_sweep(last_ms_);
-    } else if (state_ == RoverState::Blocked) {
-      awaiting_host_ = true;
-      blocked_since_ms_ = last_ms_;
     } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate) {
       enter(RoverState::Rotate);
     }

@@ -134,11 +134,11 @@ struct RoverFields {
   bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
   bool trusted_host_ : 1;                     // detour: the host sent no new path once this leg: it holds it clear
   bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
-  bool host_knows_ : 1;                       // detour: HEARTBEAT says the host heard the last sweep whole and holds our path
   bool persist_due_ : 1;                      // signatures: the counters are to be stored (persist_due())
   bool persisted_once_ : 1;                   // signatures: ... and have been since boot
   bool fix_verified_ : 1;                     // signatures: the decoder holds a FIX whose tag passed: next step's job
   uint8_t key_change_ : 2;                    // signatures: a PROVISION for the shell to store: kKeyStore / kKeyErase
+  bool host_knows_ : 1;                       // detour: HEARTBEAT says the host heard the last sweep whole and holds our path
 };
 
 /// What the shell keeps for the link in EEPROM and gives the rover at begin() (Uno: lib/hal/link_store).
