@@ -159,3 +159,50 @@ TEST_CASE("with more echoes than disks the planner keeps the nearest (the smalle
   lp.add(core::Point{5000, 0}, 900);                   // far and wide: not kept
   CHECK_FALSE(lp.inside(core::Point{5000, 0}));
 }
+
+// The host's word (HEARTBEAT's scan_heard and path_id): the rover takes its path past what the
+// sonar saw only when the host heard that sweep whole and holds that path.
+TEST_CASE("a host that did not hear the sweep: the rover holds and sweeps again, and takes the path on the host's word only once it heard") {
+  Bench b;
+  b.stream_fixes = true;
+  b.heartbeats = true;
+  b.hears_sweeps = false;          // every sweep's reports lost on the radio
+  b.set_box(300, 1050, 200, 200);  // on the leg; the host's path runs through it
+  const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
+  b.start_mission(wps, 2);
+  REQUIRE(b.run_until([&] { return b.rover.blocked(); }, 60000));
+  const float y_blocked = b.plant.y_mm;
+  const int sweeps = b.events(EventKind::ScanDone);
+  bool planned = false, moved = false;
+  b.run_until([&] {
+    planned = planned || b.rover.planning_detour();
+    moved = moved || fabsf(b.plant.y_mm - y_blocked) > 5.0f;
+    return false;
+  }, 12000);
+  CHECK(b.events(EventKind::ScanDone) >= sweeps + 2);   // it said the sweep again, and again
+  CHECK_FALSE(planned);   // no way round of its own while the radio is up: its sonar sees ahead only
+  CHECK_FALSE(moved);
+  // The host hears the next sweep: it keeps its path (it does not replan), so the rover goes on
+  // on its word, its reflex stops it at the box, and it finds its own way round.
+  b.hears_sweeps = true;
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 120000));
+  CHECK(b.closest_to_box_mm > 110.0f);
+  CHECK(b.true_distance_to(300, 1600) < test::arrived_within_mm());
+}
+
+TEST_CASE("a Blocked rover goes on at once along a new path that clears what the sweep saw") {
+  Bench b;
+  b.stream_fixes = true;
+  b.heartbeats = true;
+  b.hears_sweeps = false;
+  b.set_box(300, 1050, 200, 200);
+  const core::Waypoint wps[] = {{300, 300}, {300, 1600}};
+  b.start_mission(wps, 2);
+  REQUIRE(b.run_until([&] { return b.rover.blocked(); }, 60000));
+  const core::Waypoint around[] = {{650, 800}, {650, 1300}, {300, 1600}};
+  b.load_path(2, around, 3);
+  REQUIRE(b.run_until([&] { return !b.rover.blocked(); }, 500));
+  CHECK(b.rover.state() != RoverState::Scan);
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Arrived; }, 120000));
+  CHECK(b.closest_to_box_mm > 110.0f);
+}

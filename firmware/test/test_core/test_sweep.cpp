@@ -99,6 +99,9 @@ TEST_CASE("echoes within the report range are reported as OBSTACLE with bearing,
   msg::Event e;
   b.events(EventKind::ScanDone, &e);
   CHECK(e.arg == 13);
+  // Each echo and the SCAN_DONE are said three times, the copies right after it (a lossy radio).
+  CHECK(b.copies<msg::Obstacle>() == 2 * 13);
+  CHECK(b.copies<msg::Event>() >= 2);
 }
 
 TEST_CASE("a ping with no echo within the report range is reported as a clear reading (range 0)") {
