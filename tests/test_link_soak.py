@@ -179,7 +179,7 @@ def test_the_thresholds_follow_from_byte_loss_and_frame_length():
     assert sk.frame_loss_at(0.05, received, received=True) == pytest.approx(sk.frame_loss_at(0.05, sent, False))
     assert sk.byte_damage_for(sk.frame_loss_at(0.03, sent, False), sent, False) == pytest.approx(0.03)
     t = sk.typical_thresholds()
-    assert t["HEARTBEAT"][0] == 12 and 0.12 < t["HEARTBEAT"][1] < 0.15 and 0.45 < t["HEARTBEAT"][2] < 0.52
+    assert t["HEARTBEAT"][0] == 16 and 0.16 < t["HEARTBEAT"][1] < 0.18 and 0.55 < t["HEARTBEAT"][2] < 0.61
     assert t["STATUS"][1] > t["HEARTBEAT"][1]          # longer frames are lost more often
     assert all(a[1] > b[1] for a, b in zip(sk.typical_thresholds(signed=True).values(), t.values()))
 

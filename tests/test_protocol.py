@@ -255,10 +255,14 @@ def test_parameters_have_defaults_inside_their_limits_and_check_values():
 
 def test_traffic_budget_of_the_readme_holds():
     # protocol/README.md: fixes at 30 Hz, heartbeat and status at 5 Hz stay under a sixth of 57,600 baud.
-    size = {cls: len(framing.encode_frame(cls(), 0)) for cls in (mg.Fix, mg.Heartbeat, mg.Status, mg.Path)}
-    assert (size[mg.Fix], size[mg.Heartbeat], size[mg.Status], size[mg.Path]) == (18, 12, 52, 44)
+    size = {cls: len(framing.encode_frame(cls(), 0))
+            for cls in (mg.Fix, mg.Heartbeat, mg.Status, mg.Path, mg.Obstacle, mg.Event)}
+    assert (size[mg.Fix], size[mg.Heartbeat], size[mg.Status], size[mg.Path]) == (18, 12 + 4, 52, 44)
     bytes_per_s = 30 * size[mg.Fix] + 5 * size[mg.Heartbeat] + 5 * size[mg.Status]
     assert bytes_per_s < 57600 / 10 / 6
+    # A sweep (1.5 s): 13 readings, every one an echo said three times at most, and SCAN_DONE thrice.
+    assert (size[mg.Obstacle], size[mg.Event]) == (21, 18)
+    assert 39 * size[mg.Obstacle] + 3 * size[mg.Event] == 873
 
 
 def test_every_fault_code_is_raised_by_the_firmware():

@@ -47,10 +47,10 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
 // After a sweep: does the leg run into what the sonar saw, by the full clearance the host plans
 // with? With the radio up the host, whose map knows more, replans after the sweep: the rover holds
 // still and waits for its path, or for its word that it heard this sweep whole and keeps the path
-// the rover holds (HEARTBEAT's scan_heard and path_id, host_knows_). The rover plans its own detour
-// at once when the radio is down, on a detour of its own, or when its forward reflex stopped it on a
-// path it trusted all the same (a host that cannot replan). On a detour of its own, a sweep that
-// finds the next detour point blocked plans the detour again from here.
+// the rover holds (HEARTBEAT's scan_heard and path_id, host_knows_); with the radio down, it plans
+// its own detour after that wait (mode_blocked). It plans at once on a detour of its own, or when
+// its forward reflex stopped it on a path it trusted all the same (a host that cannot replan). On a
+// detour of its own, a sweep that finds the next detour point blocked plans the detour again from here.
 void Rover::replan_locally() {
   awaiting_host_ = false;
   // Once the reflex has stopped the rover on the host's path, it does not take the host's word
@@ -61,7 +61,7 @@ void Rover::replan_locally() {
   if (!local_.blocks(here_mm(), target())) return;
   reflex_after_trust_ = distrust;
   const bool on_own_detour = detour_i_ < detour_n_;
-  if (!radio_lost_ && !reflex_after_trust_ && !on_own_detour) {
+  if (!reflex_after_trust_ && !on_own_detour) {
     awaiting_host_ = true;
     enter(RoverState::Blocked);
     blocked_since_ms_ = last_ms_;
@@ -72,14 +72,19 @@ void Rover::replan_locally() {
 
 // Blocked: returns true when the wait is over and the rover goes on along the leg.
 bool Rover::mode_blocked(uint32_t now) {
-  if (awaiting_host_ && radio_lost_) {
-    awaiting_host_ = false;
-    plan_detour();   // the radio went down while it waited: no path will come
+  const uint32_t waited_ms = now - blocked_since_ms_;
+  if (radio_lost_) {
+    // The radio is down: after kBlockedWaitMs (a lossy radio's gaps are shorter; with the radio
+    // up the rover sweeps again sooner), no path or word will come, and it plans its own way round.
+    if (awaiting_host_ && waited_ms >= kBlockedWaitMs) {
+      awaiting_host_ = false;
+      plan_detour();
+    }
     return false;
   }
   // Once the reflex has stopped it on the host's path and it found no way round, it does not
   // drive into what stopped it on the host's word again: it holds still until a new path comes.
-  if (radio_lost_ || reflex_after_trust_) return false;
+  if (reflex_after_trust_) return false;
   // On at once when the leg (a new path's, say) clears the echoes by the full clearance, or by
   // the sonar's placement margin when the host heard the sweep and keeps this path (an echo off a
   // face it already keeps clear of). Else, after the wait: with the host's word, on, trusting it
@@ -88,7 +93,6 @@ bool Rover::mode_blocked(uint32_t now) {
   // It does not set off on its own way round while the radio is up: its sonar sees ahead only,
   // and the host's map holds what stands beside it.
   if (local_.blocks(here_mm(), target(), host_knows_ ? static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)) : 0)) {
-    const uint32_t waited_ms = now - blocked_since_ms_;
     if (!host_knows_) {
       if (waited_ms >= kUnheardWaitMs) start_sweep(now);
       return false;

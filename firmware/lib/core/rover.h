@@ -164,7 +164,11 @@ class Rover : private RoverFields {
     kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
     kReflexLooks = 6,           // the directions the reflex's pings cycle through
     kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent
-    kSwingMm = 150,             // the rover's corners swing within this of its centre (half-diagonal 129 + margin)
+    // The rover's corners swing within 129 mm of its centre (its half-diagonal). The sweep sees
+    // from the sonar, 100 mm ahead of the centre: a face seen abeam of it may run back alongside
+    // the rover, into that swing. An echo within kSwingMm of the centre (less its arc) counts as
+    // within reach: one abeam of the sonar up to 150 mm off its axis (sqrt(100^2 + 150^2) - arc).
+    kSwingMm = 175,
     kBackOffMaxMm = 150,        // backing out stops after this much, cleared or not
     kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
   };
@@ -282,6 +286,7 @@ class Rover : private RoverFields {
   void replan_locally();
   bool mode_blocked(uint32_t now);
   void plan_detour();
+  /// The radio lost, and silent for kAloneMs: no path or word from the host will come.
   void next_detour_goal();
   void continue_detour();
   void no_detour();

@@ -46,7 +46,7 @@ log = logging.getLogger("rovernav.mission")
 # a fair chance.
 RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, then the mission fails
-HELLO_EVERY_S = 0.5
+HELLO_EVERY_S = 0.25
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
 LINK_LOG_S = 1.0          # the link's quality goes to the run log this often
