@@ -46,7 +46,12 @@ void Rover::watch_link(uint32_t now) {
     send_event(EventKind::LinkLost, 0);
   } else if (!radio_now_lost && radio_lost_) {
     radio_lost_ = false;
-    look_after_outage_ = mission_;   // what the sonar reported meanwhile was lost: look again
+    // What the sonar reported meanwhile was lost: look again. And a detour of its own, begun
+    // alone, knows only the last sweep, where the host's map knows the walls: back on the host's
+    // path (the nearest leg's end), whose leg that sweep checks; the host, who hears it, replans
+    // or gives its word.
+    look_after_outage_ = pick_target_ = mission_;
+    detour_n_ = detour_i_ = 0;
     send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - radio_lost_since_ms_) / 100.0f));
   }
   if (had_fix_ && !dead_reckoning_ && now - last_fix_ms_ > params_.fix_timeout_ms()) {
