@@ -158,19 +158,3 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
     assert echo_point(1.0, 0.8, 0.0, -45.0, 0.3, off) == pytest.approx((1.0 - 0.3 * 0.5 ** 0.5, 0.9 + 0.3 * 0.5 ** 0.5))
     assert Echo(1.0, 0.5, 90.0, 90.0, 0.3).point(off) == echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off)
     assert (legs_per_trip("out-and-back"), legs_per_trip("reach")) == (2, 1)
-
-
-def test_an_echo_where_cones_passed_before_is_believed_at_once():
-    # Two clear cones through a cell (the rover saw free there, from afar), then an echo on it:
-    # the new obstacle's arc is believed occupied at once, not after a second echo (the rover takes
-    # the host's path past what it saw on the host's word; a face the sonar finds is rarely invented).
-    m = _map()
-    for _ in range(2):
-        m.update(SonarReading(1.5, 0.9, 0.0, 0.0, None, 0.6))
-    assert _cell(m, 1.515, 1.305) == pytest.approx(2 * m.model.free_logodds)
-    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
-    assert _cell(m, 1.515, 1.305) >= m.model.occupied_threshold
-    assert m.occupied[int(1.305 / RES), int(1.515 / RES)]
-    # ... and a clear look through it afterwards lowers it again, as any occupied cell.
-    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, None, 0.4))
-    assert _cell(m, 1.515, 1.305) < m.model.occupied_threshold

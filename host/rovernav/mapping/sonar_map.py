@@ -149,11 +149,7 @@ class SonarMap:
                 if explains.any():
                     window[explains] += m.occupied_logodds
                 elif not self._arc_meets_wall(sx, sy, axis, r.range_m + band):
-                    # Something new: its arc is believed occupied at once, whatever cones passed
-                    # through those cells before. A sonar misses faces (an angled one sends the
-                    # echo away) far more often than it invents one within its report range, and
-                    # the rover takes the host's path past an echo on the host's word.
-                    window[arc] = np.maximum(window[arc] + m.occupied_logodds, m.occupied_threshold)
+                    window[arc] += m.occupied_logodds
         self._free_body(r.x_m, r.y_m)
         np.clip(self.logodds, -m.clamp_logodds, m.clamp_logodds, out=self.logodds)
         return int(np.count_nonzero(before != self.occupied))
