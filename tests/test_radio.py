@@ -145,7 +145,8 @@ def test_jitter_adds_its_mean_delay_per_frame():
         ch.write(encode_frame(mg.Heartbeat(), i % 256), float(i))
     ch.advance(600.0)
     arrivals = [a for a, _byte in ch._in_flight]
-    extra = np.array([arrivals[i * 12] - i - BYTE_S - 0.015 for i in range(500)])
+    n = len(encode_frame(mg.Heartbeat(), 0))   # bytes a frame
+    extra = np.array([arrivals[i * n] - i - BYTE_S - 0.015 for i in range(500)])
     assert extra.min() >= -1e-9
     assert extra.mean() == pytest.approx(0.030, abs=0.004)      # sd of the mean: 1.3 ms
     assert extra.std() == pytest.approx(0.030, rel=0.15)        # exponential
@@ -168,7 +169,8 @@ def test_jitter_never_reorders_bytes():
         t = round(t + 0.001, 6)
     assert bytes(got) == bytes(sent)                      # all of it, in order
     assert all(a <= b for a, b in zip(arrivals, arrivals[1:]))
-    firsts = np.array([arrivals[i * 12] - i * 0.02 for i in range(400)])
+    n = len(encode_frame(mg.Heartbeat(), 0))   # bytes a frame
+    firsts = np.array([arrivals[i * n] - i * 0.02 for i in range(400)])
     assert firsts.min() >= 0.015 + BYTE_S - 0.001
     assert firsts.mean() - 0.015 > 0.030                  # the waits behind late frames add to the jitter
 
