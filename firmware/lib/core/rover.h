@@ -286,7 +286,6 @@ class Rover : private RoverFields {
   void replan_locally();
   bool mode_blocked(uint32_t now);
   void plan_detour();
-  /// The radio lost, and silent for kAloneMs: no path or word from the host will come.
   void next_detour_goal();
   void continue_detour();
   void no_detour();

@@ -216,7 +216,7 @@ class Mission:
         # said in every HEARTBEAT (scan_heard): the rover trusts a path near its echoes only then.
         self._scan_latest: int | None = None
         self._scan_echoes_heard = 0
-        self._scan_echoes_seen: set[tuple] = set()   # its echoes as said (each is said twice): a copy is dropped
+        self._scan_echoes_seen: set[tuple] = set()   # its echoes as said (each is said three times): a copy is dropped
         self._scan_done_for: int | None = None
         self.scan_heard = 0
         self.scans_heard_whole = 0
@@ -506,7 +506,7 @@ class Mission:
         if m.scan_id != self._scan_latest:
             self._scan_latest, self._scan_echoes_heard, self._scan_echoes_seen = m.scan_id, 0, set()
         if m.range_mm:
-            # The rover says each echo twice (its word is taken only on a sweep heard whole): once is enough.
+            # The rover says each echo three times (its word is taken only on a sweep heard whole): once is enough.
             said = (m.bearing_cdeg, m.range_mm, m.x_mm, m.y_mm, m.heading_cdeg)
             if said in self._scan_echoes_seen:
                 return
@@ -583,7 +583,7 @@ class Mission:
         echo the sweep counted and the path was checked against them (_map_changed, just before).
         A host that does not replan gives its word too: it heard, and keeps its path."""
         if self._scan_latest is None or self._scan_latest == self._scan_done_for:
-            return   # its copy (the rover says SCAN_DONE twice), or a sweep none of whose readings came
+            return   # a copy (the rover says SCAN_DONE three times), or a sweep none of whose readings came
         self._scan_done_for = self._scan_latest
         if self._scan_echoes_heard == echoes:
             self.scans_heard_whole += 1
