@@ -47,6 +47,25 @@ def test_no_echo_clears_the_cone_to_the_report_range_and_no_further():
     assert not m.occupied.any()
 
 
+def test_silence_clears_only_cells_whose_centre_is_in_the_cone_an_echo_takes_any_it_touches():
+    # Facing +y from (1.5, 1.0). At 0.30 m the 15-degree cone's edge is 0.0395 m off the axis.
+    # The cell centred 0.045 m off (x 1.545) is only cut by the cone: an echo there counts it
+    # (the surface may be in its part inside the cone), silence does not clear it (a box's
+    # corner may stand in the part the sound missed).
+    m = _map()
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, None, 0.4))
+    assert _cell(m, 1.545, 1.305) == 0.0
+    assert _cell(m, 1.515, 1.305) == pytest.approx(m.model.free_logodds)
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
+    assert _cell(m, 1.545, 1.305) == pytest.approx(m.model.occupied_logodds)
+    # The Figure 4.8 box's corner after a radio outage: a ping from beside it, aimed so that the
+    # corner cell lies just outside the nominal cone, keeps the corner an obstacle.
+    corner = _map()
+    corner.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))          # the face, seen once
+    corner.update(SonarReading(1.5, 1.0, 0.0, -17.5, None, 0.4))        # silence, 9 degrees off it
+    assert corner.occupied[int(1.305 / RES), int(1.455 / RES)]
+
+
 def test_repeated_readings_sharpen_a_smeared_arc_instead_of_widening_it():
     m = _map()
     # An echo at 0.30 m straight ahead marks its whole arc: cells from x 1.455 to 1.545.

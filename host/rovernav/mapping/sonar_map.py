@@ -8,6 +8,9 @@ which makes the inverse sensor model:
     cells in the cone nearer than the range (less `band_m`)   L += free_logodds  (nothing there)
     cells in the cone within `band_m` of the range (the arc)   L += occupied_logodds
     cells in the cone out to max_range_m, when no echo came    L += free_logodds
+
+The arc takes every cell any part of which lies in the cone; the free marks only the cells whose
+centre does (a cell the cone's edge cuts may hold a corner in the part the sound missed).
     cells behind the arc                                      unchanged (unknown)
     cells under the rover's own body                          free (it stands there)
 
@@ -136,14 +139,17 @@ class SonarMap:
             d = np.hypot(dx, dy)
             axis = math.radians(r.heading_deg + r.bearing_deg)
             off = np.abs(wrap_rad(np.arctan2(dx, dy) - axis))
-            # A cell is in the cone when any of it is: half a cell's angular size more than the half-cone.
-            half = math.radians(m.cone_deg) / 2 + np.arctan2(0.5 * res, np.maximum(d, 1e-6))
-            cone = off <= half
+            # An echo may come from any cell part of which is in the cone: half a cell's angular size
+            # more than the half-cone. Silence clears only the cells whose centre is in it: a cell the
+            # cone's edge cuts may hold a surface (a box's corner) in its part the sound missed.
+            nominal = math.radians(m.cone_deg) / 2
+            cone = off <= nominal + np.arctan2(0.5 * res, np.maximum(d, 1e-6))
+            clear = off <= nominal
             window = self.logodds[r0:r1, c0:c1]
             if r.range_m is None:
-                window[cone & (d <= r.max_range_m)] += m.free_logodds
+                window[clear & (d <= r.max_range_m)] += m.free_logodds
             else:
-                window[cone & (d < r.range_m - band)] += m.free_logodds
+                window[clear & (d < r.range_m - band)] += m.free_logodds
                 arc = cone & (np.abs(d - r.range_m) <= band)
                 explains = arc & ((window >= m.occupied_threshold) | self.known[r0:r1, c0:c1])
                 if explains.any():
