@@ -126,25 +126,6 @@ def test_a_gap_one_cell_wider_than_the_rover_needs_stays_open_after_sweeping_bot
     assert result.length_m < 1.2
 
 
-def test_the_lenient_grid_keeps_the_robot_radius_and_a_cell_from_what_only_the_sonar_saw():
-    # The last try before 'unreachable' drops the sonar's margin, not the rover's turning room:
-    # a surface may lie anywhere in a cell believed occupied, so the rover's centre keeps the
-    # radius plus one cell from that cell's centre (the seed's 0.15 x 0.21 m body sweeps a
-    # 0.129 m circle turning on the spot; the radius alone, 0.12 m, let a corner clip a wall).
-    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
-    lm = LearnedMap(grid)
-    assert lm.lenient_grid() is None
-    lm.add(SonarReading(0.8, 0.9, 90.0, 0.0, 0.30, 0.4))
-    lenient = lm.lenient_grid()
-    occupied_x = grid.xs[np.nonzero(lm.sonar.occupied[int(0.9 / RES)])[0]]
-    face_x = float(occupied_x.min())   # the arc's nearest cell on the row y = 0.9
-    radius = grid.config.robot_radius_m
-    assert radius + RES == pytest.approx(5 * RES)
-    assert not lenient.is_free(face_x - 5 * RES, 0.915)   # 0.15 m: the radius alone left it free
-    assert lenient.is_free(face_x - 6 * RES, 0.915)
-    assert not grid.is_free(face_x - 5 * RES, 0.915)      # the full margin (0.17 m) blocks it too
-
-
 def test_the_map_saves_and_reloads_to_the_same_grid(tmp_path):
     grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
     lm = LearnedMap(grid)

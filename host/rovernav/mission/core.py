@@ -679,9 +679,8 @@ class Mission:
 
         Before that verdict: from the nearest free cell when the rover stands inside an inflated
         margin (close to what it has just found), and, round what only the sonar has seen, with
-        the robot radius and one cell, not the sonar's margin (the log-odds map already places
-        an echo anywhere across its cone, so the margin counts it twice; the cell is for where
-        in a believed-occupied cell the surface lies). A target is unreachable only
+        the robot radius alone (the log-odds map already places an echo anywhere across its
+        cone, so the sonar's placement margin counts it twice). A target is unreachable only
         when the obstacles enclose it even then.
         """
         reason = None
@@ -699,7 +698,7 @@ class Mission:
                         reason = exc
                     continue
                 if grid is not self.grid:
-                    self.on_event(self._now, "planned without the sonar's margin round what only the sonar has seen")
+                    self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
                 path = [tuple(p) for p in result.waypoints]
                 return path if origin is start else [start] + path
         self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)

@@ -109,16 +109,13 @@ class LearnedMap:
         g.version += 1
 
     def lenient_grid(self) -> OccupancyGrid | None:
-        """The planner's grid with what only the sonar has seen inflated by the robot radius and one
-        cell (a surface may lie anywhere in a cell believed occupied, up to half a cell's diagonal
-        nearer than its centre; turning on the spot needs the whole radius), not the sonar's
-        margin as well. None when the sonar has found nothing, so there is nothing to be lenient
-        about."""
+        """The planner's grid with what only the sonar has seen inflated by the robot radius alone
+        (None when the sonar has found nothing, so there is nothing to be lenient about)."""
         occupied = self.sonar.occupied
         if not occupied.any():
             return None
         g = self.grid.copy()
-        g.inflated = self._base_inflated | self.sonar.inflated(g.config.robot_radius_m + g.resolution_m)
+        g.inflated = self._base_inflated | self.sonar.inflated(g.config.robot_radius_m)
         return g
 
     def point(self, e: Echo) -> tuple[float, float]:
