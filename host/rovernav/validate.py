@@ -37,12 +37,15 @@ MAX_TRIPS = 1000                  # round trips of one mission
 
 class ArgParser(argparse.ArgumentParser):
     """argparse with one-line errors (`rovernav sim: error: argument --camera-fps: ...`, exit 2)
-    and the exit statuses at the end of every command's --help."""
+    and the exit statuses at the end of every command's --help (the common ones, unless the
+    command's epilog states its own)."""
 
     def __init__(self, *args, **kwargs) -> None:
         epilog = kwargs.get("epilog")
-        if not epilog or EXIT_CODES not in epilog:
-            kwargs["epilog"] = f"{epilog}\n\n{EXIT_CODES}" if epilog else EXIT_CODES
+        if not epilog:
+            kwargs["epilog"] = EXIT_CODES
+        elif "exit status" not in epilog.lower():   # a command that states its own says them once
+            kwargs["epilog"] = f"{epilog}\n\n{EXIT_CODES}"
         super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:

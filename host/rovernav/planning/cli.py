@@ -23,8 +23,10 @@ def add_plan_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentPar
         "plan", help="plan a path from a scenario's start to its target",
         description="Build the scenario's occupancy grid (obstacles inflated by the robot radius plus the "
                     "sonar margin), plan from the start to the target, and print the simplified waypoints "
-                    "[m], the path's length and the time taken. Exit status 0 when a path is found, 1 when "
-                    "there is none, 2 when the scenario or a flag cannot be used.")
+                    "[m], the path's length and the time taken.",
+        epilog="exit status: 0 a path was found; 1 there is none (the reason is printed); 2 the scenario, a "
+               "flag or a grid too large to build cannot be used (a one-line error names it); 3 an internal "
+               "error (rerun with -v for the traceback); 130 interrupted.")
     p.add_argument("scenario", metavar="SCENARIO",
                    help="a shared scenario's name (e.g. seed-small-obstacles) or the path of a scenario file")
     p.add_argument("--planner", choices=("astar", "potential"), default="astar",

@@ -60,7 +60,7 @@ def add_replay_parser(sub) -> None:
                     "recorded host: replay is open loop from there.",
         epilog="Exit status: 0 the replayed host decided exactly as recorded; 1 it decided differently (the "
                "differences are printed); 2 the file is not a run log this rovernav can replay, or a --set is "
-               "bad; 3 an internal error.")
+               "bad; 3 an internal error (rerun with -v for the traceback); 130 interrupted.")
     p.add_argument("log", type=input_file, help="the run log, e.g. out/sim/run.mcap")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="change a setting before replaying (repeatable): planner.FIELD=NUMBER (resolution_m, "

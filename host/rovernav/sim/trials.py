@@ -730,7 +730,8 @@ per run:
 
 exit status: 0 when the gate passes, 1 when a run of the rovernav strategy (the seed strategy is
 a baseline) does something --fail-on names, 2 for bad input (no folder, no arenas, bad flag,
-no scheduler).  --fail-on categories: crash, false_unreachable, timeout (the simulated
+no scheduler), 3 an internal error (rerun with -v for the traceback), 130 interrupted.
+--fail-on categories: crash, false_unreachable, timeout (the simulated
 --max-time, or hung past --run-timeout), error (the run raised), failure (any failed run).
 
 CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2 --out out/trials""")
