@@ -71,7 +71,7 @@ class ColourMarkers:
         self.config = config
         self.ranges = {name: (np.array(getattr(config.hsv, name)[0], np.uint8),
                               np.array(getattr(config.hsv, name)[1], np.uint8)) for name in self.NAMES}
-        self.colour_names = {name: hue_name(lo[0], hi[0]) for name, (lo, hi) in self.ranges.items()}
+        self.colour_names = {name: hue_name(int(lo[0]), int(hi[0])) for name, (lo, hi) in self.ranges.items()}
         self._open = cv2.getStructuringElement(cv2.MORPH_RECT, (config.open_kernel_px,) * 2)
         self._close = cv2.getStructuringElement(cv2.MORPH_RECT, (config.close_kernel_px,) * 2)
         self._kernel3 = np.ones((3, 3), np.uint8)
