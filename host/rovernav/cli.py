@@ -162,6 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON object instead of tables")
     p.set_defaults(func=_cmd_protocol)
 
+    from .calibrate.cli import add_calibrate_parser
     from .planning.cli import add_plan_parser
     from .runlog.cli import add_replay_parser
     from .sim.arenas import add_arenas_parser
@@ -176,6 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_trials_parser(sub)
     add_plan_parser(sub)
     add_locate_parser(sub)
+    add_calibrate_parser(sub)
     add_run_parser(sub)
     add_pose_parser(sub)
     add_study_parser(sub)
@@ -267,6 +269,8 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import MissionFailed, RovernavError
     from .validate import internal_error
 
+    if getattr(args, "what", None):   # a command with its own sub-commands: `rovernav calibrate camera`
+        args.command = f"{args.command} {args.what}"
     try:
         return args.func(args)
     except MissionFailed as exc:

@@ -29,6 +29,7 @@ from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
 from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
+from .setup import Setup
 from ..vision import Locator
 from .channel import ChannelConfig, SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
@@ -74,6 +75,7 @@ class SimOptions:
     live_port: int | None = None      # serve the log's channels live on 127.0.0.1 at this port (0: any free one)
     log_image_hz: float = 2.0         # camera images kept in the log (and shown live) per second
     pace: float = 0.0                 # > 0: run at this many times real time (for a live view); 0: flat out
+    setup: "Setup | None" = None      # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
 
 
 @dataclasses.dataclass
@@ -103,7 +105,9 @@ class Simulation:
         self.rng = np.random.default_rng(options.seed)
         self.world = World.from_scenario(scenario)
         s = scenario.start
-        self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, options.plant, self.rng)
+        setup = options.setup
+        self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, setup.plant if setup is not None else options.plant,
+                                self.rng)
         if self.world.collides(self.plant.x, self.plant.y, self.plant.heading):
             from ..scenario import ScenarioError   # `rovernav plan` refuses such a start too
             raise ScenarioError(f"{scenario.path or scenario.name}: start ({s.x_m:g}, {s.y_m:g}) m, heading "
@@ -127,15 +131,23 @@ class Simulation:
         self.core = None
         self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
         look = RoverLook.for_vision(self.cfg.vision)
-        self.renderer = Renderer(look, Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0),
-                                 seed=int(self.rng.integers(2**31)))
+        lighting = Lighting.random(self.rng)
+        w_m, h_m = scenario.arena.width_m, scenario.arena.height_m
+        camera = Camera(lighting=lighting, noise_sigma=3.0)
+        if setup is not None:
+            look = dataclasses.replace(look, front_bgr=setup.front_bgr, back_bgr=setup.back_bgr,
+                                       target_bgr=setup.target_bgr)
+            camera = Camera(calibration=setup.mapping(w_m, h_m) if setup.corners_px is not None else None,
+                            lighting=setup.lighting or lighting, noise_sigma=3.0)
+        self.renderer = Renderer(look, camera, seed=int(self.rng.integers(2**31)))
         self.locator = Locator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
         self.scene_base = Scene(arena_w_m=scenario.arena.width_m, arena_h_m=scenario.arena.height_m,
                                 obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
                                 walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
                                 posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
                                 target=(scenario.target.x_m, scenario.target.y_m),
-                                marker_kind=self.cfg.vision.markers)
+                                marker_kind=self.cfg.vision.markers,
+                                decoys=setup.decoys(w_m, h_m) if setup is not None else ())
         self.t = 0.0
         self.samples: list[Sample] = []
         self.frames_rendered = 0

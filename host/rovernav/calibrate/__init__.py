@@ -1,0 +1,1 @@
+"""Calibration from what the camera sees: `rovernav calibrate camera` (rovernav.calibrate.camera)."""

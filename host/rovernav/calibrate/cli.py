@@ -1,0 +1,279 @@
+"""`rovernav calibrate camera`: the camera's calibration from a still, a video or a live camera."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+from ..validate import number, output_file
+from . import camera as cc
+
+HELP = """\
+Find where the arena lies in the camera's frame and the HSV ranges of the rover's and the
+target's colour markers under this room's light, check them with the locator the mission uses,
+and write the [vision] table of a configuration.
+
+What the camera must see: the rover (its two colour squares uncovered) and the target marker on
+the floor, and either the four corner tags (ArUco DICT_4X4_50 ids 10, 11, 12, 13 at the
+bottom-left, bottom-right, top-right and top-left corners as the arena's x and y run, each
+centred 0.07 m in from both walls; `rovernav calibrate tags DIR` draws them to print) or, without them, the arena's corners given with --corners. Give the stickers' colours
+(--front orange --back green --target yellow, the seed's) when they are not the configuration's.
+
+Several frames (of a video, or --frames from a live camera) make the ranges hold the noise and
+flicker of the light; the rover need not move. A picture (--picture) shows the arena's grid, the
+markers found and the pose: if the grid does not lie on the floor's edges, it is wrong."""
+
+EPILOG = ("exit status: 0 calibrated and checked; 1 it could not be done (the reason, in one line: no arena, too dark, "
+          "a marker cut by the frame's edge, no rover pair, a colour not seen); 2 unusable input (a flag, file or "
+          "value, named in a one-line error); 3 an internal error (rerun with -v for the traceback); 130 interrupted.")
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
+
+
+def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser("calibrate", help="calibrate the camera (arena corners, marker colours) from what it sees",
+                              description="Calibrate the set-up from what the camera sees.", epilog=EPILOG)
+    sub = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
+    c = sub.add_parser("camera", help="the arena's corners and the markers' HSV ranges, into [vision]",
+                       formatter_class=argparse.RawDescriptionHelpFormatter, description=HELP, epilog=EPILOG)
+    c.add_argument("source", nargs="*", metavar="SOURCE",
+                   help="image files (PNG, JPEG, ...) or one video file; none with --camera")
+    c.add_argument("--camera", type=number(0, 63, integer=True), metavar="INDEX",
+                   help="a live camera, by its index (0 is the first), instead of files")
+    c.add_argument("--frames", type=number(1, 100, integer=True), default=5, metavar="N",
+                   help="frames taken from a video or a live camera, 1 to 100 (default 5)")
+    c.add_argument("--corners", nargs=4, metavar="U,V",
+                   help="the arena's corners in the frame, in pixels (bottom-left, bottom-right, top-right, top-left), "
+                        "instead of corner tags")
+    c.add_argument("--arena-size", nargs=2, type=number(0.0, 100.0, lo_open=True), metavar=("W", "H"),
+                   help="arena width and height in metres (default: the configuration's [arena], else 2.36 1.75)")
+    words = sorted(cc.COLOUR_BANDS)
+    for flag, role in (("--front", "rover's front"), ("--back", "rover's back"), ("--target", "target")):
+        c.add_argument(flag, choices=words, metavar="COLOUR",
+                       help=f"the {role} marker's colour ({', '.join(words)}); default: as the configuration's "
+                            "ranges say")
+    c.add_argument("--config", type=Path, metavar="FILE",
+                   help="the configuration to start from (its [arena] and the rest of its [vision])")
+    c.add_argument("--write", type=output_file(".toml"), metavar="FILE",
+                   help="write the result into FILE's [vision] table (made if missing; every other table and key "
+                        "kept); without it the table is printed")
+    c.add_argument("--picture", type=output_file(".png", ".jpg"), default=Path("calibration-check.png"), metavar="FILE",
+                   help="the check picture (default calibration-check.png)")
+    c.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    c.set_defaults(func=_cmd_camera)
+    t = sub.add_parser("tags", help="draw the four corner tags to print",
+                       description="Write the four ArUco corner tags (DICT_4X4_50 ids 10-13) as PNG files to print "
+                                   "at 300 dots per inch, each 10 cm across its black square with a white margin, "
+                                   "named by the corner it goes to.", epilog=EPILOG)
+    t.add_argument("out", type=Path, metavar="DIR", help="the folder to write them in (made if missing)")
+    t.set_defaults(func=_cmd_tags)
+    p.set_defaults(func=lambda args: _no_what(p))
+    return p
+
+
+def _cmd_tags(args) -> int:
+    import cv2
+    import numpy as np
+
+    if args.out.exists() and not args.out.is_dir():
+        raise InputError(f"{args.out}: exists and is not a folder")
+    args.out.mkdir(parents=True, exist_ok=True)
+    dpi, side_m = 300, 0.10
+    side_px = round(side_m / 0.0254 * dpi)
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, cc.CORNER_DICTIONARY))
+    for tag, name in zip(cc.CORNER_TAG_IDS, ("bottom-left", "bottom-right", "top-right", "top-left")):
+        img = cv2.aruco.generateImageMarker(d, tag, side_px)
+        margin = side_px // 6
+        page = np.full((side_px + 2 * margin + 60, side_px + 2 * margin), 255, np.uint8)
+        page[margin:margin + side_px, margin:margin + side_px] = img
+        cv2.putText(page, f"rovernav corner tag {tag}: {name}, centre {cc.CORNER_INSET_M * 100:.0f} cm in from "
+                          "both walls", (margin, side_px + 2 * margin + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, 0, 2)
+        path = args.out / f"corner-tag-{tag}-{name}.png"
+        cv2.imwrite(str(path), page)
+        print(f"wrote {path}")
+    print(f"print at {dpi} dpi (100 % scale): the black square must measure {side_m * 100:.0f} cm")
+    return 0
+
+
+def _no_what(p: argparse.ArgumentParser) -> int:
+    p.print_help()
+    return 2
+
+
+def _corners(texts: list[str]) -> list[tuple[float, float]]:
+    out = []
+    for t in texts:
+        try:
+            u, v = (float(x) for x in t.split(","))
+        except ValueError:
+            raise InputError(f"--corners {t!r}: expected U,V in pixels, e.g. 102.5,411") from None
+        if not all(abs(x) < 1e5 for x in (u, v)):
+            raise InputError(f"--corners {t!r}: not a pixel position")
+        out.append((u, v))
+    return out
+
+
+def read_frames(args) -> list:
+    """The frames to calibrate from, or InputError naming the source."""
+    import cv2
+
+    from ..vision.cli import _UsageError, read_image
+
+    if args.camera is not None:
+        if args.source:
+            raise InputError("give files or --camera, not both")
+        cap = cv2.VideoCapture(int(args.camera))
+        if not cap.isOpened():
+            raise InputError(f"--camera {args.camera}: no camera there (is it plugged in, or used by another program?)")
+        frames = []
+        try:
+            for _ in range(10):          # let the exposure settle
+                cap.read()
+            while len(frames) < args.frames:
+                ok, f = cap.read()
+                if not ok:
+                    raise InputError(f"--camera {args.camera}: it stopped giving frames after {len(frames)}")
+                frames.append(f)
+        finally:
+            cap.release()
+        return frames
+    if not args.source:
+        raise InputError("nothing to calibrate from: give image files, a video file, or --camera INDEX")
+    videos = [s for s in args.source if Path(s).suffix.lower() in VIDEO_SUFFIXES]
+    if videos:
+        if len(args.source) > 1:
+            raise InputError(f"{videos[0]}: give one video, or image files, not both")
+        path = Path(videos[0])
+        if not path.is_file():
+            raise InputError(f"{videos[0]}: no such video file")
+        cap = cv2.VideoCapture(str(path))
+        if not cap.isOpened():
+            raise InputError(f"{videos[0]}: not a video OpenCV can open")
+        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        want = [round(i * (total - 1) / max(1, args.frames - 1)) for i in range(args.frames)] if total > 0 else None
+        frames, k = [], 0
+        try:
+            while want is None or k <= want[-1]:
+                ok, f = cap.read()
+                if not ok:
+                    break
+                if want is None or k in want:
+                    frames.append(f)
+                k += 1
+                if want is None and len(frames) >= args.frames:
+                    break
+        finally:
+            cap.release()
+        if not frames:
+            raise InputError(f"{videos[0]}: no frame could be read")
+        return frames
+    frames = []
+    for s in args.source:
+        try:
+            frames.append(read_image(s))
+        except _UsageError as exc:
+            raise InputError(str(exc)) from None
+    shapes = {f.shape for f in frames}
+    if len(shapes) > 1:
+        raise InputError("the images are not all the same size: frames of one camera, please")
+    return frames
+
+
+def _vision_toml(vision_dict: dict) -> str:
+    import tomlkit
+
+    doc = tomlkit.document()
+    doc["vision"] = vision_dict
+    return tomlkit.dumps(doc)
+
+
+def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> None:
+    """Put `vision_dict`'s markers, hsv and calibration into FILE's [vision] (other keys kept), and
+    [arena] when the file had none; checked as a configuration before it is written."""
+    import tomlkit
+
+    from ..config import ConfigError, config_from_dict
+    from ..files import write_atomic
+
+    if path.exists():
+        try:
+            doc = tomlkit.parse(path.read_text(encoding="utf-8"))
+        except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base we can rely on
+            raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
+    else:
+        doc = tomlkit.document()
+        doc.add(tomlkit.comment("rovernav configuration; [vision] written by `rovernav calibrate camera`"))
+    if "arena" not in doc:
+        doc["arena"] = {"width_m": arena[0], "height_m": arena[1]}
+    vision = doc.get("vision")
+    if vision is None:
+        vision = tomlkit.table()
+        doc["vision"] = vision
+    for key in ("markers", "hsv", "calibration"):
+        vision[key] = vision_dict[key]
+    try:
+        config_from_dict(doc.unwrap(), where=f"{path}: ")
+    except ConfigError as exc:
+        raise InputError(f"the configuration would not load after the update: {exc}") from None
+    write_atomic(path, tomlkit.dumps(doc))
+
+
+def _cmd_camera(args) -> int:
+    import cv2
+
+    from ..config import load_config
+
+    if args.config is not None and not args.config.is_file():
+        raise InputError(f"{args.config}: no such configuration file")
+    cfg = load_config(args.config)   # ConfigError (exit 2) names the file and key
+    w, h = tuple(args.arena_size) if args.arena_size else (cfg.arena.width_m, cfg.arena.height_m)
+    corners = _corners(args.corners) if args.corners else None
+    words = {role: getattr(args, flag) for role, flag in (("rover_front", "front"), ("rover_back", "back"),
+                                                          ("target", "target")) if getattr(args, flag)}
+    frames = read_frames(args)
+    print(f"calibrating from {len(frames)} frame{'s' if len(frames) > 1 else ''} of "
+          f"{frames[0].shape[1]} x {frames[0].shape[0]} pixels ...", file=sys.stderr)
+    if corners is not None:
+        try:
+            corners = cc.check_corners(corners, frames[0].shape)
+        except cc.CalibrationFailed as exc:
+            raise InputError(f"--corners: {exc}") from None
+    try:
+        result = cc.calibrate_camera(frames, w, h, corners_px=corners, words=words or None, base=cfg.vision)
+    except cc.CalibrationFailed as exc:
+        print(f"rovernav calibrate camera: could not calibrate: {exc}", file=sys.stderr)
+        return 1
+    vision = result.vision(cfg.vision)
+    table = vision.to_dict()
+    cv2.imwrite(str(args.picture), cc.check_picture(frames[0], result))
+    if args.write:
+        write_vision(args.write, table, (w, h))
+    pose = result.poses[0]
+    if args.json:
+        print(json.dumps({"arena": {"how": result.how, "corners_px": [list(c) for c in result.corners_px],
+                                    "width_m": w, "height_m": h},
+                          "hsv": {k: [list(lo), list(hi)] for k, (lo, hi) in result.hsv.items()},
+                          "colours": result.colour_words(), "frames": result.frames, "found": result.found,
+                          "rover": {"x_m": round(pose.x_m, 4), "y_m": round(pose.y_m, 4),
+                                    "heading_deg": round(pose.heading_deg, 2)},
+                          "picture": str(args.picture), "written": str(args.write) if args.write else None}))
+        return 0
+    cal = result.calibration
+    ppm = cal.pixels_per_metre(w / 2, h / 2)
+    print(f"arena    {result.how}: {w:g} x {h:g} m, corners at "
+          + ", ".join(f"({u:.1f}, {v:.1f})" for u, v in result.corners_px) + f" px; {ppm:.0f} px/m at its centre")
+    names = {"rover_front": "rover front", "rover_back": "rover back", "target": "target"}
+    for role, (lo, hi) in result.hsv.items():
+        print(f"marker   {names[role]:<11} {result.colour_words()[role]:<8} H {lo[0]}-{hi[0]}, S >= {lo[1]}, "
+              f"V >= {lo[2]}")
+    print(f"check    the locator with these finds the rover in {result.found}/{result.frames} frames: "
+          f"({pose.x_m:.3f}, {pose.y_m:.3f}) m, heading {(pose.heading_deg + 0.05) % 360 - 0.05:.1f} deg")
+    print(f"picture  {args.picture} (the grid must lie on the floor, the arrow along the rover)")
+    if args.write:
+        print(f"wrote    [vision] markers, hsv and calibration of {args.write}")
+    else:
+        print("\n# the [vision] table for your configuration (or run again with --write FILE):")
+        print(_vision_toml({k: table[k] for k in ("markers", "hsv", "calibration")}), end="")
+    return 0
