@@ -151,3 +151,23 @@ def test_the_command_s_exit_statuses(tmp_path, capsys):
     detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50))
     _, ids, _ = detector.detectMarkers(img)
     assert ids is not None and int(ids.ravel()[0]) == 10
+
+
+@pytest.mark.mission
+def test_in_the_simulator_a_set_up_flies_after_calibration_and_not_before(tmp_path, capsys):
+    # The newcomer's loop: frames of a set-up, calibrate them, fly with what was written.
+    frames = tmp_path / "cal"
+    assert _cli("sim", "seed-small-obstacles", "--setup", "7007", "--calibration-frames", str(frames)) == 0
+    printed = capsys.readouterr().out
+    command = next(line for line in printed.splitlines() if line.startswith("calibrate:")).split()[3:]
+    assert _cli("calibrate", *command, "--picture", str(tmp_path / "check.png")) == 0
+    config = str(frames / "calibrated.toml")
+    assert _cli("sim", "seed-small-obstacles", "--setup", "7007", "--config", config, "--out", str(tmp_path / "a"),
+                "--no-video", "--quiet", "--no-log") == 0
+    report = json.loads((tmp_path / "a" / "report.json").read_text())
+    assert report["outcome"] == "reached" and report["collisions"] == 0
+    assert report["setup"]["seed"] == 7007 and report["setup"]["corners_px"] is not None
+    assert _cli("sim", "seed-small-obstacles", "--setup", "7007", "--out", str(tmp_path / "b"), "--no-video",
+                "--quiet", "--no-log", "--max-time", "120") == 1
+    report = json.loads((tmp_path / "b" / "report.json").read_text())
+    assert report["outcome"] != "reached" and "camera has not seen the rover" in (report["error"] or "")

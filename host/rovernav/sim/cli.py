@@ -92,7 +92,37 @@ def add_sim_parser(sub) -> None:
                    help="run at X times real time (default: as fast as the machine goes; with --live, 1: the "
                         "live view shows the mission at its own pace)")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
+    p.add_argument("--setup", type=number(0, 2**32 - 1, integer=True), metavar="SEED",
+                   help="a set-up that is not the defaults, drawn from SEED: other marker colours, light, a tilted "
+                        "camera, motors and gyro off the firmware's figures (rovernav.sim.setup); the default "
+                        "configuration does not see its rover: calibrate with --calibration-frames")
+    p.add_argument("--calibration-frames", type=out_dir, metavar="DIR",
+                   help="with --setup: write three camera frames of the scenario's start into DIR for "
+                        "`rovernav calibrate camera`, print that command, and run no mission")
     p.set_defaults(func=cmd_sim)
+
+
+def _write_calibration_frames(args, scenario, setup) -> int:
+    """`rovernav sim --setup SEED --calibration-frames DIR`: frames to calibrate from, and the command."""
+    import cv2
+
+    if setup is None:
+        print("rovernav sim: --calibration-frames needs --setup SEED (the default set-up is the configuration's)",
+              file=sys.stderr)
+        return 2
+    args.calibration_frames.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, frame in enumerate(setup.calibration_frames(scenario, 3, rng_seed=args.setup)):
+        path = args.calibration_frames / f"frame-{i + 1}.png"
+        cv2.imwrite(str(path), frame)
+        paths.append(str(path))
+    words = " ".join(f"--{role.split('_')[-1]} {word}" for role, word in setup.colour_words().items())
+    print(f"wrote {len(paths)} frames of set-up {args.setup} ({scenario.name} at its start) in {args.calibration_frames}")
+    print(f"calibrate:  rovernav calibrate camera {' '.join(paths)} {words} "
+          f"--write {args.calibration_frames / 'calibrated.toml'}")
+    print(f"then fly:   rovernav sim {args.scenario} --setup {args.setup} "
+          f"--config {args.calibration_frames / 'calibrated.toml'}")
+    return 0
 
 
 def burst_spec(text: str) -> tuple[float, float]:
@@ -225,6 +255,13 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"rovernav sim: {exc}", file=sys.stderr)
         return 2
     config = load_config(args.config) if args.config else None
+    setup = None
+    if args.setup is not None:
+        from .setup import Setup
+
+        setup = Setup.random(args.setup)
+    if args.calibration_frames is not None:
+        return _write_calibration_frames(args, scenario, setup)
     channel = radio_from_args(args, config.radio if config else None, f"{args.config}: " if args.config else "")
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
     modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]   # None: the config's
@@ -244,7 +281,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
                           host_replan=not args.no_host_replan, faults=faults, config=config, drive_mode=mode,
                           rover=args.rover, signed=not args.unsigned, attacker=args.attacker, channel=channel,
                           log=None if args.no_log else out / "run.mcap", live_port=live_port_of(args),
-                          log_image_hz=args.log_image_hz,
+                          log_image_hz=args.log_image_hz, setup=setup,
                           pace=args.speed if args.speed is not None else (1.0 if args.live else 0.0))
         video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
         started = time.monotonic()

@@ -149,8 +149,25 @@ def build_report(sim, wall_time_s: float) -> dict:
         # The radio as set, and what it did each way (bytes, frames by message kind, bursts).
         "radio": radio_figures(sim.to_rover, sim.to_host, sim.t),
         "faults": fault_figures(sim),
+        "setup": setup_figures(sim.opt.setup),
         "events": [{"t_s": round(t, 2), "text": text} for t, text in sim.events],
     }
+
+
+def setup_figures(setup) -> dict | None:
+    """report.json's "setup": a set-up that is not the defaults (`rovernav sim --setup SEED`), as
+    drawn: the markers' colour words and BGR, the light, where the camera sees the corners, the
+    plant's motor and gyro figures. None for the usual set-up."""
+    if setup is None:
+        return None
+    p = setup.plant
+    return {"seed": setup.seed, "colours": setup.colour_words(),
+            "bgr": {"rover_front": list(setup.front_bgr), "rover_back": list(setup.back_bgr),
+                    "target": list(setup.target_bgr)},
+            "light_level": None if setup.lighting is None else round(setup.lighting.level, 3),
+            "corners_px": None if setup.corners_px is None else [[round(u, 2), round(v, 2)] for u, v in setup.corners_px],
+            "plant": {"mm_s_per_pwm": round(p.mm_s_per_pwm, 3), "right_gain": round(p.right_gain, 3),
+                      "deadband_pwm": round(p.deadband_pwm, 2), "gyro_bias_dps": round(p.gyro_bias_dps, 3)}}
 
 
 def signing_figures(sim) -> dict:
