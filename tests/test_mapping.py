@@ -26,69 +26,61 @@ def _map(**kw) -> SonarMap:
 def test_an_echo_raises_its_arc_lowers_the_cone_before_it_and_leaves_what_is_behind_unknown():
     m = _map()
     model = m.model
-    # Rover at (1.515, 1.0) facing +y (0 deg), sonar ahead, echo at 0.30 m: the arc is at y = 1.30,
-    # and the axis runs up the column of cell centres x = 1.515.
-    m.update(SonarReading(1.515, 1.0, 0.0, 0.0, 0.30, 0.4))
-    # On the axis the evidence is full: 1.5 x occupied_logodds on the arc, free_logodds before it.
-    assert _cell(m, 1.515, 1.305) == pytest.approx(1.5 * model.occupied_logodds)
-    assert _cell(m, 1.515, 1.155) == pytest.approx(model.free_logodds)
+    # Rover at (1.5, 1.0) facing +y (0 deg), sonar ahead, echo at 0.30 m: the arc is at y = 1.30.
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
+    # Hand-worked cells (centres on the 0.03 m grid: x 1.515 is the column holding 1.5).
+    assert _cell(m, 1.515, 1.305) == pytest.approx(model.occupied_logodds)      # on the axis, on the arc
+    assert _cell(m, 1.515, 1.155) == pytest.approx(model.free_logodds)          # on the axis, half way
     assert _cell(m, 1.515, 1.395) == 0.0                                         # behind the arc: unknown
-    # One cell aside, 5.62 degrees off the axis (0.25 of the half-cone left): 0.75 on the arc,
-    # still believed occupied.
-    assert _cell(m, 1.545, 1.305) == pytest.approx(0.75 * model.occupied_logodds, abs=0.01)
-    assert _cell(m, 1.545, 1.305) >= model.occupied_threshold
-    # Two cells aside (0.06 m, 11 degrees off at 0.30 m): outside the cone, untouched.
-    assert _cell(m, 1.575, 1.305) == 0.0
+    # 7.5 deg off the axis at 0.30 m is 0.039 m to the side: still on the arc; 0.10 m to the side is not.
+    assert _cell(m, 1.545, 1.305) == pytest.approx(model.occupied_logodds)
+    assert _cell(m, 1.605, 1.305) == 0.0
     # Under the rover's body: free.
     assert _cell(m, 1.515, 1.005) == pytest.approx(model.free_logodds)
 
 
 def test_no_echo_clears_the_cone_to_the_report_range_and_no_further():
     m = _map()
-    m.update(SonarReading(1.5, 1.005, 90.0, 0.0, None, 0.4))   # facing +x, nothing within 0.4 m
-    assert _cell(m, 1.875, 1.005) == pytest.approx(m.model.free_logodds)   # 0.36 m out, on the axis
+    m.update(SonarReading(1.5, 1.0, 90.0, 0.0, None, 0.4))   # facing +x, nothing within 0.4 m
+    assert _cell(m, 1.875, 1.005) == pytest.approx(m.model.free_logodds)   # 0.36 m out
     assert _cell(m, 1.965, 1.005) == 0.0                                     # 0.45 m out: unknown
     assert not m.occupied.any()
 
 
-def test_the_evidence_is_strongest_on_the_axis_and_fades_to_the_cone_s_edge():
-    # Facing +y from (1.515, 1.0). Silence 6 degrees off a cell (0.2 of the half-cone left)
-    # clears it by a fifth as much as on the axis, and not at all past the cone's edge.
+def test_silence_clears_only_cells_whose_centre_is_in_the_cone_an_echo_takes_any_it_touches():
+    # Facing +y from (1.5, 1.0). At 0.30 m the 15-degree cone's edge is 0.0395 m off the axis.
+    # The cell centred 0.045 m off (x 1.545) is only cut by the cone: an echo there counts it
+    # (the surface may be in its part inside the cone), silence does not clear it (a box's
+    # corner may stand in the part the sound missed).
     m = _map()
-    m.update(SonarReading(1.515, 1.0, 0.0, 6.0, None, 0.4))
-    assert _cell(m, 1.515, 1.305) == pytest.approx(0.4 * m.model.free_logodds, abs=0.01)
-    m.update(SonarReading(1.515, 1.0, 0.0, 12.0, None, 0.4))
-    assert _cell(m, 1.515, 1.305) == pytest.approx(0.4 * m.model.free_logodds, abs=0.01)
-    # The Figure 4.8 box's corner after a radio outage: a clear look from afar passed straight
-    # through the corner's cell, then the sweep beside the box had its echo on the axis. A fresh
-    # echo on its axis outweighs one clear look: the corner stays an obstacle (with evenly weighted
-    # evidence it fell to 0.5, under the threshold, and the rover's corner clipped the box).
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, None, 0.4))
+    assert _cell(m, 1.545, 1.305) == 0.0
+    assert _cell(m, 1.515, 1.305) == pytest.approx(m.model.free_logodds)
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
+    assert _cell(m, 1.545, 1.305) == pytest.approx(m.model.occupied_logodds)
+    # The Figure 4.8 box's corner after a radio outage: a ping from beside it, aimed so that the
+    # corner cell lies just outside the nominal cone, keeps the corner an obstacle.
     corner = _map()
-    corner.update(SonarReading(1.515, 0.8, 0.0, 0.0, None, 0.6))        # clear to 0.6 m, through it
-    corner.update(SonarReading(1.515, 1.0, 0.0, 0.0, 0.30, 0.4))        # the face, on the axis
-    assert corner.occupied[int(1.305 / RES), int(1.515 / RES)]
-    # An echo at the cone's edge is weak: one clear look on the axis carves it away.
-    edge = _map()
-    edge.update(SonarReading(1.485, 1.0, 0.0, 0.0, 0.30, 0.4))          # cell x 1.545 is 11 deg off: 0.5
-    assert not edge.occupied[int(1.305 / RES), int(1.545 / RES)]
+    corner.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))          # the face, seen once
+    corner.update(SonarReading(1.5, 1.0, 0.0, -17.5, None, 0.4))        # silence, 9 degrees off it
+    assert corner.occupied[int(1.305 / RES), int(1.455 / RES)]
 
 
 def test_repeated_readings_sharpen_a_smeared_arc_instead_of_widening_it():
     m = _map()
-    # An echo at 0.30 m straight ahead marks its arc: cells from x 1.485 to 1.545.
-    m.update(SonarReading(1.515, 1.0, 0.0, 0.0, 0.30, 0.4))
+    # An echo at 0.30 m straight ahead marks its whole arc: cells from x 1.455 to 1.545.
+    m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
     wide = int(m.occupied.sum())
-    assert _cell(m, 1.485, 1.305) >= m.model.occupied_threshold
     assert _cell(m, 1.545, 1.305) >= m.model.occupied_threshold
-    # A second look from 6 cm to the right finds nothing within 0.4 m: its cone passes through
+    # A second look from 8 cm to the right finds nothing within 0.4 m: its cone passes through
     # the arc's right end (x 1.545), which was never an obstacle, and clears it; the rest stays.
-    m.update(SonarReading(1.575, 1.0, 0.0, 0.0, None, 0.4))
+    m.update(SonarReading(1.58, 1.0, 0.0, 0.0, None, 0.4))
     assert _cell(m, 1.545, 1.305) < m.model.occupied_threshold
     assert _cell(m, 1.485, 1.305) >= m.model.occupied_threshold
     assert int(m.occupied.sum()) < wide
     # A second echo on the same face raises the cells it shares with the first.
     before = _cell(m, 1.485, 1.305)
-    m.update(SonarReading(1.455, 1.0, 0.0, 0.0, 0.30, 0.4))
+    m.update(SonarReading(1.45, 1.0, 0.0, 0.0, 0.30, 0.4))
     assert _cell(m, 1.485, 1.305) > before
 
 
@@ -134,6 +126,29 @@ def test_a_gap_one_cell_wider_than_the_rover_needs_stays_open_after_sweeping_bot
     assert result.length_m < 1.2
 
 
+def test_the_open_map_clears_what_the_careful_map_keeps_and_is_planned_on_only_after_it():
+    # A face seen once, then silence whose cone only cuts the face's end cell (9 degrees off):
+    # the careful map keeps that cell (a corner may stand in the part the sound missed), the open
+    # map clears it as the map always did.
+    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
+    lm = LearnedMap(grid)
+    assert lm.open_grids() == []
+    # The rover at (1.5, 0.9) facing +y: its sensor, 0.10 m ahead, at (1.5, 1.0).
+    lm.add(SonarReading(1.5, 0.9, 0.0, 0.0, 0.30, 0.4))
+    assert lm.open_grids() == []                       # both believe the same
+    lm.add(SonarReading(1.5, 0.9, 0.0, -17.5, None, 0.4))
+    cell = (int(1.305 / RES), int(1.455 / RES))
+    assert lm.sonar.occupied[cell] and not lm.open_sonar.occupied[cell]
+    full, lenient = lm.open_grids()
+    assert full.raw[cell] == False and grid.raw[cell] == True   # noqa: E712 - numpy booleans
+    assert full.inflated.sum() < grid.inflated.sum() and lenient.inflated.sum() < full.inflated.sum()
+    # Replaying a saved map rebuilds both.
+    again = LearnedMap(OccupancyGrid(2.4, 1.8, PlannerConfig()))
+    again.replay(list(lm.readings))
+    assert (again.open_sonar.logodds == lm.open_sonar.logodds).all()
+    assert (again.sonar.logodds == lm.sonar.logodds).all()
+
+
 def test_the_map_saves_and_reloads_to_the_same_grid(tmp_path):
     grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
     lm = LearnedMap(grid)
@@ -164,15 +179,10 @@ def test_a_bad_map_file_is_refused_naming_what_is_wrong(tmp_path, text, what):
         read_map_file(tmp_path / "m.json")
 
 
-def test_the_sensor_model_numbers_weigh_an_echo_by_where_in_the_cone_it_lies():
+def test_the_sensor_model_numbers_make_one_echo_occupied_and_one_clear_look_undo_it():
     m = SensorModel()
-    # On the axis (x 1.5) one echo is believed occupied even after one clear look through it.
-    assert 1.5 * m.occupied_logodds + m.free_logodds >= m.occupied_threshold
-    # Half way to the edge (x 1.0) it is occupied, and one clear look on the axis undoes it.
     assert m.occupied_logodds >= m.occupied_threshold
     assert m.occupied_logodds + m.free_logodds < m.occupied_threshold
-    # At the edge (x 0.5) one echo alone is not enough: a neighbour's echo must agree.
-    assert 0.5 * m.occupied_logodds < m.occupied_threshold <= 2 * 0.5 * m.occupied_logodds
 
 
 def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo():

@@ -3,23 +3,17 @@
 Each cell holds L = log(p / (1 - p)) of being occupied, 0 (p = 0.5) while nothing is known.
 A reading is the rover's pose when it pinged, the servo's bearing, and a range (or none: no
 echo within `max_range_m`). The HC-SR04 answers with the NEAREST surface anywhere in its cone,
-which makes the inverse sensor model, each term weighted by `a`, how near the cell lies to the
-beam's axis (1 on the axis, falling linearly to 0 at the cone's nominal edge and beyond):
+which makes the inverse sensor model:
 
-    cells in the cone nearer than the range (less `band_m`)   L += min(1, 2a) * free_logodds
-    cells in the cone within `band_m` of the range (the arc)   L += (0.5 + a) * occupied_logodds
-    cells in the cone out to max_range_m, when no echo came    L += min(1, 2a) * free_logodds
+    cells in the cone nearer than the range (less `band_m`)   L += free_logodds  (nothing there)
+    cells in the cone within `band_m` of the range (the arc)   L += occupied_logodds
+    cells in the cone out to max_range_m, when no echo came    L += free_logodds
     cells behind the arc                                      unchanged (unknown)
     cells under the rover's own body                          free (it stands there)
 
-The arc takes every cell any part of which lies in the cone (half a cell's angular size past
-the edge); silence clears the inner half of the cone fully and its edge hardly at all (a cell
-the edge cuts may hold a corner in the part the sound missed). This is Moravec and Elfes's
-angular weighting, and what it buys is measured: with the evidence even across the cone, one
-clear look from afar through a box's corner and then one echo on the axis beside it left the
-corner at 0.5, under the threshold, and a rover clipped it after a radio outage; evenly
-weighted but clearing only cells whose centre is in the cone, the arcs' edges were never carved
-and closed passages (false 'unreachable' on generated arenas).
+The arc takes every cell any part of which lies in the cone; the free marks only the cells whose
+centre does (a cell the cone's edge cuts may hold a corner in the part the sound missed), unless
+the model's `clear_cut_cells` is set: the host keeps a second map so (rovernav.mission.learned_map).
 
 An echo already explained, because its arc meets the arena's wall, a known obstacle or cells
 already believed occupied, raises only those cells, not the rest of its arc: a second look
@@ -27,11 +21,10 @@ at a known face sharpens it where a fresh arc would smear it wider each time it 
 a new place (and close corridors the last trip drove through). Its free interior is folded
 in all the same.
 
-A cell is believed occupied when L >= occupied_threshold. One echo marks the central part of its
-arc (the obstacle may stand anywhere across the 15-degree cone; at the very edge a neighbouring
-echo must agree); another reading whose cone passes through part of that arc without an echo
-there carves it away, so repeated readings sharpen the map instead of smearing it. One clear
-look does not undo an echo on its axis. Nothing is dropped, and nothing is assumed behind a face.
+A cell is believed occupied when L >= occupied_threshold. One echo marks its whole arc (the
+obstacle may stand anywhere across the 15-degree cone); another reading whose cone passes
+through part of that arc without an echo there carves it away, so repeated readings sharpen
+the map instead of smearing it. Nothing is dropped, and nothing is assumed behind a face.
 
 Unknown space (|L| small) is planned through optimistically: the rover's sweeps every 0.3 m
 and its forward reflex look again before it gets there. The planner's layer is the known
@@ -65,7 +58,7 @@ def echo_point(x_m: float, y_m: float, heading_deg: float, bearing_deg: float, r
                offset_m: float) -> tuple[float, float]:
     """Where an echo lies [m]: on the beam's axis (heading + the servo's bearing, clockwise), at
     `range_m` from the ranger. The obstacle may stand anywhere across the cone at that range:
-    the map marks the arc; pictures and logs show this point."""
+    the map marks the whole arc; pictures and logs show this point."""
     sx, sy = sonar_origin(x_m, y_m, heading_deg, offset_m)
     b = math.radians(heading_deg + bearing_deg)
     return sx + range_m * math.sin(b), sy + range_m * math.cos(b)
@@ -76,12 +69,13 @@ class SensorModel:
     """The inverse sensor model's numbers (log-odds are dimensionless, lengths in metres)."""
 
     cone_deg: float = 15.0            # HC-SR04 beam width
-    occupied_logodds: float = 1.0     # on an echo's arc, x (0.5 + a): 1.5 on the axis (p 0.5 -> 0.82)
-    free_logodds: float = -0.5        # inside the cone before the arc, x min(1, 2a) (p 0.5 -> 0.38)
+    occupied_logodds: float = 1.0     # added on the arc of an echo (p 0.5 -> 0.73)
+    free_logodds: float = -0.5        # added inside the cone before the arc (p 0.5 -> 0.38)
     occupied_threshold: float = 0.6   # believed occupied at or above this (p >= 0.65)
     clamp_logodds: float = 4.0        # |L| never exceeds this, so a change of world can be learned
     band_m: float = 0.03              # half-thickness of the arc, plus the reading's position sd
     body_radius_m: float = 0.075      # cells within this of the rover's centre are free (half its width)
+    clear_cut_cells: bool = False     # silence clears cells the cone's edge only cuts too (the open map)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -148,26 +142,22 @@ class SonarMap:
             axis = math.radians(r.heading_deg + r.bearing_deg)
             off = np.abs(wrap_rad(np.arctan2(dx, dy) - axis))
             # An echo may come from any cell part of which is in the cone: half a cell's angular size
-            # more than the half-cone. The evidence is weighted by how far off the axis a cell lies
-            # (Moravec and Elfes): `axial` is 1 on the axis, 0 at the cone's edge and beyond.
+            # more than the half-cone. Silence clears only the cells whose centre is in it: a cell the
+            # cone's edge cuts may hold a surface (a box's corner) in its part the sound missed.
             nominal = math.radians(m.cone_deg) / 2
             cone = off <= nominal + np.arctan2(0.5 * res, np.maximum(d, 1e-6))
-            axial = np.clip(1.0 - off / nominal, 0.0, 1.0)
-            clear = np.minimum(1.0, 2.0 * axial) * m.free_logodds
+            clear = cone if m.clear_cut_cells else off <= nominal
             window = self.logodds[r0:r1, c0:c1]
             if r.range_m is None:
-                near = d <= r.max_range_m
-                window[near] += clear[near]
+                window[clear & (d <= r.max_range_m)] += m.free_logodds
             else:
-                near = d < r.range_m - band
-                window[near] += clear[near]
+                window[clear & (d < r.range_m - band)] += m.free_logodds
                 arc = cone & (np.abs(d - r.range_m) <= band)
                 explains = arc & ((window >= m.occupied_threshold) | self.known[r0:r1, c0:c1])
-                rise = (0.5 + axial) * m.occupied_logodds
                 if explains.any():
-                    window[explains] += rise[explains]
+                    window[explains] += m.occupied_logodds
                 elif not self._arc_meets_wall(sx, sy, axis, r.range_m + band):
-                    window[arc] += rise[arc]
+                    window[arc] += m.occupied_logodds
         self._free_body(r.x_m, r.y_m)
         np.clip(self.logodds, -m.clamp_logodds, m.clamp_logodds, out=self.logodds)
         return int(np.count_nonzero(before != self.occupied))

@@ -680,11 +680,26 @@ class Mission:
         Before that verdict: from the nearest free cell when the rover stands inside an inflated
         margin (close to what it has just found), and, round what only the sonar has seen, with
         the robot radius alone (the log-odds map already places an echo anywhere across its
-        cone, so the sonar's placement margin counts it twice). A target is unreachable only
+        cone, so the sonar's placement margin counts it twice). Each on the careful map first, then
+        on the open map, whose silence also clears the cells the cone's edge only cuts
+        (rovernav.mission.learned_map): careful, open, careful with the radius alone, open with
+        the radius alone. A target is unreachable only
         when the obstacles enclose it even then.
         """
         reason = None
-        for grid in (self.grid, self.map.lenient_grid()):
+        lenient = self.map.lenient_grid()
+        opened: list = []
+
+        def grids():
+            # The careful map, then the open one (built only when the careful map found no way),
+            # each with the full margin before either with the radius alone.
+            yield self.grid
+            opened.extend(self.map.open_grids())
+            yield opened[0] if opened else None
+            yield lenient
+            yield opened[1] if len(opened) > 1 else None
+
+        for grid in grids():
             if grid is None:
                 continue
             for origin in (start, self._nearest_free(start, grid)):
@@ -697,8 +712,10 @@ class Mission:
                     if reason is None or isinstance(exc, Unreachable):
                         reason = exc
                     continue
-                if grid is not self.grid:
+                if grid is lenient:
                     self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
+                elif grid is not self.grid:
+                    self.on_event(self._now, "planned on the open map (silence clears the cone's edges too)")
                 path = [tuple(p) for p in result.waypoints]
                 return path if origin is start else [start] + path
         self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)

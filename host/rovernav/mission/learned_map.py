@@ -5,6 +5,14 @@ into a log-odds occupancy grid (rovernav.mapping.SonarMap); the planner's grid t
 known obstacles and the cells believed occupied, both inflated by the robot radius + sonar
 margin. No reading is dropped.
 
+Two maps of the same readings. The careful one (the planner's) lets silence clear only the cells
+whose centre lies in the cone, so that a box's corner a later ping only grazes stays an obstacle
+(after a radio outage the rover once clipped such a corner of the Figure 4.8 box). The open one
+lets silence clear every cell the cone touches, as the map always did; it carves the arcs'
+edges out of narrow passages, and the mission plans on it only when the careful map finds no
+way (rovernav.mission.core.Mission.plan_from), so a target is 'unreachable' only when the open
+map encloses it too (the README's "The host's map" has what each cost and bought, measured).
+
 Saved as JSON (version 2):
 
     {"format": "rovernav-map", "version": 2,
@@ -34,7 +42,7 @@ from pathlib import Path
 
 from ..errors import MapFileError
 from ..files import write_atomic
-from ..mapping import SonarMap, SonarReading, echo_point
+from ..mapping import SensorModel, SonarMap, SonarReading, echo_point
 from ..planning import OccupancyGrid
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
@@ -84,6 +92,8 @@ class LearnedMap:
         self.grid = grid
         cfg = grid.config
         self.sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m, known=grid.raw)
+        self.open_sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m,
+                                   model=SensorModel(clear_cut_cells=True), known=grid.raw)
         self._base_raw = grid.raw.copy()
         self._base_inflated = grid.inflated.copy()
 
@@ -97,6 +107,7 @@ class LearnedMap:
                 if r.range_m is not None]
 
     def add(self, reading: SonarReading) -> bool:
+        self.open_sonar.update(reading)
         changed = self.sonar.update(reading) > 0
         if changed:
             self._apply()
@@ -111,11 +122,24 @@ class LearnedMap:
     def lenient_grid(self) -> OccupancyGrid | None:
         """The planner's grid with what only the sonar has seen inflated by the robot radius alone
         (None when the sonar has found nothing, so there is nothing to be lenient about)."""
-        occupied = self.sonar.occupied
-        if not occupied.any():
+        return self._sonar_grid(self.sonar, self.grid.config.robot_radius_m)
+
+    def open_grids(self) -> list[OccupancyGrid]:
+        """The open map's grids (its silence clears the cells the cone's edge only cuts too):
+        [inflated as the planner's grid is, by the robot radius alone]; empty when it believes
+        nothing open that the careful map does not."""
+        if not (self.sonar.occupied & ~self.open_sonar.occupied).any():
+            return []
+        return [self._sonar_grid(self.open_sonar, self.grid.config.inflation_m, always=True),
+                self._sonar_grid(self.open_sonar, self.grid.config.robot_radius_m, always=True)]
+
+    def _sonar_grid(self, sonar: SonarMap, radius_m: float, always: bool = False) -> OccupancyGrid | None:
+        occupied = sonar.occupied
+        if not always and not occupied.any():
             return None
         g = self.grid.copy()
-        g.inflated = self._base_inflated | self.sonar.inflated(g.config.robot_radius_m)
+        g.raw = self._base_raw | occupied
+        g.inflated = self._base_inflated | sonar.inflated(radius_m)
         return g
 
     def point(self, e: Echo) -> tuple[float, float]:
@@ -140,6 +164,7 @@ class LearnedMap:
         """Fold readings in (e.g. those read_map_file returned); returns how many."""
         for r in readings:
             self.sonar.update(r)
+            self.open_sonar.update(r)
         self._apply()
         return len(readings)
 
