@@ -59,8 +59,8 @@ def run_one(job: tuple[int, str]) -> dict:
         row[key] = round(1000 * statistics.median(found), 1) if found else None
         row[key.replace("err", "found")] = len(found)
     arena = {"width_m": sc.arena.width_m, "height_m": sc.arena.height_m}
-    for name, table in (("calibrated", {"arena": arena, "vision": result.vision().to_dict()}),
-                        ("default", {"arena": arena})):
+    for name, table in (("with_calibration", {"arena": arena, "vision": result.vision().to_dict()}),
+                        ("with_defaults", {"arena": arena})):
         sim = Simulation(sc, SimOptions(seed=1, max_time_s=400, setup=setup, config=config_from_dict(table)))
         sim.run()
         row[name] = {"outcome": sim.outcome, "time_s": round(sim.t, 1), "collisions": sim.collisions,
@@ -85,18 +85,18 @@ def main() -> int:
             if not row["calibrated"]:
                 print(f"{row['seed']} {row['scenario']}: calibration failed: {row['error']}", flush=True)
                 continue
-            c, d = row["calibrated"], row["default"]
+            c, d = row["with_calibration"], row["with_defaults"]
             print(f"{row['seed']} {row['scenario']:<30} {'/'.join(row['colours'].values()):<22} light {row['light']:.2f}  "
                   f"corners {row['corner_err_px']:.2f} px  pose {row['pose_err_mm']:.1f} mm (true settings "
-                  f"{row['pose_err_true_mm']:.1f})  calibrated: {row['calibrated']['outcome']} {c['time_s']} s, "
+                  f"{row['pose_err_true_mm']:.1f})  calibrated: {c['outcome']} {c['time_s']} s, "
                   f"{c['collisions']} coll.  default: {d['outcome']} ({d['error'] or ''})", flush=True)
     ok = [r for r in rows if r["calibrated"]]
-    reached = [r for r in ok if r["calibrated"]["outcome"] == "reached" and r["calibrated"]["collisions"] == 0]
-    default_failed = [r for r in ok if r["default"]["outcome"] != "reached" or r["default"]["collisions"]]
+    reached = [r for r in ok if r["with_calibration"]["outcome"] == "reached" and r["with_calibration"]["collisions"] == 0]
+    default_failed = [r for r in ok if r["with_defaults"]["outcome"] != "reached" or r["with_defaults"]["collisions"]]
     print(f"\n{len(rows)} set-ups (seeds {a.first}-{a.first + a.setups - 1}), {time.monotonic() - t0:.0f} s with "
           f"{a.jobs} processes")
     print(f"calibrated: {len(ok)}/{len(rows)}; missions reached with 0 collisions: {len(reached)}/{len(rows)}; "
-          f"collisions {sum(r['calibrated']['collisions'] for r in ok)}")
+          f"collisions {sum(r['with_calibration']['collisions'] for r in ok)}")
     if ok:
         print(f"arena corners: worst {max(r['corner_err_px'] for r in ok):.2f} px; pose error median of medians "
               f"{statistics.median(r['pose_err_mm'] for r in ok):.1f} mm calibrated, "

@@ -117,8 +117,9 @@ def arena_from_tags(frame_bgr: np.ndarray, arena_w_m: float, arena_h_m: float, *
     """The arena's corners (pixels; bottom-left, bottom-right, top-right, top-left) from its four
     corner tags, or CalibrationFailed naming the tags not seen."""
     gray = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY)
-    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)),
-                                       cv2.aruco.DetectorParameters())
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX   # the corners to a tenth of a pixel
+    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
     seen: dict[int, list[np.ndarray]] = {}
     # A far corner's tag can be a few pixels a cell: looked for again in a copy twice the size.
     for scale in (1, 2):
