@@ -125,6 +125,58 @@ def _cmd_run(args: argparse.Namespace) -> int:
                         log_path=log_path, live_port=live_port_of(args), log_image_hz=args.log_image_hz)
 
 
+def _cmd_check(args: argparse.Namespace) -> int:
+    from . import check
+    from .errors import InputError
+
+    if args.sim:
+        if args.port or args.camera:
+            raise InputError("--sim checks the simulated rover: give --port and --camera, or --sim, not both")
+        from .config import load_config
+
+        cfg = load_config(args.config)
+        if args.setup is not None and args.config is None:
+            print("rovernav check: --setup without --config: the default configuration does not see that set-up's "
+                  "markers (calibrate: rovernav sim --setup SEED --calibration-frames DIR)", file=sys.stderr)
+        lines, elapsed = check.check_sim(cfg, fault=args.fault, setup_seed=args.setup)
+    else:
+        if args.fault or args.setup is not None:
+            raise InputError("--fault and --setup are for --sim")
+        if not args.port:
+            raise InputError("give --port PORT (and --camera SOURCE) for the real rover, or --sim")
+        lines, elapsed = check.check_hardware(args.port, args.camera, args.config)
+    failed = any(line.status == "FAIL" for line in lines)
+    if args.json:
+        print(json.dumps({"passed": not failed, "elapsed_s": round(elapsed, 1),
+                           "checks": [{"name": ln.name, "status": ln.status, "text": ln.text} for ln in lines]}))
+    else:
+        for line in lines:
+            print(line)
+        print(check.summary_line(lines) + f" ({elapsed:.0f} s)")
+    return 1 if failed else 0
+
+
+def add_check_parser(sub) -> None:
+    from . import check
+
+    p = sub.add_parser("check", help="pre-flight check: link, camera, gyro, sonar, servo, motors, one line each",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description=check.__doc__,
+                       epilog="exit status: 0 every check passed; 1 a check failed (its line says what to do); 2 "
+                              "unusable input (a flag, file or port, named in a one-line error); 3 an internal error "
+                              "(rerun with -v for the traceback); 130 interrupted.")
+    p.add_argument("--port", type=port_spec, help="the rover's serial port (its radio or USB cable)")
+    p.add_argument("--camera", help="the overhead camera: an index such as 0, or a video file (default: [camera] source)")
+    p.add_argument("--config", help="the configuration (calibrated [vision], [link] key_file, [rover] parameters)")
+    p.add_argument("--sim", action="store_true", help="check the simulated rover instead (the firmware core, a plant, "
+                                                      "a rendered camera)")
+    p.add_argument("--setup", type=number(0, 2**32 - 1, integer=True), metavar="SEED",
+                   help="with --sim: a set-up that is not the defaults (rovernav sim --setup)")
+    p.add_argument("--fault", choices=check.FAULTS, help="with --sim: one fault for the check to find")
+    p.add_argument("--json", action="store_true", help="print the lines as one JSON object")
+    p.set_defaults(func=_cmd_check)
+
+
 def add_run_parser(sub) -> None:
     p = sub.add_parser("run", help="run a mission with a real rover and webcam",
                        description="Run a mission against a real rover on PORT and an overhead camera SOURCE: "
@@ -179,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_locate_parser(sub)
     add_calibrate_parser(sub)
     add_run_parser(sub)
+    add_check_parser(sub)
     add_pose_parser(sub)
     add_study_parser(sub)
 

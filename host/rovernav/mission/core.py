@@ -840,6 +840,11 @@ class Mission:
                 "host_sent_again": dict(sorted(self.sent_again.items())), "hellos_again": self.hellos_again,
                 "sweeps_heard": {"whole": self.scans_heard_whole, "part": self.scans_heard_part}}
 
+    @property
+    def heard_any(self) -> bool:
+        """Whether any valid frame from the rover came (its HELLO or not)."""
+        return self._heard_any
+
     def _rover_seen(self) -> bool:
         d = self._last_detection
         return d is not None and d.x_m is not None and self._now - d.t_s < 1.0

@@ -51,6 +51,10 @@ class PlantConfig:
     sonar_rays: int = 7               # rays sampled across the cone
     sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre
     servo_deg_per_s: float = 600.0    # 0.1 s per 60 degrees
+    # Wiring faults, for `rovernav check` to find: a motor whose two wires are swapped turns the
+    # other way; a ranger with TRIG and ECHO swapped (or unpowered) never answers.
+    left_motor_reversed: bool = False
+    sonar_connected: bool = True
 
 
 class RoverPlant:
@@ -78,7 +82,8 @@ class RoverPlant:
         c = self.cfg
         k = dt_s / (c.lag_s + dt_s)
         self.speed_factor += 0.02 * (1.0 - self.speed_factor) + c.speed_noise * 0.1 * float(self.rng.normal())
-        self.v_left += k * (self._wheel_target(left_pwm, 1.0) * self.speed_factor - self.v_left)
+        left = -left_pwm if c.left_motor_reversed else left_pwm
+        self.v_left += k * (self._wheel_target(left, 1.0) * self.speed_factor - self.v_left)
         self.v_right += k * (self._wheel_target(right_pwm, c.right_gain) * self.speed_factor - self.v_right)
         v = 0.5 * (self.v_left + self.v_right)
         omega = (self.v_left - self.v_right) / c.track_m   # rad/s, clockwise
@@ -104,6 +109,8 @@ class RoverPlant:
     def sonar_mm(self, world: World) -> int:
         """One ping: the nearest surface in the cone (mm), a floor echo, or 0 for nothing."""
         c = self.cfg
+        if not c.sonar_connected:
+            return 0
         sx, sy = sonar_origin(self.x, self.y, self.heading, c.sonar_offset_m)
         axis = self.heading + self.servo_deg
         nearest = world.sonar_m(sx, sy, axis, c.sonar_cone_deg, c.sonar_max_m, c.sonar_max_incidence_deg,
