@@ -343,3 +343,24 @@ def test_a_path_longer_than_the_rover_holds_goes_in_parts_and_the_leg_ends_at_it
     rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))        # at the target
     _run(mission, rover, 1.0, t0=t)
     assert mission.legs[0].reached and mission.phase is Phase.DONE
+
+
+def test_a_goal_an_echo_s_arc_covers_is_reached_from_beside_it_but_a_wall_is_not_crossed():
+    # The home the rover left, beside a known box whose corner echoed at the cone's edge: the
+    # arc's cells lie 0.10 m from the goal, inside even the robot radius. The last tries plan to
+    # the nearest free cell within GOAL_SHIFT_M and then straight on to the goal.
+    from rovernav.mapping import SonarReading
+    from rovernav.mission import core
+
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.4))
+    mission.map.add(SonarReading(1.25, 0.4, 90.0, 0.0, 0.15, 0.6))   # an arc at x 1.50 (sensor at 1.35)
+    assert not mission.map.lenient_grid().is_free(1.6, 0.4) and mission.map.known_grid.is_free(1.6, 0.4)
+    path = mission.plan_from((0.3, 0.3), (1.6, 0.4))
+    assert path is not None and path[-1] == (1.6, 0.4)
+    assert 0 < math.dist(path[-2], path[-1]) <= core.GOAL_SHIFT_M + 1e-9
+    assert any("within an echo's arc" in n for n in notes)
+    # A target that a known box's margin covers is not shifted: the verdict stands.
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    grid.add_box(1.6, 0.55, 0.3, 0.1)
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.4), grid=grid)
+    assert mission.plan_from((0.3, 0.3), (1.6, 0.4)) is None

@@ -46,6 +46,8 @@ log = logging.getLogger("rovernav.mission")
 # a fair chance.
 RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, then the mission fails
+#: How far from a goal that an echo's arc covers the last tries may end their plan [m].
+GOAL_SHIFT_M = 0.06
 HELLO_EVERY_S = 0.25
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
@@ -699,25 +701,37 @@ class Mission:
             yield lenient
             yield opened[1] if len(opened) > 1 else None
 
+        # A goal the known obstacles leave free but an echo's arc covers (the home the rover left,
+        # beside a box whose corner echoed at the cone's edge) is reached from the nearest free
+        # cell within GOAL_SHIFT_M, in the last tries only: too short a way to pass any wall.
+        goal_known_free = self.map.known_grid.is_free(*goal)
         for grid in grids():
             if grid is None:
                 continue
+            last_tries = grid is lenient or (len(opened) > 1 and grid is opened[1])
+            shifted = self._nearest_free(goal, grid, GOAL_SHIFT_M) if last_tries and goal_known_free else None
             for origin in (start, self._nearest_free(start, grid)):
                 if origin is None:
                     continue
-                try:
-                    result = plan(grid, origin, goal, planner=self.planner)
-                except NoPathError as exc:
-                    # The most telling reason: that no route joins them, over a blocked start.
-                    if reason is None or isinstance(exc, Unreachable):
-                        reason = exc
-                    continue
-                if grid is lenient:
-                    self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
-                elif grid is not self.grid:
-                    self.on_event(self._now, "planned on the open map (silence clears the cone's edges too)")
-                path = [tuple(p) for p in result.waypoints]
-                return path if origin is start else [start] + path
+                for end in (goal, shifted):
+                    if end is None:
+                        continue
+                    try:
+                        result = plan(grid, origin, end, planner=self.planner)
+                    except NoPathError as exc:
+                        # The most telling reason: that no route joins them, over a blocked start.
+                        if reason is None or isinstance(exc, Unreachable):
+                            reason = exc
+                        continue
+                    if grid is lenient:
+                        self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
+                    elif grid is not self.grid:
+                        self.on_event(self._now, "planned on the open map (silence clears the cone's edges too)")
+                    if end is not goal:
+                        self.on_event(self._now, f"the goal lies within an echo's arc: planned to "
+                                                 f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on")
+                    path = [tuple(p) for p in result.waypoints] + ([] if end is goal else [tuple(goal)])
+                    return path if origin is start else [start] + path
         self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
 

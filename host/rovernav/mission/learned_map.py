@@ -96,6 +96,7 @@ class LearnedMap:
                                    model=SensorModel(clear_cut_cells=True), known=grid.raw)
         self._base_raw = grid.raw.copy()
         self._base_inflated = grid.inflated.copy()
+        self.known_grid = grid.copy()   # the known obstacles alone, inflated as the planner's grid is
 
     @property
     def readings(self) -> list[SonarReading]:
