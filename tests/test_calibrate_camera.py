@@ -171,3 +171,31 @@ def test_in_the_simulator_a_set_up_flies_after_calibration_and_not_before(tmp_pa
                 "--quiet", "--no-log", "--max-time", "120") == 1
     report = json.loads((tmp_path / "b" / "report.json").read_text())
     assert report["outcome"] != "reached" and "camera has not seen the rover" in (report["error"] or "")
+
+
+def _cand(hues, s=200, v=200) -> cc.Candidate:
+    pix = np.array([[h, s, v] for h in hues], dtype=np.uint8)
+    return cc.Candidate(0, 0.0, 0.0, 0.0, 0.0, float(len(hues)), cc._circular_median_hue(pix[:, 0]), pix)
+
+
+def test_proposed_ranges_keep_apart_stay_valid_and_refuse_only_what_one_range_cannot_hold():
+    rng = np.random.default_rng(3)
+    noisy = lambda centre, n=400, sd=2.0: list(np.clip(np.round(rng.normal(centre, sd, n)), 0, 179).astype(int))
+    # An orange near the bottom of the hue scale keeps its range (the margin stops at 0).
+    r = cc.propose_ranges({"rover_front": [_cand(noisy(4))], "rover_back": [_cand(noisy(60))],
+                           "target": [_cand(noisy(110))]})
+    assert r["rover_front"][0][0] == 0 and r["rover_front"][1][0] < 20
+    # A long tail of one marker's hues towards another's: cut strictly between their own hues.
+    tail = noisy(30) + [80] * 30
+    r = cc.propose_ranges({"rover_front": [_cand(tail)], "rover_back": [_cand(noisy(42))], "target": [_cand(noisy(120))]})
+    for role, ((lo, _, _), (hi, _, _)) in r.items():
+        assert lo <= hi
+    assert r["rover_front"][1][0] < 42 <= r["rover_back"][1][0] and r["rover_back"][0][0] > 30
+    VisionConfig.from_dict({"hsv": {k: [list(a), list(b)] for k, (a, b) in r.items()}})   # a valid [vision]
+    # One range cannot hold a red (its own hues run across 0 and 179); two markers of one colour are refused.
+    with pytest.raises(cc.CalibrationFailed, match="is red"):
+        cc.propose_ranges({"rover_front": [_cand([178, 179, 0, 1, 2] * 50)], "rover_back": [_cand(noisy(60))],
+                           "target": [_cand(noisy(110))]})
+    with pytest.raises(cc.CalibrationFailed, match="the same colour"):
+        cc.propose_ranges({"rover_front": [_cand(noisy(60))], "rover_back": [_cand(noisy(63))],
+                           "target": [_cand(noisy(110))]})

@@ -61,8 +61,18 @@ class CameraWatch:
         self.target_frames = 0
         self.poses: list[tuple[float, float, float, float]] = []   # t, x, y, heading
         self.reasons: dict[str, int] = {}
+        self.first_s: float | None = None
+        self.last_s = 0.0
+
+    @property
+    def span_s(self) -> float:
+        """From the first frame to the last."""
+        return self.last_s - self.first_s if self.first_s is not None else 0.0
 
     def saw(self, t_s: float, rover, target, reason: str | None) -> None:
+        if self.first_s is None:
+            self.first_s = t_s
+        self.last_s = t_s
         self.frames += 1
         if target is not None:
             self.target_frames += 1
@@ -85,12 +95,12 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
         c = mission.link.counters
         lines.append(CheckLine("link", "FAIL", f"the rover is on the air ({c.frames_ok} frames whole, {c.dropped} "
                                                f"broken, {mission.link.rx_bytes:,} bytes) but its HELLO did not get "
-                                               f"through in {elapsed_s:.0f} s: the radio loses most frames; move the "
-                                               "radios apart from Wi-Fi, closer, or to another channel "
-                                               "(rovernav link-check --soak)"))
+                                               f"through in {elapsed_s:.0f} s: the radio loses most frames (or the port "
+                                               "is at another baud rate than the rover's); move the radios apart from "
+                                               "Wi-Fi, closer, or to another channel (rovernav link-check --soak)"))
     elif not hello:
         lines.append(CheckLine("link", "FAIL", f"no HELLO from the rover in {elapsed_s:.0f} s: is it powered, flashed, "
-                                               "on this port at 57,600 baud, its radio paired?"))
+                                               "on this port at the rover's baud rate, its radio paired?"))
     elif (up is not None and up < MIN_FRAMES_THROUGH) or (down is not None and down < MIN_FRAMES_THROUGH):
         lines.append(CheckLine("link", "FAIL", f"frames through {_pct(up)} to the rover, {_pct(down)} from it: missions "
                                                f"need {100 * MIN_FRAMES_THROUGH:.0f} % or more; move the radios apart "
@@ -99,18 +109,25 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
         lines.append(CheckLine("link", "ok", f"HELLO, schema 0x{mg.SCHEMA_HASH:08x}, "
                                              f"{'signed' if mission.link.signer is not None else 'unsigned'}; frames "
                                              f"through {_pct(up)} to the rover, {_pct(down)} from it"))
-    camera_ok = watch.frames > 0 and watch.found >= MIN_FOUND * watch.frames and watch.target_frames > 0
-    if watch.frames == 0:
-        lines.append(CheckLine("camera", "FAIL", "no frames: is the camera plugged in and the right index given?"))
+    rover_seen = watch.found >= MIN_FOUND * watch.frames
+    camera_ok = watch.frames > 0 and rover_seen and watch.target_frames > 0
+    if not rover_seen:
+        why = max(watch.reasons, key=watch.reasons.get) if watch.reasons else "no rover marker"
+        lines.append(CheckLine("camera", "FAIL", f"the rover found in {watch.found} of {watch.frames} frames ({why}): "
+                                                 "calibrate the camera (rovernav calibrate camera) or uncover the "
+                                                 "rover's markers"))
     elif not camera_ok:
-        why = max(watch.reasons, key=watch.reasons.get) if watch.reasons else "no target marker"
-        what = "rover" if watch.found < MIN_FOUND * watch.frames else "target"
-        lines.append(CheckLine("camera", "FAIL", f"the {what} found in {watch.found if what == 'rover' else watch.target_frames}"
-                                                 f" of {watch.frames} frames ({why}): calibrate it "
-                                                 "(rovernav calibrate camera) or uncover the markers"))
+        lines.append(CheckLine("camera", "FAIL", f"the target marker found in none of {watch.frames} frames: put it in "
+                                                 "view, or calibrate the camera (rovernav calibrate camera)"))
     else:
-        lines.append(CheckLine("camera", "ok", f"{watch.frames / max(elapsed_s, 1e-9):.0f} frames/s; the rover in "
-                                               f"{watch.found} of {watch.frames}, the target in {watch.target_frames}"))
+        rate = watch.frames / max(watch.span_s, 1e-9)
+        lines.append(CheckLine("camera", "ok", f"{rate:.0f} frames/s; the rover in {watch.found} of {watch.frames}, "
+                                               f"the target in {watch.target_frames}"))
+    # The probe ended before its sweep or its drive for a reason of its own (a deadline, no path):
+    # the checks that needed them say so instead of blaming the sonar or the motors.
+    ended = (mission.failure is not None and mission.failure is not Failure.ROVER_FAULT
+             and mission.failure is not Failure.SCHEMA)
+    link_failed = lines[0].status == "FAIL"
     gyro_fault = mission.failure is Failure.ROVER_FAULT and "gyro" in (mission.error or "")
     if not hello:
         lines.append(CheckLine("gyro", "not checked", "no link"))
@@ -124,8 +141,9 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
     readings = mission.map.readings
     echoes = [r for r in readings if r.range_m is not None]
     if not readings:
-        blocked = "no link" if not hello else ("the camera does not see the rover, so no sweep was asked"
-                                               if not camera_ok else "the rover did not sweep")
+        blocked = ("no link" if not hello else "the camera does not see the rover, so no sweep was asked"
+                   if not camera_ok else f"the probe ended: {mission.error}" if ended
+                   else "the link fails" if link_failed else "the rover did not sweep")
         lines.append(CheckLine("sonar", "not checked", blocked))
         lines.append(CheckLine("servo", "not checked", blocked))
     elif not echoes:
@@ -147,28 +165,31 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
             lines.append(CheckLine("servo", "ok", f"echoes at {len(bearings)} bearings, "
                                                   f"{min(r.bearing_deg for r in echoes):.0f} to "
                                                   f"{max(r.bearing_deg for r in echoes):.0f} degrees"))
-    lines.append(_motors(mission, watch, start_pose, hello, camera_ok, gyro_fault))
+    lines.append(_motors(mission, watch, start_pose, hello, camera_ok, gyro_fault, ended, link_failed))
     return lines
 
 
-def _motors(mission, watch: CameraWatch, start_pose, hello: bool, camera_ok: bool, gyro_fault: bool) -> CheckLine:
+def _motors(mission, watch: CameraWatch, start_pose, hello: bool, camera_ok: bool, gyro_fault: bool,
+            ended: bool, link_failed: bool) -> CheckLine:
     if not hello:
         return CheckLine("motors", "not checked", "no link")
     if not camera_ok or start_pose is None:
         return CheckLine("motors", "not checked", "the camera does not see the rover")
     if gyro_fault:
         return CheckLine("motors", "not checked", "the rover stops on a gyro fault")
+    if link_failed:
+        return CheckLine("motors", "not checked", "the link fails")
     x0, y0, h0 = start_pose
-    after = [p for p in watch.poses]
-    if not after:
-        return CheckLine("motors", "not checked", "no pose after the start")
-    _, x1, y1, h1 = after[-1]
+    after = watch.poses
+    _, x1, y1, _ = after[-1]
     fwd = math.radians(h0)
     ahead = (x1 - x0) * math.sin(fwd) + (y1 - y0) * math.cos(fwd)
     moved = math.hypot(x1 - x0, y1 - y0)
     turned = max(abs((p[3] - h0 + 180.0) % 360.0 - 180.0) for p in after)
     if mission.phase.name == "DONE" and ahead > 0.5 * PROBE_AHEAD_M:
         return CheckLine("motors", "ok", f"went {100 * ahead:.0f} cm ahead as told, turning {turned:.0f} degrees at most")
+    if ended and moved < 0.03:
+        return CheckLine("motors", "not checked", f"the probe ended before it drove: {mission.error}")
     if moved < 0.03 and turned < 20:
         return CheckLine("motors", "FAIL", "the rover did not move: the motor driver's power, its enable pins, the "
                                            "motors' wires (pins 3, 5, 6, 11)")
@@ -214,11 +235,12 @@ def sim_options_for(fault: str | None, setup, seed: int, config):
     return SimOptions(seed=seed, max_time_s=PROBE_TIME_S, faults=faults, channel=channel, plant=plant, config=config)
 
 
-def probe_scenario(arena_w_m: float, arena_h_m: float, start=(0.6, 0.6, 45.0)):
-    """An empty arena with the rover at `start` and the target PROBE_AHEAD_M straight ahead of it."""
+def probe_scenario(arena_w_m: float, arena_h_m: float):
+    """An empty arena with the rover left of its middle, facing +x, and the target PROBE_AHEAD_M
+    straight ahead of it."""
     from .scenario import Arena, Mission, Pose, Scenario, Target
 
-    x, y, h = start
+    x, y, h = arena_w_m / 2 - PROBE_AHEAD_M / 2, arena_h_m / 2, 90.0
     tx, ty = x + PROBE_AHEAD_M * math.sin(math.radians(h)), y + PROBE_AHEAD_M * math.cos(math.radians(h))
     return Scenario(name="check", arena=Arena(arena_w_m, arena_h_m), start=Pose(x, y, h), target=Target(tx, ty),
                     mission=Mission("reach", 1), obstacles=(), description="rovernav check's probe")
@@ -314,11 +336,15 @@ def check_hardware(port: str, camera: str | None, config_path: str | None) -> tu
         if start_pose is not None:
             x, y, hd = start_pose
             tx, ty = x + PROBE_AHEAD_M * math.sin(math.radians(hd)), y + PROBE_AHEAD_M * math.cos(math.radians(hd))
-            if not (0.15 <= tx <= w - 0.15 and 0.15 <= ty <= h - 0.15):
+            room = cfg.planner.inflation_m + 0.02   # the planner keeps this from the arena's wall
+            if not (room <= tx <= w - room and room <= ty <= h - room):
                 raise CameraError(f"the rover at ({x:.2f}, {y:.2f}) m faces the arena's wall: turn it to face open "
                                   f"floor, {100 * PROBE_AHEAD_M + 20:.0f} cm clear ahead, for the motor check")
         else:
-            x, y, tx, ty = w / 2, h / 2, w / 2, h / 2 + PROBE_AHEAD_M   # the link and the camera are still checked
+            # Not seen: the link and the camera are still checked, and the rover is not driven (its
+            # goal is where it is said to stand, so a leg done at once).
+            x, y = w / 2, h / 2
+            tx, ty = x, y
         probe_cfg = dataclasses.replace(cfg, rover={**cfg.rover, **dict(PROBE_PARAMS)})
         spec = MissionSpec.for_run(None, probe_cfg, start_xy=(x, y), target_xy=(tx, ty),
                                    host_boot_id=int.from_bytes(os.urandom(4), "little"))

@@ -211,15 +211,14 @@ def find_candidates(frame_bgr: np.ndarray, cal: Calibration, index: int = 0) -> 
         if x == 0 or y == 0 or x + w >= fw or y + h >= fh:
             if area < 0.1 * lo:
                 continue
-            hue = int(hsv[int(v), int(u), 0])
+            hue = int(_circular_median_hue(hsv[labels == k][:, 0]))
             cut.append(f"a {hue_name(hue, hue)} blob at pixel "
                        f"({u:.0f}, {v:.0f}) touches the frame's edge")
             continue
         if area < lo:
             continue
-        pix = hsv[labels == k]
-        core = pix   # the whole blob; its edge pixels are less saturated but still above the floor
-        out.append(Candidate(index, u, v, xm, ym, float(area), _circular_median_hue(core[:, 0]), core))
+        pix = hsv[labels == k]   # the whole blob: its edge pixels are less saturated, still above the floor's
+        out.append(Candidate(index, u, v, xm, ym, float(area), _circular_median_hue(pix[:, 0]), pix))
     return out, cut
 
 
@@ -255,26 +254,29 @@ def assign_roles(cands: list[Candidate], cal: Calibration, marker_distance_m: fl
         return hue_distance(c.hue, _range_centre(getattr(base.hsv, role))) / 10.0
 
     best, best_cost = None, math.inf
-    for f, b, t in itertools.permutations(range(len(cands)), 3):
-        cf, cb, ct = cands[f], cands[b], cands[t]
-        d = math.hypot(cf.x_m - cb.x_m, cf.y_m - cb.y_m)
-        if abs(d - marker_distance_m) > tolerance_m:
-            continue
-        total = cost("rover_front", cf) + cost("rover_back", cb) + cost("target", ct)
-        if total < best_cost:
-            best, best_cost = (cf, cb, ct), total
+    pairs = [(f, b) for f, b in itertools.permutations(range(len(cands)), 2)
+             if abs(math.hypot(cands[f].x_m - cands[b].x_m, cands[f].y_m - cands[b].y_m) - marker_distance_m)
+             <= tolerance_m]
+    for f, b in pairs:
+        for t in range(len(cands)):
+            if t in (f, b):
+                continue
+            cf, cb, ct = cands[f], cands[b], cands[t]
+            total = cost("rover_front", cf) + cost("rover_back", cb) + cost("target", ct)
+            if total < best_cost:
+                best, best_cost = (cf, cb, ct), total
     if best is None:
         raise CalibrationFailed(f"no two coloured markers {marker_distance_m * 100:.0f} cm apart (+-"
                                 f"{tolerance_m * 100:.0f}): is the rover in view, its markers uncovered?")
     chosen = dict(zip(ROLES, best))
-    if not words:
-        # Without the user's word for the colours, only markers near the configured ranges are
-        # taken: a guess between, say, a blue and a magenta square could turn the rover round.
-        far = [role for role, c in chosen.items() if _range_gap(c.hue, getattr(base.hsv, role)) > 10]
-        if far:
-            seen = ", ".join(f"{hue_name(int(c.hue), int(c.hue))}" for c in best)
-            raise CalibrationFailed(f"the markers seen ({seen}) are not the configuration's colours: say which is "
-                                    "which with --front COLOUR --back COLOUR --target COLOUR")
+    # A role without the user's word for its colour is taken only near the configured range: a
+    # guess between, say, a blue and a magenta square could turn the rover round.
+    far = [role for role, c in chosen.items()
+           if not (words and role in words) and _range_gap(c.hue, getattr(base.hsv, role)) > 10]
+    if far:
+        seen = ", ".join(f"{hue_name(int(c.hue), int(c.hue))}" for c in best)
+        raise CalibrationFailed(f"the markers seen ({seen}) are not the configuration's colours: say which is "
+                                "which with --front COLOUR --back COLOUR --target COLOUR")
     if words:
         for role, word in words.items():
             c = chosen[role]
@@ -285,34 +287,42 @@ def assign_roles(cands: list[Candidate], cal: Calibration, marker_distance_m: fl
 
 
 def propose_ranges(markers: dict[str, list[Candidate]]) -> dict[str, tuple[tuple[int, int, int], tuple[int, int, int]]]:
-    """Each role's HSV range from its pixels in every frame (see the module's note)."""
+    """Each role's HSV range from its pixels in every frame (see the module's note), or
+    CalibrationFailed: a red marker (its own hues run across 0 and 179), two markers of one
+    colour, or ranges that cannot be kept apart."""
     spans: dict[str, list[float]] = {}
     out: dict[str, list[list[int]]] = {}
     for role, cands in markers.items():
         pix = np.concatenate([c.pixels_hsv for c in cands])
         centre = _circular_median_hue(pix[:, 0])
         rel = ((pix[:, 0].astype(np.float64) - centre + 90.0) % 180.0) - 90.0
-        lo_h = centre + float(np.percentile(rel, 1)) - HUE_MARGIN
-        hi_h = centre + float(np.percentile(rel, 99)) + HUE_MARGIN
+        lo_h, hi_h = centre + float(np.percentile(rel, 1)), centre + float(np.percentile(rel, 99))
         if lo_h < 0 or hi_h > 179:
             raise CalibrationFailed(f"the {role.replace('_', ' ')} marker is red (its hues run across 0 and 179, "
                                     "which one HSV range cannot hold): use another colour, or ArUco tags")
-        spans[role] = [lo_h, hi_h, centre]
+        # The margin stops at the ends of the hue scale (an orange at H 10 keeps its range).
+        spans[role] = [max(0.0, lo_h - HUE_MARGIN), min(179.0, hi_h + HUE_MARGIN), centre]
         s_lo = max(SV_FLOOR, int(SV_FRACTION * float(np.percentile(pix[:, 1], 1))))
         v_lo = max(SV_FLOOR, int(SV_FRACTION * float(np.percentile(pix[:, 2], 1))))
         out[role] = [[0, s_lo, v_lo], [179, 255, 255]]
-    # Ranges that meet are split half way between the two hues' edges.
+    # Ranges that meet are cut apart at a hue strictly between the two markers' own, every pair.
     roles = sorted(spans, key=lambda r: spans[r][2])
-    for a, b in zip(roles, roles[1:]):
-        if spans[a][1] >= spans[b][0]:
-            if spans[b][2] - spans[a][2] < 2 * HUE_MARGIN:
+    for i, a in enumerate(roles):
+        for b in roles[i + 1:]:
+            ca, cb = spans[a][2], spans[b][2]
+            if cb - ca < 2 * HUE_MARGIN:
                 raise CalibrationFailed(f"the {a.replace('_', ' ')} and {b.replace('_', ' ')} markers are the same "
-                                        f"colour (hues {spans[a][2]:.0f} and {spans[b][2]:.0f}): use distinct colours")
-            mid = (spans[a][1] - HUE_MARGIN + spans[b][0] + HUE_MARGIN) / 2
-            spans[a][1], spans[b][0] = mid - 0.5, mid + 0.5
-    for role, (lo_h, hi_h, _) in spans.items():
-        out[role][0][0] = int(math.ceil(lo_h))
-        out[role][1][0] = int(math.floor(hi_h))
+                                        f"colour (hues {ca:.0f} and {cb:.0f}): use distinct colours")
+            if spans[a][1] >= spans[b][0]:
+                cut = min(max((spans[a][1] + spans[b][0]) / 2, ca + 1.0), cb - 1.0)
+                spans[a][1] = min(spans[a][1], cut - 0.5)
+                spans[b][0] = max(spans[b][0], cut + 0.5)
+    for role, (lo_h, hi_h, centre) in spans.items():
+        out[role][0][0], out[role][1][0] = int(math.ceil(lo_h)), int(math.floor(hi_h))
+        others = [spans[r][2] for r in spans if r != role]
+        if out[role][0][0] > out[role][1][0] or any(out[role][0][0] <= c <= out[role][1][0] for c in others):
+            raise CalibrationFailed(f"the {role.replace('_', ' ')} marker's hues cannot be kept apart from the "
+                                    "others' (a sticker of mixed colour, or light of another colour on it)")
     return {role: (tuple(lo), tuple(hi)) for role, (lo, hi) in out.items()}  # type: ignore[misc]
 
 

@@ -66,7 +66,9 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     t = sub.add_parser("tags", help="draw the four corner tags to print",
                        description="Write the four ArUco corner tags (DICT_4X4_50 ids 10-13) as PNG files to print "
                                    "at 300 dots per inch, each 10 cm across its black square with a white margin, "
-                                   "named by the corner it goes to.", epilog=EPILOG)
+                                   "named by the corner it goes to.",
+                       epilog="exit status: 0 written; 2 unusable input (the folder cannot be made or written); 3 an "
+                              "internal error (rerun with -v for the traceback); 130 interrupted.")
     t.add_argument("out", type=Path, metavar="DIR", help="the folder to write them in (made if missing)")
     t.set_defaults(func=_cmd_tags)
     p.set_defaults(func=lambda args: _no_what(p))
@@ -91,7 +93,8 @@ def _cmd_tags(args) -> int:
         cv2.putText(page, f"rovernav corner tag {tag}: {name}, centre {cc.CORNER_INSET_M * 100:.0f} cm in from "
                           "both walls", (margin, side_px + 2 * margin + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, 0, 2)
         path = args.out / f"corner-tag-{tag}-{name}.png"
-        cv2.imwrite(str(path), page)
+        if not cv2.imwrite(str(path), page):
+            raise InputError(f"{path}: could not be written")
         print(f"wrote {path}")
     print(f"print at {dpi} dpi (100 % scale): the black square must measure {side_m * 100:.0f} cm")
     return 0
@@ -121,6 +124,10 @@ def read_frames(args) -> list:
 
     from ..vision.cli import _UsageError, read_image
 
+    try:   # OpenCV's own warnings (no device, a broken video) would add lines to a one-line error
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    except AttributeError:
+        pass
     if args.camera is not None:
         if args.source:
             raise InputError("give files or --camera, not both")
@@ -146,6 +153,8 @@ def read_frames(args) -> list:
         if len(args.source) > 1:
             raise InputError(f"{videos[0]}: give one video, or image files, not both")
         path = Path(videos[0])
+        if path.is_dir():
+            raise InputError(f"{videos[0]}: is a folder, not a video file")
         if not path.is_file():
             raise InputError(f"{videos[0]}: no such video file")
         cap = cv2.VideoCapture(str(path))
@@ -156,10 +165,13 @@ def read_frames(args) -> list:
         frames, k = [], 0
         try:
             while want is None or k <= want[-1]:
-                ok, f = cap.read()
-                if not ok:
-                    break
-                if want is None or k in want:
+                if want is not None and k not in want:
+                    if not cap.grab():    # skipped frames are not decoded
+                        break
+                else:
+                    ok, f = cap.read()
+                    if not ok:
+                        break
                     frames.append(f)
                 k += 1
                 if want is None and len(frames) >= args.frames:
@@ -168,6 +180,9 @@ def read_frames(args) -> list:
             cap.release()
         if not frames:
             raise InputError(f"{videos[0]}: no frame could be read")
+        if len(frames) < args.frames:
+            print(f"{videos[0]}: {len(frames)} frames read of the {args.frames} asked (the video ends sooner than "
+                  "it says)", file=sys.stderr)
         return frames
     frames = []
     for s in args.source:
@@ -199,14 +214,25 @@ def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> N
 
     if path.exists():
         try:
-            doc = tomlkit.parse(path.read_text(encoding="utf-8"))
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: cannot read it to update it: {getattr(exc, 'strerror', None) or exc}") from None
+        try:
+            doc = tomlkit.parse(text)
         except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base we can rely on
             raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
     else:
         doc = tomlkit.document()
         doc.add(tomlkit.comment("rovernav configuration; [vision] written by `rovernav calibrate camera`"))
+    for name in ("arena", "vision"):
+        if name in doc and not isinstance(doc[name], dict):
+            raise InputError(f"{path}: [{name}] is not a table, so it cannot be updated")
     if "arena" not in doc:
         doc["arena"] = {"width_m": arena[0], "height_m": arena[1]}
+    have = (doc["arena"].get("width_m", 2.36), doc["arena"].get("height_m", 1.75))
+    if any(abs(float(a) - b) > 1e-3 for a, b in zip(have, arena)):
+        raise InputError(f"{path}: its [arena] is {have[0]} x {have[1]} m, the calibration's {arena[0]:g} x "
+                         f"{arena[1]:g} m: give the same --arena-size, or change [arena] first")
     vision = doc.get("vision")
     if vision is None:
         vision = tomlkit.table()
@@ -230,6 +256,9 @@ def _cmd_camera(args) -> int:
     cfg = load_config(args.config)   # ConfigError (exit 2) names the file and key
     w, h = tuple(args.arena_size) if args.arena_size else (cfg.arena.width_m, cfg.arena.height_m)
     corners = _corners(args.corners) if args.corners else None
+    if corners is None and min(w, h) < 2 * cc.CORNER_INSET_M + 0.1:
+        raise InputError(f"a {w:g} x {h:g} m arena has no room for the corner tags ({cc.CORNER_INSET_M * 100:.0f} cm in "
+                         "from each wall): give its corners with --corners")
     words = {role: getattr(args, flag) for role, flag in (("rover_front", "front"), ("rover_back", "back"),
                                                           ("target", "target")) if getattr(args, flag)}
     frames = read_frames(args)
@@ -247,7 +276,8 @@ def _cmd_camera(args) -> int:
         return 1
     vision = result.vision(cfg.vision)
     table = vision.to_dict()
-    cv2.imwrite(str(args.picture), cc.check_picture(frames[0], result))
+    if not cv2.imwrite(str(args.picture), cc.check_picture(frames[0], result)):
+        raise InputError(f"--picture {args.picture}: could not be written")
     if args.write:
         write_vision(args.write, table, (w, h))
     pose = result.poses[0]

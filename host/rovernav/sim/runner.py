@@ -137,8 +137,7 @@ class Simulation:
         if setup is not None:
             look = dataclasses.replace(look, front_bgr=setup.front_bgr, back_bgr=setup.back_bgr,
                                        target_bgr=setup.target_bgr)
-            camera = Camera(calibration=setup.mapping(w_m, h_m) if setup.corners_px is not None else None,
-                            lighting=setup.lighting or lighting, noise_sigma=3.0)
+            camera = Camera(calibration=setup.mapping(w_m, h_m), lighting=setup.lighting or lighting, noise_sigma=3.0)
         self.renderer = Renderer(look, camera, seed=int(self.rng.integers(2**31)))
         self.locator = Locator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
         self.scene_base = Scene(arena_w_m=scenario.arena.width_m, arena_h_m=scenario.arena.height_m,

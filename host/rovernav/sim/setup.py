@@ -8,8 +8,7 @@ camera looks from, and a rover whose motors and gyro differ from what the firmwa
 Real set-ups differ in all of these, and a configuration made for one fails on another: the
 default HSV ranges find no marker of another colour, and the default mapping (a camera looking
 straight down whose frame spans the arena exactly) puts a tilted camera's rover in the wrong
-place. `Setup.default()` is the simulator's usual set-up (the defaults' colours, a random light,
-straight down).
+place. The simulator's usual set-up is no Setup at all (SimOptions.setup None).
 
 The arena has four ArUco corner tags (rovernav.calibrate.camera.CORNER_TAG_IDS), drawn in every
 frame of a set-up's runs, as a real arena would keep them.
@@ -82,10 +81,6 @@ class Setup:
                    words=tuple(zip(("rover_front", "rover_back", "target"), words)), lighting=lighting,
                    corners_px=_tilted_corners(rng), plant=plant, seed=seed)
 
-    @classmethod
-    def default(cls) -> "Setup":
-        return cls(corner_tags=False)
-
     def colour_words(self) -> dict[str, str]:
         return dict(self.words)
 
@@ -122,8 +117,8 @@ class Setup:
 
 
 def _tilted_corners(rng: np.random.Generator) -> tuple[tuple[float, float], ...]:
-    """Where a tilted, turned camera sees the arena's corners: a rectangle of the arena's shape
-    filling 70-90 % of the frame, its far edge shortened by up to 25 % (a tilt of about 20
+    """Where a tilted, turned camera sees the arena's corners: a rectangle of the frame's 4:3 shape
+    filling 70-90 % of it, its far edge shortened by up to 25 % (a tilt of about 20
     degrees), turned by up to 8 degrees and moved a little off centre; shrunk until every corner
     lies 12 pixels or more inside the frame."""
     fill, keystone = rng.uniform(0.7, 0.9), rng.uniform(0.0, 0.25)
