@@ -199,3 +199,17 @@ def test_proposed_ranges_keep_apart_stay_valid_and_refuse_only_what_one_range_ca
     with pytest.raises(cc.CalibrationFailed, match="the same colour"):
         cc.propose_ranges({"rover_front": [_cand(noisy(60))], "rover_back": [_cand(noisy(63))],
                            "target": [_cand(noisy(110))]})
+
+
+def test_write_refuses_a_file_whose_arena_differs_or_whose_vision_is_not_a_table(tmp_path):
+    setup = Setup.random(7009)
+    image = tmp_path / "f.png"
+    cv2.imwrite(str(image), setup.calibration_frames(SCENARIO, 1)[0])
+    words = [a for role, w in setup.colour_words().items() for a in (f"--{role.split('_')[-1]}", w)]
+    other = tmp_path / "other.toml"
+    other.write_text("[arena]\nwidth_m = 2.5\nheight_m = 1.9\n")
+    assert _cli("calibrate", "camera", str(image), *words, "--write", str(other), "--picture", str(tmp_path / "c.png")) == 2
+    assert other.read_text() == "[arena]\nwidth_m = 2.5\nheight_m = 1.9\n"        # untouched
+    odd = tmp_path / "odd.toml"
+    odd.write_text("vision = 3\n")
+    assert _cli("calibrate", "camera", str(image), *words, "--write", str(odd), "--picture", str(tmp_path / "c.png")) == 2
