@@ -12,9 +12,11 @@ from rovernav.config import config_from_dict
 
 pytestmark = pytest.mark.mission   # each test runs the simulated rover for a few seconds
 
+from test_avrsim import built  # noqa: E402,F401 - the module fixture: the Uno image and the simavr bridge
+
 # The line that must fail for each fault, and words it must say.
 FAULT_LINES = {
-    "dead-gyro": ("gyro", "gyro_silent"),
+    "dead-gyro": ("gyro", "gyro_silent: check the MPU6050's wiring"),
     "sonar-unwired": ("sonar", "no echo"),
     "motor-reversed": ("motors", "a motor turns the wrong way"),
     "no-markers": ("camera", "the rover found in 0 of"),
@@ -64,3 +66,37 @@ def test_a_set_up_checks_with_its_calibrated_configuration_and_not_without(tmp_p
     assert main(["check", "--sim", "--setup", "7008", "--json"]) == 1
     out = json.loads(capsys.readouterr().out)
     assert {c["name"]: c["status"] for c in out["checks"]}["camera"] == "FAIL"
+
+
+def test_the_real_rover_path_over_a_serial_port_names_the_uno_image_s_missing_gyro(built, tmp_path, capsys):
+    # `rovernav check --port` end to end: the Uno image in simavr behind a pseudo-terminal (the
+    # bridge simulates no MPU6050) and a video file for the camera (a still scene, rover in view).
+    import subprocess
+
+    import cv2
+    import numpy as np
+
+    from rovernav.sim.camera import Scene, render_frame
+    from test_avrsim import Bridge, _read_line
+
+    video = tmp_path / "still.avi"
+    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480))
+    rng = np.random.default_rng(1)
+    frame = render_frame(Scene(rover=(1.0, 0.9, 90.0), target=(2.0, 1.4)), rng)
+    for _ in range(300):
+        out.write(frame)
+    out.release()
+    bridge_bin, elf = built
+    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", "60", str(elf)], tmp_path / "bridge.log",
+                    stdout=subprocess.PIPE)
+    try:
+        port = _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+        assert main(["check", "--port", port, "--camera", str(video), "--json"]) == 1
+    finally:
+        bridge.stop()
+    result = json.loads(capsys.readouterr().out)
+    status = {c["name"]: (c["status"], c["text"]) for c in result["checks"]}
+    assert status["link"][0] == "ok" and "unsigned" in status["link"][1]
+    assert status["camera"][0] == "ok"
+    assert status["gyro"][0] == "FAIL" and "gyro_silent" in status["gyro"][1]
+    assert status["motors"] == ("not checked", "the rover stops on a gyro fault")

@@ -15,7 +15,7 @@ one line each, pass or fail with what to do:
              round or drives it backwards)
 
 A check that needs another that failed says "not checked" and why. The command ends with 0
-when every check passed, 1 when one failed.
+when every check passed, 1 when one failed or could not be made.
 
 In the simulator (`rovernav check --sim`) the same probe runs against the firmware core and the
 simulated plant and camera, with a set-up (`--setup SEED`) and a fault (`--fault`) to find.
@@ -109,6 +109,11 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
         lines.append(CheckLine("link", "ok", f"HELLO, schema 0x{mg.SCHEMA_HASH:08x}, "
                                              f"{'signed' if mission.link.signer is not None else 'unsigned'}; frames "
                                              f"through {_pct(up)} to the rover, {_pct(down)} from it"))
+    # A gyro fault shows as the rover's FAULT event, its STATUS's fault code, or START refused
+    # as FAULTED (its detail the code): whichever the radio let through.
+    code = mission.last_status.fault if mission.last_status is not None else 0
+    gyro_fault = (mission.failure is Failure.ROVER_FAULT and "gyro" in (mission.error or "")) or code in (
+        mg.FaultCode.GYRO_SILENT, mg.FaultCode.GYRO_IMPLAUSIBLE) or "refused start: faulted" in (mission.error or "")
     rover_seen = watch.found >= MIN_FOUND * watch.frames
     camera_ok = watch.frames > 0 and rover_seen and watch.target_frames > 0
     if not rover_seen:
@@ -126,14 +131,15 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
     # The probe ended before its sweep or its drive for a reason of its own (a deadline, no path):
     # the checks that needed them say so instead of blaming the sonar or the motors.
     ended = (mission.failure is not None and mission.failure is not Failure.ROVER_FAULT
-             and mission.failure is not Failure.SCHEMA)
+             and mission.failure is not Failure.SCHEMA and not gyro_fault)
     link_failed = lines[0].status == "FAIL"
-    gyro_fault = mission.failure is Failure.ROVER_FAULT and "gyro" in (mission.error or "")
     if not hello:
         lines.append(CheckLine("gyro", "not checked", "no link"))
     elif gyro_fault:
-        lines.append(CheckLine("gyro", "FAIL", f"{mission.error}: check the MPU6050's wiring (SDA A4, SCL A5, 3.3 V, "
-                                               "GND) and that it is an MPU6050 at address 0x68"))
+        what = (mg.FaultCode(code).name.lower() if code in mg.FaultCode._value2member_map_ and code
+                else (mission.error or "a gyro fault").removeprefix("rover fault: "))
+        lines.append(CheckLine("gyro", "FAIL", f"{what}: check the MPU6050's wiring (SDA A4, SCL A5, 3.3 V, GND) "
+                                               "and that it is an MPU6050 at address 0x68"))
     elif mission.last_status is None:
         lines.append(CheckLine("gyro", "not checked", "no STATUS from the rover"))
     else:
@@ -141,7 +147,8 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
     readings = mission.map.readings
     echoes = [r for r in readings if r.range_m is not None]
     if not readings:
-        blocked = ("no link" if not hello else "the camera does not see the rover, so no sweep was asked"
+        blocked = ("no link" if not hello else "the rover stops on a gyro fault" if gyro_fault
+                   else "the camera does not see the rover, so no sweep was asked"
                    if not camera_ok else f"the probe ended: {mission.error}" if ended
                    else "the link fails" if link_failed else "the rover did not sweep")
         lines.append(CheckLine("sonar", "not checked", blocked))
@@ -277,11 +284,22 @@ def check_sim(config, fault: str | None = None, setup_seed: int | None = None, s
     return judge(sim.mission, watch, sim.t, start_pose), sim.t
 
 
+def passed(lines: list[CheckLine]) -> bool:
+    """Every line ok: a check not made is not a pass."""
+    return all(ln.status == "ok" for ln in lines)
+
+
 def summary_line(lines: list[CheckLine]) -> str:
     failed = [ln.name for ln in lines if ln.status == "FAIL"]
+    unchecked = [ln.name for ln in lines if ln.status == "not checked"]
+    if not failed and not unchecked:
+        return f"every check passed ({len(lines)})"
+    parts = []
     if failed:
-        return f"{len(failed)} check{'s' if len(failed) > 1 else ''} failed: {', '.join(failed)}"
-    return f"every check passed ({len(lines)})"
+        parts.append(f"{len(failed)} check{'s' if len(failed) > 1 else ''} failed: {', '.join(failed)}")
+    if unchecked:
+        parts.append(f"{len(unchecked)} not made: {', '.join(unchecked)}")
+    return "; ".join(parts)
 
 
 
@@ -358,14 +376,20 @@ def check_hardware(port: str, camera: str | None, config_path: str | None) -> tu
                 if ok:
                     det = locator.locate(frame, now)
                     watch.saw(now, det.rover, det.target, det.reason)
-                    mission.on_detection(Detection(now, *det.rover) if det.rover is not None
-                                         else Detection(now, None, None, None, det.reason), now)
+                    if start_pose is not None:   # a rover not seen at the start is never sent anywhere
+                        mission.on_detection(Detection(now, *det.rover) if det.rover is not None
+                                             else Detection(now, None, None, None, det.reason), now)
                 mission.tick(now)
         finally:
-            try:
-                link.send(mg.Stop(reason=mg.StopReason.OPERATOR))
-            except Exception:   # noqa: BLE001 - the port may be gone; the lines say what was seen
-                pass
+            # Stop, and give back the parameters the probe changed (the rover keeps a CONFIG until
+            # it restarts, and the next mission sends only what its configuration names).
+            restore = [mg.Stop(reason=mg.StopReason.OPERATOR)] + [
+                mg.Config(param=int(p), value=int(cfg.rover.get(p, mg.PARAMS[p].default))) for p, _ in PROBE_PARAMS]
+            for message in restore:
+                try:
+                    link.request(message, timeout_s=0.5, retries=3)
+                except Exception:   # noqa: BLE001 - the port may be gone; the lines say what was seen
+                    pass
         return judge(mission, watch, time.monotonic() - t0, start_pose), time.monotonic() - t0
     finally:
         cap.release()

@@ -145,7 +145,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         if not args.port:
             raise InputError("give --port PORT (and --camera SOURCE) for the real rover, or --sim")
         lines, elapsed = check.check_hardware(args.port, args.camera, args.config)
-    failed = any(line.status == "FAIL" for line in lines)
+    failed = not check.passed(lines)
     if args.json:
         print(json.dumps({"passed": not failed, "elapsed_s": round(elapsed, 1),
                            "checks": [{"name": ln.name, "status": ln.status, "text": ln.text} for ln in lines]}))
@@ -162,7 +162,8 @@ def add_check_parser(sub) -> None:
     p = sub.add_parser("check", help="pre-flight check: link, camera, gyro, sonar, servo, motors, one line each",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        description=check.__doc__,
-                       epilog="exit status: 0 every check passed; 1 a check failed (its line says what to do); 2 "
+                       epilog="exit status: 0 every check passed; 1 a check failed or could not be made (its line "
+                              "says what to do); 2 "
                               "unusable input (a flag, file or port, named in a one-line error); 3 an internal error "
                               "(rerun with -v for the traceback); 130 interrupted.")
     p.add_argument("--port", type=port_spec, help="the rover's serial port (its radio or USB cable)")
