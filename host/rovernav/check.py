@@ -313,7 +313,7 @@ def check_hardware(port: str, camera: str | None, config_path: str | None) -> tu
 
     from .config import load_config
     from .errors import CameraError
-    from .hardware import _plain_file, _serial_port, camera_source, open_camera
+    from .hardware import _plain_file, _serial_port, camera_source, link_key, open_camera
     from .link.link import Link
     from .link.transport import SerialTransport
     from .mission.spec import MissionSpec
@@ -325,16 +325,7 @@ def check_hardware(port: str, camera: str | None, config_path: str | None) -> tu
     source = camera_source(camera or cfg.camera.source)
     w, h = cfg.arena.width_m, cfg.arena.height_m
     locator = Locator(cfg.vision, w, h)
-    key = None
-    if cfg.link.key_file:
-        from pathlib import Path
-
-        from .link.keys import load_key_file
-
-        key_path = Path(cfg.link.key_file)
-        if not key_path.is_absolute() and config_path:
-            key_path = Path(config_path).parent / key_path
-        key = load_key_file(key_path)
+    key = link_key(cfg, config_path)
     cap = open_camera(source)
     transport = None
     watch = CameraWatch()

@@ -113,6 +113,19 @@ def _serial_port(port: str, cfg, config_path: str | None) -> tuple[str, int]:
     return name, (baud if "@" in spec else cfg.link.baud)
 
 
+def link_key(cfg, config_path: str | None) -> bytes | None:
+    """The link key the configuration names ([link] key_file; a relative path is the config
+    file's neighbour), or None for an unsigned link. `rovernav run` and `rovernav check` share it."""
+    if not cfg.link.key_file:
+        return None
+    from .link.keys import load_key_file
+
+    key_path = Path(cfg.link.key_file)
+    if not key_path.is_absolute() and config_path:
+        key_path = Path(config_path).parent / key_path
+    return load_key_file(key_path)
+
+
 def default_log_path() -> Path:
     """run-YYYYMMDD-HHMMSS.mcap in the current folder (-2, -3, ... after it when a run of the same
     second has that name already: no run's log is written over another's)."""
@@ -155,14 +168,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
         if Path(map_file).exists():
             readings = read_map_file(map_file, grid)
     locator = Locator(cfg.vision, arena_w, arena_h)
-    key = None
-    if cfg.link.key_file:   # signed frames ([signing]); a relative path is the config file's neighbour
-        from .link.keys import load_key_file
-
-        key_path = Path(cfg.link.key_file)
-        if not key_path.is_absolute() and config_path:
-            key_path = Path(config_path).parent / key_path
-        key = load_key_file(key_path)
+    key = link_key(cfg, config_path)
 
     def say(t: float, text: str) -> None:
         print(f"[{t:7.2f} s] {text}", flush=True)
