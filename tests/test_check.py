@@ -96,7 +96,7 @@ def test_the_real_rover_path_over_a_serial_port_names_the_uno_image_s_missing_gy
         bridge.stop()
     result = json.loads(capsys.readouterr().out)
     status = {c["name"]: (c["status"], c["text"]) for c in result["checks"]}
-    assert status["link"][0] == "ok" and "unsigned" in status["link"][1]
+    assert status["link"][0] == "ok" and "unsigned" in status["link"][1], status["link"]
     assert status["camera"][0] == "ok"
     assert status["gyro"][0] == "FAIL" and "gyro_silent" in status["gyro"][1]
     assert status["motors"] == ("not checked", "the rover stops on a gyro fault")
