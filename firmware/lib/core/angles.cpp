@@ -20,14 +20,16 @@ uint32_t bits(float f) {
 }  // namespace
 
 ROVERNAV_NOINLINE float wrap_rad(float a) {
-  if (a > -kPi && a <= kPi) return a;
-  const float turns = (a + kPi) * (0.5f / kPi);
-  if (turns > -8388608.0f && turns < 8388608.0f) {   // beyond 2^23 a float has no fraction left
-    int32_t n = static_cast<int32_t>(turns);          // towards zero: one down for a negative fraction
-    if (static_cast<float>(n) > turns) --n;
-    a -= 2.0f * kPi * static_cast<float>(n);
+  for (uint8_t i = 0; i < kWrapTurns; ++i) {
+    if (a > kPi) {
+      a -= 2.0f * kPi;
+    } else if (a <= -kPi) {
+      a += 2.0f * kPi;
+    } else {
+      break;
+    }
   }
-  return a <= -kPi ? a + 2.0f * kPi : (a > kPi ? a - 2.0f * kPi : a);
+  return a;
 }
 
 // Signs and the comparison of magnitudes on the floats' bits (for non-negative floats the order

@@ -13,9 +13,12 @@ static const float kPi = 3.14159265f;
 static const float kRadPerDeg = kPi / 180.0f;
 static const float kDegPerRad = 180.0f / kPi;
 
-/// Wraps to (-pi, pi]. No loop: a NaN or a huge value cannot stall the rover. An angle in range
-/// costs two comparisons; one out of range, the whole turns taken off (a multiplication, not a
-/// division, and the integer part, not libm's floor), then one turn at most.
+/// Wraps to (-pi, pi] an angle within kWrapTurns turns of it: the core wraps only sums and
+/// differences of wrapped angles (two turns at most). A bounded loop, so a NaN (returned as it
+/// is) or a huge value (returned less kWrapTurns turns) cannot stall the rover; in range, it
+/// costs two comparisons. The whole turns taken off by a multiplication and the integer part
+/// cost 204 bytes more of flash on the Uno (gcc 5.4).
+enum : uint8_t { kWrapTurns = 4 };
 float wrap_rad(float a);
 
 ROVERNAV_NOINLINE inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }

@@ -38,3 +38,20 @@ TEST_CASE("fast_atan2 on the axes, at the origin and on the diagonals") {
   CHECK(bearing_rad(Point{100, 200}, Point{110, 200}) == doctest::Approx(2 * q).epsilon(1e-6));
   CHECK(bearing_rad(Point{100, 200}, Point{100, 150}) == doctest::Approx(4 * q).epsilon(1e-6));
 }
+
+TEST_CASE("wrap_rad: into (-pi, pi] within four turns; NaN and huge values do not stall it") {
+  for (int i = -3600; i <= 3600; ++i) {   // -4 to +4 turns, every 0.4 degree
+    const float a = static_cast<float>(i * (8.0 * M_PI / 7200.0) + 1e-3);
+    const float w = wrap_rad(a);
+    CHECK(w > -kPi);
+    CHECK(w <= kPi);
+    // The same direction: a whole number of turns apart.
+    const double turns = (static_cast<double>(a) - w) / (2.0 * M_PI);
+    CHECK(fabs(turns - round(turns)) < 1e-5);
+  }
+  CHECK(wrap_rad(kPi) == kPi);
+  CHECK(wrap_rad(-kPi) == doctest::Approx(kPi));
+  CHECK(wrap_rad(0.5f) == 0.5f);
+  CHECK(isnan(wrap_rad(NAN)));
+  CHECK(wrap_rad(1e30f) == 1e30f);   // beyond the bounded loop: returned, not looped on
+}
