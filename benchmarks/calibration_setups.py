@@ -8,12 +8,15 @@ firmware's figures. For each: three frames of the scenario at its start (the fou
 scenarios in turn) go to `calibrate_camera` with the stickers' colour words; then
 
 - the arena's corners found against the true ones (pixels, worst of four);
+- `calibrate rover`'s runs with the calibrated camera: the fitted speed per PWM, dead band,
+  right motor's strength and gyro scale against the plant's true figures (per cent);
 - the locator's position error over 12 random rover poses with the calibrated settings, and with
   the true settings (the true corners, ranges round the true hues): the median of each;
-- a mission with the calibrated configuration, and one with the default configuration.
+- a mission with the calibrated configuration (camera and motors), and one with the default
+  configuration.
 
 It prints a row per set-up and the totals; exit status 1 when a calibrated mission does not reach
-or collides, or calibration fails. (The plant is not calibrated yet: `calibrate rover` is to come.)
+or collides, or calibration fails, or a motor figure is more than 5 % off.
 """
 from __future__ import annotations
 
@@ -34,8 +37,10 @@ def run_one(job: tuple[int, str]) -> dict:
     sys.path.insert(0, str(ROOT / "host"))
     import numpy as np
 
+    from rovernav.calibrate import rover as cr
     from rovernav.calibrate.camera import CalibrationFailed, calibrate_camera
     from rovernav.config import config_from_dict
+    from rovernav.link import messages_gen as mg
     from rovernav.scenario import load_scenario
     from rovernav.sim.runner import SimOptions, Simulation
     from rovernav.sim.setup import Setup, pose_errors, true_vision
@@ -59,7 +64,20 @@ def run_one(job: tuple[int, str]) -> dict:
         row[key] = round(1000 * statistics.median(found), 1) if found else None
         row[key.replace("err", "found")] = len(found)
     arena = {"width_m": sc.arena.width_m, "height_m": sc.arena.height_m}
-    for name, table in (("with_calibration", {"arena": arena, "vision": result.vision().to_dict()}),
+    camera_only = config_from_dict({"arena": arena, "vision": result.vision().to_dict()})
+    try:
+        motors = cr.fit(cr.runs_sim(camera_only, setup=setup, seed=seed))
+    except cr.CalibrationFailed as exc:
+        row.update(calibrated=False, error=f"calibrate rover: {exc}", wall_s=round(time.monotonic() - started, 1))
+        return row
+    p = setup.plant
+    row["motor_err_pct"] = {"mm_s_per_pwm": round(100 * (motors.mm_s_per_pwm / p.mm_s_per_pwm - 1), 2),
+                            "deadband_pwm": round(100 * (motors.deadband_pwm / p.deadband_pwm - 1), 2),
+                            "right_gain": round(100 * (motors.right_gain / p.right_gain - 1), 2),
+                            "gyro_scale": (None if motors.gyro_scale is None
+                                           else round(100 * (motors.gyro_scale / p.gyro_scale - 1), 2))}
+    rover = {mg.PARAMS[k].name: v for k, v in motors.params().items()}
+    for name, table in (("with_calibration", {"arena": arena, "vision": result.vision().to_dict(), "rover": rover}),
                         ("with_defaults", {"arena": arena})):
         sim = Simulation(sc, SimOptions(seed=1, max_time_s=400, setup=setup, config=config_from_dict(table)))
         sim.run()
@@ -88,7 +106,8 @@ def main() -> int:
             c, d = row["with_calibration"], row["with_defaults"]
             print(f"{row['seed']} {row['scenario']:<30} {'/'.join(row['colours'].values()):<22} light {row['light']:.2f}  "
                   f"corners {row['corner_err_px']:.2f} px  pose {row['pose_err_mm']:.1f} mm (true settings "
-                  f"{row['pose_err_true_mm']:.1f})  calibrated: {c['outcome']} {c['time_s']} s, "
+                  f"{row['pose_err_true_mm']:.1f})  motors {'/'.join(f'{v:+.1f}' for v in row['motor_err_pct'].values())} %"
+                  f"  calibrated: {c['outcome']} {c['time_s']} s, "
                   f"{c['collisions']} coll.  default: {d['outcome']} ({d['error'] or ''})", flush=True)
     ok = [r for r in rows if r["calibrated"]]
     reached = [r for r in ok if r["with_calibration"]["outcome"] == "reached" and r["with_calibration"]["collisions"] == 0]
@@ -101,10 +120,14 @@ def main() -> int:
         print(f"arena corners: worst {max(r['corner_err_px'] for r in ok):.2f} px; pose error median of medians "
               f"{statistics.median(r['pose_err_mm'] for r in ok):.1f} mm calibrated, "
               f"{statistics.median(r['pose_err_true_mm'] for r in ok):.1f} mm with the true settings")
+        worst = {k: max(abs(r["motor_err_pct"][k] if r["motor_err_pct"][k] is not None else 99.0) for r in ok)
+                 for k in ok[0]["motor_err_pct"]}
+        print("motor figures, worst error: " + ", ".join(f"{k} {v:.1f} %" for k, v in worst.items()))
     print(f"default configuration: failed in {len(default_failed)}/{len(ok)}")
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
-    return 0 if len(reached) == len(rows) else 1
+    motors_ok = all(v is not None and abs(v) <= 5.0 for r in ok for v in r["motor_err_pct"].values())
+    return 0 if len(reached) == len(rows) and motors_ok else 1
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""`rovernav calibrate camera`: the camera's calibration from a still, a video or a live camera."""
+"""`rovernav calibrate camera` (the camera's calibration from a still, a video or a live camera)
+and `rovernav calibrate rover` (the motors' figures from runs the camera watches)."""
 from __future__ import annotations
 
 import argparse
@@ -7,6 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
+from ..link import messages_gen as mg
 from ..validate import number, output_file
 from . import camera as cc
 
@@ -29,11 +31,35 @@ EPILOG = ("exit status: 0 calibrated and checked; 1 it could not be done (the re
           "a marker cut by the frame's edge, no rover pair, a colour not seen); 2 unusable input (a flag, file or "
           "value, named in a one-line error); 3 an internal error (rerun with -v for the traceback); 130 interrupted.")
 
+ROVER_HELP = """\
+Fit the rover's motor figures from three straight runs of 0.5 m the camera watches: ahead the
+way the rover faces, back, and ahead again, at drive commands of 60, 80 and 105 PWM (sweeps
+off). Stand the rover where the camera sees it, facing 0.8 m of open floor; calibrate the
+camera first (rovernav calibrate camera).
+
+From each run's steady part: the speed the camera saw and the mean left and right commands
+the rover reported. A line through (left command, speed) gives the speed per PWM and the
+dead band where it meets zero; the commands that held the rover straight give how much
+stronger the right motor is. Written as the rover's parameters speed_mm_s_per_pwm_x1000,
+motor_deadband_pwm and right_bias_permille; printed with the configuration's values and how
+well the line fits.
+
+The gyro's scale is measured and printed, not written (no parameter takes it; the camera's
+fixes correct the heading): no fix is sent while the rover turns round before a run, so its
+heading there is its gyro's alone, against the camera's. Not measured: the gyro's bias (the
+firmware measures it at every start: keep the rover still for its first second) and the
+sonar's offset (it needs a wall at a known place)."""
+
+ROVER_EPILOG = ("exit status: 0 fitted (and written with --write); 1 the runs gave no fit (the reason, in one line: "
+                "the rover did not drive, the camera lost it, the speeds do not rise with the command); 2 unusable "
+                "input (a flag, file or value, named in a one-line error; no room ahead of the rover); 3 an internal "
+                "error (rerun with -v for the traceback); 130 interrupted.")
+
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 
 
 def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
-    p = subparsers.add_parser("calibrate", help="calibrate the camera (arena corners, marker colours) from what it sees",
+    p = subparsers.add_parser("calibrate", help="calibrate the camera (arena corners, marker colours) and the rover (motor figures) from what the camera sees",
                               description="Calibrate the set-up from what the camera sees.", epilog=EPILOG)
     sub = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
     c = sub.add_parser("camera", help="the arena's corners and the markers' HSV ranges, into [vision]",
@@ -63,6 +89,24 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
                    help="the check picture (default calibration-check.png)")
     c.add_argument("--json", action="store_true", help="print the result as one JSON object")
     c.set_defaults(func=_cmd_camera)
+    r = sub.add_parser("rover", help="the motors' dead band, speed per PWM and balance, from runs the camera watches",
+                       formatter_class=argparse.RawDescriptionHelpFormatter, description=ROVER_HELP,
+                       epilog=ROVER_EPILOG)
+    where = r.add_mutually_exclusive_group()
+    where.add_argument("--port", metavar="PORT", help="the rover's serial port (its radio), as for rovernav run")
+    where.add_argument("--sim", action="store_true", help="calibrate the simulated rover instead")
+    r.add_argument("--camera", metavar="SOURCE", help="with --port: the camera (index or video/URL; default: the "
+                                                      "configuration's [camera] source)")
+    r.add_argument("--setup", type=number(0, 2**31 - 1, integer=True), metavar="SEED",
+                   help="with --sim: a simulated set-up (marker colours, light, camera pose, plant) by its seed; "
+                        "give the --config its camera was calibrated into")
+    r.add_argument("--config", type=Path, metavar="FILE",
+                   help="the configuration (its [vision], [link] and [rover]); default: the built-in one")
+    r.add_argument("--write", type=output_file(".toml"), metavar="FILE",
+                   help="write the fitted parameters into FILE's [rover] table (made if missing; every other table "
+                        "and key kept); without it they are printed")
+    r.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    r.set_defaults(func=_cmd_rover)
     t = sub.add_parser("tags", help="draw the four corner tags to print",
                        description="Write the four ArUco corner tags (DICT_4X4_50 ids 10-13) as PNG files to print "
                                    "at 300 dots per inch, each 10 cm across its black square with a white margin, "
@@ -306,4 +350,79 @@ def _cmd_camera(args) -> int:
     else:
         print("\n# the [vision] table for your configuration (or run again with --write FILE):")
         print(_vision_toml({k: table[k] for k in ("markers", "hsv", "calibration")}), end="")
+    return 0
+
+
+def _cmd_rover(args) -> int:
+    from ..config import load_config
+    from . import rover as cr
+
+    if args.config is not None and not args.config.is_file():
+        raise InputError(f"{args.config}: no such configuration file")
+    if not args.sim and not args.port:
+        raise InputError("give the rover's --port (and --camera), or --sim for the simulated rover")
+    if args.setup is not None and not args.sim:
+        raise InputError("--setup is a simulated set-up: give --sim with it")
+    if args.camera is not None and args.sim:
+        raise InputError("--camera watches the real rover: give --port with it, not --sim")
+    cfg = load_config(args.config)
+
+    def progress(done: int, total: int) -> None:
+        print(f"  run {done}/{total} done", file=sys.stderr)
+
+    print(f"calibrating the rover's motors: {len(cr.LEVELS_PWM)} runs of {cr.RUN_M} m at "
+          f"{', '.join(str(v) for v in cr.LEVELS_PWM)} PWM ...", file=sys.stderr)
+    try:
+        if args.sim:
+            from ..sim.setup import Setup
+
+            setup = Setup.random(args.setup) if args.setup is not None else None
+            runs = cr.runs_sim(cfg, setup=setup, progress=progress)
+        else:
+            runs = cr.runs_hardware(args.port, args.camera, None if args.config is None else str(args.config),
+                                    progress=progress)
+        result = cr.fit(runs)
+    except cr.CalibrationFailed as exc:
+        print(f"rovernav calibrate rover: could not calibrate: {exc}", file=sys.stderr)
+        return 1
+    params = result.params()
+    if args.write:
+        cr.write_params(args.write, params)
+    before = {p: cfg.rover.get(p, mg.PARAMS[p].default) for p in params}
+    if args.json:
+        print(json.dumps({"mm_s_per_pwm": round(result.mm_s_per_pwm, 4), "deadband_pwm": round(result.deadband_pwm, 2),
+                          "right_gain": round(result.right_gain, 4), "residual_mm_s": round(result.residual_mm_s, 2),
+                          "right_gain_spread": round(result.gain_spread, 4),
+                          "gyro_scale": None if result.gyro_scale is None else round(result.gyro_scale, 4),
+                          "gyro_turns": result.gyro_turns,
+                          "runs": [{"level_pwm": lv, "speed_m_s": round(v, 4), "left_pwm": round(lp, 2),
+                                    "right_pwm": round(rp, 2)} for lv, v, lp, rp in result.runs],
+                          "params": {mg.PARAMS[p].name: v for p, v in params.items()},
+                          "before": {mg.PARAMS[p].name: v for p, v in before.items()},
+                          "written": str(args.write) if args.write else None}))
+        return 0
+    for lv, v, lp, rp in result.runs:
+        print(f"run      {lv:>3} PWM: {100 * v:5.1f} cm/s, commands left {lp:.1f} right {rp:.1f}")
+    print(f"fit      speed {result.mm_s_per_pwm:.3f} mm/s per PWM above a dead band of {result.deadband_pwm:.1f} PWM "
+          f"(line residual {result.residual_mm_s:.1f} mm/s); right motor {result.right_gain:.3f} x the left "
+          f"(spread {result.gain_spread:.3f} over the runs)")
+    if result.gyro_scale is None:
+        print("gyro     scale not measured: no turn round was seen whole (the camera lost the rover, or a run "
+              "ended early)")
+    else:
+        off = 100 * (result.gyro_scale - 1)
+        advice = ("" if abs(off) <= 5 else ": more than 5 % off: is the MPU6050 at its +-250 deg/s range, and "
+                  "mounted flat?")
+        print(f"gyro     reads {result.gyro_scale:.3f} x the camera's turn ({off:+.1f} %, over {result.gyro_turns} "
+              f"turns, no fixes sent while it turned){advice}; no parameter takes it: the camera's fixes correct "
+              "the heading")
+    for p, v in params.items():
+        change = "unchanged" if v == before[p] else f"was {before[p]}"
+        print(f"param    {mg.PARAMS[p].name} = {v} ({change})")
+    if args.write:
+        print(f"wrote    [rover] {', '.join(mg.PARAMS[p].name for p in params)} of {args.write}")
+    else:
+        print("\n# for your configuration's [rover] table (or run again with --write FILE):")
+        for p, v in params.items():
+            print(f"{mg.PARAMS[p].name} = {v}")
     return 0

@@ -43,6 +43,7 @@ class PlantConfig:
     gyro_noise_dps: float = 0.05      # white noise of one sample
     gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
     gyro_bias_walk_dps_per_sqrt_s: float = 0.005
+    gyro_scale: float = 1.0           # the gyro's reading per true rate (an MPU6050's sensitivity: +-3 %)
     sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0
     sonar_noise_mm: float = 3.0
     sonar_floor_m: float = 0.65       # floor echoes from beyond here
@@ -103,7 +104,7 @@ class RoverPlant:
         """One gyro sample (millidegrees/s, clockwise), or None when the gyro is dead."""
         if not self.gyro_alive:
             return None
-        reading = self.rate_dps + self.gyro_bias + self.cfg.gyro_noise_dps * float(self.rng.normal())
+        reading = self.rate_dps * self.cfg.gyro_scale + self.gyro_bias + self.cfg.gyro_noise_dps * float(self.rng.normal())
         return int(round(reading * 1000))
 
     def sonar_mm(self, world: World) -> int:

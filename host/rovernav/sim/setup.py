@@ -62,7 +62,8 @@ class Setup:
         0.55 to 1.15 of the usual with its gradient and vignette, a camera tilted up to about 20
         degrees and turned up to 8 (the arena filling 70-90 % of the frame), and motors and gyro
         off the firmware's figures (speed per PWM 0.8-1.25 x, the right motor 0.95-1.2 x the
-        left, dead band 0.8-1.3 x, gyro bias left after calibration up to 0.15 deg/s)."""
+        left, dead band 0.8-1.3 x, gyro bias left after calibration up to 0.15 deg/s, gyro scale
+        0.97-1.03)."""
         rng = np.random.default_rng([seed, 0x5E7])
         while True:   # three colours a user would call by different names, at least 15 hue units apart
             words = [str(w) for w in rng.choice(sorted(COLOUR_BANDS), size=3, replace=False)]
@@ -77,9 +78,12 @@ class Setup:
                                     right_gain=float(rng.uniform(0.95, 1.2)),
                                     deadband_pwm=base.deadband_pwm * float(rng.uniform(0.8, 1.3)),
                                     gyro_bias_dps=float(rng.uniform(0.02, 0.15)))
+        corners = _tilted_corners(rng)
+        # Drawn last, so that every draw before it is as it was before the gyro's scale was modelled.
+        plant = dataclasses.replace(plant, gyro_scale=float(rng.uniform(0.97, 1.03)))
         return cls(front_bgr=colours[0], back_bgr=colours[1], target_bgr=colours[2],
                    words=tuple(zip(("rover_front", "rover_back", "target"), words)), lighting=lighting,
-                   corners_px=_tilted_corners(rng), plant=plant, seed=seed)
+                   corners_px=corners, plant=plant, seed=seed)
 
     def colour_words(self) -> dict[str, str]:
         return dict(self.words)

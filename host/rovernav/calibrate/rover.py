@@ -1,0 +1,421 @@
+"""`rovernav calibrate rover`: the motors' figures, from straight runs watched by the camera.
+
+The rover drives RUN_M straight, back and forth, once at each drive command in LEVELS_PWM
+(its drive_pwm), its sweeps off; between runs it turns round on the spot. From each run's
+steady part (the camera's positions while the rover's STATUS says DRIVE, less the first
+TRIM_START_S and the last TRIM_END_S) come its speed (a straight line fitted to the distance
+along the run against time) and the mean left and right commands. Then
+
+    speed    v = k (left - d)              k: speed per PWM above the dead band d
+                                           (a straight line through the runs' (left, v))
+    balance  g = (left - d) / (right - d)  the right motor is g times as strong: the heading
+                                           PID holds the rover straight, so both wheels turn
+                                           at one speed
+
+written as the rover's parameters speed_mm_s_per_pwm_x1000 = 1000 k, motor_deadband_pwm = d
+and right_bias_permille = 1000 / g (the right side's share of a heading correction, scaled to
+its strength). How sure: the line's residual and the spread of g across the runs.
+
+The gyro's scale is measured, not written: the runs after the first begin with a turn round,
+during which no camera fix is sent, so that the rover's heading there is its gyro's alone; its
+turn over the camera's is the scale (no parameter takes it: the camera's fixes correct the
+heading). Not measured, and why: the gyro's bias (the firmware measures it at every start, the
+rover still for its first second) and the sonar's offset (it needs a wall at a known place,
+which an open arena does not give).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import statistics
+
+from ..link import messages_gen as mg
+
+#: Drive commands of the runs [PWM], the length of each run [m].
+LEVELS_PWM = (60, 80, 105)
+RUN_M = 0.5
+#: The steady part of a run: after the motors' lag and the heading settling, before the slowing
+#: for the waypoint.
+TRIM_START_S = 0.5
+TRIM_END_S = 0.15
+#: A run needs this long a steady part and this many camera positions in it.
+MIN_STEADY_S = 0.8
+MIN_POSES = 15
+#: How long one run may take [s] (at 40 mm/s, 0.5 m takes 13 s, and the turn round a few).
+RUN_TIME_S = 45.0
+#: What the runs set: sweeps off (a sweep stops the rover), rotate-and-drive, and the level.
+RUN_PARAMS = [(mg.Param.SWEEP_INTERVAL_MM, 0), (mg.Param.SWEEP_AT_START, 0), (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
+              (mg.Param.DRIVE_MODE, int(mg.DriveMode.ROTATE_DRIVE))]
+#: Parameters the fit writes.
+WRITES = (mg.Param.SPEED_MM_S_PER_PWM_X1000, mg.Param.MOTOR_DEADBAND_PWM, mg.Param.RIGHT_BIAS_PERMILLE)
+
+
+class CalibrationFailed(Exception):
+    """The runs did not give what the fit needs (the reason, in one line)."""
+
+
+@dataclasses.dataclass
+class Run:
+    """What the host saw of one run: camera poses (t, x, y, heading) and STATUS (t, state, left,
+    right, heading_cdeg). A run that begins with a turn (turn_first) has no fixes sent while it
+    turns, so that the rover's heading there is its gyro's alone (gyro_scale)."""
+
+    level_pwm: int
+    start: tuple[float, float]
+    goal: tuple[float, float]
+    turn_first: bool = False
+    poses: list[tuple[float, float, float, float]] = dataclasses.field(default_factory=list)
+    status: list[tuple[float, int, int, int, int]] = dataclasses.field(default_factory=list)
+    start_sent_s: float | None = None    # when the host first sent START
+    error: str | None = None
+
+    def withhold(self) -> bool:
+        """Whether a camera fix is to be kept from the rover now: in a turn_first run, from the
+        host's START (the rover still, its heading fused with the camera's) until the rover
+        reports DRIVE (the turn done)."""
+        if not self.turn_first or self.start_sent_s is None:
+            return False
+        return not any(s[1] == mg.RoverState.DRIVE and s[0] > self.start_sent_s for s in self.status)
+
+    def gyro_scale(self) -> float | None:
+        """The rover's turn (its gyro alone, fixes withheld) over the camera's, or None without a
+        turn of 90 degrees or more measured whole."""
+        if not self.turn_first or self.start_sent_s is None:
+            return None
+        # From the last report before START (the rover still) to the first DRIVE report after it
+        # (the turn settled): at both ends the rover is still, so the camera's and the radio's
+        # delays do not matter.
+        i = next((k for k in range(len(self.status) - 1, -1, -1) if self.status[k][0] <= self.start_sent_s), None)
+        if i is None:
+            return None
+        j = next((k for k in range(i, len(self.status)) if self.status[k][1] == mg.RoverState.DRIVE), None)
+        if j is None:
+            return None
+        t_a, t_b = self.status[i][0], self.status[j][0]
+        rover = sum(_wrap_deg((b[4] - a[4]) / 100.0) for a, b in zip(self.status[i:j], self.status[i + 1:j + 1]))
+        # The camera's headings from the last before t_a to the first after t_b, unwrapped, and
+        # read at t_a and t_b by interpolation (the rover turns fast: a frame's 33 ms is degrees).
+        k0 = next((k for k in range(len(self.poses) - 1, -1, -1) if self.poses[k][0] <= t_a), None)
+        k1 = next((k for k, p in enumerate(self.poses) if p[0] >= t_b), None)
+        if k0 is None or k1 is None or k1 - k0 < 10:
+            return None
+        ts, hs = [self.poses[k0][0]], [self.poses[k0][3]]
+        for p in self.poses[k0 + 1:k1 + 1]:
+            hs.append(hs[-1] + _wrap_deg(p[3] - hs[-1]))
+            ts.append(p[0])
+
+        def at(t: float) -> float:
+            for q in range(1, len(ts)):
+                if ts[q] >= t:
+                    f = (t - ts[q - 1]) / (ts[q] - ts[q - 1]) if ts[q] > ts[q - 1] else 1.0
+                    return hs[q - 1] + f * (hs[q] - hs[q - 1])
+            return hs[-1]
+
+        seen = at(t_b) - at(t_a)
+        return rover / seen if abs(seen) >= 90.0 else None
+
+    def steady(self) -> tuple[float, float, float, int] | str:
+        """(speed m/s, mean left, mean right, poses used) over the steady part, or why not."""
+        drive = [s for s in self.status if s[1] == mg.RoverState.DRIVE]
+        if len(drive) < 2:
+            return self.error or "the rover never drove"
+        # The longest stretch of DRIVE reports (a run is one stretch; a stop for a reflex splits it).
+        stretches, cur = [], [drive[0]]
+        for s in drive[1:]:
+            if s[0] - cur[-1][0] > 0.5:
+                stretches.append(cur)
+                cur = []
+            cur.append(s)
+        stretches.append(cur)
+        best = max(stretches, key=lambda st: st[-1][0] - st[0][0])
+        t0, t1 = best[0][0] + TRIM_START_S, best[-1][0] - TRIM_END_S
+        if t1 - t0 < MIN_STEADY_S:
+            return f"it drove steadily for {max(t1 - t0, 0.0):.1f} s only (a run needs {MIN_STEADY_S} s)"
+        ux, uy = self.goal[0] - self.start[0], self.goal[1] - self.start[1]
+        n = math.hypot(ux, uy)
+        ux, uy = ux / n, uy / n
+        pts = [(t, (x - self.start[0]) * ux + (y - self.start[1]) * uy) for t, x, y, _ in self.poses if t0 <= t <= t1]
+        if len(pts) < MIN_POSES:
+            return f"the camera saw the rover {len(pts)} times while it drove (a run needs {MIN_POSES})"
+        speed = _slope(pts)
+        cmds = [s for s in best if t0 <= s[0] <= t1] or best
+        # The mean, not the median: a command is whole PWM, and the PID dithers it by one round a
+        # fraction the mean keeps (the balance is a few PWM in 25-70 above the dead band).
+        return speed, statistics.fmean(c[2] for c in cmds), statistics.fmean(c[3] for c in cmds), len(pts)
+
+
+@dataclasses.dataclass(frozen=True)
+class Fit:
+    mm_s_per_pwm: float
+    deadband_pwm: float
+    right_gain: float
+    residual_mm_s: float           # the speed line's RMS residual
+    gain_spread: float             # largest minus least g over the runs
+    runs: tuple[tuple[int, float, float, float], ...]   # level, speed m/s, left, right
+    gyro_scale: float | None = None   # the gyro's turn over the camera's (no parameter takes it)
+    gyro_turns: int = 0               # turns it was measured over
+
+    def params(self) -> dict[mg.Param, int]:
+        return {mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * self.mm_s_per_pwm),
+                mg.Param.MOTOR_DEADBAND_PWM: round(self.deadband_pwm),
+                mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / self.right_gain)}
+
+
+def _wrap_deg(d: float) -> float:
+    return (d + 180.0) % 360.0 - 180.0
+
+
+def _slope(pts: list[tuple[float, float]]) -> float:
+    n = len(pts)
+    mx = sum(p[0] for p in pts) / n
+    my = sum(p[1] for p in pts) / n
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx if sxx > 0 else 0.0
+
+
+def fit(runs: list[Run]) -> Fit:
+    """The motors' figures from the runs (CalibrationFailed says why there are none)."""
+    rows, why = [], []
+    for r in runs:
+        s = r.steady()
+        if isinstance(s, str):
+            why.append(f"{r.level_pwm} PWM: {s}")
+            continue
+        speed, left, right, _ = s
+        rows.append((r.level_pwm, speed, left, right))
+    if len(rows) < 2:
+        raise CalibrationFailed("fewer than two runs to fit a line through" + (f" ({'; '.join(why)})" if why else ""))
+    if len({round(row[2]) for row in rows}) < 2:
+        raise CalibrationFailed("the runs' commands were all alike: nothing to fit a line through")
+    pts = [(row[2], 1000.0 * row[1]) for row in rows]   # (left PWM, mm/s)
+    k = _slope(pts)
+    if not k > 0:
+        seen = ", ".join(f"{row[0]} PWM: {100 * row[1]:.1f} cm/s" for row in rows)
+        raise CalibrationFailed(f"the rover went no faster at higher commands ({seen}): are the motors powered?")
+    mx = sum(p[0] for p in pts) / len(pts)
+    my = sum(p[1] for p in pts) / len(pts)
+    d = mx - my / k
+    if not 0 <= d < min(row[2] for row in rows):
+        raise CalibrationFailed(f"the speeds put the dead band at {d:.0f} PWM, outside 0 to the least command: "
+                                "the runs were not steady (a slipping wheel, a rover held back?)")
+    resid = math.sqrt(sum((v - k * (x - d)) ** 2 for x, v in pts) / len(pts))
+    above = [(row[2] - d, row[3] - d) for row in rows if row[3] - d > 1.0]
+    if not above:
+        raise CalibrationFailed("the right motor's commands lay inside the dead band: no balance to measure")
+    # Pooled: the runs further above the dead band, where a PWM is a smaller share, count more.
+    g = sum(a for a, _ in above) / sum(b for _, b in above)
+    gains = [a / b for a, b in above]
+    scales = [v for v in (r.gyro_scale() for r in runs) if v is not None]
+    return Fit(k, d, g, resid, max(gains) - min(gains), tuple(rows),
+               statistics.median(scales) if scales else None, len(scales))
+
+
+def plan_runs(start_xy: tuple[float, float], heading_deg: float, levels=LEVELS_PWM,
+              run_m: float = RUN_M) -> list[tuple[int, tuple[float, float], tuple[float, float]]]:
+    """(level, start, goal) for each run: ahead from where the rover stands, then back, and so on."""
+    h = math.radians(heading_deg)
+    a = start_xy
+    b = (a[0] + run_m * math.sin(h), a[1] + run_m * math.cos(h))
+    out = []
+    for i, level in enumerate(levels):
+        out.append((level, a, b) if i % 2 == 0 else (level, b, a))
+    return out
+
+
+def check_room(start_xy, heading_deg: float, arena_w_m: float, arena_h_m: float, margin_m: float,
+               run_m: float = RUN_M) -> None:
+    """CalibrationFailed unless the runs' line lies margin_m inside the arena."""
+    (_, a, b) = plan_runs(start_xy, heading_deg, (0,), run_m)[0]
+    for x, y in (a, b):
+        if not (margin_m <= x <= arena_w_m - margin_m and margin_m <= y <= arena_h_m - margin_m):
+            raise CalibrationFailed(f"the runs go from ({a[0]:.2f}, {a[1]:.2f}) to ({b[0]:.2f}, {b[1]:.2f}) m, closer "
+                                    f"than {margin_m:.2f} m to the arena's edge: turn the rover to face "
+                                    f"{run_m + margin_m:.1f} m of open floor")
+
+
+def _watch_start(mission, run: Run, clock) -> None:
+    """Notes in `run` when the mission first sends START."""
+    send = mission._send
+
+    def sending(message, again: bool = False):
+        if isinstance(message, mg.Start) and run.start_sent_s is None:
+            run.start_sent_s = clock()
+        return send(message, again)
+
+    mission._send = sending
+
+
+# ---------------------------------------------------------------- in the simulator
+
+def runs_sim(config, setup=None, seed: int = 1, levels=LEVELS_PWM, progress=None) -> list[Run]:
+    """The runs against the simulated rover (a set-up's plant, or the usual one), each its own
+    simulation of the same rover, as on the real one: from the arena's middle, facing +x; then
+    back, from where the last run left it facing (so it turns round first); and so on."""
+    from ..scenario import Arena, Mission, Pose, Scenario, Target
+    from ..sim.runner import SimOptions, Simulation
+
+    w, h = config.arena.width_m, config.arena.height_m
+    start = (w / 2 - RUN_M / 2, h / 2)
+    runs = []
+    for i, (level, a, b) in enumerate(plan_runs(start, 90.0, levels)):
+        heading = 90.0 if i % 2 == 0 else 270.0
+        if i > 0:
+            heading = (heading + 180.0) % 360.0   # as the last run left it: facing away, to turn round
+        scenario = Scenario(name="calibrate-rover", arena=Arena(w, h), start=Pose(a[0], a[1], heading),
+                            target=Target(*b), mission=Mission("reach", 1), obstacles=(),
+                            description="rovernav calibrate rover's run")
+        cfg = dataclasses.replace(config, rover={**config.rover, **dict(RUN_PARAMS), mg.Param.DRIVE_PWM: level})
+        opts = SimOptions(seed=seed + i, max_time_s=RUN_TIME_S, config=cfg, setup=setup)
+        sim = Simulation(scenario, opts)
+        run = Run(level, a, b, turn_first=i > 0)
+        on_detection, on_status = sim.mission.on_detection, sim.mission._on_status
+
+        def saw(d, now, run=run, on_detection=on_detection):
+            if d.x_m is not None:
+                run.poses.append((d.t_s, d.x_m, d.y_m, d.heading_deg))
+            if not run.withhold():
+                on_detection(d, now)
+
+        def status(m, run=run, sim=sim, on_status=on_status):
+            run.status.append((sim.t, int(m.state), int(m.left_pwm), int(m.right_pwm), int(m.heading_cdeg)))
+            on_status(m)
+
+        sim.mission.on_detection = saw
+        sim.mission._on_status = status
+        _watch_start(sim.mission, run, lambda sim=sim: sim.t)
+        sim.run()
+        if sim.outcome != "reached":
+            run.error = f"the run ended: {sim.mission.error or sim.outcome}"
+        runs.append(run)
+        if progress is not None:
+            progress(i + 1, len(levels))
+    return runs
+
+
+# ---------------------------------------------------------------- on the real rover
+
+def runs_hardware(port: str, camera: str | None, config_path: str | None, levels=LEVELS_PWM,
+                  progress=None) -> list[Run]:
+    """The runs on the real rover on `port`, watched by `camera`, one mission a run on one link;
+    from where the camera first sees the rover, ahead the way it faces, then back. Every input is
+    checked before a device is opened (InputError, exit 2); the parameters the runs change are
+    given back, and the rover stopped, at the end."""
+    import os
+    import time
+
+    from ..config import load_config
+    from ..errors import CameraError, InputError
+    from ..hardware import _plain_file, _serial_port, camera_source, link_key, open_camera
+    from ..link.link import Link
+    from ..link.transport import SerialTransport
+    from ..mission import Detection
+    from ..mission.spec import MissionSpec
+    from ..vision import Locator
+
+    _plain_file(config_path, "configuration file")
+    cfg = load_config(config_path)
+    name, baud = _serial_port(port, cfg, config_path)
+    source = camera_source(camera or cfg.camera.source)
+    locator = Locator(cfg.vision, cfg.arena.width_m, cfg.arena.height_m)
+    key = link_key(cfg, config_path)
+    cap = open_camera(source)
+    transport = link = None
+    runs: list[Run] = []
+    try:
+        transport = SerialTransport(name, baud)
+        link = Link(transport, key=key)
+        t0 = time.monotonic()
+        first = None
+        while time.monotonic() - t0 < 5.0 and first is None:
+            ok, frame = cap.read()
+            if not ok:
+                raise CameraError(f"camera {str(source)!r} delivered no frame")
+            first = locator.locate(frame, time.monotonic() - t0).rover
+        if first is None:
+            raise CameraError("the camera did not find the rover in 5 s: run rovernav calibrate camera first")
+        x, y, heading = first
+        try:
+            check_room((x, y), heading, cfg.arena.width_m, cfg.arena.height_m, cfg.planner.inflation_m + 0.02)
+        except CalibrationFailed as exc:
+            raise InputError(str(exc)) from None
+        for i, (level, a, b) in enumerate(plan_runs((x, y), heading, levels)):
+            run = Run(level, a, b, turn_first=i > 0)
+            params = {**cfg.rover, **dict(RUN_PARAMS), mg.Param.DRIVE_PWM: level}
+            spec = MissionSpec.for_run(None, dataclasses.replace(cfg, rover=params), start_xy=a, target_xy=b,
+                                       host_boot_id=int.from_bytes(os.urandom(4), "little"))
+            mission = spec.build(link, on_event=lambda t, text: None)
+            on_status = mission._on_status
+
+            def status(m, run=run, on_status=on_status):
+                run.status.append((time.monotonic() - t0, int(m.state), int(m.left_pwm), int(m.right_pwm),
+                                   int(m.heading_cdeg)))
+                on_status(m)
+
+            mission._on_status = status
+            _watch_start(mission, run, lambda: time.monotonic() - t0)
+            started = time.monotonic()
+            while not mission.finished and time.monotonic() - started < RUN_TIME_S:
+                ok, frame = cap.read()
+                now = time.monotonic() - t0
+                if ok:
+                    det = locator.locate(frame, now)
+                    if det.rover is not None:
+                        run.poses.append((now, *det.rover))
+                        if not run.withhold():
+                            mission.on_detection(Detection(now, *det.rover), now)
+                    else:
+                        mission.on_detection(Detection(now, None, None, None, det.reason), now)
+                mission.tick(now)
+            if not mission.finished or mission.error:
+                run.error = f"the run ended: {mission.error or 'out of time'}"
+            runs.append(run)
+            if progress is not None:
+                progress(i + 1, len(levels))
+    finally:
+        if link is not None:
+            restore = [mg.Stop(reason=mg.StopReason.OPERATOR)] + [
+                mg.Config(param=int(p), value=int(cfg.rover.get(p, mg.PARAMS[p].default)))
+                for p, _ in RUN_PARAMS + [(mg.Param.DRIVE_PWM, 0)]]
+            for message in restore:
+                try:
+                    link.request(message, timeout_s=0.5, retries=3)
+                except Exception:   # noqa: BLE001 - the port may be gone; the runs say what was seen
+                    pass
+        cap.release()
+        if transport is not None:
+            transport.close()
+    return runs
+
+
+def write_params(path, fit_params: dict) -> None:
+    """Put the fitted parameters into FILE's [rover] table (other keys kept; made if missing),
+    checked as a configuration before it is written."""
+    import tomlkit
+
+    from ..config import ConfigError, config_from_dict
+    from ..errors import InputError
+    from ..files import write_atomic
+
+    if path.exists():
+        try:
+            doc = tomlkit.parse(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: cannot read it to update it: {getattr(exc, 'strerror', None) or exc}") from None
+        except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base
+            raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
+    else:
+        doc = tomlkit.document()
+        doc.add(tomlkit.comment("rovernav configuration; [rover] motor figures written by `rovernav calibrate rover`"))
+    if "rover" in doc and not isinstance(doc["rover"], dict):
+        raise InputError(f"{path}: [rover] is not a table, so it cannot be updated")
+    table = doc.get("rover")
+    if table is None:
+        table = tomlkit.table()
+        doc["rover"] = table
+    for p, v in fit_params.items():
+        table[mg.PARAMS[p].name] = int(v)
+    try:
+        config_from_dict(doc.unwrap(), where=f"{path}: ")
+    except ConfigError as exc:
+        raise InputError(f"the configuration would not load after the update: {exc}") from None
+    write_atomic(path, tomlkit.dumps(doc))

@@ -1,0 +1,150 @@
+"""`rovernav calibrate rover`: the motors' figures fitted from runs the camera watches."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rovernav.calibrate import rover as cr
+from rovernav.cli import main
+from rovernav.config import config_from_dict, load_config
+from rovernav.link import messages_gen as mg
+from rovernav.sim.setup import Setup, true_vision
+
+from test_avrsim import built  # noqa: E402,F401 - the module fixture: the Uno image and the simavr bridge
+
+DRIVE = int(mg.RoverState.DRIVE)
+
+
+def synthetic_run(level: int, k: float, d: float, g: float, hz: float = 30.0, drive_s: float = 4.0) -> cr.Run:
+    """A run as a rover of speed k mm/s per PWM above dead band d, its right motor g times the
+    left's, would give: straight along +x, the commands that hold it straight."""
+    left = float(level)
+    right = d + (left - d) / g
+    v = k * (left - d) / 1000.0
+    run = cr.Run(level, (0.5, 1.0), (1.0, 1.0))
+    for i in range(int(drive_s * hz)):
+        t = 1.0 + i / hz
+        run.poses.append((t, 0.5 + v * (t - 1.0), 1.0, 90.0))
+    for i in range(int(drive_s * 10)):
+        t = 1.0 + i / 10
+        # Whole PWM, dithered round the true command as the PID does.
+        run.status.append((t, DRIVE, int(left), int(right) + (1 if (i * (right % 1)) % 1 > 0.5 else 0), 9000))
+    return run
+
+
+def test_the_fit_recovers_the_motor_figures_it_was_made_from():
+    runs = [synthetic_run(level, 2.3, 34.0, 1.12) for level in cr.LEVELS_PWM]
+    f = cr.fit(runs)
+    assert f.mm_s_per_pwm == pytest.approx(2.3, rel=0.01)
+    assert f.deadband_pwm == pytest.approx(34.0, abs=0.5)
+    assert f.right_gain == pytest.approx(1.12, rel=0.03)
+    assert f.gyro_scale is None and f.gyro_turns == 0   # no run turned round first
+    assert f.params() == {mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * f.mm_s_per_pwm),
+                          mg.Param.MOTOR_DEADBAND_PWM: round(f.deadband_pwm),
+                          mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / f.right_gain)}
+
+
+@pytest.mark.parametrize("runs, reason", [
+    ([synthetic_run(60, 2.3, 34.0, 1.0)], "fewer than two runs"),
+    ([cr.Run(60, (0, 0), (1, 0)), cr.Run(80, (0, 0), (1, 0))], "never drove"),
+    ([synthetic_run(60, 2.3, 34.0, 1.0, drive_s=0.9), synthetic_run(80, 2.3, 34.0, 1.0, drive_s=0.9)],
+     "drove steadily for"),
+    ([synthetic_run(60, 2.3, 34.0, 1.0, hz=3.0), synthetic_run(80, 2.3, 34.0, 1.0, hz=3.0)], "the camera saw the rover"),
+])
+def test_runs_that_cannot_be_fitted_are_refused_with_the_reason(runs, reason):
+    with pytest.raises(cr.CalibrationFailed, match=reason):
+        cr.fit(runs)
+
+
+def test_speeds_that_do_not_rise_with_the_command_are_refused():
+    slow = synthetic_run(60, 2.3, 34.0, 1.0)
+    fast = synthetic_run(80, 2.3, 34.0, 1.0)
+    fast.poses = [(t, 0.5 + (x - 0.5) * 0.3, y, h) for t, x, y, h in fast.poses]   # slower at the higher command
+    with pytest.raises(cr.CalibrationFailed, match="no faster at higher commands"):
+        cr.fit([slow, fast])
+
+
+def test_in_the_simulator_a_set_up_s_motors_are_recovered_within_5_per_cent():
+    setup = Setup.random(9101)   # a seed nothing was tuned on
+    cfg = config_from_dict({"arena": {"width_m": 2.36, "height_m": 1.75},
+                            "vision": true_vision(setup, 2.36, 1.75).to_dict()})
+    f = cr.fit(cr.runs_sim(cfg, setup=setup))
+    p = setup.plant
+    assert f.mm_s_per_pwm == pytest.approx(p.mm_s_per_pwm, rel=0.05)
+    assert f.deadband_pwm == pytest.approx(p.deadband_pwm, rel=0.05)
+    assert f.right_gain == pytest.approx(p.right_gain, rel=0.05)
+    assert f.gyro_turns == 2   # the two runs that turned round first
+    assert f.gyro_scale == pytest.approx(p.gyro_scale, rel=0.05)
+    assert abs(f.gyro_scale - p.gyro_scale) < abs(1.0 - p.gyro_scale) or abs(1.0 - p.gyro_scale) < 0.01
+
+
+def test_the_command_fits_the_simulated_rover_and_writes_rover_keeping_the_rest(tmp_path, capsys):
+    conf = tmp_path / "rover.toml"
+    conf.write_text("# mine\n[arena]\nwidth_m = 2.36\nheight_m = 1.75\n\n[rover]\ndrive_pwm = 75 # kept\n")
+    assert main(["calibrate", "rover", "--sim", "--write", str(conf), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["written"] == str(conf)
+    assert len(out["runs"]) == len(cr.LEVELS_PWM)
+    text = conf.read_text()
+    assert "# mine" in text and "drive_pwm = 75 # kept" in text
+    cfg = load_config(conf)
+    # The default plant: 2.2 mm/s per PWM above 30, the right motor 1.10 x the left.
+    assert cfg.rover[mg.Param.SPEED_MM_S_PER_PWM_X1000] == pytest.approx(2200, rel=0.05)
+    assert cfg.rover[mg.Param.MOTOR_DEADBAND_PWM] == pytest.approx(30, abs=2)
+    assert cfg.rover[mg.Param.RIGHT_BIAS_PERMILLE] == pytest.approx(1000 / 1.10, rel=0.05)
+    assert cfg.rover[mg.Param.DRIVE_PWM] == 75
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["calibrate", "rover"], "give the rover's --port"),
+    (["calibrate", "rover", "--setup", "3"], "give the rover's --port"),
+    (["calibrate", "rover", "--port", "/dev/null", "--setup", "3"], "--setup is a simulated set-up"),
+    (["calibrate", "rover", "--sim", "--camera", "0"], "--camera watches the real rover"),
+    (["calibrate", "rover", "--sim", "--config", "/no/such.toml"], "no such configuration file"),
+    (["calibrate", "rover", "--sim", "--port", "x"], "not allowed with argument"),
+])
+def test_the_command_refuses_bad_input_in_one_line_exit_2(argv, says, capsys):
+    with pytest.raises(SystemExit) as e:
+        code = main(argv)
+        raise SystemExit(code)
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert says in err[-1]
+
+
+def test_runs_need_room_ahead_of_the_rover():
+    with pytest.raises(cr.CalibrationFailed, match="turn the rover to face"):
+        cr.check_room((2.2, 0.9), 90.0, 2.36, 1.75, 0.16)
+    cr.check_room((0.8, 0.9), 90.0, 2.36, 1.75, 0.16)
+
+
+def test_the_real_rover_path_over_a_serial_port_says_why_the_uno_image_gave_no_runs(built, tmp_path, capsys):
+    # `rovernav calibrate rover --port` end to end: the Uno image in simavr behind a
+    # pseudo-terminal (the bridge simulates no MPU6050, so the rover faults and never drives) and
+    # a video file for the camera (a still scene, the rover facing open floor).
+    import subprocess
+
+    import cv2
+    import numpy as np
+
+    from rovernav.sim.camera import Scene, render_frame
+    from test_avrsim import Bridge, _read_line
+
+    video = tmp_path / "still.avi"
+    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480))
+    frame = render_frame(Scene(rover=(0.8, 0.9, 90.0), target=(2.0, 1.4)), np.random.default_rng(1))
+    for _ in range(600):
+        out.write(frame)
+    out.release()
+    bridge_bin, elf = built
+    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", "90", str(elf)], tmp_path / "bridge.log",
+                    stdout=subprocess.PIPE)
+    try:
+        port = _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+        assert main(["calibrate", "rover", "--port", port, "--camera", str(video)]) == 1
+    finally:
+        bridge.stop()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("rovernav calibrate rover: could not calibrate: fewer than two runs")
+    assert "gyro_silent" in err[-1], err[-1]
