@@ -96,7 +96,10 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
   }
 }
 
-void Rover::on_fix(const msg::Fix& m, uint32_t now) {
+// Out of line: pasted into handle_frame, the estimator update's floats joined its 37-byte
+// message union on the stack, past the AVR's short (Y+63) offsets: a pair of pointer moves
+// round every spill.
+ROVERNAV_NOINLINE void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   if (step_work_ & (kWorkFix | kWorkReserved)) return;   // one FIX a step, none in a reserved one (see step())
   step_work_ = static_cast<uint8_t>(step_work_ | kWorkFix);
   PoseFix fix;
