@@ -23,7 +23,9 @@ int32_t sq(int32_t v) { return v * v; }
 
 // How far c lies outside the span between a and b (0 within it), in 16 bits without overflow:
 // the difference of two int16 is at most 65,535.
-uint16_t outside_span(int16_t c, int16_t a, int16_t b) {
+// Out of line: written out twice in blocks(), among its float locals, it took more flash than
+// the two calls.
+ROVERNAV_NOINLINE uint16_t outside_span(int16_t c, int16_t a, int16_t b) {
   const int16_t lo = a < b ? a : b, hi = a < b ? b : a;
   if (c < lo) return static_cast<uint16_t>(static_cast<uint16_t>(lo) - static_cast<uint16_t>(c));
   if (c > hi) return static_cast<uint16_t>(static_cast<uint16_t>(c) - static_cast<uint16_t>(hi));
