@@ -45,7 +45,7 @@ TwiResult result_of(uint8_t status, uint8_t expected) {
 
 TwiResult step(uint8_t flags, uint8_t expected) { return result_of(run_step(flags), expected); }
 
-TwiResult send_byte(uint8_t byte, uint8_t expected) {
+__attribute__((noinline)) TwiResult send_byte(uint8_t byte, uint8_t expected) {
   TWDR = byte;
   return step(0, expected);
 }
