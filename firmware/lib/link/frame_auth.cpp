@@ -24,7 +24,7 @@ __attribute__((noinline)) void FrameAuth::begin(const uint8_t* key) {
   for (uint8_t i = 0; i < kSipKeyBytes; ++i) key_[i] = keyed_ ? key[i] : 0;
 }
 
-void FrameAuth::resume(const Counter48& tx_persisted, const Counter48& rx_persisted) {
+__attribute__((noinline)) void FrameAuth::resume(const Counter48& tx_persisted, const Counter48& rx_persisted) {
   tx_last_ = tx_persisted;
   counter_add(tx_last_, kSignResetMargin);
   rx_last_ = rx_persisted;
