@@ -14,7 +14,7 @@ constexpr uint8_t kStatusTimedOut = 0xFF;
 
 // Hands the bus to the TWI for one step (a START, a byte, a STOP) by clearing TWINT, with
 // `flags` (TWSTA, TWSTO, TWEA) saying which step.
-void clear_twint(uint8_t flags) {
+__attribute__((noinline)) void clear_twint(uint8_t flags) {
   TWCR = static_cast<uint8_t>(_BV(TWINT) | _BV(TWEN) | flags);
 }
 
