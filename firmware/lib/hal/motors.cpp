@@ -56,7 +56,7 @@ void write_duty(Input input, uint8_t duty) {
   }
 }
 
-int16_t clamp_pwm(int16_t pwm) {
+__attribute__((noinline)) int16_t clamp_pwm(int16_t pwm) {
   if (pwm > board::kMotorPwmMax) return board::kMotorPwmMax;
   if (pwm < -board::kMotorPwmMax) return static_cast<int16_t>(-board::kMotorPwmMax);
   return pwm;
