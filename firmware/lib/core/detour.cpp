@@ -31,7 +31,7 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
   float left = ahead_mm;
   for (uint8_t i = wp_; i < path_len_; ++i) {
     const Waypoint to = path_[i];
-    const float dx = static_cast<float>(to.x_mm - from.x_mm), dy = static_cast<float>(to.y_mm - from.y_mm);
+    const float dx = to_float(to.x_mm - from.x_mm), dy = to_float(to.y_mm - from.y_mm);
     const float seg = length(dx, dy);
     if (seg >= left && seg > 0.0f) {
       const float f = left / seg;

@@ -116,7 +116,7 @@ ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms,
   for (uint8_t k = 1; k <= history_count_; ++k) {
     const Past& h = history_[(history_next_ + kHistory - k) % kHistory];
     const int32_t age = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - h.t_ms);
-    const float o[3] = {static_cast<float>(h.x_mm), static_cast<float>(h.y_mm), cdeg_to_rad(h.heading_cdeg)};
+    const float o[3] = {to_float(h.x_mm), to_float(h.y_mm), cdeg_to_rad(h.heading_cdeg)};
     if (age >= want) {
       if (age > n_age) {
         const float f = static_cast<float>(want - n_age) / static_cast<float>(age - n_age);
@@ -132,7 +132,7 @@ ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms,
 }
 
 FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
-  const float z[3] = {static_cast<float>(fix.x_mm), static_cast<float>(fix.y_mm), cdeg_to_rad(fix.heading_cdeg)};
+  const float z[3] = {to_float(fix.x_mm), to_float(fix.y_mm), cdeg_to_rad(fix.heading_cdeg)};
   const float r_pos = fix.sd_mm > 0 ? static_cast<float>(fix.sd_mm) * static_cast<float>(fix.sd_mm) : 4.0f;
   if (!initialised_) return start_from(z, r_pos);
   // Innovation against the pose when the frame was taken: the estimate less the odometry since.

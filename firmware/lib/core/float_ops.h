@@ -12,6 +12,11 @@
 namespace rovernav {
 namespace core {
 
+/// v as a float, for an int (16 bits on the Uno: a coordinate in mm, or the difference of two),
+/// out of line: written out, each conversion is a sign extension to 32 bits and the library
+/// call, a dozen bytes at each of some twenty uses.
+inline ROVERNAV_NOINLINE float to_float(int v) { return static_cast<float>(v); }
+
 /// v clamped to [lo, hi].
 inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
 

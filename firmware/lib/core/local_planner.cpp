@@ -70,7 +70,7 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
   // A disk whose centre lies farther than its radius outside the segment's bounding box cannot
   // reach the segment: an integer test that spares most disks the float geometry (the walk back
   // tests three cells a slice against every disk).
-  const float vx = static_cast<float>(b.x_mm - a.x_mm), vy = static_cast<float>(b.y_mm - a.y_mm);
+  const float vx = to_float(b.x_mm - a.x_mm), vy = to_float(b.y_mm - a.y_mm);
   for (uint8_t i = 0; i < n_; ++i) {
     ++ops_;
     const Disk& d = disks_[i];
@@ -78,7 +78,7 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
     const uint16_t r = static_cast<uint16_t>(d.r_mm - shrink_mm);
     if (outside_span(d.c.x_mm, a.x_mm, b.x_mm) > r || outside_span(d.c.y_mm, a.y_mm, b.y_mm) > r) continue;
     float t;
-    const float d2 = segment_distance2(static_cast<float>(d.c.x_mm - a.x_mm), static_cast<float>(d.c.y_mm - a.y_mm), vx, vy, t);
+    const float d2 = segment_distance2(to_float(d.c.x_mm - a.x_mm), to_float(d.c.y_mm - a.y_mm), vx, vy, t);
     const float rf = static_cast<float>(r);
     if (d2 < rf * rf) return true;
   }

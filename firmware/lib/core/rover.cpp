@@ -206,14 +206,14 @@ ROVERNAV_NOINLINE Point Rover::here_mm() const { return {saturate_i16(est_.x_mm(
 Waypoint Rover::target() const { return detour_i_ < detour_n_ ? detour_[detour_i_] : path_[wp_]; }
 
 ROVERNAV_NOINLINE float Rover::aim(Waypoint w, float* err_deg) const {
-  const float dx = static_cast<float>(w.x_mm) - est_.x_mm(), dy = static_cast<float>(w.y_mm) - est_.y_mm();
+  const float dx = to_float(w.x_mm) - est_.x_mm(), dy = to_float(w.y_mm) - est_.y_mm();
   if (err_deg != nullptr) *err_deg = wrap_rad(fast_atan2(dx, dy) - est_.heading_rad()) * kDegPerRad;
   return length(dx, dy);
 }
 
 float bearing_rad(Point a, Point b) {
   // Differences of int16 are exact as floats: one conversion each.
-  return fast_atan2(static_cast<float>(b.x_mm - a.x_mm), static_cast<float>(b.y_mm - a.y_mm));
+  return fast_atan2(to_float(b.x_mm - a.x_mm), to_float(b.y_mm - a.y_mm));
 }
 
 float Rover::cone_deg(float distance_mm) const {
@@ -231,8 +231,8 @@ uint8_t Rover::closest_target() const {
     const Waypoint a = path_[i], b = path_[i + 1];
     // Differences of int16 are exact as floats: one conversion each instead of two and a subtraction.
     float t;
-    const float d2 = segment_distance2(px - static_cast<float>(a.x_mm), py - static_cast<float>(a.y_mm),
-                                       static_cast<float>(b.x_mm - a.x_mm), static_cast<float>(b.y_mm - a.y_mm), t);
+    const float d2 = segment_distance2(px - to_float(a.x_mm), py - to_float(a.y_mm),
+                                       to_float(b.x_mm - a.x_mm), to_float(b.y_mm - a.y_mm), t);
     if (d2 < best) {
       best = d2;
       target = (i == 0 && t <= 0.0f) ? 0 : static_cast<uint8_t>(i + 1);
