@@ -116,8 +116,8 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   if (v > v_max) v = v_max;
   const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s
   const float per_pwm = mm_s_per_pwm();
-  float base = per_pwm > 0.0f ? static_cast<float>(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
-  const float floor_pwm = static_cast<float>(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
+  float base = per_pwm > 0.0f ? to_float(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
+  const float floor_pwm = to_float(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
   if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
   const float u = -omega_ccw * kDegPerRad * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
   set_wheels(base, u, true, out);

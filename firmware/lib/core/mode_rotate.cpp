@@ -43,7 +43,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   float u = heading_command(err, dt_s);
   // Lift the command over the motors' dead band, or small errors never close.
   if (fabsf(u) > 0.5f) {
-    float lifted = fabsf(u) + static_cast<float>(p.motor_deadband_pwm());
+    float lifted = fabsf(u) + to_float(p.motor_deadband_pwm());
     if (!(lifted < out_max)) lifted = out_max;
     u = u > 0.0f ? lifted : -lifted;
   }

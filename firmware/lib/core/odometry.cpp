@@ -86,7 +86,7 @@ ROVERNAV_NOINLINE float Rover::mm_s_per_pwm() const { return params_.speed_mm_s_
 
 float Rover::drive_speed_mm_s() const {
   const Params& p = params_;
-  const float v_mm_s = mm_s_per_pwm() * (p.drive_pwm() - static_cast<float>(p.motor_deadband_pwm()));
+  const float v_mm_s = mm_s_per_pwm() * (p.drive_pwm() - to_float(p.motor_deadband_pwm()));
   return v_mm_s > 0.0f ? v_mm_s : 0.0f;
 }
 
