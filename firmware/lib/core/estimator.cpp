@@ -133,7 +133,7 @@ ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms,
 
 FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   const float z[3] = {to_float(fix.x_mm), to_float(fix.y_mm), cdeg_to_rad(fix.heading_cdeg)};
-  const float r_pos = fix.sd_mm > 0 ? static_cast<float>(fix.sd_mm) * static_cast<float>(fix.sd_mm) : 4.0f;
+  const float r_pos = fix.sd_mm > 0 ? to_float(fix.sd_mm) * to_float(fix.sd_mm) : 4.0f;
   if (!initialised_) return start_from(z, r_pos);
   // Innovation against the pose when the frame was taken: the estimate less the odometry since.
   float h[3];
