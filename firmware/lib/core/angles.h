@@ -23,9 +23,12 @@ float wrap_rad(float a);
 
 ROVERNAV_NOINLINE inline float cdeg_to_rad(int32_t cdeg) { return static_cast<float>(cdeg) * (kRadPerDeg / 100.0f); }
 
+/// Out of line: kDegPerRad is four loads at each of its five uses.
+ROVERNAV_NOINLINE inline float rad_to_deg(float rad) { return rad * kDegPerRad; }
+
 /// To centidegrees in (-18000, 18000].
 inline int16_t rad_to_cdeg(float rad) {
-  const float c = wrap_rad(rad) * kDegPerRad * 100.0f;
+  const float c = rad_to_deg(wrap_rad(rad)) * 100.0f;
   const int32_t r = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
   return static_cast<int16_t>(r <= -18000 ? 18000 : r);
 }

@@ -119,7 +119,7 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   float base = per_pwm > 0.0f ? to_float(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
   const float floor_pwm = to_float(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
   if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
-  const float u = -omega_ccw * kDegPerRad * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
+  const float u = rad_to_deg(-omega_ccw) * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster
   set_wheels(base, u, true, out);
 }
 

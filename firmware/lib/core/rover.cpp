@@ -207,7 +207,7 @@ Waypoint Rover::target() const { return detour_i_ < detour_n_ ? detour_[detour_i
 
 ROVERNAV_NOINLINE float Rover::aim(Waypoint w, float* err_deg) const {
   const float dx = to_float(w.x_mm) - est_.x_mm(), dy = to_float(w.y_mm) - est_.y_mm();
-  if (err_deg != nullptr) *err_deg = wrap_rad(fast_atan2(dx, dy) - est_.heading_rad()) * kDegPerRad;
+  if (err_deg != nullptr) *err_deg = rad_to_deg(wrap_rad(fast_atan2(dx, dy) - est_.heading_rad()));
   return length(dx, dy);
 }
 
@@ -217,7 +217,7 @@ float bearing_rad(Point a, Point b) {
 }
 
 float Rover::cone_deg(float distance_mm) const {
-  return fast_atan2(params_.cone_tol_mm(), distance_mm) * kDegPerRad;
+  return rad_to_deg(fast_atan2(params_.cone_tol_mm(), distance_mm));
 }
 
 uint8_t Rover::closest_target() const {
