@@ -33,7 +33,7 @@ Waypoint Rover::rejoin_point(float ahead_mm) const {
     const Waypoint to = path_[i];
     const float dx = to_float(to.x_mm - from.x_mm), dy = to_float(to.y_mm - from.y_mm);
     const float seg = length(dx, dy);
-    if (seg >= left && seg > 0.0f) {
+    if (seg >= left && positive(seg)) {
       const float f = left / seg;
       Waypoint w = {saturate_i16(from.x_mm + f * dx), saturate_i16(from.y_mm + f * dy)};
       return w;

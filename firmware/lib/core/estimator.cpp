@@ -36,7 +36,7 @@ ROVERNAV_NOINLINE float sequential_update(const float* z, const float* h, const 
     if (j == T) v = wrap_rad(v);
     const float* pj = P + 3 * j;
     const float sj = pj[j] + (j == T ? kFixHeadingVar : r_pos);
-    if (!(sj > 0.0f)) return -1.0f;
+    if (!positive(sj)) return -1.0f;
     const float inv_sj = 1.0f / sj;   // one division, not four (28 us each on the Uno)
     chi2 += v * v * inv_sj;
     // P -= k P[j], k = P[., j] / sj. Row j goes last: the other rows need it unchanged.

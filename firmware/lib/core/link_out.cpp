@@ -74,7 +74,7 @@ ROVERNAV_NOINLINE void Rover::send_status() {
   s.sd_x_mm = saturate_u16(sd_x);
   s.sd_y_mm = saturate_u16(sd_y);
   const float denom = sd_x * sd_y;
-  s.corr_xy_permille = denom > 0.0f ? saturate_i16(1000.0f * est_.p(Estimator::kXY) / denom) : 0;
+  s.corr_xy_permille = positive(denom) ? saturate_i16(1000.0f * est_.p(Estimator::kXY) / denom) : 0;
   s.sd_heading_cdeg = saturate_u16(rad_to_deg(sqrt_or_zero(est_.p(Estimator::kTT))) * 100.0f);
   s.dr_distance_mm = saturate_u16(dr_distance_mm_);
   s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;

@@ -17,7 +17,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
   if (reflex(in, now, l, out)) return;
 
   const float sweep_mm = p.sweep_interval_mm();
-  const bool sweep_due = sweep_mm > 0.0f && sweep_distance_mm_ >= sweep_mm;   // 0 disables sweeps
+  const bool sweep_due = positive(sweep_mm) && sweep_distance_mm_ >= sweep_mm;   // 0 disables sweeps
   if (p.pose_law()) {
     if (sweep_due) {
       start_sweep(now);
@@ -80,7 +80,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
   // A sharp turn on the spot swings the rover's corners wider than its sides: look round first,
   // unless it has only just done so (the sweep then hands over to the rotation).
   const float look_deg = params_.sweep_before_turn_deg();
-  if (look_deg > 0.0f && turn_deg > look_deg && sweep_distance_mm_ >= static_cast<float>(kTurnLookAfterMm)) {
+  if (positive(look_deg) && turn_deg > look_deg && sweep_distance_mm_ >= static_cast<float>(kTurnLookAfterMm)) {
     start_sweep(last_ms_);
     return false;
   }
@@ -116,7 +116,7 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   if (v > v_max) v = v_max;
   const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s
   const float per_pwm = mm_s_per_pwm();
-  float base = per_pwm > 0.0f ? to_float(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
+  float base = positive(per_pwm) ? to_float(p.motor_deadband_pwm()) + v / per_pwm : 0.0f;
   const float floor_pwm = to_float(p.motor_deadband_pwm()) + kPoseMinAbovePwm;
   if (base < floor_pwm) base = floor_pwm;   // keep creeping in: below the dead band it would stall
   const float u = rad_to_deg(-omega_ccw) * p.pose_pwm_per_dps();   // clockwise turn: left wheel faster

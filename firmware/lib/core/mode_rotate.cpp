@@ -45,7 +45,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   if (fabsf(u) > 0.5f) {
     float lifted = fabsf(u) + to_float(p.motor_deadband_pwm());
     if (!(lifted < out_max)) lifted = out_max;
-    u = u > 0.0f ? lifted : -lifted;
+    u = positive(u) ? lifted : -lifted;
   }
   set_wheels(0.0f, u, false, out);
   return true;

@@ -37,7 +37,7 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   float d_mm = 0.0f;
   float var_d = 0.0f;
   const float mm_per_tick = params_.wheel_mm_per_tick();
-  if (in.wheels_valid && mm_per_tick > 0.0f) {
+  if (in.wheels_valid && positive(mm_per_tick)) {
     d_mm = 0.5f * static_cast<float>(in.left_ticks + in.right_ticks) * mm_per_tick;
     var_d = kEncoderVarPerMm * fabsf(d_mm);
   } else {
@@ -87,7 +87,7 @@ ROVERNAV_NOINLINE float Rover::mm_s_per_pwm() const { return params_.speed_mm_s_
 float Rover::drive_speed_mm_s() const {
   const Params& p = params_;
   const float v_mm_s = mm_s_per_pwm() * (p.drive_pwm() - to_float(p.motor_deadband_pwm()));
-  return v_mm_s > 0.0f ? v_mm_s : 0.0f;
+  return positive(v_mm_s) ? v_mm_s : 0.0f;
 }
 
 }  // namespace core

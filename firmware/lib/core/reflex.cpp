@@ -4,6 +4,7 @@
 
 #include <math.h>
 #include "angles.h"
+#include "float_ops.h"
 #include "progmem.h"
 
 namespace rovernav {
@@ -72,7 +73,7 @@ bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) con
   const float along_mm = r * cosf(look);
   if (along_mm > reflex_range_mm()) return false;   // the stopping range, measured along the way
   const float nearest_side = look - p.sonar_half_cone_rad();
-  const float lateral_mm = nearest_side > 0.0f ? r * sinf(nearest_side) : 0.0f;
+  const float lateral_mm = positive(nearest_side) ? r * sinf(nearest_side) : 0.0f;
   if (lateral_mm > p.robot_radius_mm()) return false;
   return along_mm + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
 }

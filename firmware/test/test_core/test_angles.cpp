@@ -1,8 +1,10 @@
 // The angle helpers against the C library, over the whole plane.
 #include <doctest/doctest.h>
 #include <math.h>
+#include <string.h>
 
 #include "angles.h"
+#include "float_ops.h"
 #include "rover.h"
 
 using namespace rovernav::core;
@@ -54,4 +56,25 @@ TEST_CASE("wrap_rad: into (-pi, pi] within four turns; NaN and huge values do no
   CHECK(wrap_rad(0.5f) == 0.5f);
   CHECK(isnan(wrap_rad(NAN)));
   CHECK(wrap_rad(1e30f) == 1e30f);   // beyond the bounded loop: returned, not looped on
+}
+
+TEST_CASE("positive is v > 0.0f: zeros, denormals, infinities, NaNs and a sweep of every bit pattern's class") {
+  const uint32_t edges[] = {0x00000000u, 0x00000001u, 0x007FFFFFu, 0x00800000u, 0x3F800000u, 0x7F7FFFFFu,
+                            0x7F800000u, 0x7F800001u, 0x7FC00000u, 0x7FFFFFFFu, 0x80000000u, 0x80000001u,
+                            0xBF800000u, 0xFF800000u, 0xFF800001u, 0xFFC00000u, 0xFFFFFFFFu};
+  for (uint32_t b : edges) {
+    float v;
+    memcpy(&v, &b, sizeof v);
+    CHECK(positive(v) == (v > 0.0f));
+  }
+  // Every 4,099th pattern (a prime stride: every exponent, both signs, mantissas of all kinds);
+  // all 2^32 agree too, which takes a native build some seconds.
+  uint32_t wrong = 0;
+  for (uint64_t i = 0; i <= 0xFFFFFFFFull; i += 4099) {
+    const uint32_t b = static_cast<uint32_t>(i);
+    float v;
+    memcpy(&v, &b, sizeof v);
+    if (positive(v) != (v > 0.0f)) ++wrong;
+  }
+  CHECK(wrong == 0);
 }
