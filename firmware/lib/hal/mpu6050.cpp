@@ -27,7 +27,7 @@ constexpr uint16_t kResetSettleMs = 100;
 bool is_clone_id(uint8_t id) { return id == 0x70 || id == 0x72 || id == 0x98; }
 
 // An if-chain, not a switch: GCC turns that switch into a lookup table in RAM.
-MpuResult from_twi(TwiResult r) {
+__attribute__((noinline)) MpuResult from_twi(TwiResult r) {
   if (r == TwiResult::Ok) return MpuResult::Ok;
   if (r == TwiResult::NoAck) return MpuResult::NotFound;
   if (r == TwiResult::Timeout) return MpuResult::Timeout;
