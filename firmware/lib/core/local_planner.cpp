@@ -66,6 +66,20 @@ bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm) con
   return false;
 }
 
+bool LocalPlanner::beside(Point p, int16_t fx_q8, int16_t fy_q8, uint16_t clearance_mm) const {
+  for (uint8_t i = 0; i < n_; ++i) {
+    const Disk& d = disks_[i];
+    const int16_t arc = static_cast<int16_t>(d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0);
+    // In 16 bits: the echoes are of the last sweep, within a few metres of the rover.
+    const int16_t dx = static_cast<int16_t>(d.c.x_mm - p.x_mm), dy = static_cast<int16_t>(d.c.y_mm - p.y_mm);
+    const int16_t along = static_cast<int16_t>((static_cast<int32_t>(dx) * fx_q8 + static_cast<int32_t>(dy) * fy_q8) >> 8);
+    int16_t side = static_cast<int16_t>((static_cast<int32_t>(dx) * fy_q8 - static_cast<int32_t>(dy) * fx_q8) >> 8);
+    if (side < 0) side = static_cast<int16_t>(-side);
+    if (along > -kBehindMm && along < kFaceRunMm && side < kSideReachMm + arc && side + arc > kHalfWidthMm) return true;
+  }
+  return false;
+}
+
 bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
   // A disk whose centre lies farther than its radius outside the segment's bounding box cannot
   // reach the segment: an integer test that spares most disks the float geometry (the walk back

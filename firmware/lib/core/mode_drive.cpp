@@ -78,9 +78,14 @@ bool Rover::reached_waypoint(float& l, float& err) {
     return true;
   }
   // A sharp turn on the spot swings the rover's corners wider than its sides: look round first,
-  // unless it has only just done so (the sweep then hands over to the rotation).
+  // unless it has only just done so facing about this way (the sweep then hands over to the
+  // rotation). A sweep that looked the other way saw nothing of what is round it now: a rover
+  // that turned about after a sweep and met its next waypoint within 100 mm turned again into
+  // a wall's end no beam had covered (arena 157).
   const float look_deg = params_.sweep_before_turn_deg();
-  if (positive(look_deg) && turn_deg > look_deg && sweep_distance_mm_ >= static_cast<float>(kTurnLookAfterMm)) {
+  const bool looked = sweep_distance_mm_ < static_cast<float>(kTurnLookAfterMm) &&
+                      fabsf(wrap_rad(est_.heading_rad() - sweep_heading_rad_)) <= static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg;
+  if (positive(look_deg) && turn_deg > look_deg && !looked) {
     start_sweep(last_ms_);
     return false;
   }

@@ -51,10 +51,16 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   return true;
 }
 
-// Whether the last sweep saw nothing within reach of the corners as the rover turns on the spot.
+// Whether the last sweep saw nothing within reach of the corners as the rover turns on the spot:
+// no echo within kSwingMm of the centre, and none abeam whose face may run back alongside the
+// body (the sweep looks from the sonar, 100 mm ahead: it never sees the face beside the rear
+// half, which a turn either way swings a corner into).
 bool Rover::room_to_turn() const {
   const Point c = here_mm();
-  return !local_.within(c, saturate_u16(params_.clearance_mm()), kSwingMm);
+  const uint16_t clear = saturate_u16(params_.clearance_mm());
+  if (local_.within(c, clear, kSwingMm)) return false;
+  const float h = est_.heading_rad();
+  return !local_.beside(c, static_cast<int16_t>(256.0f * sinf(h)), static_cast<int16_t>(256.0f * cosf(h)), clear);
 }
 
 // Backing out: straight back, holding the heading, the way the rover came (the only ground it

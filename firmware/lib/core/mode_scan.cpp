@@ -49,6 +49,7 @@ void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
     }
     for (uint8_t i = 0; i < kSayTimes; ++i) send_event(EventKind::ScanDone, scan_echoes_);   // as the echoes (report_echo)
     sweep_distance_mm_ = 0.0f;
+    sweep_heading_rad_ = est_.heading_rad();
     enter(RoverState::Rotate);
     replan_locally();
   }

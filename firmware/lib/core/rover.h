@@ -109,6 +109,7 @@ struct RoverFields {
   // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
   Sweep sweep_;
   float sweep_distance_mm_ = 0.0f;
+  float sweep_heading_rad_ = 0.0f;            // the heading the last sweep looked from
   int16_t servo_cdeg_ = 0;
   uint16_t scan_id_ = 0;
   uint8_t scan_echoes_ = 0;
@@ -163,7 +164,8 @@ class Rover : private RoverFields {
     kSayTimes = 3,              // each echo and SCAN_DONE is said this many times (a lossy radio)
     kReflexLatencyMs = 150,     // ping result one step late, motor lag and coasting, in the stopping distance
     kReflexLooks = 6,           // the directions the reflex's pings cycle through
-    kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent
+    kTurnLookAfterMm = 100,     // a sharp turn is preceded by a sweep unless one was this recent,
+    kTurnLookCoverDeg = 45,     // ... and looked from within this of the heading the rover has now
     // The rover's corners swing within 129 mm of its centre (its half-diagonal). The sweep sees
     // from the sonar, 100 mm ahead of the centre: a face seen abeam of it may run back alongside
     // the rover, into that swing. An echo within kSwingMm of the centre (less its arc) counts as

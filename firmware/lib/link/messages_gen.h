@@ -173,7 +173,7 @@ enum class Param : uint8_t {
   SonarOffsetMm = 32,  ///< [mm] geometry: how far ahead of the rover's centre the ultrasonic ranger sits
   SonarConeCdeg = 33,  ///< [cdeg] geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it
   SweepAtStart = 34,  ///< [bool] 1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)
-  SweepBeforeTurnDeg = 35,  ///< [deg] at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm): its corners swing wider than its sides; 0 disables
+  SweepBeforeTurnDeg = 35,  ///< [deg] at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm, facing within 45 degrees of its heading): its corners swing wider than its sides; 0 disables
 };
 enum : uint8_t { kParamMaxId = 35 };
 

@@ -249,3 +249,29 @@ TEST_CASE("with something within reach of its corners the rover backs out before
   CHECK(backed);
   CHECK_FALSE(touched);
 }
+
+TEST_CASE("a wall seen abeam is taken to run back alongside: the rover backs out past it before it turns") {
+  // Facing north beside a wall on its left whose face is 115 mm from the centre (the body's
+  // side is 75 mm out, its corners swing to 129 mm), running from 90 mm behind the centre to
+  // well ahead. The sweep sees it only from the sonar, 100 mm ahead. Turning clockwise to the
+  // south-east swings the rear-left corner into it unless the rover first backs out past the
+  // wall's end (arena-0100 and arena-0003 crashed so at 1-2 % radio loss).
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  b.set_box(160.0f, 555.0f, 50.0f, 690.0f);   // x 135..185, y 210..900
+  REQUIRE_FALSE(corner_in_box(b));
+  const core::Waypoint away[] = {{300, 300}, {600, 50}};   // bearing 130 degrees
+  b.start_mission(away, 2);
+  bool backed = false, touched = false;
+  float least_y = 1e9f;
+  REQUIRE(b.run_until([&] {
+    backed = backed || b.rover.state() == RoverState::BackOff;
+    touched = touched || corner_in_box(b);
+    if (b.rover.state() == RoverState::BackOff) least_y = fminf(least_y, b.plant.y_mm);
+    return b.rover.state() == RoverState::Arrived;
+  }, 30000));
+  CHECK(backed);
+  CHECK_FALSE(touched);
+  CHECK(least_y < 170.0f);   // backed about 150 mm: a corner swings to 45 mm ahead of the centre
+}

@@ -167,3 +167,32 @@ TEST_CASE("before a sharp turn on the spot the rover sweeps, unless it has only 
   REQUIRE(off.run_until([&] { return off.rover.state() == RoverState::Arrived; }, 60000));
   CHECK(off.events(EventKind::ScanDone) == 1);            // only the look before moving
 }
+
+TEST_CASE("a sharp turn soon after a sweep that looked the other way is looked round first") {
+  // The look before moving faces north; the rover turns about, drives 70 mm south (less than
+  // the 100 mm that makes a sweep old) and must turn east there: what is round it now, no beam
+  // of that sweep covered (arena 157 turned into a wall's end so).
+  Bench b;
+  b.without_periodic_sweeps();
+  const core::Waypoint about[] = {{300, 300}, {300, 230}, {600, 230}};
+  b.start_mission(about, 3);
+  int sweeps = 0;
+  float at_y[4] = {0, 0, 0, 0};
+  RoverState last = RoverState::Idle;
+  while (b.rover.state() != RoverState::Arrived && b.now_ms < 60000) {
+    if (b.rover.state() == RoverState::Scan && last != RoverState::Scan && sweeps < 4) at_y[sweeps++] = b.plant.y_mm;
+    last = b.rover.state();
+    b.step();
+  }
+  REQUIRE(b.rover.state() == RoverState::Arrived);
+  REQUIRE(sweeps == 2);                      // before moving, and at the turn after turning about
+  CHECK(fabsf(at_y[1] - 230.0f) <= 40.0f);   // at the second waypoint
+
+  // Facing the way the last sweep looked, a turn within 100 mm of it needs no new look.
+  Bench same;
+  same.without_periodic_sweeps();
+  const core::Waypoint on[] = {{300, 300}, {300, 370}, {600, 370}};
+  same.start_mission(on, 3);
+  REQUIRE(same.run_until([&] { return same.rover.state() == RoverState::Arrived; }, 60000));
+  CHECK(same.events(EventKind::ScanDone) == 1);
+}

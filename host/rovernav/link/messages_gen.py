@@ -261,7 +261,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.SONAR_OFFSET_MM: ParamSpec(32, 'sonar_offset_mm', 'mm', 100, 0, 300, "geometry: how far ahead of the rover's centre the ultrasonic ranger sits"),
     Param.SONAR_CONE_CDEG: ParamSpec(33, 'sonar_cone_cdeg', 'cdeg', 1500, 100, 9000, "geometry: the ranger's beam width (HC-SR04: 15 degrees); an echo may come from anywhere across it"),
     Param.SWEEP_AT_START: ParamSpec(34, 'sweep_at_start', 'bool', 1, 0, 1, '1: a mission begins with a sweep, before the rover first turns or moves (0: as the seed, it starts blind)'),
-    Param.SWEEP_BEFORE_TURN_DEG: ParamSpec(35, 'sweep_before_turn_deg', 'deg', 30, 0, 180, 'at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm): its corners swing wider than its sides; 0 disables'),
+    Param.SWEEP_BEFORE_TURN_DEG: ParamSpec(35, 'sweep_before_turn_deg', 'deg', 30, 0, 180, 'at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm, facing within 45 degrees of its heading): its corners swing wider than its sides; 0 disables'),
 }
 
 
