@@ -184,7 +184,10 @@ def fit(runs: list[Run]) -> Fit:
         speed, left, right, _ = s
         rows.append((r.level_pwm, speed, left, right))
     if len(rows) < 2:
-        raise CalibrationFailed("fewer than two runs to fit a line through" + (f" ({'; '.join(why)})" if why else ""))
+        reasons = {w.split(": ", 1)[1] for w in why}
+        said = (f" (every run: {reasons.pop()})" if len(reasons) == 1 and len(why) == len(runs)
+                else f" ({'; '.join(why)})" if why else "")
+        raise CalibrationFailed("fewer than two runs to fit a line through" + said)
     if len({round(row[2]) for row in rows}) < 2:
         raise CalibrationFailed("the runs' commands were all alike: nothing to fit a line through")
     pts = [(row[2], 1000.0 * row[1]) for row in rows]   # (left PWM, mm/s)
@@ -231,6 +234,18 @@ def check_room(start_xy, heading_deg: float, arena_w_m: float, arena_h_m: float,
             raise CalibrationFailed(f"the runs go from ({a[0]:.2f}, {a[1]:.2f}) to ({b[0]:.2f}, {b[1]:.2f}) m, closer "
                                     f"than {margin_m:.2f} m to the arena's edge: turn the rover to face "
                                     f"{run_m + margin_m:.1f} m of open floor")
+
+
+def run_error(mission, finished: bool) -> str | None:
+    """Why a run's mission ended short, in words (None: it reached its goal): a fault the rover
+    reports by name first (rovernav check says what to do about it)."""
+    code = mission.last_status.fault if mission.last_status is not None else 0
+    if code:
+        name = mg.FaultCode(code).name.lower() if code in mg.FaultCode._value2member_map_ else f"code {code}"
+        return f"the rover reports a fault, {name} (rovernav check names what to fix)"
+    if not finished:
+        return "the run took longer than it may"
+    return None if mission.error is None else f"the run ended: {mission.error}"
 
 
 def _watch_start(mission, run: Run, clock) -> None:
@@ -284,8 +299,7 @@ def runs_sim(config, setup=None, seed: int = 1, levels=LEVELS_PWM, progress=None
         sim.mission._on_status = status
         _watch_start(sim.mission, run, lambda sim=sim: sim.t)
         sim.run()
-        if sim.outcome != "reached":
-            run.error = f"the run ended: {sim.mission.error or sim.outcome}"
+        run.error = run_error(sim.mission, sim.outcome != "timeout")
         runs.append(run)
         if progress is not None:
             progress(i + 1, len(levels))
@@ -366,8 +380,7 @@ def runs_hardware(port: str, camera: str | None, config_path: str | None, levels
                     else:
                         mission.on_detection(Detection(now, None, None, None, det.reason), now)
                 mission.tick(now)
-            if not mission.finished or mission.error:
-                run.error = f"the run ended: {mission.error or 'out of time'}"
+            run.error = run_error(mission, mission.finished)
             runs.append(run)
             if progress is not None:
                 progress(i + 1, len(levels))
