@@ -6,6 +6,7 @@ the host's own frame decoder. Skipped when the AVR toolchain or simavr's headers
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import select
@@ -96,6 +97,34 @@ class Bridge:
                 stream.close()
         self._log_file.close()
         return code
+
+
+@contextlib.contextmanager
+def uno_on_a_pty(built: tuple[Path, Path], log: Path, seconds: int):
+    """The Uno image in simavr behind a pseudo-terminal for `seconds`: yields the port's path."""
+    bridge_bin, elf = built
+    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", str(seconds), str(elf)], log,
+                    stdout=subprocess.PIPE)
+    try:
+        yield _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+    finally:
+        bridge.stop()
+
+
+def still_video(path: Path, rover: tuple[float, float, float], target: tuple[float, float], frames: int) -> Path:
+    """A video file of one rendered scene, `frames` frames at 30 per second: a camera for a rover
+    that does not move (the Uno image in simavr has no plant)."""
+    import cv2
+    import numpy as np
+
+    from rovernav.sim.camera import Scene, render_frame
+
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480))
+    frame = render_frame(Scene(rover=rover, target=target), np.random.default_rng(1))
+    for _ in range(frames):
+        out.write(frame)
+    out.release()
+    return path
 
 
 def _read_line(stream, timeout: float) -> bytes:

@@ -123,28 +123,11 @@ def test_the_real_rover_path_over_a_serial_port_says_why_the_uno_image_gave_no_r
     # `rovernav calibrate rover --port` end to end: the Uno image in simavr behind a
     # pseudo-terminal (the bridge simulates no MPU6050, so the rover faults and never drives) and
     # a video file for the camera (a still scene, the rover facing open floor).
-    import subprocess
+    from test_avrsim import still_video, uno_on_a_pty
 
-    import cv2
-    import numpy as np
-
-    from rovernav.sim.camera import Scene, render_frame
-    from test_avrsim import Bridge, _read_line
-
-    video = tmp_path / "still.avi"
-    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480))
-    frame = render_frame(Scene(rover=(0.8, 0.9, 90.0), target=(2.0, 1.4)), np.random.default_rng(1))
-    for _ in range(600):
-        out.write(frame)
-    out.release()
-    bridge_bin, elf = built
-    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", "90", str(elf)], tmp_path / "bridge.log",
-                    stdout=subprocess.PIPE)
-    try:
-        port = _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+    video = still_video(tmp_path / "still.avi", (0.8, 0.9, 90.0), (2.0, 1.4), 600)
+    with uno_on_a_pty(built, tmp_path / "bridge.log", 90) as port:
         assert main(["calibrate", "rover", "--port", port, "--camera", str(video)]) == 1
-    finally:
-        bridge.stop()
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("rovernav calibrate rover: could not calibrate: fewer than two runs")
     assert "gyro_silent" in err[-1], err[-1]

@@ -71,29 +71,11 @@ def test_a_set_up_checks_with_its_calibrated_configuration_and_not_without(tmp_p
 def test_the_real_rover_path_over_a_serial_port_names_the_uno_image_s_missing_gyro(built, tmp_path, capsys):
     # `rovernav check --port` end to end: the Uno image in simavr behind a pseudo-terminal (the
     # bridge simulates no MPU6050) and a video file for the camera (a still scene, rover in view).
-    import subprocess
+    from test_avrsim import still_video, uno_on_a_pty
 
-    import cv2
-    import numpy as np
-
-    from rovernav.sim.camera import Scene, render_frame
-    from test_avrsim import Bridge, _read_line
-
-    video = tmp_path / "still.avi"
-    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480))
-    rng = np.random.default_rng(1)
-    frame = render_frame(Scene(rover=(1.0, 0.9, 90.0), target=(2.0, 1.4)), rng)
-    for _ in range(300):
-        out.write(frame)
-    out.release()
-    bridge_bin, elf = built
-    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", "60", str(elf)], tmp_path / "bridge.log",
-                    stdout=subprocess.PIPE)
-    try:
-        port = _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+    video = still_video(tmp_path / "still.avi", (1.0, 0.9, 90.0), (2.0, 1.4), 300)
+    with uno_on_a_pty(built, tmp_path / "bridge.log", 60) as port:
         assert main(["check", "--port", port, "--camera", str(video), "--json"]) == 1
-    finally:
-        bridge.stop()
     result = json.loads(capsys.readouterr().out)
     status = {c["name"]: (c["status"], c["text"]) for c in result["checks"]}
     assert status["link"][0] == "ok" and "unsigned" in status["link"][1], status["link"]

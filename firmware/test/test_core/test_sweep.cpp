@@ -143,19 +143,30 @@ TEST_CASE("a sonar that never answers costs a timeout per step, and the rover go
   CHECK(b.rover.rx_counters().frames_ok > 0);
 }
 
+namespace {
+// Runs the mission to its end (60 s at most): how many sweeps began, and the y of the first four.
+int sweeps_until_arrived(Bench& b, float* at_y) {
+  int sweeps = 0;
+  RoverState last = RoverState::Idle;
+  while (b.rover.state() != RoverState::Arrived && b.now_ms < 60000) {
+    if (b.rover.state() == RoverState::Scan && last != RoverState::Scan) {
+      if (sweeps < 4) at_y[sweeps] = b.plant.y_mm;
+      ++sweeps;
+    }
+    last = b.rover.state();
+    b.step();
+  }
+  return sweeps;
+}
+}  // namespace
+
 TEST_CASE("before a sharp turn on the spot the rover sweeps, unless it has only just swept") {
   Bench b;
   b.without_periodic_sweeps();   // only the looks before moving and before turning
   const core::Waypoint corner[] = {{300, 300}, {300, 700}, {800, 700}};   // north 400 mm, then east
   b.start_mission(corner, 3);
-  int sweeps = 0;
   float at_y[4] = {0, 0, 0, 0};
-  RoverState last = RoverState::Idle;
-  while (b.rover.state() != RoverState::Arrived && b.now_ms < 60000) {
-    if (b.rover.state() == RoverState::Scan && last != RoverState::Scan && sweeps < 4) at_y[sweeps++] = b.plant.y_mm;
-    last = b.rover.state();
-    b.step();
-  }
+  const int sweeps = sweeps_until_arrived(b, at_y);
   REQUIRE(b.rover.state() == RoverState::Arrived);
   REQUIRE(sweeps == 2);                                   // before moving, and at the corner
   CHECK(fabsf(at_y[1] - 700.0f) <= 40.0f);   // within the arrival radius of the corner
@@ -176,14 +187,8 @@ TEST_CASE("a sharp turn soon after a sweep that looked the other way is looked r
   b.without_periodic_sweeps();
   const core::Waypoint about[] = {{300, 300}, {300, 230}, {600, 230}};
   b.start_mission(about, 3);
-  int sweeps = 0;
   float at_y[4] = {0, 0, 0, 0};
-  RoverState last = RoverState::Idle;
-  while (b.rover.state() != RoverState::Arrived && b.now_ms < 60000) {
-    if (b.rover.state() == RoverState::Scan && last != RoverState::Scan && sweeps < 4) at_y[sweeps++] = b.plant.y_mm;
-    last = b.rover.state();
-    b.step();
-  }
+  const int sweeps = sweeps_until_arrived(b, at_y);
   REQUIRE(b.rover.state() == RoverState::Arrived);
   REQUIRE(sweeps == 2);                      // before moving, and at the turn after turning about
   CHECK(fabsf(at_y[1] - 230.0f) <= 40.0f);   // at the second waypoint
