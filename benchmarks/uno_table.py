@@ -103,13 +103,14 @@ def main(argv: list[str] | None = None) -> int:
         margin = min(t["stack"]["margin_bytes"] for t in timing)
         times = lambda rs: [r["mission_time_s"] for r in rs if r["reached"] and r["mission_time_s"] is not None]
         t_nat, t_uno = (med(times(rs)) if times(rs) else None for rs in (nat, uno))
-        ok = lambda rs: sum(1 for r in rs if r["reached"] and r["collisions"] == 0)
+        reached = lambda rs: sum(1 for r in rs if r["reached"])
+        hits = lambda rs: sum(r["collisions"] for r in rs)
         did = ", ".join(worst["flags"] or []) or "nothing flagged"
         dt = f" ({100 * (t_uno - t_nat) / t_nat:+.1f} %)" if t_nat and t_uno else ""
         fmt = lambda t: f"{t:.1f} s" if t is not None else "no time"
         label = Path(sc[: -len(ALONE)]).stem + ALONE if sc.endswith(ALONE) else Path(sc).stem
-        print(f"| {label} | {ok(nat)}/{len(nat)} reached, 0 collisions, {fmt(t_nat)} | {ok(uno)}/{len(uno)} reached, "
-              f"0 collisions, {fmt(t_uno)}{dt} | "
+        print(f"| {label} | {reached(nat)}/{len(nat)} reached, {hits(nat)} collisions, {fmt(t_nat)} | "
+              f"{reached(uno)}/{len(uno)} reached, {hits(uno)} collisions, {fmt(t_uno)}{dt} | "
               f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
               f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
               f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used} / {margin} B |")
