@@ -21,6 +21,12 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   const float out_max = p.pid_out_max_pwm();
   servo_cdeg_ = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
   if (!rotate_checked_) {
+    // The check (a sine, a cosine and every echo) and a FIX's estimator update do not fit one
+    // step: the turn begins a step later.
+    if (step_work_ & kWorkFix) {
+      put_off_ = true;
+      return true;
+    }
     rotate_checked_ = true;
     if (fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn()) {
       enter(RoverState::BackOff);
@@ -69,7 +75,10 @@ bool Rover::room_to_turn() const {
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
   add_to(back_off_mm_, drive_speed_mm_s() * dt_s);
-  if (room_to_turn() || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
+  // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
+  const bool fix_step = (step_work_ & kWorkFix) != 0;
+  if (fix_step) put_off_ = true;
+  if ((!fix_step && room_to_turn()) || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
     enter(RoverState::Rotate);
     rotate_checked_ = true;
     return;
