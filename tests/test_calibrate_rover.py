@@ -47,7 +47,9 @@ def test_the_fit_recovers_the_motor_figures_it_was_made_from():
 
 @pytest.mark.parametrize("runs, reason", [
     ([synthetic_run(60, 2.3, 34.0, 1.0)], "fewer than two runs"),
-    ([cr.Run(60, (0, 0), (1, 0)), cr.Run(80, (0, 0), (1, 0))], "never drove"),
+    ([cr.Run(60, (0, 0), (1, 0)), cr.Run(80, (0, 0), (1, 0))], "the camera never found the rover"),
+    ([cr.Run(60, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)]), cr.Run(80, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)])],
+     "never drove"),
     ([synthetic_run(60, 2.3, 34.0, 1.0, drive_s=0.9), synthetic_run(80, 2.3, 34.0, 1.0, drive_s=0.9)],
      "drove steadily for"),
     ([synthetic_run(60, 2.3, 34.0, 1.0, hz=3.0), synthetic_run(80, 2.3, 34.0, 1.0, hz=3.0)], "the camera saw the rover"),
@@ -94,6 +96,16 @@ def test_the_command_fits_the_simulated_rover_and_writes_rover_keeping_the_rest(
     assert cfg.rover[mg.Param.MOTOR_DEADBAND_PWM] == pytest.approx(30, abs=2)
     assert cfg.rover[mg.Param.RIGHT_BIAS_PERMILLE] == pytest.approx(1000 / 1.10, rel=0.05)
     assert cfg.rover[mg.Param.DRIVE_PWM] == 75
+
+
+def test_a_set_up_the_configuration_cannot_see_is_named(capsys):
+    # The default configuration's marker colours are not set-up 5's: the runs never start.
+    assert main(["calibrate", "rover", "--sim", "--setup", "5"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert any("--setup without --config" in line for line in err)
+    assert err[-1] == ("rovernav calibrate rover: could not calibrate: fewer than two runs to fit a line through "
+                       "(every run: the camera never found the rover (calibrate the camera first: rovernav "
+                       "calibrate camera))")
 
 
 @pytest.mark.parametrize("argv, says", [

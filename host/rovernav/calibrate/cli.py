@@ -376,6 +376,11 @@ def _cmd_rover(args) -> int:
         if args.sim:
             from ..sim.setup import Setup
 
+            if args.setup is not None and args.config is None:
+                print("rovernav calibrate rover: --setup without --config: the default configuration does not see "
+                      "that set-up's markers (calibrate the camera first: rovernav sim --setup SEED "
+                      "--calibration-frames DIR)", file=sys.stderr)
+
             setup = Setup.random(args.setup) if args.setup is not None else None
             runs = cr.runs_sim(cfg, setup=setup, progress=progress)
         else:

@@ -117,6 +117,8 @@ class Run:
     def steady(self) -> tuple[float, float, float, int] | str:
         """(speed m/s, mean left, mean right, poses used) over the steady part, or why not."""
         drive = [s for s in self.status if s[1] == mg.RoverState.DRIVE]
+        if not self.poses:
+            return "the camera never found the rover (calibrate the camera first: rovernav calibrate camera)"
         if len(drive) < 2:
             return self.error or "the rover never drove"
         # The longest stretch of DRIVE reports (a run is one stretch; a stop for a reflex splits it).
