@@ -42,15 +42,19 @@ TEST_CASE("fast_atan2 on the axes, at the origin and on the diagonals") {
 }
 
 TEST_CASE("wrap_rad: into (-pi, pi] within four turns; NaN and huge values do not stall it") {
+  int out_of_range = 0, turned = 0, checked = 0;
   for (int i = -3600; i <= 3600; ++i) {   // -4 to +4 turns, every 0.4 degree
     const float a = static_cast<float>(i * (8.0 * M_PI / 7200.0) + 1e-3);
     const float w = wrap_rad(a);
-    CHECK(w > -kPi);
-    CHECK(w <= kPi);
+    if (!(w > -kPi && w <= kPi)) ++out_of_range;
     // The same direction: a whole number of turns apart.
     const double turns = (static_cast<double>(a) - w) / (2.0 * M_PI);
-    CHECK(fabs(turns - round(turns)) < 1e-5);
+    if (!(fabs(turns - round(turns)) < 1e-5)) ++turned;
+    ++checked;
   }
+  MESSAGE(checked << " angles from -4 to +4 turns");
+  CHECK(out_of_range == 0);
+  CHECK(turned == 0);
   CHECK(wrap_rad(kPi) == kPi);
   CHECK(wrap_rad(-kPi) == doctest::Approx(kPi));
   CHECK(wrap_rad(0.5f) == 0.5f);
