@@ -52,9 +52,10 @@ class LocalPlanner {
   bool within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const;
   /// Whether some echo, taken as a face that runs from it back along the heading (fx_q8, fy_q8:
   /// the heading's unit vector times 256) for kFaceRunMm, passes beside a body at p within
-  /// side_mm of its centre line (its arc's half-width added) but not through it (the body's
-  /// half-width, the arc subtracted): a face seen abeam of the sonar, 100 mm ahead of the centre,
-  /// that runs on alongside the rover. An echo behind_mm or more behind p counts for nothing.
+  /// kSideReachMm of its centre line (the echo's arc's half-width added) but not through it
+  /// (kHalfWidthMm, the arc subtracted): a face seen abeam of the sonar, 100 mm ahead of the
+  /// centre, that runs on alongside the rover. An echo kBehindMm or more behind p counts for
+  /// nothing.
   bool beside(Point p, int16_t fx_q8, int16_t fy_q8, uint16_t clearance_mm) const;
   enum : int16_t { kFaceRunMm = 250, kSideReachMm = 140, kHalfWidthMm = 75, kBehindMm = 130 };
   /// Plans from start round the disks to goal. Writes the detour's waypoints (turning points,
