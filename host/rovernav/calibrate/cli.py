@@ -251,23 +251,9 @@ def _vision_toml(vision_dict: dict) -> str:
 def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> None:
     """Put `vision_dict`'s markers, hsv and calibration into FILE's [vision] (other keys kept), and
     [arena] when the file had none; checked as a configuration before it is written."""
-    import tomlkit
+    from .toml_update import load_for_update, table_for_update, write_checked
 
-    from ..config import ConfigError, config_from_dict
-    from ..files import write_atomic
-
-    if path.exists():
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: cannot read it to update it: {getattr(exc, 'strerror', None) or exc}") from None
-        try:
-            doc = tomlkit.parse(text)
-        except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base we can rely on
-            raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
-    else:
-        doc = tomlkit.document()
-        doc.add(tomlkit.comment("rovernav configuration; [vision] written by `rovernav calibrate camera`"))
+    doc = load_for_update(path, "rovernav configuration; [vision] written by `rovernav calibrate camera`")
     for name in ("arena", "vision"):
         if name in doc and not isinstance(doc[name], dict):
             raise InputError(f"{path}: [{name}] is not a table, so it cannot be updated")
@@ -277,17 +263,10 @@ def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> N
     if any(abs(float(a) - b) > 1e-3 for a, b in zip(have, arena)):
         raise InputError(f"{path}: its [arena] is {have[0]} x {have[1]} m, the calibration's {arena[0]:g} x "
                          f"{arena[1]:g} m: give the same --arena-size, or change [arena] first")
-    vision = doc.get("vision")
-    if vision is None:
-        vision = tomlkit.table()
-        doc["vision"] = vision
+    vision = table_for_update(path, doc, "vision")
     for key in ("markers", "hsv", "calibration"):
         vision[key] = vision_dict[key]
-    try:
-        config_from_dict(doc.unwrap(), where=f"{path}: ")
-    except ConfigError as exc:
-        raise InputError(f"the configuration would not load after the update: {exc}") from None
-    write_atomic(path, tomlkit.dumps(doc))
+    write_checked(path, doc)
 
 
 def _cmd_camera(args) -> int:

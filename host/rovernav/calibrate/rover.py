@@ -405,32 +405,10 @@ def runs_hardware(port: str, camera: str | None, config_path: str | None, levels
 def write_params(path, fit_params: dict) -> None:
     """Put the fitted parameters into FILE's [rover] table (other keys kept; made if missing),
     checked as a configuration before it is written."""
-    import tomlkit
+    from .toml_update import load_for_update, table_for_update, write_checked
 
-    from ..config import ConfigError, config_from_dict
-    from ..errors import InputError
-    from ..files import write_atomic
-
-    if path.exists():
-        try:
-            doc = tomlkit.parse(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: cannot read it to update it: {getattr(exc, 'strerror', None) or exc}") from None
-        except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base
-            raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
-    else:
-        doc = tomlkit.document()
-        doc.add(tomlkit.comment("rovernav configuration; [rover] motor figures written by `rovernav calibrate rover`"))
-    if "rover" in doc and not isinstance(doc["rover"], dict):
-        raise InputError(f"{path}: [rover] is not a table, so it cannot be updated")
-    table = doc.get("rover")
-    if table is None:
-        table = tomlkit.table()
-        doc["rover"] = table
+    doc = load_for_update(path, "rovernav configuration; [rover] motor figures written by `rovernav calibrate rover`")
+    table = table_for_update(path, doc, "rover")
     for p, v in fit_params.items():
         table[mg.PARAMS[p].name] = int(v)
-    try:
-        config_from_dict(doc.unwrap(), where=f"{path}: ")
-    except ConfigError as exc:
-        raise InputError(f"the configuration would not load after the update: {exc}") from None
-    write_atomic(path, tomlkit.dumps(doc))
+    write_checked(path, doc)
