@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -35,7 +36,8 @@ ROVER_HELP = """\
 Fit the rover's motor figures from three straight runs of 0.5 m the camera watches: ahead the
 way the rover faces, back, and ahead again, at drive commands of 60, 80 and 105 PWM (sweeps
 off). Stand the rover where the camera sees it, facing 0.8 m of open floor; calibrate the
-camera first (rovernav calibrate camera).
+camera first (rovernav calibrate camera). Power the rover up still (its gyro measures its bias
+in its first second).
 
 From each run's steady part: the speed the camera saw and the mean left and right commands
 the rover reported. A line through (left command, speed) gives the speed per PWM and the
@@ -44,11 +46,16 @@ stronger the right motor is. Written as the rover's parameters speed_mm_s_per_pw
 motor_deadband_pwm and right_bias_permille; printed with the configuration's values and how
 well the line fits.
 
-The gyro's scale is measured and printed, not written (no parameter takes it; the camera's
-fixes correct the heading): no fix is sent while the rover turns round before a run, so its
-heading there is its gyro's alone, against the camera's. Not measured: the gyro's bias (the
-firmware measures it at every start: keep the rover still for its first second) and the
-sonar's offset (it needs a wall at a known place)."""
+The gyro, measured and printed, not written (no parameter takes them): its scale (no fix is
+sent while the rover turns round before a run, so its heading there is its gyro's alone,
+against the camera's) and the bias its start-up measure left (the rover stands still for 8 s
+before the first run, no fix sent: its heading's drift).
+
+The sonar's offset (how far ahead of the rover's centre the ranger sits: [planner]
+sonar_offset_m) needs a wall at a known place: give its face with --wall X0,Y0,X1,Y1 (arena
+metres) and stand the rover facing it square, its ranger 0.15-0.5 m from it, 0.8 m of open floor
+behind. The first run then begins with a sweep, and the runs go away from the wall. The
+simulator's bench (--sim) has such a wall."""
 
 ROVER_EPILOG = ("exit status: 0 fitted (and written with --write); 1 the runs gave no fit (the reason, in one line: "
                 "the rover did not drive, the camera lost it, the speeds do not rise with the command); 2 unusable "
@@ -105,6 +112,9 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--write", type=output_file(".toml"), metavar="FILE",
                    help="write the fitted parameters into FILE's [rover] table (made if missing; every other table "
                         "and key kept); without it they are printed")
+    r.add_argument("--wall", type=wall_face, metavar="X0,Y0,X1,Y1",
+                   help="with --port: the face of a straight wall the rover stands facing (arena metres, its two "
+                        "ends), to measure the sonar's offset from")
     r.add_argument("--json", action="store_true", help="print the result as one JSON object")
     r.set_defaults(func=_cmd_rover)
     t = sub.add_parser("tags", help="draw the four corner tags to print",
@@ -332,6 +342,20 @@ def _cmd_camera(args) -> int:
     return 0
 
 
+def wall_face(text: str) -> tuple[float, float, float, float]:
+    """--wall's X0,Y0,X1,Y1: four finite numbers [m], the ends at least 0.2 m apart."""
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 4 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: give the wall's face as X0,Y0,X1,Y1, four numbers in metres")
+    if math.hypot(values[2] - values[0], values[3] - values[1]) < 0.2:
+        raise argparse.ArgumentTypeError(f"{text!r}: the wall's ends are less than 0.2 m apart")
+    return values
+
+
 def _cmd_rover(args) -> int:
     from ..config import load_config
     from . import rover as cr
@@ -344,7 +368,13 @@ def _cmd_rover(args) -> int:
         raise InputError("--setup is a simulated set-up: give --sim with it")
     if args.camera is not None and args.sim:
         raise InputError("--camera watches the real rover: give --port with it, not --sim")
+    if args.wall is not None and args.sim:
+        raise InputError("--wall is where the real rover's wall is: the simulator's bench has its own (give --port)")
     cfg = load_config(args.config)
+    if args.wall is not None:
+        ax, ay = cfg.arena.width_m, cfg.arena.height_m
+        if not all(-0.5 <= v <= lim + 0.5 for v, lim in zip(args.wall, (ax, ay, ax, ay))):
+            raise InputError(f"--wall: {','.join(f'{v:g}' for v in args.wall)} is not in the {ax:g} x {ay:g} m arena")
 
     def progress(done: int, total: int) -> None:
         print(f"  run {done}/{total} done", file=sys.stderr)
@@ -361,28 +391,41 @@ def _cmd_rover(args) -> int:
                       "--calibration-frames DIR)", file=sys.stderr)
 
             setup = Setup.random(args.setup) if args.setup is not None else None
+            wall = cr.sim_bench(cfg)[2]
             runs = cr.runs_sim(cfg, setup=setup, progress=progress)
         else:
+            wall = args.wall
             runs = cr.runs_hardware(args.port, args.camera, None if args.config is None else str(args.config),
-                                    progress=progress)
-        result = cr.fit(runs)
+                                    progress=progress, wall=wall)
+        result = cr.fit(runs, wall, cfg.planner.sonar_cone_deg)
     except cr.CalibrationFailed as exc:
         print(f"rovernav calibrate rover: could not calibrate: {exc}", file=sys.stderr)
         return 1
     params = result.params()
+    planner = result.planner()
     if args.write:
-        cr.write_params(args.write, params)
+        cr.write_params(args.write, params, planner)
     before = {p: cfg.rover.get(p, mg.PARAMS[p].default) for p in params}
+    planner_before = {k: getattr(cfg.planner, k) for k in planner}
+    bias, sonar = result.gyro_bias, result.sonar
     if args.json:
         print(json.dumps({"mm_s_per_pwm": round(result.mm_s_per_pwm, 4), "deadband_pwm": round(result.deadband_pwm, 2),
                           "right_gain": round(result.right_gain, 4), "residual_mm_s": round(result.residual_mm_s, 2),
                           "right_gain_spread": round(result.gain_spread, 4),
                           "gyro_scale": None if result.gyro_scale is None else round(result.gyro_scale, 4),
                           "gyro_turns": result.gyro_turns,
+                          "gyro_bias_dps": round(bias[0], 4) if isinstance(bias, tuple) else None,
+                          "gyro_bias_se_dps": round(bias[1], 4) if isinstance(bias, tuple) else None,
+                          "gyro_bias_not_measured": bias if isinstance(bias, str) else None,
+                          "sonar_offset_m": round(sonar[0], 4) if isinstance(sonar, tuple) else None,
+                          "sonar_offset_spread_m": round(sonar[1], 4) if isinstance(sonar, tuple) else None,
+                          "sonar_echoes": sonar[2] if isinstance(sonar, tuple) else 0,
+                          "sonar_not_measured": sonar if isinstance(sonar, str) else None,
                           "runs": [{"level_pwm": lv, "speed_m_s": round(v, 4), "left_pwm": round(lp, 2),
                                     "right_pwm": round(rp, 2)} for lv, v, lp, rp in result.runs],
                           "params": {mg.PARAMS[p].name: v for p, v in params.items()},
                           "before": {mg.PARAMS[p].name: v for p, v in before.items()},
+                          "planner": planner, "planner_before": planner_before,
                           "written": str(args.write) if args.write else None}))
         return 0
     for lv, v, lp, rp in result.runs:
@@ -400,13 +443,39 @@ def _cmd_rover(args) -> int:
         print(f"gyro     reads {result.gyro_scale:.3f} x the camera's turn ({off:+.1f} %, over {result.gyro_turns} "
               f"turns, no fixes sent while it turned){advice}; no parameter takes it: the camera's fixes correct "
               "the heading")
+    if bias is None:
+        print(f"gyro     bias not measured: the still {cr.STILL_S:g} s before the first run was not seen (did it "
+              "start?)")
+    elif isinstance(bias, str):
+        print(f"gyro     bias not measured: {bias}")
+    else:
+        advice = ("" if abs(bias[0]) <= cr.BIAS_WARN_DPS else
+                  f": more than {cr.BIAS_WARN_DPS} deg/s: was the rover moved in its first second? Power it up still; "
+                  "if it stays, the gyro drifts")
+        print(f"gyro     bias left after its start-up measure {bias[0]:+.3f} deg/s (+-{bias[1]:.3f}, still "
+              f"{cr.STILL_S:g} s, no fix sent){advice}; no parameter takes it: the rover measures it at every start")
+    if sonar is None:
+        print("sonar    offset not measured: give --wall (a wall the rover stands facing) to measure it")
+    elif isinstance(sonar, str):
+        print(f"sonar    offset not measured: {sonar}")
+    else:
+        print(f"sonar    {1000 * sonar[0]:.0f} mm ahead of the rover's centre, from {sonar[2]} echoes square to the "
+              f"wall (spread {1000 * sonar[1]:.0f} mm)")
     for p, v in params.items():
         change = "unchanged" if v == before[p] else f"was {before[p]}"
         print(f"param    {mg.PARAMS[p].name} = {v} ({change})")
+    for k, v in planner.items():
+        change = "unchanged" if v == round(planner_before[k], 3) else f"was {planner_before[k]:g}"
+        print(f"param    [planner] {k} = {v:g} ({change})")
     if args.write:
-        print(f"wrote    [rover] {', '.join(mg.PARAMS[p].name for p in params)} of {args.write}")
+        print(f"wrote    [rover] {', '.join(mg.PARAMS[p].name for p in params)}"
+              + (f" and [planner] {', '.join(planner)}" if planner else "") + f" of {args.write}")
     else:
         print("\n# for your configuration's [rover] table (or run again with --write FILE):")
         for p, v in params.items():
             print(f"{mg.PARAMS[p].name} = {v}")
+        if planner:
+            print("# and its [planner] table:")
+            for k, v in planner.items():
+                print(f"{k} = {v:g}")
     return 0

@@ -209,6 +209,9 @@ class Mission:
         self._last_detection: Detection | None = None
         self._last_frame_s: float | None = None
         self._start_sent_for: int | None = None    # path id the last START was sent for
+        # A caller's hold on START (now_s -> True: not yet), the path loaded meanwhile: calibrate
+        # rover keeps the rover still for its gyro's bias before its first run.
+        self.hold_start: Callable[[float], bool] | None = None
         self._start_acked_for: int | None = None   # ... and acknowledged for
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
@@ -365,8 +368,9 @@ class Mission:
         if self.phase is Phase.LOAD:
             if self.upload is not None and self.upload.complete and not self.requests:
                 if self._start_sent_for != self.path_id:
-                    self._start_sent_for = self.path_id
-                    self._request(mg.Start(path_id=self.path_id))
+                    if self.hold_start is None or not self.hold_start(now_s):
+                        self._start_sent_for = self.path_id
+                        self._request(mg.Start(path_id=self.path_id))
                 elif self._start_acked_for == self.path_id:
                     self._set_phase(Phase.RUN)
             elif self._waited_s(now_s) > d.load_s and not self._silent():

@@ -63,7 +63,8 @@ class Setup:
         degrees and turned up to 8 (the arena filling 70-90 % of the frame), and motors and gyro
         off the firmware's figures (speed per PWM 0.8-1.25 x, the right motor 0.95-1.2 x the
         left, dead band 0.8-1.3 x, gyro bias left after calibration up to 0.15 deg/s, gyro scale
-        0.97-1.03)."""
+        0.97-1.03), and the sonar 70-130 mm ahead of the rover's centre (the configuration's default
+        says 100)."""
         rng = np.random.default_rng([seed, 0x5E7])
         while True:   # three colours a user would call by different names, at least 15 hue units apart
             words = [str(w) for w in rng.choice(sorted(COLOUR_BANDS), size=3, replace=False)]
@@ -81,6 +82,8 @@ class Setup:
         corners = _tilted_corners(rng)
         # Drawn last, so that every draw before it is as it was before the gyro's scale was modelled.
         plant = dataclasses.replace(plant, gyro_scale=float(rng.uniform(0.97, 1.03)))
+        # Then the sonar's place, last for the same reason.
+        plant = dataclasses.replace(plant, sonar_offset_m=float(rng.uniform(0.07, 0.13)))
         return cls(front_bgr=colours[0], back_bgr=colours[1], target_bgr=colours[2],
                    words=tuple(zip(("rover_front", "rover_back", "target"), words)), lighting=lighting,
                    corners_px=corners, plant=plant, seed=seed)
