@@ -54,12 +54,13 @@ before the first run, no fix sent: its heading's drift).
 The sonar's offset (how far ahead of the rover's centre the ranger sits: [planner]
 sonar_offset_m) needs a wall at a known place: give its face with --wall X0,Y0,X1,Y1 (arena
 metres) and stand the rover facing it square, its ranger 0.15-0.5 m from it, 0.8 m of open floor
-behind. The first run then begins with a sweep, and the runs go away from the wall. The
-simulator's bench (--sim) has such a wall."""
+behind. The first and third runs then begin with a sweep, and the runs go away from the wall.
+The simulator's bench (--sim) has such a wall."""
 
 ROVER_EPILOG = ("exit status: 0 fitted (and written with --write); 1 the runs gave no fit (the reason, in one line: "
                 "the rover did not drive, the camera lost it, the speeds do not rise with the command); 2 unusable "
-                "input (a flag, file or value, named in a one-line error; no room ahead of the rover); 3 an internal "
+                "input (a flag, file or value, named in a one-line error; no room ahead of the rover; the rover not "
+                "facing the --wall near it); 3 an internal "
                 "error (rerun with -v for the traceback); 130 interrupted.")
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
@@ -110,8 +111,8 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--config", type=Path, metavar="FILE",
                    help="the configuration (its [vision], [link] and [rover]); default: the built-in one")
     r.add_argument("--write", type=output_file(".toml"), metavar="FILE",
-                   help="write the fitted parameters into FILE's [rover] table (made if missing; every other table "
-                        "and key kept); without it they are printed")
+                   help="write the fitted parameters into FILE's [rover] table, and the sonar's offset into its "
+                        "[planner] (made if missing; every other table and key kept); without it they are printed")
     r.add_argument("--wall", type=wall_face, metavar="X0,Y0,X1,Y1",
                    help="with --port: the face of a straight wall the rover stands facing (arena metres, its two "
                         "ends), to measure the sonar's offset from")
