@@ -117,6 +117,12 @@ def load(path: Path = DEFINITION) -> dict:
     if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > proto["uart_buffer_bytes"]:
         raise DefinitionError(f"a signed frame of max_payload bytes would pass [protocol].uart_buffer_bytes "
                               f"({proto['uart_buffer_bytes']}) on the wire")
+    sensors = d.get("sensors")
+    if not isinstance(sensors, dict) or not sensors:
+        raise DefinitionError("[sensors] is missing")
+    for key, value in sensors.items():
+        if not IDENT.match(key) or not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 65536:
+            raise DefinitionError(f"[sensors].{key} must be an integer 1..65535")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -130,6 +136,11 @@ def load(path: Path = DEFINITION) -> dict:
         if p["id"] in pids or not 0 < p["id"] < 256:
             raise DefinitionError(f"param {p['name']}: id {p['id']} repeated or not 1..255")
         pids.add(p["id"])
+        for key in ("min", "default", "max"):   # a limit may name a sensor's fact
+            if isinstance(p[key], str):
+                if p[key] not in sensors:
+                    raise DefinitionError(f"param {p['name']}: {key} {p[key]!r} is not a key of [sensors]")
+                p[key] = sensors[p[key]]
         if not p["min"] <= p["default"] <= p["max"]:
             raise DefinitionError(f"param {p['name']}: default {p['default']} outside [{p['min']}, {p['max']}]")
     d["schema_hash"] = schema_hash(d)
@@ -160,6 +171,7 @@ def schema_hash(d: dict) -> int:
                   for e in d.get("enums", [])],
         "params": [[p["id"], p["name"], p["unit"], p["min"], p["max"]] for p in d.get("params", [])],
         "signing": {k: v for k, v in d["signing"].items()},
+        "sensors": d["sensors"],
     }
     text = json.dumps(canon, sort_keys=True, separators=(",", ":"))
     return binascii.crc32(text.encode()) & 0xFFFFFFFF
@@ -413,7 +425,9 @@ def render_cpp(d: dict) -> str:
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
            f"enum : uint8_t {{\n  kMaxPayload = {p['max_payload']},\n  kMaxRawFrame = {max_raw},  // header + payload + CRC\n"
            f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']},\n"
-           f"  kUartBufferBytes = {p['uart_buffer_bytes']}  // the Uno's serial buffers: a whole frame fits\n}};\n\n"]
+           f"  kUartBufferBytes = {p['uart_buffer_bytes']}  // the Uno's serial buffers: a whole frame fits\n}};\n\n",
+           "// The sensors' facts ([sensors] in protocol/messages.toml).\nenum : uint16_t {\n"
+           + ",\n".join(f"  k{camel(k)} = {v}" for k, v in d["sensors"].items()) + "\n};\n\n"]
     sig = d["signing"]
     by_name = {m["name"]: m["id"] for m in d["messages"]}
     out.append("// Signed frames ([signing] in protocol/messages.toml).\n"
@@ -512,7 +526,9 @@ def render_py(d: dict) -> str:
            f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",
            f"MAX_WAYPOINTS = {p['max_waypoints']}\n",
            f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n",
-           f"UART_BUFFER_BYTES = {p['uart_buffer_bytes']}   # the Uno's serial buffers: a whole frame fits\n\n"]
+           f"UART_BUFFER_BYTES = {p['uart_buffer_bytes']}   # the Uno's serial buffers: a whole frame fits\n",
+           "# The sensors' facts ([sensors] in protocol/messages.toml).\n"
+           + "".join(f"{k.upper()} = {v}\n" for k, v in d["sensors"].items()) + "\n"]
     for e in d.get("enums", []):
         base = "enum.IntFlag" if e.get("bitmask") else "enum.IntEnum"
         out.append(f"\nclass {camel(e['name'])}({base}):\n    \"\"\"{e.get('doc', '')}\"\"\"\n\n")

@@ -46,6 +46,11 @@ def test_a_full_file_is_read(tmp_path):
     ({"vision": {"markers": "lasers"}}, "vision.markers"),
     ({"planner": {"resolution_m": -0.1}}, "[planner]"),
     ({"warp": {}}, "unknown section [warp]"),
+    # The sensor's facts, once ([sensors] in protocol/messages.toml): no report range past what
+    # the HC-SR04 driver measures, no beam wider than the rover's parameter takes.
+    ({"rover": {"sonar_report_mm": 4000}}, "sonar_report_mm = 4000 is outside [50, 1000]"),
+    ({"planner": {"sonar_max_range_m": 4.0}}, "sonar_max_range_m is gone: the sensor's range is the protocol's"),
+    ({"planner": {"sonar_cone_deg": 120}}, "sonar_cone_deg must be 1-90"),
 ])
 def test_a_bad_value_names_its_section_and_key(data, words):
     with pytest.raises(ConfigError) as exc:
@@ -129,3 +134,14 @@ def test_the_old_sonar_section_is_refused_naming_where_the_offset_lives():
 
     with pytest.raises(ConfigError, match=r"\[planner\] sonar_offset_m"):
         config_from_dict({"sonar": {"offset_m": 0.1}}, where="old.toml: ")
+
+
+def test_a_report_range_past_the_sensor_s_is_refused_in_one_line_exit_2(tmp_path, capsys):
+    from rovernav.cli import main
+
+    f = tmp_path / "far.toml"
+    f.write_text("[rover]\nsonar_report_mm = 4000\n")
+    assert main(["sim", "--config", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sonar_report_mm = 4000 is outside [50, 1000] (mm)" in err[0]
+    assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == mg.SONAR_MAX_RANGE_MM == 1000

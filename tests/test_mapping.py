@@ -200,3 +200,27 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
     assert echo_point(1.0, 0.8, 0.0, -45.0, 0.3, off) == pytest.approx((1.0 - 0.3 * 0.5 ** 0.5, 0.9 + 0.3 * 0.5 ** 0.5))
     assert Echo(1.0, 0.5, 90.0, 90.0, 0.3).point(off) == echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off)
     assert (legs_per_trip("out-and-back"), legs_per_trip("reach")) == (2, 1)
+
+
+def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_claims():
+    # An old map file (or a rover told to report out to 4 m) says "no echo within 4 m"; the
+    # HC-SR04's driver measures nothing past the protocol's [sensors] range, 1 m.
+    from rovernav.link import messages_gen as mg
+    from rovernav.mapping.sonar_map import SonarMap, SonarReading
+
+    m = SonarMap(3.0, 1.0, 0.03, 0.1)
+    m.update(SonarReading(0.2, 0.5, 90.0, 0.0, None, 4.0))   # facing +x from x = 0.2 (sensor at 0.3)
+    free = m.logodds < 0
+    xs_free = m.xs[free.any(axis=0)]
+    assert xs_free.max() <= 0.3 + mg.SONAR_MAX_RANGE_MM / 1000 + 0.03
+    assert xs_free.max() > 1.2   # it does clear out to the sensor's range
+
+
+def test_the_host_map_uses_the_cone_the_configuration_sends():
+    from rovernav.config import config_from_dict
+    from rovernav.mission.learned_map import LearnedMap
+    from rovernav.planning.grid import OccupancyGrid
+
+    cfg = config_from_dict({"planner": {"sonar_cone_deg": 30}})
+    lm = LearnedMap(OccupancyGrid(2.0, 2.0, cfg.planner))
+    assert lm.sonar.model.cone_deg == lm.open_sonar.model.cone_deg == 30.0

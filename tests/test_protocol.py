@@ -85,6 +85,9 @@ def test_schema_hash_changes_with_the_wire_format_but_not_with_documentation():
     (lambda t: t.replace('type = "u32", unit = "ms", doc = "host clock', 'type = "u33", unit = "ms", doc = "host clock'), "unknown type"),
     (lambda t: t.replace('count = 8, unit = "mm", doc = "waypoint x"', 'count = 20, unit = "mm", doc = "waypoint x"'), "max_payload"),
     (lambda t: t.replace("default = 3000", "default = -1"), "outside"),
+    (lambda t: t.replace('max = "sonar_max_range_mm"', 'max = "sonar_reach_mm"'), "not a key of \\[sensors\\]"),
+    (lambda t: t.replace("sonar_max_range_mm = 1000", "sonar_max_range_mm = 0"), "must be an integer 1..65535"),
+    (lambda t: t.replace("[sensors]", "[sensor_facts]"), "\\[sensors\\] is missing"),
 ])
 def test_generator_rejects_a_broken_definition_with_a_reason(tmp_path, edit, complaint):
     text = (ROOT / "protocol/messages.toml").read_text()

@@ -1,7 +1,7 @@
 """`rovernav check`: a pre-flight check of the whole set-up, as an autopilot's pre-arm checks.
 
 One short probe: HELLO and the parameters, the camera's frames, a sweep of the sonar with its
-report range at 4 m (so that the arena's walls or the floor answer from anywhere), then a drive
+report range at the sensor's full range, 1 m (so that the floor, from 0.65 m, or a wall answers), then a drive
 of 20 cm straight ahead (PROBE_AHEAD_M; stand the rover facing open floor), all watched by the
 camera. From what the host saw it judges,
 one line each, pass or fail with what to do:
@@ -39,8 +39,8 @@ MIN_FRAMES_THROUGH = 0.6
 MIN_FRAMES_MEASURED = 40
 #: Share of camera frames in which the rover must be found.
 MIN_FOUND = 0.8
-#: The parameters the probe sets: echoes reported out to 4 m, a sweep before it moves.
-PROBE_PARAMS = [(mg.Param.SONAR_REPORT_MM, 4000), (mg.Param.SWEEP_AT_START, 1)]
+#: The parameters the probe sets: echoes reported out to the sensor's range, a sweep before it moves.
+PROBE_PARAMS = [(mg.Param.SONAR_REPORT_MM, mg.SONAR_MAX_RANGE_MM), (mg.Param.SWEEP_AT_START, 1)]
 FAULTS = ("dead-gyro", "sonar-unwired", "motor-reversed", "no-markers", "radio-loss-20")
 
 
@@ -159,7 +159,7 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
         lines.append(CheckLine("sonar", "not checked", blocked))
         lines.append(CheckLine("servo", "not checked", blocked))
     elif not echoes:
-        lines.append(CheckLine("sonar", "FAIL", f"no echo in {len(readings)} pings out to 4 m, where the floor answers "
+        lines.append(CheckLine("sonar", "FAIL", f"no echo in {len(readings)} pings out to {mg.SONAR_MAX_RANGE_MM / 1000:g} m, where the floor answers "
                                                 "from 0.65 m: check the HC-SR04's wiring (TRIG A1, ECHO A0, 5 V, GND)"))
         lines.append(CheckLine("servo", "not checked", "no echoes to compare across bearings"))
     else:

@@ -147,6 +147,10 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         vision = VisionConfig.from_dict(data.get("vision", {}))
     except ValueError as exc:
         raise ConfigError(f"{where}[vision] {exc}") from None
+    if isinstance(data.get("planner"), dict) and "sonar_max_range_m" in data["planner"]:
+        raise ConfigError(f"{where}[planner] sonar_max_range_m is gone: the sensor's range is the protocol's "
+                          f"([sensors] sonar_max_range_mm = {mg.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
+                          "far the rover reports")
     try:
         planner = PlannerConfig.from_dict(data.get("planner", {}))
     except ValueError as exc:

@@ -43,7 +43,12 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
+from ..link.messages_gen import PARAMS, SONAR_MAX_RANGE_MM, Param
 from ..validate import check_grid
+
+#: The sensor's range [m] (the protocol's [sensors]): silence says nothing of what lies past it,
+#: whatever range a reading (or an old map file) claims.
+SENSOR_MAX_RANGE_M = SONAR_MAX_RANGE_MM / 1000.0
 
 
 def sonar_origin(x_m: float, y_m: float, heading_deg: float, offset_m: float) -> tuple[float, float]:
@@ -68,7 +73,7 @@ def echo_point(x_m: float, y_m: float, heading_deg: float, bearing_deg: float, r
 class SensorModel:
     """The inverse sensor model's numbers (log-odds are dimensionless, lengths in metres)."""
 
-    cone_deg: float = 15.0            # HC-SR04 beam width
+    cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0   # the beam's width (HC-SR04: 15)
     occupied_logodds: float = 1.0     # added on the arc of an echo (p 0.5 -> 0.73)
     free_logodds: float = -0.5        # added inside the cone before the arc (p 0.5 -> 0.38)
     occupied_threshold: float = 0.6   # believed occupied at or above this (p >= 0.65)
@@ -131,7 +136,8 @@ class SonarMap:
         self.readings.append(r)
         sx, sy = self.sensor_xy(r)
         band = m.band_m + max(0.0, r.sd_m)
-        reach = (r.range_m + band) if r.range_m is not None else r.max_range_m
+        silent_m = min(r.max_range_m, SENSOR_MAX_RANGE_M)
+        reach = (r.range_m + band) if r.range_m is not None else silent_m
         res = self.resolution_m
         c0, c1 = max(int((sx - reach) / res) - 1, 0), min(int((sx + reach) / res) + 2, self.nx)
         r0, r1 = max(int((sy - reach) / res) - 1, 0), min(int((sy + reach) / res) + 2, self.ny)
@@ -149,7 +155,7 @@ class SonarMap:
             clear = cone if m.clear_cut_cells else off <= nominal
             window = self.logodds[r0:r1, c0:c1]
             if r.range_m is None:
-                window[clear & (d <= r.max_range_m)] += m.free_logodds
+                window[clear & (d <= silent_m)] += m.free_logodds
             else:
                 window[clear & (d < r.range_m - band)] += m.free_logodds
                 arc = cone & (np.abs(d - r.range_m) <= band)

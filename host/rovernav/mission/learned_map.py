@@ -91,9 +91,11 @@ class LearnedMap:
     def __init__(self, grid: OccupancyGrid):
         self.grid = grid
         cfg = grid.config
-        self.sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m, known=grid.raw)
+        # The cone the configuration sends the rover (sonar_cone_deg), not a fixed one.
+        self.sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m,
+                              model=SensorModel(cone_deg=cfg.sonar_cone_deg), known=grid.raw)
         self.open_sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m,
-                                   model=SensorModel(clear_cut_cells=True), known=grid.raw)
+                                   model=SensorModel(cone_deg=cfg.sonar_cone_deg, clear_cut_cells=True), known=grid.raw)
         self._base_raw = grid.raw.copy()
         self._base_inflated = grid.inflated.copy()
         self.known_grid = grid.copy()   # the known obstacles alone, inflated as the planner's grid is

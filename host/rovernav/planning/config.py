@@ -27,7 +27,6 @@ class PlannerConfig:
     sonar_margin_m: float = geometry_m(Param.SONAR_MARGIN_MM)    # the sonar's placement error, added to the radius
     sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)    # the sonar sits this far ahead of the rover's centre
     sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0   # HC-SR04 beam: an echo may come from anywhere on it
-    sonar_max_range_m: float = 4.0      # HC-SR04 datasheet range; longer echoes are refused
     # The potential field (see planning.potential): U = k_att·d + k_rep·((c0 − c)/c0)² within c0.
     # With k_att = 1, Table 4.2 holds (trapped by the large obstacles, through the small ones)
     # for k_rep from 0.04 to 0.11 and c0 from 0.02 to 0.25 m, from starts moved by up to
@@ -36,7 +35,7 @@ class PlannerConfig:
     potential_repulsive_gain: float = 0.07   # k_rep: the repulsion at the rover body's edge
     potential_influence_m: float = 0.1       # c0: clearance beyond the robot radius where repulsion starts
 
-    _POSITIVE = ("resolution_m", "sonar_cone_deg", "sonar_max_range_m", "potential_attractive_gain",
+    _POSITIVE = ("resolution_m", "sonar_cone_deg", "potential_attractive_gain",
                  "potential_influence_m")
     _NON_NEGATIVE = ("robot_radius_m", "sonar_margin_m", "sonar_offset_m", "potential_repulsive_gain")
 
@@ -52,8 +51,10 @@ class PlannerConfig:
         for name in self._NON_NEGATIVE:
             if getattr(self, name) < 0:
                 raise ValueError(f"planner config: {name} must be ≥ 0, got {getattr(self, name)!r}")
-        if self.sonar_cone_deg >= 180:
-            raise ValueError(f"planner config: sonar_cone_deg must be < 180, got {self.sonar_cone_deg!r}")
+        cone = PARAMS[Param.SONAR_CONE_CDEG]   # the rover is sent it: its limits are the parameter's
+        if not cone.min / 100 <= self.sonar_cone_deg <= cone.max / 100:
+            raise ValueError(f"planner config: sonar_cone_deg must be {cone.min / 100:g}-{cone.max / 100:g}, "
+                             f"got {self.sonar_cone_deg!r}")
 
     @property
     def inflation_m(self) -> float:
