@@ -13,7 +13,8 @@ from rovernav.cli import main
 from rovernav.planning import OccupancyGrid, PlannerConfig, Unreachable, plan
 from rovernav.scenario import Arena, Mission, Obstacle, Pose, Scenario, Target, load_scenario, parse_scenario
 from rovernav.sim.arenas import (
-    FAMILIES, FAMILY_NAMES, NARROW_EXTRA_M, ArenaError, generate_arenas, measure_scenario, write_arenas,
+    ALL_FAMILY_NAMES, CELLULAR_CELL_M, FAMILIES, FAMILY_NAMES, NARROW_EXTRA_M, ArenaError, generate_arenas,
+    measure_scenario, write_arenas,
 )
 
 INFLATION_M = PlannerConfig().inflation_m
@@ -32,9 +33,9 @@ def of_family(arenas, family):
 
 def test_200_arenas_of_seed_1_cover_every_family_evenly(arenas200):
     assert len(arenas200) == 200
-    assert len(FAMILIES) == len(FAMILY_NAMES) >= 14
+    assert len(FAMILIES) == len(ALL_FAMILY_NAMES) > len(FAMILY_NAMES) >= 14
     counts = collections.Counter(a.family for a in arenas200)
-    assert set(counts) == set(FAMILY_NAMES)
+    assert set(counts) == set(FAMILY_NAMES)   # by-name families (cellular) are not in the default cycle
     assert max(counts.values()) - min(counts.values()) <= 1
     assert [a.index for a in arenas200] == list(range(1, 201))
     assert {a.difficulty["band"] for a in arenas200} == {"easy", "medium", "hard"}
@@ -319,3 +320,41 @@ def test_the_help_explains_the_families_and_the_metrics(capsys):
         assert name in text
     for metric in ("closest_obstacle_m", "dispersion", "characteristic_dimension_m", "score", "band"):
         assert metric in text
+
+
+@pytest.fixture(scope="module")
+def cellular40():
+    return generate_arenas(40, 7, families=["cellular"])
+
+
+def test_cellular_worlds_are_barn_s_scaled_every_box_unknown_a_way_through(cellular40):
+    # BARN's construction at this rover's scale: boxes on a grid of 8.4 cm cells, every one
+    # unknown, start and target on the centre line, solvable with every box known.
+    for a in cellular40:
+        s = a.scenario
+        assert 2.5 <= s.arena.width_m <= 4.0 and 1.8 <= s.arena.height_m <= 3.0
+        assert a.solvable and not s.known_shapes and 8 <= len(s.obstacles) <= 120
+        assert s.start.y_m == pytest.approx(s.arena.height_m / 2, abs=0.001)
+        assert s.target.y_m == pytest.approx(s.arena.height_m / 2, abs=0.001)
+        for o in s.obstacles:   # whole cells
+            for side in (o.w_m, o.h_m):
+                assert side / CELLULAR_CELL_M == pytest.approx(round(side / CELLULAR_CELL_M), abs=1e-3)
+        # The independent check: A* with every box known finds a way.
+        plan(OccupancyGrid.from_scenario(s, all_obstacles=True), (s.start.x_m, s.start.y_m),
+             (s.target.x_m, s.target.y_m))
+    counts = [len(a.scenario.obstacles) for a in cellular40]
+    assert max(counts) >= 40 and min(counts) <= 20   # the densities BARN's fill and smoothing give
+    bands = collections.Counter(a.difficulty["band"] for a in cellular40)
+    assert bands["medium"] + bands["hard"] >= 20
+    carved = sum("carved for a way through" in a.scenario.description for a in cellular40)
+    assert 0 < carved < 40
+
+
+def test_cellular_worlds_are_drawn_only_by_name_and_the_same_each_time(cellular40):
+    again = generate_arenas(5, 7, families=["cellular"])
+    assert [a.toml_text for a in again] == [a.toml_text for a in cellular40[:5]]
+    assert "cellular" not in FAMILY_NAMES and "cellular" in ALL_FAMILY_NAMES
+    mixed = generate_arenas(3, 7, families=["cellular", "scattered"])
+    assert [a.family for a in mixed] == ["scattered", "cellular", "scattered"]
+    with pytest.raises(ArenaError, match="cellular"):   # the error lists every family
+        generate_arenas(1, 1, families=["cave"])
