@@ -3,6 +3,7 @@
 #include "rover.h"
 
 #include <math.h>
+#include "angles.h"
 #include "float_ops.h"
 
 namespace rovernav {
@@ -18,7 +19,6 @@ const int32_t kRotateSettledMdps = 10000;
 // faces it (then Drive, in this same step), true while it turns or has gone to back off first.
 bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   const Params& p = params_;
-  const float out_max = p.pid_out_max_pwm();
   servo_cdeg_ = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
   if (!rotate_checked_) {
     // The check (a sine, a cosine and every echo) and a FIX's estimator update do not fit one
@@ -46,15 +46,21 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     enter(RoverState::Drive);
     return false;
   }
+  turn_on_spot(err, dt_s, out);
+  return true;
+}
+
+// The gyro PID's turn on the spot towards an error of err degrees.
+void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
+  const float out_max = params_.pid_out_max_pwm();
   float u = heading_command(err, dt_s);
   // Lift the command over the motors' dead band, or small errors never close.
   if (fabsf(u) > 0.5f) {
-    float lifted = fabsf(u) + to_float(p.motor_deadband_pwm());
+    float lifted = fabsf(u) + to_float(params_.motor_deadband_pwm());
     if (!(lifted < out_max)) lifted = out_max;
     u = positive(u) ? lifted : -lifted;
   }
   set_wheels(0.0f, u, false, out);
-  return true;
 }
 
 // Whether the last sweep saw nothing within reach of the corners as the rover turns on the spot:
@@ -71,9 +77,18 @@ bool Rover::room_to_turn() const {
 
 // Backing out: straight back, holding the heading, the way the rover came (the only ground it
 // knows is clear behind it), until its corners can swing clear of what the sweep saw, or for
-// kBackOffMaxMm at most; then the turn it put off.
+// kBackOffMaxMm at most; then the turn it put off. A rover that has turned on the spot since it
+// last drove would back over ground no part of it has been on: it first turns back onto its
+// track (its corners sweep what they swept turning off it), then backs out along it.
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
+  if (track_known_ && !(back_off_mm_ > 0.0f)) {
+    const float off = rad_to_deg(wrap_rad(track_rad_ - est_.heading_rad()));
+    if (fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
+      turn_on_spot(off, dt_s, out);
+      return;
+    }
+  }
   add_to(back_off_mm_, drive_speed_mm_s() * dt_s);
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
   const bool fix_step = (step_work_ & kWorkFix) != 0;

@@ -54,6 +54,12 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   if (state_ == RoverState::Drive) {
     add_to(sweep_distance_mm_, ad);
     add_to(calib_model_mm_, d_mm);
+    // The way it drives, once it has driven a while (a step of Drive between a turn and a sweep
+    // is no track): backing out goes along it.
+    if (now - drive_since_ms_ >= kTrackAfterMs) {
+      track_rad_ = est_.heading_rad();
+      track_known_ = true;
+    }
   }
 }
 

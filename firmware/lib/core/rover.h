@@ -105,6 +105,7 @@ struct RoverFields {
   int16_t left_cmd_ = 0;
   int16_t right_cmd_ = 0;
   float back_off_mm_ = 0.0f;                  // distance backed out so far
+  float track_rad_ = 0.0f;                    // the heading it last drove at (track_known_): backing out goes along it
 
   // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
   Sweep sweep_;
@@ -130,6 +131,7 @@ struct RoverFields {
   bool put_off_ : 1;                          // mode: this step put a job off: the next takes no FIX (kWorkReserved)
   bool look_after_outage_ : 1;                // failsafe: the radio came back mid-mission: sweep before moving on
   bool rotate_checked_ : 1;                   // motion: this rotation's start was checked for room to swing
+  bool track_known_ : 1;                      // motion: track_rad_ holds a heading it drove at
   bool reflex_look_ : 1;                      // reflex: it stopped the rover: look (a clear ping) before driving
   bool reflex_waiting_ : 1;                   // reflex: a ping's result is still to come
   bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
@@ -173,6 +175,8 @@ class Rover : private RoverFields {
     kSwingMm = 175,
     kBackOffMaxMm = 150,        // backing out stops after this much, cleared or not
     kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
+    kBackOffTrackDeg = 15,      // backing out turns back onto the track first when this far off it
+    kTrackAfterMs = 400,        // the heading is the track once the rover has driven this long
   };
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
@@ -273,6 +277,7 @@ class Rover : private RoverFields {
   void mode_scan(const SonarIn& in, uint32_t now, Outputs& out);
   // mode_rotate.cpp
   bool mode_rotate(float err, float l, float dt_s, Outputs& out);
+  void turn_on_spot(float err, float dt_s, Outputs& out);
   bool room_to_turn() const;
   void back_off(float dt_s, Outputs& out);
   // mode_drive.cpp
