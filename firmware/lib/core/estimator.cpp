@@ -141,6 +141,24 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   for (uint8_t i = 0; i < 3; ++i) h[i] = q_[i] - h[i];
   last_innovation_mm_ = saturate_u16(length(z[X] - h[X], z[Y] - h[Y]));
 
+  switch (correct(z, h, r_pos)) {
+    case Correction::Taken:
+      rejects_in_row_ = 0;
+      return FixResult::Accepted;
+    case Correction::Degenerate:
+      return FixResult::Rejected;  // a degenerate covariance: not the fix's fault
+    default:
+      break;
+  }
+  ++rejected_total_;
+  if (++rejects_in_row_ < kMaxRejects) return FixResult::Rejected;
+  // The camera has insisted: we were wrong (moved by hand, or lost). Start again from it.
+  return start_from(z, r_pos);
+}
+
+// Out of line: pasted into update(), the copies' 48 bytes joined z, h and the spills in one
+// frame, past the AVR's short (Y+63) stack offsets: a pair of pointer moves round every access.
+ROVERNAV_NOINLINE Estimator::Correction Estimator::correct(const float* z, const float* h, float r_pos) {
   // H = I and R diagonal, so the update is done one component at a time: three scalar updates
   // give exactly the batch result, in a loop that fits the Uno's flash. It runs on a copy, so
   // that a fix failing the gate changes nothing.
@@ -149,20 +167,14 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
   float P[9];
   for (uint8_t i = 0; i < 9; ++i) P[i] = p_[flash_read_u8(&kIndex[i])];
   const float chi2 = sequential_update(z, h, q_, r_pos, q, P);
-  if (chi2 < 0.0f) return FixResult::Rejected;  // a degenerate covariance: not the fix's fault
-  if (!(chi2 <= kGateChi2)) {
-    ++rejected_total_;
-    if (++rejects_in_row_ < kMaxRejects) return FixResult::Rejected;
-    // The camera has insisted: we were wrong (moved by hand, or lost). Start again from it.
-    return start_from(z, r_pos);
-  }
-  rejects_in_row_ = 0;
+  if (chi2 < 0.0f) return Correction::Degenerate;
+  if (!(chi2 <= kGateChi2)) return Correction::Gated;
   q[T] = wrap_rad(q[T]);
   memcpy(q_, q, sizeof q_);
   // Back into the six entries (the lower triangle's copy of an off-diagonal entry, written last,
   // is kept: the two differ by rounding only).
   for (uint8_t i = 0; i < 9; ++i) p_[flash_read_u8(&kIndex[i])] = P[i];
-  return FixResult::Accepted;
+  return Correction::Taken;
 }
 
 ROVERNAV_NOINLINE FixResult Estimator::start_from(const float* z, float r_pos) {

@@ -69,6 +69,10 @@ class Estimator {
   void odometry_since(uint32_t t_ms, uint32_t now_ms, float* d) const;
   /// Moves a pose (x, y, theta) by a step.
   static void advance(float* pose, float dx, float dy, float dth);
+  /// The fix z against h (the pose when its frame was taken) by the sequential updates, taken
+  /// into the pose and covariance when it passes the gate (else nothing changes).
+  enum class Correction : uint8_t { Taken, Degenerate, Gated };
+  Correction correct(const float* z, const float* h, float r_pos);
   /// Takes the fix z = (x, y, theta) as the pose, with the fix's noise as its covariance.
   FixResult start_from(const float* z, float r_pos);
 
