@@ -94,7 +94,7 @@ bool Rover::mode_blocked(uint32_t now) {
   // and the host's map holds what stands beside it.
   if (local_.blocks(here_mm(), target(), host_knows_ ? static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)) : 0)) {
     if (!host_knows_) {
-      if (waited_ms >= kUnheardWaitMs) start_sweep(now);
+      if (waited_ms >= kUnheardWaitMs) start_sweep();
       return false;
     }
     if (waited_ms < kBlockedWaitMs) return false;

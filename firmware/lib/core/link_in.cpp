@@ -173,7 +173,7 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
     // The sweep's check (replan_locally) then finds its own way round, or holds it Blocked.
     // A rover Blocked stays so until the new leg is seen to clear what the sweep saw (mode_blocked).
     if (reflex_after_trust_) {
-      start_sweep(last_ms_);
+      start_sweep();
     } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate) {
       enter(RoverState::Rotate);
     }
@@ -195,7 +195,7 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
   // Look before the first turn: something beside the rover would be hit by its corners as it turns.
   if (params_.sweep_at_start()) {
-    start_sweep(last_ms_);
+    start_sweep();
   } else {
     enter(RoverState::Rotate);
   }

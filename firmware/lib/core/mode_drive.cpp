@@ -20,7 +20,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
   const bool sweep_due = positive(sweep_mm) && sweep_distance_mm_ >= sweep_mm;   // 0 disables sweeps
   if (p.pose_law()) {
     if (sweep_due) {
-      start_sweep(now);
+      start_sweep();
       return;
     }
     // Too far off (the goal behind the rover): turn on the spot first, as the seed would.
@@ -38,7 +38,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
     return;
   }
   if (sweep_due) {
-    start_sweep(now);
+    start_sweep();
     return;
   }
   if (l < min_distance_mm_) min_distance_mm_ = l;
@@ -86,7 +86,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
   const bool looked = sweep_distance_mm_ < static_cast<float>(kTurnLookAfterMm) &&
                       fabsf(wrap_rad(est_.heading_rad() - sweep_heading_rad_)) <= static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg;
   if (positive(look_deg) && turn_deg > look_deg && !looked) {
-    start_sweep(last_ms_);
+    start_sweep();
     return false;
   }
   enter(RoverState::Rotate);

@@ -4,14 +4,14 @@
 namespace rovernav {
 namespace core {
 
-void Rover::start_sweep(uint32_t now) {
+void Rover::start_sweep() {
   reflex_waiting_ = false;   // a ping still out belongs to the reflex, not to the sweep
   ++scan_id_;
   scan_echoes_ = 0;
   host_knows_ = false;   // until a HEARTBEAT says the host heard this sweep
   enter(RoverState::Scan);   // ends a detour being planned
   local_.clear();
-  sweep_.start(now, servo_cdeg_, params_.sweep_step_ms());
+  sweep_.start(last_ms_, servo_cdeg_, params_.sweep_step_ms());
 }
 
 void Rover::stop_sweep() {

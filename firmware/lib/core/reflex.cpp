@@ -37,7 +37,7 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
     if (r > 0 && reflex_on_path(look, r, l_mm)) {
       if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
       reflex_look_ = true;
-      start_sweep(now);
+      start_sweep();
       report_echo(look, r);
       send_event(EventKind::Reflex, r);
       out.left_pwm = out.right_pwm = 0;

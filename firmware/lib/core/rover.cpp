@@ -171,7 +171,7 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
     // The radio is back: the host's map missed the readings sent while it was down (and may
     // have sent a path that runs into them). A sweep, reported, before the rover moves on.
     look_after_outage_ = false;
-    start_sweep(now);
+    start_sweep();
     return;
   }
   float err = 0.0f;

@@ -272,7 +272,7 @@ class Rover : private RoverFields {
   void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
   void calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r);
   // mode_scan.cpp
-  void start_sweep(uint32_t now);
+  void start_sweep();  // at the step's time (last_ms_: every caller is within a step)
   void stop_sweep();  // ends a sweep and points the sonar ahead
   void mode_scan(const SonarIn& in, uint32_t now, Outputs& out);
   // mode_rotate.cpp
