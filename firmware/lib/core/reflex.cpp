@@ -29,24 +29,24 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
   // Ahead, right 15 and 30 degrees, ahead, left 15 and 30: at close range the 15-degree cone is
   // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
   static const int16_t kLookCdeg[kReflexLooks] ROVERNAV_PROGMEM = {0, 1500, 3000, 0, -1500, -3000};
-  if (reflex_waiting_ && in.valid) {
+  // A ping's result, or none in time (then it pings again): on to the next look either way.
+  if (reflex_waiting_ && (in.valid || static_cast<uint16_t>(now - reflex_fired_ms_) >= Sweep::kPingTimeoutMs)) {
     reflex_waiting_ = false;
-    const uint16_t r = in.range_mm;
     const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
     reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
-    if (r > 0 && reflex_on_path(look, r, l_mm)) {
-      if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
-      reflex_look_ = true;
-      start_sweep();
-      report_echo(look, r);
-      send_event(EventKind::Reflex, r);
-      out.left_pwm = out.right_pwm = 0;
-      return true;
+    if (in.valid) {
+      const uint16_t r = in.range_mm;
+      if (r > 0 && reflex_on_path(look, r, l_mm)) {
+        if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
+        reflex_look_ = true;
+        start_sweep();
+        report_echo(look, r);
+        send_event(EventKind::Reflex, r);
+        out.left_pwm = out.right_pwm = 0;
+        return true;
+      }
+      if (look == 0) reflex_look_ = false;   // clear straight ahead
     }
-    if (look == 0) reflex_look_ = false;   // clear straight ahead
-  } else if (reflex_waiting_ && static_cast<uint16_t>(now - reflex_fired_ms_) >= Sweep::kPingTimeoutMs) {
-    reflex_waiting_ = false;   // no result came: ping again
-    reflex_look_i_ = static_cast<uint8_t>((reflex_look_i_ + 1) % kReflexLooks);
   }
   servo_cdeg_ = flash_read_i16(&kLookCdeg[reflex_look_i_]);
   if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {
