@@ -37,8 +37,9 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   // Rotate until well inside the cone the drive will hold: far from the waypoint the cone
   // atan(cone_tol / L) is narrower than rotate_done (0.6 degrees at 1.7 m), and a rotation
   // that stopped between the two would hand over to a drive that hands straight back.
-  float done_deg = p.pose_law() ? 0.5f * kPoseMaxErrorDeg : p.rotate_done_deg();
+  float done_deg = 0.5f * kPoseMaxErrorDeg;
   if (!p.pose_law()) {
+    done_deg = p.rotate_done_deg();
     const float half_cone = 0.5f * cone_deg(l);
     if (half_cone < done_deg) done_deg = half_cone;
   }
