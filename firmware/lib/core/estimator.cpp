@@ -91,7 +91,7 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
     h.y_mm = static_cast<int16_t>(lroundf(odo_[Y]));
     h.heading_cdeg = rad_to_cdeg(odo_[T]);
     h.t_ms = static_cast<uint16_t>(now_ms);
-    history_next_ = static_cast<uint8_t>((history_next_ + 1) % kHistory);
+    history_next_ = history_next_ + 1 < kHistory ? static_cast<uint8_t>(history_next_ + 1) : 0;   // a wrap, not a division
     if (history_count_ < kHistory) ++history_count_;
     history_last_ms_ = static_cast<uint16_t>(now_ms);
   }
