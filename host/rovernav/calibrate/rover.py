@@ -40,6 +40,7 @@ import dataclasses
 import math
 import statistics
 
+from ..angles import wrap_deg
 from ..link import messages_gen as mg
 
 #: Drive commands of the runs [PWM], the length of each run [m].
@@ -153,7 +154,7 @@ class Run:
         last = [p[3] for p in self.poses if t1 - 1.0 <= p[0] <= t1]
         if len(first) < 5 or len(last) < 5:
             return "the camera did not see the rover while it stood still"
-        turned = _wrap_deg(_circular_median(last) - _circular_median(first))
+        turned = wrap_deg(_circular_median(last) - _circular_median(first))
         if abs(turned) > STILL_TURN_DEG:
             return (f"the camera saw the rover turn {turned:+.1f} degrees while it was to stand still "
                     "(was it pushed, or its wheels not stopped?)")
@@ -180,10 +181,10 @@ class Run:
         d_m, normal_deg = geo
         facing = math.cos(math.radians(h - normal_deg))
         if facing < math.cos(math.radians(WALL_FACING_DEG)):
-            return (f"the rover faced {abs(_wrap_deg(h - normal_deg)):.0f} degrees off square to the wall "
+            return (f"the rover faced {abs(wrap_deg(h - normal_deg)):.0f} degrees off square to the wall "
                     f"(it must face it within {WALL_FACING_DEG:.0f})")
         within = min(SQUARE_DEG, cone_deg / 2)
-        offsets = [(d_m - r) / facing for _, b, r in self.echoes if abs(_wrap_deg(h + b - normal_deg)) <= within]
+        offsets = [(d_m - r) / facing for _, b, r in self.echoes if abs(wrap_deg(h + b - normal_deg)) <= within]
         return offsets or f"no echo square to the wall (the sweep faced it within {within:.0f} degrees no time)"
 
     def gyro_scale(self) -> float | None:
@@ -201,7 +202,7 @@ class Run:
         if j is None:
             return None
         t_a, t_b = self.status[i][0], self.status[j][0]
-        rover = sum(_wrap_deg((b[4] - a[4]) / 100.0) for a, b in zip(self.status[i:j], self.status[i + 1:j + 1]))
+        rover = sum(wrap_deg((b[4] - a[4]) / 100.0) for a, b in zip(self.status[i:j], self.status[i + 1:j + 1]))
         # The camera's headings from the last before t_a to the first after t_b, unwrapped, and
         # read at t_a and t_b by interpolation (the rover turns fast: a frame's 33 ms is degrees).
         k0 = next((k for k in range(len(self.poses) - 1, -1, -1) if self.poses[k][0] <= t_a), None)
@@ -210,7 +211,7 @@ class Run:
             return None
         ts, hs = [self.poses[k0][0]], [self.poses[k0][3]]
         for p in self.poses[k0 + 1:k1 + 1]:
-            hs.append(hs[-1] + _wrap_deg(p[3] - hs[-1]))
+            hs.append(hs[-1] + wrap_deg(p[3] - hs[-1]))
             ts.append(p[0])
 
         def at(t: float) -> float:
@@ -282,21 +283,17 @@ class Fit:
         return {}
 
 
-def _wrap_deg(d: float) -> float:
-    return (d + 180.0) % 360.0 - 180.0
-
-
 def _unwrapped(pts: list[tuple[float, float]]) -> list[tuple[float, float]]:
     """(t, heading deg) with the jumps of a turn across +-180 taken out."""
     out: list[tuple[float, float]] = []
     for t, h in pts:
-        out.append((t, h if not out else out[-1][1] + _wrap_deg(h - out[-1][1])))
+        out.append((t, h if not out else out[-1][1] + wrap_deg(h - out[-1][1])))
     return out
 
 
 def _circular_median(headings_deg: list[float]) -> float:
     ref = headings_deg[0]
-    return _wrap_deg(ref + statistics.median(_wrap_deg(h - ref) for h in headings_deg))
+    return wrap_deg(ref + statistics.median(wrap_deg(h - ref) for h in headings_deg))
 
 
 def _slope_se(pts: list[tuple[float, float]]) -> tuple[float, float]:
@@ -423,7 +420,7 @@ def check_wall(wall: tuple[float, float, float, float], x_m: float, y_m: float, 
     if isinstance(geo, str):
         raise CalibrationFailed(f"--wall: {geo}: stand the rover facing the wall, in front of it")
     d_m, normal_deg = geo
-    off = abs(_wrap_deg(heading_deg - normal_deg))
+    off = abs(wrap_deg(heading_deg - normal_deg))
     if off > WALL_FACING_DEG:
         raise CalibrationFailed(f"--wall: the rover faces {off:.0f} degrees off square to the wall (within "
                                 f"{WALL_FACING_DEG:.0f}, please: turn it to face the wall)")
