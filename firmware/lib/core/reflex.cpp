@@ -34,7 +34,7 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
     reflex_waiting_ = false;
     const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
     // The index is always below kReflexLooks: a wrap, not a division (a library call on the Uno).
-    reflex_look_i_ = reflex_look_i_ + 1 < kReflexLooks ? static_cast<uint8_t>(reflex_look_i_ + 1) : 0;
+    reflex_look_i_ = reflex_look_i_ + 1u < kReflexLooks ? static_cast<uint8_t>(reflex_look_i_ + 1) : 0;
     if (in.valid) {
       const uint16_t r = in.range_mm;
       if (r > 0 && reflex_on_path(look, r, l_mm)) {
