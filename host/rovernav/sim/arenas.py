@@ -82,6 +82,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import heapq
 import io
 import json
 import math
@@ -752,9 +753,8 @@ def _way_through(occ: np.ndarray, need_cells: float) -> bool:
 
 
 def _cheapest_way(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> list[tuple[int, int]]:
-    """The cells (row, column) of the cheapest 4-connected way from start to goal (Dijkstra)."""
-    import heapq
-
+    """The cells (row, column) of the cheapest 4-connected way from start to goal (Dijkstra on
+    weighted cells: planning.astar_cells searches a free/blocked grid, not costs)."""
     ny, nx = cost.shape
     best = np.full(cost.shape, np.inf)
     best[start] = 0.0
