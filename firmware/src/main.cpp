@@ -41,7 +41,9 @@ hal::Mpu6050 gyro;
 hal::LinkSerial serial_link;
 hal::LinkStore link_store;
 
-hal::MpuResult gyro_state = hal::MpuResult::NotStarted;
+// What the gyro's begin() said. setup() sets it before loop() first reads it, so its start value
+// is never seen: zero, in .bss (an initialised global would bring the start-up copy loop back).
+hal::MpuResult gyro_state;
 uint16_t last_step_ms = 0;   // modulo 65,536: loop() looks at it every few microseconds
 
 // A ping the core asked for is triggered after its step; the result, collected by the poll at

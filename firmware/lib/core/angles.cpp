@@ -16,6 +16,11 @@ uint32_t bits(float f) {
   memcpy(&u, &f, sizeof u);
   return u;
 }
+float from_bits(uint32_t u) {
+  float f;
+  memcpy(&f, &u, sizeof f);
+  return f;
+}
 
 }  // namespace
 
@@ -33,25 +38,32 @@ ROVERNAV_NOINLINE float wrap_rad(float a) {
 }
 
 // Signs and the comparison of magnitudes on the floats' bits (for non-negative floats the order
-// of the bit patterns is the order of the values): no library call for them on the Uno.
+// of the bit patterns is the order of the values): no library call for them on the Uno. What
+// the end needs of them is kept in one byte of flags, not in the floats they came from: held
+// across the float calls, those took eight bytes of stack and their loads.
 ROVERNAV_NOINLINE float fast_atan2(float y, float x) {
+  enum : uint8_t { kSteep = 1, kXNegative = 2, kYNegative = 4 };
   const uint32_t sign = 0x80000000u;
-  const uint32_t bx = bits(x), by = bits(y);
-  float ax = fabsf(x), ay = fabsf(y);
-  const bool steep = (by & ~sign) > (bx & ~sign);
-  if (steep) {
-    const float swap = ax;
-    ax = ay;
-    ay = swap;
+  uint32_t bx = bits(x), by = bits(y);
+  uint8_t flags = 0;
+  if (bx & sign) flags |= kXNegative;
+  if (by & sign) flags |= kYNegative;
+  bx &= ~sign;
+  by &= ~sign;
+  if (by > bx) {
+    flags |= kSteep;
+    const uint32_t swap = bx;
+    bx = by;
+    by = swap;
   }
-  if ((bits(ax) & ~sign) == 0) return 0.0f;   // the origin
-  const float t = ay / ax, s = t * t;
+  if (bx == 0) return 0.0f;   // the origin
+  const float t = from_bits(by) / from_bits(bx), s = t * t;
   float p = 0.0f;
   for (uint8_t i = 0; i < sizeof kAtanPoly / sizeof kAtanPoly[0]; ++i) p = p * s + flash_read_float(&kAtanPoly[i]);
   float a = t * p;
-  if (steep) a = 0.5f * kPi - a;
-  if (bx & sign) a = kPi - a;
-  return (by & sign) ? -a : a;
+  if (flags & kSteep) a = 0.5f * kPi - a;
+  if (flags & kXNegative) a = kPi - a;
+  return (flags & kYNegative) ? -a : a;
 }
 
 }  // namespace core

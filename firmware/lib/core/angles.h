@@ -3,6 +3,7 @@
 #pragma once
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "noinline.h"
 
@@ -29,7 +30,11 @@ ROVERNAV_NOINLINE inline float rad_to_deg(float rad) { return rad * kDegPerRad; 
 /// To centidegrees in (-18000, 18000].
 inline int16_t rad_to_cdeg(float rad) {
   const float c = rad_to_deg(wrap_rad(rad)) * 100.0f;
-  const int32_t r = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
+  // Rounded half away from zero: the half of c's sign (its bit, where a comparison with zero is
+  // a library call on the Uno; -0 takes -0.5 where it took 0.5, and both truncate to 0).
+  uint32_t c_bits;
+  memcpy(&c_bits, &c, sizeof c_bits);
+  const int32_t r = static_cast<int32_t>(c + ((c_bits & 0x80000000u) ? -0.5f : 0.5f));
   return static_cast<int16_t>(r <= -18000 ? 18000 : r);
 }
 

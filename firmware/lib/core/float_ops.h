@@ -18,14 +18,37 @@ namespace core {
 /// call, a dozen bytes at each of some twenty uses.
 inline ROVERNAV_NOINLINE float to_float(int v) { return static_cast<float>(v); }
 
+/// The float's 32 bits. For two non-negative floats (or two negative ones, by magnitude) the
+/// order of the bits is the order of the values: a comparison on them is a few instructions, where
+/// the float comparison is a library call with its constant's four loads on the Uno.
+inline uint32_t float_bits(float v) {
+  uint32_t b;
+  memcpy(&b, &v, sizeof b);
+  return b;
+}
+
+enum : uint32_t {
+  kFloatSignBit = 0x80000000u,
+  kInfinityBits = 0x7F800000u,   ///< +infinity: every exponent bit, no mantissa; a NaN's magnitude lies above
+};
+
 /// v > 0 (false for a NaN), on the float's bits: its 32 bits less one lie below those of +infinity
 /// for exactly the positive floats and +infinity. Out of line, and no library call: the
 /// comparison written out is the zero's four loads and __gtsf2 at each of fourteen uses.
-inline ROVERNAV_NOINLINE bool positive(float v) {
-  uint32_t b;
-  memcpy(&b, &v, sizeof b);
-  return b - 1u < 0x7F800000u;
+inline ROVERNAV_NOINLINE bool positive(float v) { return float_bits(v) - 1u < kInfinityBits; }
+
+/// |v| > limit (limit >= 0; false for a NaN), on the bits: v's magnitude lies above limit's
+/// and not above infinity's.
+inline bool magnitude_above(float v, float limit) {
+  const uint32_t magnitude = float_bits(v) & ~kFloatSignBit;
+  return magnitude > float_bits(limit) && magnitude <= kInfinityBits;
 }
+
+/// |v| < limit (limit >= 0; false for a NaN), on the bits.
+inline bool magnitude_below(float v, float limit) { return (float_bits(v) & ~kFloatSignBit) < float_bits(limit); }
+
+/// v's sign bit (set for -0 and the negative floats).
+inline bool sign_bit(float v) { return (float_bits(v) & kFloatSignBit) != 0; }
 
 /// v clamped to [lo, hi].
 inline ROVERNAV_NOINLINE float clamp(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
@@ -53,24 +76,30 @@ inline ROVERNAV_NOINLINE float segment_distance2(float px, float py, float vx, f
 inline ROVERNAV_NOINLINE float sqrt_or_zero(float v) { return positive(v) ? sqrtf(v) : 0.0f; }
 
 
+// The limits below are tested on the bits (magnitude_above(), sign_bit()): v > 255 is a v above
+// 255 in magnitude without the sign bit, v < -255 one with it; a NaN is neither (as with the float
+// comparisons) and goes to lroundf.
+
 /// A motor command: v rounded and clamped to -255..255.
 inline ROVERNAV_NOINLINE int16_t clamp_pwm(float v) {
-  if (v > 255.0f) return 255;
-  if (v < -255.0f) return -255;
+  if (magnitude_above(v, 255.0f)) return sign_bit(v) ? -255 : 255;
   return static_cast<int16_t>(lroundf(v));
 }
 
 /// v rounded into 0..65535 (0 for NaN), for the wire.
 inline ROVERNAV_NOINLINE uint16_t saturate_u16(float v) {
   if (!positive(v)) return 0;
-  if (v > 65535.0f) return 65535;
+  if (float_bits(v) > float_bits(65535.0f)) return 65535;   // positive: no sign bit, no NaN
   return static_cast<uint16_t>(lroundf(v));
 }
 
 /// v rounded into -32768..32767, for the wire.
 inline ROVERNAV_NOINLINE int16_t saturate_i16(float v) {
-  if (v > 32767.0f) return 32767;
-  if (v < -32768.0f) return -32768;
+  if (sign_bit(v)) {
+    if (magnitude_above(v, 32768.0f)) return -32768;
+  } else if (magnitude_above(v, 32767.0f)) {
+    return 32767;
+  }
   return static_cast<int16_t>(lroundf(v));
 }
 

@@ -61,6 +61,9 @@ void Rover::send_event(EventKind kind, uint16_t arg) {
 ROVERNAV_NOINLINE void Rover::send_status() {
   msg::Status s;
   s.time_ms = last_ms_;
+  // The fix's age first, with last_ms_ just loaded: taken after the floats below, last_ms_ was held
+  // across all their calls, in four more registers to save and restore.
+  s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;
   s.state = static_cast<uint8_t>(state_);
   s.flags = flags();
   s.fault = static_cast<uint8_t>(fault_);
@@ -77,7 +80,6 @@ ROVERNAV_NOINLINE void Rover::send_status() {
   s.corr_xy_permille = positive(denom) ? saturate_i16(1000.0f * est_.p(Estimator::kXY) / denom) : 0;
   s.sd_heading_cdeg = saturate_u16(rad_to_deg(sqrt_or_zero(est_.p(Estimator::kTT))) * 100.0f);
   s.dr_distance_mm = saturate_u16(dr_distance_mm_);
-  s.fix_age_ms = had_fix_ ? saturate_u16(static_cast<float>(last_ms_ - last_fix_ms_)) : 65535;
   s.left_pwm = left_cmd_;
   s.right_pwm = right_cmd_;
   // The decoder's five counters are STATUS's five rx fields, in the same order and width.

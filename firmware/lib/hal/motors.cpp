@@ -87,10 +87,8 @@ void Motors::set(int16_t left_pwm, int16_t right_pwm) {
 }
 
 void Motors::stop() {
-  write_duty(Input::LeftBack, 0);
-  write_duty(Input::LeftFwd, 0);
-  write_duty(Input::RightBack, 0);
-  write_duty(Input::RightFwd, 0);
+  // A loop over the four inputs, in their order: the four calls written out took more flash.
+  for (uint8_t i = 0; i <= static_cast<uint8_t>(Input::RightFwd); ++i) write_duty(static_cast<Input>(i), 0);
 }
 
 }  // namespace hal

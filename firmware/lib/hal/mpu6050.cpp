@@ -24,6 +24,15 @@ constexpr uint8_t kGyroFs500Dps = 0x08;
 constexpr uint8_t kWhoAmIMpu6050 = 0x68;
 constexpr uint16_t kResetSettleMs = 100;
 
+// The configuration written after the reset, register and value, in order. In flash: a table in
+// RAM is initialised data, which costs the image the start-up copy loop as well as the copy.
+const uint8_t kConfig[][2] PROGMEM = {
+    {kRegPwrMgmt1, kPwrClockPllGyroX},
+    {kRegConfig, kDlpf42Hz},
+    {kRegSmplrtDiv, kSmplrtDiv100Hz},
+    {kRegGyroConfig, kGyroFs500Dps},
+};
+
 bool is_clone_id(uint8_t id) { return id == 0x70 || id == 0x72 || id == 0x98; }
 
 // An if-chain, not a switch: GCC turns that switch into a lookup table in RAM.
@@ -60,14 +69,8 @@ MpuResult Mpu6050::begin() {
   if (r != MpuResult::Ok) return r;
   delay(kResetSettleMs);
 
-  const uint8_t config[][2] = {
-      {kRegPwrMgmt1, kPwrClockPllGyroX},
-      {kRegConfig, kDlpf42Hz},
-      {kRegSmplrtDiv, kSmplrtDiv100Hz},
-      {kRegGyroConfig, kGyroFs500Dps},
-  };
-  for (const auto& reg_value : config) {
-    r = write_reg(reg_value[0], reg_value[1]);
+  for (const auto& reg_value : kConfig) {
+    r = write_reg(pgm_read_byte(&reg_value[0]), pgm_read_byte(&reg_value[1]));
     if (r != MpuResult::Ok) return r;
   }
   started_ = true;

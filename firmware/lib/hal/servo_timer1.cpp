@@ -40,13 +40,13 @@ void ServoTimer1::begin(int16_t angle_cdeg) {
 }
 
 int16_t ServoTimer1::write_cdeg(int16_t angle_cdeg) {
-  int32_t servo_cdeg = kServoMidCdeg + trim_cdeg_ +
+  int32_t servo_cdeg = kServoMidCdeg + trim_cdeg() +
                        static_cast<int32_t>(board::kServoClockwiseSign) * angle_cdeg;
   if (servo_cdeg < 0) servo_cdeg = 0;
   if (servo_cdeg > kServoTravelCdeg) servo_cdeg = kServoTravelCdeg;
 
   angle_cdeg_ = static_cast<int16_t>(board::kServoClockwiseSign *
-                                     (servo_cdeg - kServoMidCdeg - trim_cdeg_));
+                                     (servo_cdeg - kServoMidCdeg - trim_cdeg()));
   const int32_t span_us = board::kServoPulseMaxUs - board::kServoPulseMinUs;
   pulse_us_ = static_cast<uint16_t>(board::kServoPulseMinUs +
                                     (servo_cdeg * span_us + kServoTravelCdeg / 2) /
@@ -56,7 +56,7 @@ int16_t ServoTimer1::write_cdeg(int16_t angle_cdeg) {
 }
 
 void ServoTimer1::set_trim_cdeg(int16_t centre_trim_cdeg) {
-  trim_cdeg_ = centre_trim_cdeg;
+  trim_offset_cdeg_ = static_cast<int16_t>(centre_trim_cdeg - board::kServoCentreTrimCdeg);
   write_cdeg(angle_cdeg_);
 }
 

@@ -24,7 +24,7 @@ namespace hal {
 class ServoTimer1 {
  public:
   explicit constexpr ServoTimer1(int16_t centre_trim_cdeg = board::kServoCentreTrimCdeg)
-      : trim_cdeg_(centre_trim_cdeg) {}
+      : trim_offset_cdeg_(static_cast<int16_t>(centre_trim_cdeg - board::kServoCentreTrimCdeg)) {}
 
   // Takes over Timer1 and starts pulses at angle_cdeg.
   void begin(int16_t angle_cdeg = 0);
@@ -41,10 +41,12 @@ class ServoTimer1 {
 
   int16_t angle_cdeg() const { return angle_cdeg_; }
   uint16_t pulse_us() const { return pulse_us_; }
-  int16_t trim_cdeg() const { return trim_cdeg_; }
+  int16_t trim_cdeg() const { return static_cast<int16_t>(board::kServoCentreTrimCdeg + trim_offset_cdeg_); }
 
  private:
-  int16_t trim_cdeg_;
+  // The trim less the board's: a servo with the board's trim is all zeros, so the shell's global
+  // one lies in .bss. With no initialised data at all the image needs no start-up copy loop.
+  int16_t trim_offset_cdeg_;
   int16_t angle_cdeg_ = 0;
   uint16_t pulse_us_ = 0;
 };

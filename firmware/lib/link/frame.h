@@ -73,6 +73,8 @@ class FrameDecoder {
 
  private:
   bool finish();
+  /// Counts a dropped frame in counter, notes why; returns false (finish()'s result).
+  bool drop(uint16_t& counter, FrameError why);
 
   // All zero when nothing has come (a global decoder needs no start-up code).
   uint8_t raw_[kMaxSignedRawFrame] = {};
