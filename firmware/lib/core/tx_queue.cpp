@@ -48,12 +48,13 @@ ROVERNAV_NOINLINE bool TxQueue::frame_next(FrameAuth& auth) {
   const uint8_t framed = static_cast<uint8_t>(len + kFrameHeader + kFrameCrc + (sign ? kFrameSignature : 0) + 2);
   const uint8_t grow = static_cast<uint8_t>(framed - (kRawHead + len));
   if (grow > kCapacity - count_) return false;
-  uint8_t head[kRawHead + kMaxPayload];   // encode_frame writes over the raw frame it reads
-  for (uint8_t i = 0; i < kRawHead + len; ++i) head[i] = raw[i];
   for (uint8_t i = static_cast<uint8_t>(count_ - ready_ - kRawHead - len); i > 0; --i) {
     raw[framed + i - 1] = raw[kRawHead + len + i - 1];   // the raw frames behind, moved up
   }
-  encode_frame(head[1], head[2], head + kRawHead, len, raw, &auth);
+  // (len, id, seq, payload) to (COBS code, version, id, seq, payload): id to the payload's end
+  // move up a byte, into the room just made, and are framed where they lie (no copy of them).
+  for (uint8_t i = static_cast<uint8_t>(kRawHead - 1 + len); i > 0; --i) raw[i + 1] = raw[i];
+  frame_in_place(raw, static_cast<uint8_t>(kFrameHeader + len), &auth);
   ready_ = static_cast<uint8_t>(ready_ + framed);
   count_ = static_cast<uint8_t>(count_ + grow);
   return true;

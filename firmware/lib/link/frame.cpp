@@ -38,31 +38,29 @@ bool FrameDecoder::push(uint8_t byte) {
   return false;
 }
 
-// Out of line: the count and the reason written out at each of the six ways to drop a frame
-// cost the Uno more flash than the calls.
-__attribute__((noinline)) bool FrameDecoder::drop(uint16_t& counter, FrameError why) {
+// Out of line: the count written out at each of the six ways to drop a frame costs the Uno
+// more flash than the calls.
+__attribute__((noinline)) bool FrameDecoder::drop(uint16_t& counter) {
   ++counter;
-  last_error_ = why;
   return false;
 }
 
 bool FrameDecoder::finish() {
-  last_error_ = FrameError::None;
-  if (overlong_) return drop(counters_.overlong, FrameError::Overlong);
+  if (overlong_) return drop(counters_.overlong);
   if (encoded_len_ == 0) return false;  // two delimiters in a row
-  if (block_left_ != 0 || raw_len_ < kFrameHeader + kFrameCrc) return drop(counters_.malformed, FrameError::Malformed);
+  if (block_left_ != 0 || raw_len_ < kFrameHeader + kFrameCrc) return drop(counters_.malformed);
   const uint8_t body_len = static_cast<uint8_t>(raw_len_ - kFrameCrc);
   const uint16_t crc = static_cast<uint16_t>(raw_[body_len] | (raw_[body_len + 1] << 8));
-  if (crc16_ccitt_false(raw_, body_len) != crc) return drop(counters_.bad_crc, FrameError::BadCrc);
+  if (crc16_ccitt_false(raw_, body_len) != crc) return drop(counters_.bad_crc);
   const bool is_signed = raw_[0] == (kProtocolVersion | kSignFlag);
   if ((raw_[0] != kProtocolVersion && !is_signed) ||
       (is_signed && body_len < kFrameHeader + kFrameSignature)) {
-    return drop(counters_.malformed, FrameError::Malformed);
+    return drop(counters_.malformed);
   }
   const int16_t expected = payload_size(raw_[1]);
-  if (expected < 0) return drop(counters_.unknown_id, FrameError::UnknownId);
+  if (expected < 0) return drop(counters_.unknown_id);
   const uint8_t payload_len = static_cast<uint8_t>(body_len - kFrameHeader - (is_signed ? kFrameSignature : 0));
-  if (payload_len != expected) return drop(counters_.malformed, FrameError::Malformed);
+  if (payload_len != expected) return drop(counters_.malformed);
   frame_.version = raw_[0];
   frame_.msg_id = raw_[1];
   frame_.seq = raw_[2];
@@ -79,12 +77,17 @@ uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_
   // Build the raw body in place after one spare byte, then COBS-encode forwards: the
   // encoder never writes past the byte it is about to read, so one buffer suffices.
   uint8_t* raw = out + 1;
-  uint8_t n = 0;
-  const bool sign = auth != nullptr && auth->keyed();
-  raw[n++] = sign ? static_cast<uint8_t>(kProtocolVersion | kSignFlag) : static_cast<uint8_t>(kProtocolVersion);
+  uint8_t n = 1;   // the version: frame_in_place writes it
   raw[n++] = msg_id;
   raw[n++] = seq;
   for (uint8_t i = 0; i < payload_len; ++i) raw[n++] = payload[i];
+  return frame_in_place(out, n, auth);
+}
+
+uint8_t frame_in_place(uint8_t* out, uint8_t n, FrameAuth* auth) {
+  uint8_t* raw = out + 1;
+  const bool sign = auth != nullptr && auth->keyed();
+  raw[0] = sign ? static_cast<uint8_t>(kProtocolVersion | kSignFlag) : static_cast<uint8_t>(kProtocolVersion);
   if (sign) n = auth->sign(raw, n);
   const uint16_t crc = crc16_ccitt_false(raw, n);
   raw[n++] = static_cast<uint8_t>(crc & 0xFFu);

@@ -48,9 +48,6 @@ struct Frame {
   const uint8_t* tag() const { return payload + payload_len + kSignCounterBytes; }
 };
 
-/// Why the last completed frame was dropped (None if it was accepted).
-enum class FrameError : uint8_t { None, Overlong, Malformed, BadCrc, UnknownId };
-
 struct FrameCounters {
   uint16_t frames_ok;
   uint16_t bad_crc;
@@ -67,14 +64,13 @@ class FrameDecoder {
 
   const Frame& frame() const { return frame_; }
   const FrameCounters& counters() const { return counters_; }
-  FrameError last_error() const { return last_error_; }
   /// Forgets a partial frame (counters are kept).
   void reset();
 
  private:
   bool finish();
-  /// Counts a dropped frame in counter, notes why; returns false (finish()'s result).
-  bool drop(uint16_t& counter, FrameError why);
+  /// Counts a dropped frame in counter; returns false (finish()'s result).
+  bool drop(uint16_t& counter);
 
   // All zero when nothing has come (a global decoder needs no start-up code).
   uint8_t raw_[kMaxSignedRawFrame] = {};
@@ -85,7 +81,6 @@ class FrameDecoder {
   bool overlong_ = false;
   Frame frame_ = {};
   FrameCounters counters_ = {};
-  FrameError last_error_ = FrameError::None;
 };
 
 class FrameAuth;
@@ -95,6 +90,12 @@ class FrameAuth;
 /// included, or 0 if payload_len > kMaxPayload.
 uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_t payload_len,
                      uint8_t* out, FrameAuth* auth = nullptr);
+
+/// Frames in place the body whose msg_id, seq and payload are at out + 2 (n bytes with the
+/// version byte at out + 1, which this writes): signed when auth holds a key, then the CRC, then
+/// COBS from out on. out must hold kMaxEncodedFrame bytes. Returns the bytes written, delimiter
+/// included. (encode_frame's second half: the TX queue frames its raw frames where they lie.)
+uint8_t frame_in_place(uint8_t* out, uint8_t n, FrameAuth* auth);
 
 /// Encodes a generated message: encode_message(msg::Fix{...}, seq, out).
 template <typename Msg>
