@@ -1,4 +1,4 @@
-// Blocked and Planning: what the last sweep saw, kept as obstacle disks (LocalPlanner); whether
+// Blocked and Planning: what the sonar saw near the rover, kept as obstacle disks (LocalPlanner); whether
 // the leg runs into it; waiting for the host's new path, or planning the rover's own detour, a
 // slice a step, when the radio is down or the host's path proved blocked.
 #include "rover.h"
@@ -22,7 +22,8 @@ void Rover::remember_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   Point c;
   c.x_mm = saturate_i16(e.x_mm);
   c.y_mm = saturate_i16(e.y_mm);
-  local_.add(c, saturate_u16(p.clearance_mm() + r * tanf(p.sonar_half_cone_rad())));
+  const float half = p.sonar_half_cone_rad();   // tan as sin / cos: the image needs no tan of its own
+  local_.add(c, saturate_u16(p.clearance_mm() + r * sinf(half) / cosf(half)), here_mm());
 }
 
 Waypoint Rover::rejoin_point(float ahead_mm) const {
@@ -58,7 +59,7 @@ void Rover::replan_locally() {
   const bool distrust = reflex_after_trust_;
   reflex_after_trust_ = false;
   if (!mission_ || local_.echoes() == 0) return;
-  if (!local_.blocks(here_mm(), target())) return;
+  if (!local_.blocks(here_mm(), target(), 0, true)) return;
   reflex_after_trust_ = distrust;
   const bool on_own_detour = detour_i_ < detour_n_;
   if (!reflex_after_trust_ && !on_own_detour) {
@@ -92,7 +93,7 @@ bool Rover::mode_blocked(uint32_t now) {
   // does not replan), the rover sweeps again: the readings said again, and the leg seen afresh.
   // It does not set off on its own way round while the radio is up: its sonar sees ahead only,
   // and the host's map holds what stands beside it.
-  if (local_.blocks(here_mm(), target(), host_knows_ ? static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)) : 0)) {
+  if (local_.blocks(here_mm(), target(), host_knows_ ? static_cast<uint16_t>(params_.raw(Param::SonarMarginMm)) : 0, true)) {
     if (!host_knows_) {
       if (waited_ms >= kUnheardWaitMs) start_sweep();
       return false;

@@ -192,6 +192,7 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   mission_ = true;
   wp_ = 0;
   pick_target_ = true;
+  local_.clear();   // the rover may have been carried since: what it remembers is of elsewhere
   // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
   // Look before the first turn: something beside the rover would be hit by its corners as it turns.
   if (params_.sweep_at_start()) {

@@ -21,6 +21,16 @@ inline void set_nibble(uint8_t* n, uint16_t i, uint8_t v) {
 
 int32_t sq(int32_t v) { return v * v; }
 
+// The squared distance between two points (out of line: three loops use it).
+ROVERNAV_NOINLINE int32_t dist2(Point a, Point b) { return sq(a.x_mm - b.x_mm) + sq(a.y_mm - b.y_mm); }
+
+// How far a lies from b along the unit vector (fx_q8, fy_q8) / 256, in 16 bits: the echoes are
+// within a few metres of the rover. Out of line: three uses.
+ROVERNAV_NOINLINE int16_t along_q8(Point a, Point b, int16_t fx_q8, int16_t fy_q8) {
+  const int16_t dx = static_cast<int16_t>(a.x_mm - b.x_mm), dy = static_cast<int16_t>(a.y_mm - b.y_mm);
+  return static_cast<int16_t>((static_cast<int32_t>(dx) * fx_q8 + static_cast<int32_t>(dy) * fy_q8) >> 8);
+}
+
 // How far c lies outside the span between a and b (0 within it), in 16 bits without overflow:
 // the difference of two int16 is at most 65,535.
 // Out of line: written out twice in blocks(), among its float locals, it took more flash than
@@ -34,16 +44,36 @@ ROVERNAV_NOINLINE uint16_t outside_span(int16_t c, int16_t a, int16_t b) {
 
 }  // namespace
 
-void LocalPlanner::add(Point p, uint16_t radius_mm) {
+void LocalPlanner::keep_near(Point here, uint16_t keep_mm, int16_t fx_q8, int16_t fy_q8, int16_t behind_mm) {
+  uint8_t k = 0;
+  for (uint8_t i = 0; i < n_; ++i) {
+    const Disk& d = disks_[i];
+    const int16_t along = along_q8(d.c, here, fx_q8, fy_q8);
+    if (along >= 0 && along < behind_mm && dist2(d.c, here) < sq(keep_mm)) disks_[k++] = d;
+  }
+  n_ = kept_ = k;
+}
+
+void LocalPlanner::add(Point p, uint16_t radius_mm, Point here) {
   uint8_t i = n_;
   if (n_ >= kMaxEchoes) {
-    // Full (a sweep has more pings than there are disks): keep the nearest echoes, whose disks
-    // are the smallest (an echo's disk widens with its range), in place of the farthest.
-    i = 0;
-    for (uint8_t k = 1; k < n_; ++k) {
-      if (disks_[k].r_mm > disks_[i].r_mm) i = k;
+    // Full (a sweep in clutter has more pings than there are disks): what is nearest the rover
+    // matters most to its turns and its next leg; the echo farthest from it gives way.
+    int32_t far = dist2(p, here);
+    for (uint8_t k = 0; k < n_; ++k) {
+      const int32_t d = dist2(disks_[k].c, here);
+      if (d > far) {
+        far = d;
+        i = k;
+      }
     }
-    if (disks_[i].r_mm <= radius_mm) return;
+    if (i >= kMaxEchoes) return;
+    if (i < kept_) {
+      // A kept echo gives way: the last kept one takes its place, and the new echo the slot
+      // that frees, where the fresh ones begin.
+      disks_[i] = disks_[kept_ - 1];
+      i = --kept_;
+    }
   } else {
     ++n_;
   }
@@ -53,39 +83,37 @@ void LocalPlanner::add(Point p, uint16_t radius_mm) {
 
 // A disk whose arc comes within reach is one whose radius, less the clearance plus the reach,
 // covers p; inside() is within() with neither: one loop for both.
-bool LocalPlanner::inside(Point p) const { return within(p, 0, 0); }
+bool LocalPlanner::inside(Point p) const { return within(p, 0, 0, 0); }
 
-bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const {
+bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm, uint16_t kept_reach_mm) const {
   for (uint8_t i = 0; i < n_; ++i) {
     ++ops_;
     const Disk& d = disks_[i];
     const int32_t arc = d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0;   // half the arc's width
-    const int32_t r = arc + reach_mm;
-    if (sq(p.x_mm - d.c.x_mm) + sq(p.y_mm - d.c.y_mm) < sq(r)) return true;
+    const int32_t r = i < kept_ && kept_reach_mm ? kept_reach_mm : arc + reach_mm;
+    if (dist2(p, d.c) < sq(r)) return true;
   }
   return false;
 }
 
 bool LocalPlanner::beside(Point p, int16_t fx_q8, int16_t fy_q8, uint16_t clearance_mm) const {
-  for (uint8_t i = 0; i < n_; ++i) {
+  for (uint8_t i = kept_; i < n_; ++i) {
     const Disk& d = disks_[i];
     const int16_t arc = static_cast<int16_t>(d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0);
-    // In 16 bits: the echoes are of the last sweep, within a few metres of the rover.
-    const int16_t dx = static_cast<int16_t>(d.c.x_mm - p.x_mm), dy = static_cast<int16_t>(d.c.y_mm - p.y_mm);
-    const int16_t along = static_cast<int16_t>((static_cast<int32_t>(dx) * fx_q8 + static_cast<int32_t>(dy) * fy_q8) >> 8);
-    int16_t side = static_cast<int16_t>((static_cast<int32_t>(dx) * fy_q8 - static_cast<int32_t>(dy) * fx_q8) >> 8);
+    const int16_t along = along_q8(d.c, p, fx_q8, fy_q8);
+    int16_t side = along_q8(d.c, p, fy_q8, static_cast<int16_t>(-fx_q8));   // to the right
     if (side < 0) side = static_cast<int16_t>(-side);
     if (along > -kBehindMm && along < kFaceRunMm && side < kSideReachMm + arc && side + arc > kHalfWidthMm) return true;
   }
   return false;
 }
 
-bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
+bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm, bool fresh_only) const {
   // A disk whose centre lies farther than its radius outside the segment's bounding box cannot
   // reach the segment: an integer test that spares most disks the float geometry (the walk back
   // tests three cells a slice against every disk).
   const float vx = to_float(b.x_mm - a.x_mm), vy = to_float(b.y_mm - a.y_mm);
-  for (uint8_t i = 0; i < n_; ++i) {
+  for (uint8_t i = fresh_only ? kept_ : 0; i < n_; ++i) {
     ++ops_;
     const Disk& d = disks_[i];
     if (d.r_mm <= shrink_mm) continue;
@@ -94,7 +122,7 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm) const {
     float t;
     const float d2 = segment_distance2(to_float(d.c.x_mm - a.x_mm), to_float(d.c.y_mm - a.y_mm), vx, vy, t);
     const float rf = static_cast<float>(r);
-    if (d2 < rf * rf) return true;
+    if (d2 < rf * rf && positive(t)) return true;
   }
   return false;
 }
@@ -246,3 +274,4 @@ uint8_t LocalPlanner::plan(Point start, Point goal, uint8_t* scratch, Point* out
 
 }  // namespace core
 }  // namespace rovernav
+

@@ -1,7 +1,12 @@
-// The rover's own detour round an obstacle its sonar has just found, without the host.
+// The rover's own detour round an obstacle its sonar has just found, without the host, and its
+// memory of what is near its body.
 //
-// After a sweep, the echoes become disks to keep the rover's centre out of (the echo's point,
-// widened by half the 15-degree beam at its range and by the clearance). If the next leg passes
+// The echoes become disks to keep the rover's centre out of (the echo's point, widened by half
+// the beam at its range, which covers the arc the cone cuts at that range, and by the
+// clearance). The memory: a sweep's start forgets only the echoes farther than keep_mm from the
+// rover (keep_near); those nearer stay, and count for its turns, its backing out and its detour
+// once they have slipped beside or behind the sensor, which no ping of the new sweep reaches.
+// When every disk is held, the one farthest from the rover gives way. If the next leg passes
 // through one, a breadth-first wavefront on a small grid (kCells x kCells cells of kCellMm,
 // centred between the rover and a rejoin point further along its path) finds a way round, and
 // its turning points become a detour of at most kMaxDetour waypoints.
@@ -38,24 +43,34 @@ class LocalPlanner {
     kScratchBytes = kCellCount / 2 + 3 * ((kCellCount + 7) / 8),
   };
 
-  void clear() { n_ = 0; }
+  void clear() { n_ = kept_ = 0; }
   uint8_t echoes() const { return n_; }
-  /// An obstacle point to keep the rover's centre at least radius_mm away from. When all
-  /// kMaxEchoes are held, the largest disk (the farthest echo) gives way to a smaller one.
-  void add(Point p, uint16_t radius_mm);
-  /// Whether the segment a-b passes within an obstacle disk (each disk shrunk by shrink_mm).
-  bool blocks(Point a, Point b, uint16_t shrink_mm = 0) const;
+  /// Keeps the echoes beside the front of the body: within keep_mm of here, and from 0 to
+  /// behind_mm ahead of it along the heading (fx_q8, fy_q8: its unit vector times 256), behind
+  /// the sensor, where a sweep from there has no beam. The others are forgotten: ahead of the
+  /// sensor the sweep looks afresh, and what lies behind the centre a turn's check does not need
+  /// (backing out, the way the rover came, would only take it nearer). The kept ones are the
+  /// body's memory; those added after them are fresh (the sweep's).
+  void keep_near(Point here, uint16_t keep_mm, int16_t fx_q8, int16_t fy_q8, int16_t behind_mm);
+  uint8_t kept() const { return kept_; }
+  /// An obstacle point (fresh) to keep the rover's centre at least radius_mm away from. When all
+  /// kMaxEchoes are held, the echo farthest from here (the rover) gives way to a nearer one.
+  void add(Point p, uint16_t radius_mm, Point here);
+  /// Whether the segment a-b passes within an obstacle disk (each disk shrunk by shrink_mm; with
+  /// fresh_only, the fresh disks alone). A disk behind a (the segment's nearest point to its
+  /// centre is a) does not block: from inside it, the segment leads away.
+  bool blocks(Point a, Point b, uint16_t shrink_mm = 0, bool fresh_only = false) const;
   /// Whether point p is inside an obstacle disk.
   bool inside(Point p) const;
   /// Whether some echo's arc (its disk less the clearance it was widened by) comes within
-  /// reach_mm of point p.
-  bool within(Point p, uint16_t clearance_mm, uint16_t reach_mm) const;
+  /// reach_mm of point p; with kept_reach_mm, whether a kept echo's point does within that.
+  bool within(Point p, uint16_t clearance_mm, uint16_t reach_mm, uint16_t kept_reach_mm) const;
   /// Whether some echo, taken as a face that runs from it back along the heading (fx_q8, fy_q8:
   /// the heading's unit vector times 256) for kFaceRunMm, passes beside a body at p within
   /// kSideReachMm of its centre line (the echo's arc's half-width added) but not through it
   /// (kHalfWidthMm, the arc subtracted): a face seen abeam of the sonar, 100 mm ahead of the
   /// centre, that runs on alongside the rover. An echo kBehindMm or more behind p counts for
-  /// nothing.
+  /// nothing. The fresh echoes only (a kept one is no longer abeam of the sonar).
   bool beside(Point p, int16_t fx_q8, int16_t fy_q8, uint16_t clearance_mm) const;
   enum : int16_t { kFaceRunMm = 250, kSideReachMm = 140, kHalfWidthMm = 75, kBehindMm = 130 };
   /// Plans from start round the disks to goal. Writes the detour's waypoints (turning points,
@@ -84,8 +99,9 @@ class LocalPlanner {
 
   enum class Phase : uint8_t { Idle, Mark, Search, Walk };
 
-  Disk disks_[kMaxEchoes] = {};
+  Disk disks_[kMaxEchoes] = {};   // the kept echoes first, then the fresh ones
   uint8_t n_ = 0;
+  uint8_t kept_ = 0;
   Point origin_ = {0, 0};  // the grid's lower-left corner
   mutable uint16_t ops_ = 0;
   // The plan under way.

@@ -28,7 +28,16 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
       return true;
     }
     rotate_checked_ = true;
-    if (fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn()) {
+    const bool back = fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn();
+    if (back || fabsf(err) > static_cast<float>(kTurnLookDeg)) {
+      // Look before driving (after backing out too: no sweep looked from where the turn ends):
+      // the reflex's pings right (or left) 15 and 30 degrees, then ahead, hold the wheels until
+      // ahead is clear (Rover::reflex).
+      reflex_look_ = true;
+      reflex_waiting_ = false;   // a ping still out was aimed at another look
+      reflex_look_i_ = positive(err) ? 1 : 4;
+    }
+    if (back) {
       enter(RoverState::BackOff);
       return true;
     }
@@ -71,9 +80,17 @@ void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
 bool Rover::room_to_turn() const {
   const Point c = here_mm();
   const uint16_t clear = saturate_u16(params_.clearance_mm());
-  if (local_.within(c, clear, kSwingMm)) return false;
+  if (local_.within(c, clear, kSwingMm, kCornerReachMm)) return false;
+  int16_t fx = 0, fy = 0;
+  heading_q8(fx, fy);
+  return !local_.beside(c, fx, fy, clear);
+}
+
+// The heading's unit vector times 256 (x, y), for the planner's integer geometry.
+ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
   const float h = est_.heading_rad();
-  return !local_.beside(c, static_cast<int16_t>(256.0f * sinf(h)), static_cast<int16_t>(256.0f * cosf(h)), clear);
+  fx_q8 = static_cast<int16_t>(256.0f * sinf(h));
+  fy_q8 = static_cast<int16_t>(256.0f * cosf(h));
 }
 
 // Backing out: straight back, holding the heading, the way the rover came (the only ground it

@@ -10,7 +10,11 @@ void Rover::start_sweep() {
   scan_echoes_ = 0;
   host_knows_ = false;   // until a HEARTBEAT says the host heard this sweep
   enter(RoverState::Scan);   // ends a detour being planned
-  local_.clear();
+  // What was seen near the body and behind the sensor stays (no ping of this sweep reaches it);
+  // what the sweep looks at afresh, and what the rover has left behind, is forgotten.
+  int16_t fx = 0, fy = 0;
+  heading_q8(fx, fy);
+  local_.keep_near(here_mm(), kKeepNearMm, fx, fy, static_cast<int16_t>(params_.raw(Param::SonarOffsetMm)));
   sweep_.start(last_ms_, servo_cdeg_, params_.sweep_step_ms());
 }
 

@@ -35,19 +35,21 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
     const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
     // The index is always below kReflexLooks: a wrap, not a division (a library call on the Uno).
     reflex_look_i_ = reflex_look_i_ + 1u < kReflexLooks ? static_cast<uint8_t>(reflex_look_i_ + 1) : 0;
-    if (in.valid) {
-      const uint16_t r = in.range_mm;
-      if (r > 0 && reflex_on_path(look, r, l_mm)) {
-        if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
-        reflex_look_ = true;
-        start_sweep();
-        report_echo(look, r);
-        send_event(EventKind::Reflex, r);
-        out.left_pwm = out.right_pwm = 0;
-        return true;
-      }
-      if (look == 0) reflex_look_ = false;   // clear straight ahead
+    // None in time counts as no echo (the shell says "no echo" for a sensor that never answers
+    // too): a look waiting on a silent sonar would hold the rover for good.
+    const uint16_t r = in.valid ? in.range_mm : 0;
+    if (r > 0 && reflex_on_path(look, r, l_mm)) {
+      if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
+      reflex_look_ = true;
+      start_sweep();
+      report_echo(look, r);
+      send_event(EventKind::Reflex, r);
+      out.left_pwm = out.right_pwm = 0;
+      return true;
     }
+    if (look == 0) reflex_look_ = false;   // clear straight ahead
+    // Off the way but near: remembered, for the turns to come (it will be beside the body).
+    if (r > 0 && r <= kRememberPingMm) remember_echo(look, r);
   }
   servo_cdeg_ = flash_read_i16(&kLookCdeg[reflex_look_i_]);
   if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {

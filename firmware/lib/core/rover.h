@@ -177,6 +177,22 @@ class Rover : private RoverFields {
     kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
     kBackOffTrackDeg = 15,      // backing out turns back onto the track first when this far off it
     kTrackAfterMs = 400,        // the heading is the track once the rover has driven this long
+    // The body's memory (LocalPlanner::keep_near): a sweep keeps the echoes within kKeepNearMm
+    // of the centre (the reach of room_to_turn's checks, kSwingMm and beside(), with their arcs);
+    // a reflex ping's echo within kRememberPingMm of the sensor is remembered too.
+    kKeepNearMm = 350,
+    // A kept echo (behind the sensor: no longer a face seen abeam that may run on alongside the
+    // body) is within the corners' reach when its point is nearer than this to the centre: the
+    // half-diagonal, 129 mm, and 11 mm for the turn's wobble. Its arc is not added: with it, an
+    // echo seen 0.3 m off (an arc of 40 mm) stopped turns with room to spare, and the back-offs
+    // that followed led 2 of 9 arenas tried into what the rover had passed (seed 1: 22, 30).
+    kCornerReachMm = 140,
+    kRememberPingMm = 400,
+    // A turn on the spot of more than kTurnLookDeg ends with a look (the reflex's pings on the
+    // side turned to, then ahead) before the drive: the sweep before it looked from the old
+    // heading, and the ground beside the sensor's new place, where a wall's end may stand
+    // inside the body's way, no beam of it covered (seed 1's arena 157).
+    kTurnLookDeg = 45,
   };
   static constexpr float kPoseMaxErrorDeg = 60.0f;  // pose law: beyond this, turn on the spot first
   static constexpr float kPoseMinAbovePwm = 8.0f;   // pose law: the least drive above the dead band
@@ -279,6 +295,7 @@ class Rover : private RoverFields {
   bool mode_rotate(float err, float l, float dt_s, Outputs& out);
   void turn_on_spot(float err, float dt_s, Outputs& out);
   bool room_to_turn() const;
+  void heading_q8(int16_t& fx_q8, int16_t& fy_q8) const;
   void back_off(float dt_s, Outputs& out);
   // mode_drive.cpp
   void mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32_t now, Outputs& out);

@@ -58,7 +58,7 @@ enum class RoverState : uint8_t {
   Arrived = 4,  ///< reached the last waypoint; motors off
   Hold = 5,  ///< stopped safely: position too uncertain to go on; resumes on fixes
   Fault = 6,  ///< stopped by a fault (see fault code); motors off
-  BackOff = 7,  ///< backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners
+  BackOff = 7,  ///< backing straight out, the way it came, before turning on the spot: what it saw near its body (the last sweep, and what it keeps of earlier sweeps and its reflex pings) is within reach of its swinging corners
   Blocked = 8,  ///< stopped: the last sweep found the leg blocked; waiting for the host's new path (or, with none, for the rover's own detour or the host's word that the leg is clear)
   Planning = 9,  ///< stopped: planning its own detour round what the sweep saw, a slice every step
 };

@@ -27,11 +27,11 @@ bool detour_clear(const LocalPlanner& lp, Point start, const Point* wps, uint8_t
 TEST_CASE("a disk on the leg: the planner finds a clear way round") {
   LocalPlanner lp;
   lp.clear();
-  lp.add(Point{300, 700}, 230);  // an echo 0.4 m ahead with its clearance and beam width
-  lp.add(Point{340, 700}, 230);
+  const Point start{300, 300}, goal{300, 1000};
+  lp.add(Point{300, 700}, 230, start);  // an echo 0.4 m ahead with its clearance and beam width
+  lp.add(Point{340, 700}, 230, start);
   uint8_t scratch[LocalPlanner::kScratchBytes];
   Point out[LocalPlanner::kMaxDetour];
-  const Point start{300, 300}, goal{300, 1000};
   REQUIRE(lp.blocks(start, goal));
   const uint8_t n = lp.plan(start, goal, scratch, out);
   REQUIRE(n >= 2);
@@ -47,7 +47,7 @@ TEST_CASE("a disk on the leg: the planner finds a clear way round") {
 TEST_CASE("planned in slices, a step each: the same detour, no slice more than one wavefront layer") {
   LocalPlanner lp;
   lp.clear();
-  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(100 + 60 * i), static_cast<int16_t>(650 + (i % 2) * 60)}, 120);
+  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(100 + 60 * i), static_cast<int16_t>(650 + (i % 2) * 60)}, 120, Point{300, 300});
   uint8_t scratch[LocalPlanner::kScratchBytes];
   Point whole[LocalPlanner::kMaxDetour];
   const Point start{300, 300}, goal{300, 1000};
@@ -105,7 +105,7 @@ TEST_CASE("while the rover plans its own detour it keeps stepping: STOP is serve
 TEST_CASE("no way round on the grid: the planner says so instead of guessing") {
   LocalPlanner lp;
   lp.clear();
-  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(-200 + 110 * i), 650}, 200);  // a wall
+  for (int16_t i = 0; i < 9; ++i) lp.add(Point{static_cast<int16_t>(-200 + 110 * i), 650}, 200, Point{300, 300});  // a wall
   uint8_t scratch[LocalPlanner::kScratchBytes];
   Point out[LocalPlanner::kMaxDetour];
   CHECK(lp.plan(Point{300, 300}, Point{300, 1000}, scratch, out) == 0);
@@ -146,18 +146,93 @@ TEST_CASE("a path from the host replaces the rover's own detour") {
   CHECK(b.closest_to_box_mm > 110.0f);
 }
 
-TEST_CASE("with more echoes than disks the planner keeps the nearest (the smallest disks)") {
+TEST_CASE("with more echoes than disks the planner keeps those nearest the rover") {
   core::LocalPlanner lp;
+  const core::Point rover{0, 0};
   for (int i = 0; i < core::LocalPlanner::kMaxEchoes; ++i) {
-    lp.add(core::Point{static_cast<int16_t>(1000 + 100 * i), 0}, static_cast<uint16_t>(300 + i));
+    lp.add(core::Point{static_cast<int16_t>(1000 + 100 * i), 0}, 200, rover);
   }
-  CHECK(lp.inside(core::Point{1800, 305}));            // only the farthest disk (radius 308) reaches here
-  lp.add(core::Point{0, 0}, 200);                      // a near echo: replaces the radius-308 disk
+  CHECK(lp.inside(core::Point{1900, 150}));            // only the farthest echo's disk reaches here
+  lp.add(core::Point{0, 300}, 200, rover);             // a near echo: the farthest gives way
   CHECK(lp.echoes() == core::LocalPlanner::kMaxEchoes);
-  CHECK(lp.inside(core::Point{0, 0}));
-  CHECK_FALSE(lp.inside(core::Point{1800, 305}));      // ... and it gave way
-  lp.add(core::Point{5000, 0}, 900);                   // far and wide: not kept
+  CHECK(lp.inside(core::Point{0, 300}));
+  CHECK_FALSE(lp.inside(core::Point{1900, 150}));
+  CHECK(lp.inside(core::Point{1700, 150}));            // the others stayed
+  lp.add(core::Point{5000, 0}, 100, rover);            // farther than every one held: not kept
   CHECK_FALSE(lp.inside(core::Point{5000, 0}));
+  // Nearness to the rover, not the disk's size: a wide disk near the rover stays over a narrow far one.
+  lp.clear();
+  for (int i = 0; i < core::LocalPlanner::kMaxEchoes; ++i) {
+    lp.add(core::Point{static_cast<int16_t>(200 + 100 * i), 0}, i == 0 ? 400 : 150, rover);
+  }
+  lp.add(core::Point{0, 250}, 150, rover);
+  CHECK(lp.inside(core::Point{200, -390}));            // the wide near disk is still held
+  CHECK_FALSE(lp.inside(core::Point{1000, 140}));      // the farthest (at 1,000 mm) went
+}
+
+TEST_CASE("a sweep's start keeps what lies beside the front of the body, behind its sensor, and forgets the rest") {
+  core::LocalPlanner lp;
+  const core::Point then{0, 0}, now{0, 600};
+  const int16_t north_x = 0, north_y = 256;   // the heading's unit vector times 256
+  lp.add(core::Point{150, 650}, 60, then);    // beside the front half, behind the sensor (100 mm ahead)
+  lp.add(core::Point{-200, 640}, 60, then);   // the same on the left
+  lp.add(core::Point{120, 520}, 60, then);    // beside the rear half: backing out takes it nearer
+  lp.add(core::Point{-100, 200}, 60, then);   // 400 mm behind it now
+  lp.add(core::Point{0, 880}, 60, then);      // 280 mm ahead: the new sweep looks there afresh
+  lp.keep_near(now, 350, north_x, north_y, 100);
+  CHECK(lp.echoes() == 2);
+  CHECK(lp.kept() == 2);
+  CHECK(lp.inside(core::Point{150, 650}));
+  CHECK(lp.inside(core::Point{-200, 640}));
+  CHECK_FALSE(lp.inside(core::Point{120, 520}));
+  CHECK_FALSE(lp.inside(core::Point{0, 880}));
+  CHECK_FALSE(lp.inside(core::Point{-100, 200}));
+  // Facing west instead, the echo at (-200, 640) lies 200 mm ahead: looked at afresh, forgotten;
+  // the one at (150, 650) lies behind the centre.
+  lp.keep_near(now, 350, -256, 0, 100);
+  CHECK(lp.echoes() == 0);
+}
+
+TEST_CASE("kept echoes give way first, count for the turns with the corners' reach, and not for the leg") {
+  core::LocalPlanner lp;
+  const core::Point rover{0, 0};
+  lp.add(core::Point{330, 50}, 180, rover);   // abeam, 50 mm ahead: kept at the next sweep's start
+  lp.keep_near(rover, 350, 0, 256, 100);
+  REQUIRE(lp.kept() == 1);
+  // A kept one counts within the corners' reach of its point (its arc not added); without a
+  // kept reach, as a fresh one does (its arc, 10 mm, and the reach). It lies 333.8 mm off.
+  CHECK_FALSE(lp.within(rover, 170, 400, 140));
+  CHECK_FALSE(lp.within(rover, 170, 400, 333));
+  CHECK(lp.within(rover, 170, 400, 334));
+  CHECK(lp.within(rover, 170, 324, 0));
+  CHECK_FALSE(lp.within(rover, 170, 323, 0));
+  // A leg through it: blocked by every echo, not by the fresh ones alone.
+  CHECK(lp.blocks(rover, core::Point{800, 50}));
+  CHECK_FALSE(lp.blocks(rover, core::Point{800, 50}, 0, true));
+  // Fresh echoes fill the rest; when all are held, the kept one (the farthest) goes, and the
+  // new echo counts as fresh.
+  for (int i = 1; i < core::LocalPlanner::kMaxEchoes; ++i) {
+    lp.add(core::Point{static_cast<int16_t>(-100 + 20 * i), 100}, 180, rover);
+  }
+  REQUIRE(lp.echoes() == core::LocalPlanner::kMaxEchoes);
+  lp.add(core::Point{0, -100}, 180, rover);
+  CHECK(lp.kept() == 0);
+  CHECK_FALSE(lp.inside(core::Point{330, 50}));
+  CHECK(lp.blocks(rover, core::Point{0, -800}, 0, true));
+}
+
+TEST_CASE("a disk the leg's start lies in blocks the leg only if the leg leads further in") {
+  core::LocalPlanner lp;
+  const core::Point rover{0, 0};
+  lp.add(core::Point{0, -100}, 200, rover);   // just behind the rover, which is inside its disk
+  CHECK_FALSE(lp.blocks(rover, core::Point{0, 800}));    // straight away from it
+  CHECK_FALSE(lp.blocks(rover, core::Point{800, 0}));    // abeam of it: the nearest point is the start
+  CHECK(lp.blocks(rover, core::Point{0, -800}));         // back through it
+  CHECK(lp.blocks(rover, core::Point{800, -300}));       // past it, nearer than the start
+  lp.clear();
+  lp.add(core::Point{0, 300}, 200, rover);    // ahead, the start outside: as before
+  CHECK(lp.blocks(rover, core::Point{0, 800}));
+  CHECK_FALSE(lp.blocks(rover, core::Point{0, -800}));
 }
 
 // The host's word (HEARTBEAT's scan_heard and path_id): the rover takes its path past what the

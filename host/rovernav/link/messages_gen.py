@@ -59,7 +59,7 @@ class RoverState(enum.IntEnum):
     FAULT = 6
     """stopped by a fault (see fault code); motors off"""
     BACK_OFF = 7
-    """backing straight out, the way it came, before turning on the spot: the last sweep saw something within reach of its swinging corners"""
+    """backing straight out, the way it came, before turning on the spot: what it saw near its body (the last sweep, and what it keeps of earlier sweeps and its reflex pings) is within reach of its swinging corners"""
     BLOCKED = 8
     """stopped: the last sweep found the leg blocked; waiting for the host's new path (or, with none, for the rover's own detour or the host's word that the leg is clear)"""
     PLANNING = 9
