@@ -648,24 +648,16 @@ def test_a_mission_at_one_percent_byte_loss_reaches_its_target():
     assert sim.mission.finished and sim.core.probe().state in (mg.RoverState.ARRIVED, mg.RoverState.IDLE)
 
 
-def test_a_rover_that_turned_since_it_drove_backs_out_along_its_track_not_into_what_it_never_saw():
+def test_cellular_arena_38_where_a_rover_backed_out_into_what_it_never_saw_is_reached():
     # Cellular arena 38 of seed 2611 (rovernav arenas --seed 2611 --family cellular): the rover
     # drove east, turned on the spot to 153 degrees, swept, and had no room for the next turn.
     # It used to back straight out along 333 degrees, over ground no part of it had been on, into
-    # an unseen box (crashed at 63.5 s). Now it turns back onto its track first (its corners
-    # sweep what they swept turning off it) and backs out along it.
+    # an unseen box (crashed at 63.5 s). It now turns back onto its track first; since the look
+    # after a sharp turn (issue 26) its way through this arena no longer backs out there, and the
+    # rule itself is tested natively ("a rover that has turned since it drove turns back onto its
+    # track before it backs out along it", test_motion.cpp). The arena stays as a regression.
     from rovernav.sim.arenas import generate_arena
 
     sim = Simulation(generate_arena(2611, 38, "cellular").scenario, SimOptions(seed=1, max_time_s=400))
     sim.run()
     assert sim.outcome == "reached" and sim.collisions == 0
-    # In a stretch of BackOff the heading swung by more than 30 degrees: the turn back onto the track.
-    stretches, cur = [], []
-    for s in sim.samples:
-        if s.state == mg.RoverState.BACK_OFF:
-            cur.append(s.heading_deg)
-        elif cur:
-            stretches.append(cur)
-            cur = []
-    swings = [max(abs((h - st[0] + 180) % 360 - 180) for h in st) for st in stretches]
-    assert any(w > 30 for w in swings), swings

@@ -349,3 +349,39 @@ TEST_CASE("after a sharp turn the rover looks to the side it turned to before it
   CHECK(moved_at_stop >= 0.0f);
   CHECK(moved_at_stop < 2.0f);
 }
+
+TEST_CASE("a rover that has turned since it drove turns back onto its track before it backs out along it") {
+  // North from (300, 300) to (300, 600): the heading it drove at, north, is its track. There it
+  // turns east on the spot, where a box stands 60 mm ahead of its sensor: the look after the turn
+  // stops it before it moves, and the sweep sees the box. The host then sends it back south. No
+  // room to turn: backing out along its heading (east) would take it over ground no part of it
+  // has been on, so it first turns back north, onto its track, then backs out south along it.
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  b.set_box(510.0f, 540.0f, 100.0f, 120.0f);   // x 460..560, y 480..600
+  const core::Waypoint wps[] = {{300, 300}, {300, 600}, {700, 600}};
+  b.start_mission(wps, 3);
+  REQUIRE(b.run_until([&] { return b.events(EventKind::Reflex) > 0; }, 30000));
+  CHECK(fabsf(b.plant.heading_rad - 1.5708f) < 0.2f);   // it faces east
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Blocked; }, 10000));
+  const float x0 = b.plant.x_mm, y0 = b.plant.y_mm;
+  const core::Waypoint back[] = {{static_cast<int16_t>(x0), static_cast<int16_t>(y0)}, {300, 300}};
+  b.load_path(2, back, 2);
+  bool touched = false, backed = false, faced_north = false;
+  float least_y_backing = 1e9f;
+  REQUIRE(b.run_until([&] {
+    touched = touched || corner_in_box(b);
+    if (b.rover.state() == RoverState::BackOff) {
+      backed = true;
+      if (fabsf(b.plant.heading_rad) < 0.35f) faced_north = true;   // within 20 degrees: it backs out within 15 of the track
+      least_y_backing = fminf(least_y_backing, b.plant.y_mm);
+    }
+    return b.rover.state() == RoverState::Arrived;
+  }, 60000));
+  CHECK(backed);
+  CHECK(faced_north);                       // it turned back onto its track while backing out
+  CHECK(least_y_backing < y0 - 50.0f);      // ... and backed south along it
+  CHECK(fabsf(b.plant.x_mm - 300.0f) < 40.0f);
+  CHECK_FALSE(touched);
+}
