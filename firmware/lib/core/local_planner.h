@@ -3,10 +3,10 @@
 //
 // The echoes become disks to keep the rover's centre out of (the echo's point, widened by half
 // the beam at its range, which covers the arc the cone cuts at that range, and by the
-// clearance). The memory: a sweep's start forgets only the echoes farther than keep_mm from the
-// rover (keep_near); those nearer stay, and count for its turns, its backing out and its detour
-// once they have slipped beside or behind the sensor, which no ping of the new sweep reaches.
-// When every disk is held, the one farthest from the rover gives way. If the next leg passes
+// clearance). The memory: a sweep's start keeps the echoes beside the front of the body, behind
+// the sensor, where no ping of the new sweep reaches (keep_near), and forgets the rest; the kept
+// ones count for its turns, its backing out and its detour, not for the leg's check after the
+// sweep. When every disk is held, the one farthest from the rover gives way. If the next leg passes
 // through one, a breadth-first wavefront on a small grid (kCells x kCells cells of kCellMm,
 // centred between the rover and a rejoin point further along its path) finds a way round, and
 // its turning points become a detour of at most kMaxDetour waypoints.

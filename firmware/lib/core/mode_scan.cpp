@@ -10,8 +10,8 @@ void Rover::start_sweep() {
   scan_echoes_ = 0;
   host_knows_ = false;   // until a HEARTBEAT says the host heard this sweep
   enter(RoverState::Scan);   // ends a detour being planned
-  // What was seen near the body and behind the sensor stays (no ping of this sweep reaches it);
-  // what the sweep looks at afresh, and what the rover has left behind, is forgotten.
+  // What was seen beside the front of the body, behind the sensor, stays (no ping of this sweep
+  // reaches it); what the sweep looks at afresh, and what lies behind the centre, is forgotten.
   int16_t fx = 0, fy = 0;
   heading_q8(fx, fy);
   local_.keep_near(here_mm(), kKeepNearMm, fx, fy, static_cast<int16_t>(params_.raw(Param::SonarOffsetMm)));

@@ -177,9 +177,10 @@ class Rover : private RoverFields {
     kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
     kBackOffTrackDeg = 15,      // backing out turns back onto the track first when this far off it
     kTrackAfterMs = 400,        // the heading is the track once the rover has driven this long
-    // The body's memory (LocalPlanner::keep_near): a sweep keeps the echoes within kKeepNearMm
-    // of the centre (the reach of room_to_turn's checks, kSwingMm and beside(), with their arcs);
-    // a reflex ping's echo within kRememberPingMm of the sensor is remembered too.
+    // The body's memory (LocalPlanner::keep_near): a sweep keeps the echoes beside the front of
+    // the body (between the centre and the sensor) within kKeepNearMm of the centre (the reach of
+    // room_to_turn's checks, kSwingMm and beside(), with their arcs); a reflex ping's echo within
+    // kRememberPingMm of the sensor is remembered too.
     kKeepNearMm = 350,
     // A kept echo (behind the sensor: no longer a face seen abeam that may run on alongside the
     // body) is within the corners' reach when its point is nearer than this to the centre: the
