@@ -2,6 +2,7 @@
 
 #include <string.h>
 
+#include "float_ops.h"
 #include "progmem.h"
 
 namespace rovernav {
@@ -11,11 +12,6 @@ namespace {
 // P's coefficients, highest power first, in flash: a loop over them takes less of it than the
 // polynomial written out (every float constant is four loads at each use).
 const float kAtanPoly[] ROVERNAV_PROGMEM = {0.02084507f, -0.08515627f, 0.18015924f, -0.33030477f, 0.99986631f};
-uint32_t bits(float f) {
-  uint32_t u;
-  memcpy(&u, &f, sizeof u);
-  return u;
-}
 float from_bits(uint32_t u) {
   float f;
   memcpy(&f, &u, sizeof f);
@@ -44,7 +40,7 @@ ROVERNAV_NOINLINE float wrap_rad(float a) {
 ROVERNAV_NOINLINE float fast_atan2(float y, float x) {
   enum : uint8_t { kSteep = 1, kXNegative = 2, kYNegative = 4 };
   const uint32_t sign = 0x80000000u;
-  uint32_t bx = bits(x), by = bits(y);
+  uint32_t bx = float_bits(x), by = float_bits(y);
   uint8_t flags = 0;
   if (bx & sign) flags |= kXNegative;
   if (by & sign) flags |= kYNegative;
