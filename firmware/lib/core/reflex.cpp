@@ -67,17 +67,23 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
 }
 
 // Whether an echo at bearing look_cdeg and range_mm may lie on the rover's way: nearer than the
-// reflex range, no further to the side than the robot radius wherever in the cone it came
+// reflex range and no further to the side than the robot radius, wherever in the cone it came
 // from, and not beyond the waypoint being approached (by more than the robot radius).
 bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) const {
   const Params& p = params_;
   const float r = static_cast<float>(range_mm);
   const float look = fabsf(cdeg_to_rad(look_cdeg));
-  const float along_mm = r * cosf(look);
+  // Each bound from where in the cone the echo would be nearest it: the stopping range along the
+  // way from the cone's outer edge, the side from its inner edge. A side look sees a thing beside
+  // the way last at its outer edge, then not again as the rover closes: measured on the axis, a box
+  // corner 67 mm off the axis was 1 mm beyond the range at 30 degrees, and hit 120 mm on
+  // (seed-small-obstacles, the link out at 20.6 s, seed 5744).
+  const float half_cone = p.sonar_half_cone_rad();
+  const float along_mm = r * cosf(look + half_cone);
   if (along_mm > reflex_range_mm()) return false;   // the stopping range, measured along the way
-  const float nearest_side = look - p.sonar_half_cone_rad();
-  const float lateral_mm = positive(nearest_side) ? r * sinf(nearest_side) : 0.0f;
-  if (lateral_mm > p.robot_radius_mm()) return false;
+  const float nearest_side = look - half_cone;
+  // (Below zero when the cone spans the axis: then on the way whatever the range.)
+  if (r * sinf(nearest_side) > p.robot_radius_mm()) return false;
   return along_mm + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
 }
 

@@ -83,6 +83,7 @@ class Bench {
   bool hears_sweeps = true;
   uint16_t scan_heard = 0, last_scan_seen = 0, host_path_id = 0;
   uint16_t sonar_range_mm = 0;  // what the next ping returns (0 = nothing), unless a box is set
+  int16_t echo_look_cdeg = -1;  // >= 0: only pings looking this way return sonar_range_mm
   bool has_box = false;         // an obstacle in the world: the sonar sees it, the host does not
   float box_x0 = 0, box_y0 = 0, box_x1 = 0, box_y1 = 0;
   float closest_to_box_mm = 1e9f;  // nearest the rover's centre came to the box
@@ -95,7 +96,7 @@ class Bench {
   }
   /// The ping's range: the box along the beam's axis (and +-7.5 degrees), within 1 m; else 0.
   uint16_t ping(int16_t servo_cdeg) const {
-    if (!has_box) return sonar_range_mm;
+    if (!has_box) return echo_look_cdeg < 0 || servo_cdeg == echo_look_cdeg ? sonar_range_mm : 0;
     const float h = plant.heading_rad;
     const core::PointMm s = core::sonar_origin(plant.x_mm, plant.y_mm, h, default_param(Param::SonarOffsetMm));
     const float sx = s.x_mm, sy = s.y_mm;
