@@ -123,6 +123,12 @@ def load(path: Path = DEFINITION) -> dict:
     for key, value in sensors.items():
         if not IDENT.match(key) or not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 65536:
             raise DefinitionError(f"[sensors].{key} must be an integer 1..65535")
+    body = d.get("body")
+    if not isinstance(body, dict) or set(body) != {"length_mm", "width_mm"}:
+        raise DefinitionError("[body] must give length_mm and width_mm")
+    for key, value in body.items():
+        if not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 2000:
+            raise DefinitionError(f"[body].{key} must be an integer 1..1999")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -427,7 +433,9 @@ def render_cpp(d: dict) -> str:
            f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']},\n"
            f"  kUartBufferBytes = {p['uart_buffer_bytes']}  // the Uno's serial buffers: a whole frame fits\n}};\n\n",
            "// The sensors' facts ([sensors] in protocol/messages.toml).\nenum : uint16_t {\n"
-           + ",\n".join(f"  k{camel(k)} = {v}" for k, v in d["sensors"].items()) + "\n};\n\n"]
+           + ",\n".join(f"  k{camel(k)} = {v}" for k, v in d["sensors"].items()) + "\n};\n\n",
+           "// The rover's body ([body] in protocol/messages.toml).\nenum : uint16_t {\n"
+           + ",\n".join(f"  kBody{camel(k)} = {v}" for k, v in d["body"].items()) + "\n};\n\n"]
     sig = d["signing"]
     by_name = {m["name"]: m["id"] for m in d["messages"]}
     out.append("// Signed frames ([signing] in protocol/messages.toml).\n"
@@ -528,7 +536,9 @@ def render_py(d: dict) -> str:
            f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n",
            f"UART_BUFFER_BYTES = {p['uart_buffer_bytes']}   # the Uno's serial buffers: a whole frame fits\n",
            "# The sensors' facts ([sensors] in protocol/messages.toml).\n"
-           + "".join(f"{k.upper()} = {v}\n" for k, v in d["sensors"].items()) + "\n"]
+           + "".join(f"{k.upper()} = {v}\n" for k, v in d["sensors"].items()) + "\n",
+           "# The rover's body ([body] in protocol/messages.toml).\n"
+           + "".join(f"BODY_{k.upper()} = {v}\n" for k, v in d["body"].items()) + "\n"]
     for e in d.get("enums", []):
         base = "enum.IntFlag" if e.get("bitmask") else "enum.IntEnum"
         out.append(f"\nclass {camel(e['name'])}({base}):\n    \"\"\"{e.get('doc', '')}\"\"\"\n\n")

@@ -22,6 +22,12 @@ enum : uint16_t {
   kSonarMaxRangeMm = 1000
 };
 
+// The rover's body ([body] in protocol/messages.toml).
+enum : uint16_t {
+  kBodyLengthMm = 210,
+  kBodyWidthMm = 150
+};
+
 // Signed frames ([signing] in protocol/messages.toml).
 enum : uint8_t {
   kSignFlag = 0x80,

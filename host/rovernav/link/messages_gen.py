@@ -34,6 +34,10 @@ UART_BUFFER_BYTES = 64   # the Uno's serial buffers: a whole frame fits
 # The sensors' facts ([sensors] in protocol/messages.toml).
 SONAR_MAX_RANGE_MM = 1000
 
+# The rover's body ([body] in protocol/messages.toml).
+BODY_LENGTH_MM = 210
+BODY_WIDTH_MM = 150
+
 
 class Role(enum.IntEnum):
     """Which end of the link sent a HELLO."""
