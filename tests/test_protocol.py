@@ -76,6 +76,8 @@ def test_schema_hash_changes_with_the_wire_format_but_not_with_documentation():
     base = generate.schema_hash(d)
     d["messages"][2]["doc"] = "reworded"
     assert generate.schema_hash(d) == base
+    d["body"]["length_mm"] += 10   # the body is not on the wire: a fleet's hash does not split on it
+    assert generate.schema_hash(d) == base
     d["messages"][2]["fields"][0]["type"] = "i32"
     assert generate.schema_hash(d) != base
 
@@ -88,6 +90,8 @@ def test_schema_hash_changes_with_the_wire_format_but_not_with_documentation():
     (lambda t: t.replace('max = "sonar_max_range_mm"', 'max = "sonar_reach_mm"'), "not a key of \\[sensors\\]"),
     (lambda t: t.replace("sonar_max_range_mm = 1000", "sonar_max_range_mm = 0"), "must be an integer 1..65535"),
     (lambda t: t.replace("[sensors]", "[sensor_facts]"), "\\[sensors\\] is missing"),
+    (lambda t: t.replace("width_mm = 150", "breadth_mm = 150"), "\\[body\\] must give length_mm and width_mm"),
+    (lambda t: t.replace("length_mm = 210", "length_mm = 0"), "\\[body\\].length_mm must be an integer"),
 ])
 def test_generator_rejects_a_broken_definition_with_a_reason(tmp_path, edit, complaint):
     text = (ROOT / "protocol/messages.toml").read_text()
