@@ -30,6 +30,7 @@ from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
+from ..planning.turns import turnable
 from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
@@ -734,7 +735,12 @@ class Mission:
                     if end is not goal:
                         self.on_event(self._now, f"the goal lies within an echo's arc: planned to "
                                                  f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on")
-                    path = [tuple(p) for p in result.waypoints] + ([] if end is goal else [tuple(goal)])
+                    # Where a bend asks for a turn the body's corners cannot make, the bend moves.
+                    waypoints, moved, left = turnable(grid, result.waypoints)
+                    if moved or left:
+                        self.on_event(self._now, f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
+                                                 f"where the body can turn" + (f", {left} without room near" if left else ""))
+                    path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
                     return path if origin is start else [start] + path
         self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None

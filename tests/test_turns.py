@@ -1,0 +1,99 @@
+"""The turns a path asks for at its waypoints: the host moves a bend where the body's corners
+cannot swing (rovernav.planning.turns)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rovernav.planning import OccupancyGrid, PlannerConfig, plan
+from rovernav.planning.turns import MIN_TURN_DEG, SWING_M, SWING_MARGIN_M, turn_deg, turnable
+
+# A divider up from the bottom edge, its end 0.48 m below the top: the way from one side to the
+# other bends round its end.
+WALL = (1.453, 0.0, 1.453, 1.55, 0.054)
+
+
+def _wall_distance(p: tuple[float, float]) -> float:
+    """Exact distance [m] from p to the divider's rectangle."""
+    x0, x1 = WALL[0] - WALL[4] / 2, WALL[0] + WALL[4] / 2
+    dx = max(x0 - p[0], 0.0, p[0] - x1)
+    dy = max(WALL[1] - p[1], 0.0, p[1] - WALL[3])
+    return math.hypot(dx, dy)
+
+
+def _grid(margin_m: float) -> OccupancyGrid:
+    g = OccupancyGrid(2.94, 2.03, PlannerConfig(sonar_margin_m=margin_m))
+    g.add_wall(*WALL)
+    return g
+
+
+def _tight_turns(path) -> list[int]:
+    need = SWING_M + SWING_MARGIN_M
+    return [i for i in range(1, len(path) - 1)
+            if turn_deg(*path[i - 1:i + 2]) > MIN_TURN_DEG and _wall_distance(path[i]) < need]
+
+
+def _echo_grid() -> tuple[OccupancyGrid, np.ndarray]:
+    """The divider as only the sonar has seen it: its west face's cells, inflated by the robot
+    radius alone (the mission's last try, `LearnedMap.lenient_grid`); returns the grid and the
+    cells' centres [m]."""
+    g = OccupancyGrid(2.94, 2.03, PlannerConfig(sonar_margin_m=0.0))
+    ix = int(1.43 / g.resolution_m)
+    rows = np.arange(0, int(1.55 / g.resolution_m))
+    g.raw[rows, ix] = True
+    d = np.hypot(g.xs[None, :] - g.xs[ix], np.maximum(np.abs(g.ys[:, None] - 0.775) - 0.775, 0.0))
+    g.inflated |= d <= g.config.robot_radius_m
+    return g, np.column_stack([np.full(len(rows), g.xs[ix]), g.ys[rows]])
+
+
+def _tight_echo_turns(path, centres: np.ndarray, res: float) -> list[int]:
+    need = SWING_M + SWING_MARGIN_M
+    return [i for i in range(1, len(path) - 1)
+            if turn_deg(*path[i - 1:i + 2]) > MIN_TURN_DEG
+            and np.hypot(*(centres - np.asarray(path[i])).T).min() - res / 2 < need]
+
+
+def test_a_bend_round_what_the_sonar_saw_moves_where_the_corners_swing_clear():
+    # With the robot radius alone (0.12 m from the echoes' cells) A*'s path bends within the
+    # half-diagonal (0.129 m) of the divider's end, whose unseen part may reach on behind.
+    g, centres = _echo_grid()
+    raw = plan(g, (1.3, 1.2), (1.7, 1.0)).waypoints
+    assert _tight_echo_turns(raw, centres, g.resolution_m), "the test's premise: a bend without room"
+    path, moved, left = turnable(g, raw)
+    assert moved >= 1 and left == 0
+    assert _tight_echo_turns(path, centres, g.resolution_m) == []
+    assert path[0] == raw[0] and path[-1] == raw[-1]   # the start and the target stay
+    assert not g.path_blocked(path)                     # every leg still on free cells
+    added = sum(map(math.dist, path, path[1:])) - sum(map(math.dist, raw, raw[1:]))
+    assert 0.0 <= added < 0.1
+
+
+def test_a_known_walls_end_is_measured_exactly():
+    # The same divider known: its geometry, not its cells. With the radius alone the bends keep
+    # 0.145 m or more from it, room enough: nothing moves.
+    g = _grid(0.0)
+    raw = plan(g, (1.2, 1.3), (1.8, 0.9)).waypoints
+    assert _tight_turns(raw) == []
+    assert turnable(g, raw)[1:] == (0, 0)
+
+
+def test_a_path_with_room_for_its_turns_is_left_as_it_is():
+    g = _grid(0.05)   # the full margin: every bend 0.17 m from the divider
+    raw = plan(g, (1.2, 1.3), (1.8, 0.9)).waypoints
+    path, moved, left = turnable(g, raw)
+    assert (moved, left) == (0, 0)
+    assert path == [tuple(p) for p in raw]
+
+
+def test_a_bend_with_no_room_near_stays_and_is_counted():
+    # A passage the body barely fits, the bend in its middle: nowhere within reach has room.
+    g = OccupancyGrid(1.0, 1.0, PlannerConfig(sonar_margin_m=0.0))
+    g.add_box(0.5, 0.2, 1.0, 0.1)    # floor of a corridor 0.26 m high (centres at y 0.38)
+    g.add_box(0.5, 0.56, 1.0, 0.1)
+    path = [(0.15, 0.38), (0.5, 0.38), (0.85, 0.40)]
+    assert turn_deg(*path) < MIN_TURN_DEG
+    assert turnable(g, path)[1:] == (0, 0)             # too small a turn to check
+    sharp = [(0.15, 0.38), (0.5, 0.38), (0.6, 0.45)]
+    out, moved, left = turnable(g, sharp)
+    assert (moved, left) == (0, 1) and out == sharp
