@@ -71,9 +71,9 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]]) -> tuple
     if len(pts) < 3:
         return pts, 0, 0
     need = SWING_M + SWING_MARGIN_M
-    clear = clearance_map(grid)
     res = grid.resolution_m
-    # Candidate offsets, nearest first: every cell centre within SEARCH_M.
+    clear = clearance_map(grid, reach_m=need + res)   # only whether there is room matters
+    # Candidate offsets: every cell's step within SEARCH_M (tried for the least added length).
     k = int(SEARCH_M / res)
     offs = [(dx * res, dy * res) for dx in range(-k, k + 1) for dy in range(-k, k + 1)
             if 0 < dx * dx + dy * dy <= k * k]
