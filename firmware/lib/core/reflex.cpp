@@ -82,7 +82,7 @@ bool Rover::reflex_on_path(int16_t look_cdeg, uint16_t range_mm, float l_mm) con
   const float along_mm = r * cosf(look + half_cone);
   if (along_mm > reflex_range_mm()) return false;   // the stopping range, measured along the way
   const float nearest_side = look - half_cone;
-  // (Below zero when the cone spans the axis: then on the way whatever the range.)
+  // (Below zero when the cone spans the axis: the side is no bound then.)
   if (r * sinf(nearest_side) > p.robot_radius_mm()) return false;
   return along_mm + p.sonar_offset_mm() <= l_mm + p.robot_radius_mm();
 }
