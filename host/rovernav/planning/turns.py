@@ -21,6 +21,7 @@ from typing import Sequence
 import cv2
 import numpy as np
 
+from ..angles import wrap_rad
 from ..link.messages_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 from .grid import OccupancyGrid
 
@@ -50,10 +51,9 @@ def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0) -> np.ndarray:
 
 def turn_deg(a: Sequence[float], b: Sequence[float], c: Sequence[float]) -> float:
     """The turn [deg, 0..180] at b of the path a -> b -> c."""
-    h1 = math.atan2(b[0] - a[0], b[1] - a[1])
+    h1 = math.atan2(b[0] - a[0], b[1] - a[1])   # headings: 0 up the arena, clockwise positive
     h2 = math.atan2(c[0] - b[0], c[1] - b[1])
-    d = (h2 - h1 + math.pi) % (2 * math.pi) - math.pi
-    return abs(math.degrees(d))
+    return abs(math.degrees(wrap_rad(h2 - h1)))
 
 
 def _room(clear: np.ndarray, grid: OccupancyGrid, p: Sequence[float]) -> float:
