@@ -38,6 +38,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
       reflex_look_i_ = positive(err) ? 1 : 4;
     }
     if (back) {
+      send_event(EventKind::TurnRefused, saturate_u16(fabsf(err)));
       enter(RoverState::BackOff);
       return true;
     }

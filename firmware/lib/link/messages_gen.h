@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x6231D876UL;
+static const uint32_t kSchemaHash = 0xEBED0D7BUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -102,6 +102,7 @@ enum class EventKind : uint8_t {
   Stopped = 14,  ///< a STOP was obeyed; arg = stop reason
   Reflex = 15,  ///< the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm
   KeyStored = 16,  ///< a PROVISION was taken: the link key is stored (arg 1) or erased (arg 0)
+  TurnRefused = 17,  ///< the rover would not turn on the spot where it stood: what it remembers near its body (its last sweep, what it kept of earlier ones, its reflex pings) is within reach of its swinging corners; it backs out the way it came first (state back_off); arg = the turn it was asked for, in degrees
 };
 
 /// Why the rover is in the fault state.

@@ -248,6 +248,26 @@ TEST_CASE("with something within reach of its corners the rover backs out before
   }, 30000));
   CHECK(backed);
   CHECK_FALSE(touched);
+  // And it says so: one TURN_REFUSED, with the turn it was asked for (about 180 degrees).
+  msg::Event refused{};
+  CHECK(b.events(EventKind::TurnRefused, &refused) == 1);
+  CHECK(refused.arg >= 170);
+  CHECK(refused.arg <= 180);
+}
+
+TEST_CASE("a rover with room to turn turns on the spot and refuses nothing") {
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  const core::Waypoint south[] = {{300, 300}, {300, 50}};
+  b.start_mission(south, 2);
+  bool backed = false;
+  REQUIRE(b.run_until([&] {
+    backed = backed || b.rover.state() == RoverState::BackOff;
+    return b.rover.state() == RoverState::Arrived;
+  }, 30000));
+  CHECK_FALSE(backed);
+  CHECK(b.events(EventKind::TurnRefused) == 0);
 }
 
 TEST_CASE("a wall seen abeam is taken to run back alongside: the rover backs out past it before it turns") {

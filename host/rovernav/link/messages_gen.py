@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x6231D876
+SCHEMA_HASH = 0xEBED0D7B
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -126,6 +126,8 @@ class EventKind(enum.IntEnum):
     """the forward sonar saw something on the path inside the stopping range: motors stopped, a sweep follows; arg = range in mm"""
     KEY_STORED = 16
     """a PROVISION was taken: the link key is stored (arg 1) or erased (arg 0)"""
+    TURN_REFUSED = 17
+    """the rover would not turn on the spot where it stood: what it remembers near its body (its last sweep, what it kept of earlier ones, its reflex pings) is within reach of its swinging corners; it backs out the way it came first (state back_off); arg = the turn it was asked for, in degrees"""
 
 class FaultCode(enum.IntEnum):
     """Why the rover is in the fault state."""

@@ -234,6 +234,7 @@ def fault_figures(sim) -> dict:
                          for _, e in of(mg.EventKind.FAULT)],
         "local_detours": sum(1 for _, e in of(mg.EventKind.REPLANNED) if e.arg > 0),
         "reflex_stops": len(of(mg.EventKind.REFLEX)),
+        "turns_refused": len(of(mg.EventKind.TURN_REFUSED)),
     }
 
 
