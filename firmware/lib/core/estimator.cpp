@@ -87,8 +87,8 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
 
   if (history_count_ == 0 || static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - history_last_ms_) >= kHistoryPeriodMs) {
     Past& h = history_[history_next_];
-    h.x_mm = static_cast<int16_t>(round_to_i32(odo_[X]));
-    h.y_mm = static_cast<int16_t>(round_to_i32(odo_[Y]));
+    h.x_mm = static_cast<int16_t>(lroundf(odo_[X]));
+    h.y_mm = static_cast<int16_t>(lroundf(odo_[Y]));
     h.heading_cdeg = rad_to_cdeg(odo_[T]);
     h.t_ms = static_cast<uint16_t>(now_ms);
     history_next_ = history_next_ + 1 < kHistory ? static_cast<uint8_t>(history_next_ + 1) : 0;   // a wrap, not a division

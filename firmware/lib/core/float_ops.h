@@ -76,33 +76,21 @@ inline ROVERNAV_NOINLINE float segment_distance2(float px, float py, float vx, f
 inline ROVERNAV_NOINLINE float sqrt_or_zero(float v) { return positive(v) ? sqrtf(v) : 0.0f; }
 
 
-/// v rounded half away from zero, as lroundf (whose library copy the image then does without),
-/// and 0 for a NaN (no conversion of a NaN to an integer: undefined in C++). |v| within the
-/// int32's range: every caller clamps first.
-inline ROVERNAV_NOINLINE int32_t round_to_i32(float v) {
-  const uint32_t b = float_bits(v);
-  if ((b & ~kFloatSignBit) > kInfinityBits) return 0;
-  const uint32_t half_bits = 0x3F000000u | (b & kFloatSignBit);   // 0.5 with v's sign
-  float half;
-  memcpy(&half, &half_bits, sizeof half);
-  return static_cast<int32_t>(v + half);
-}
-
 // The limits below are tested on the bits (magnitude_above(), sign_bit()): v > 255 is a v above
 // 255 in magnitude without the sign bit, v < -255 one with it; a NaN is neither (as with the float
-// comparisons) and rounds to 0.
+// comparisons) and goes to lroundf.
 
 /// A motor command: v rounded and clamped to -255..255.
 inline ROVERNAV_NOINLINE int16_t clamp_pwm(float v) {
   if (magnitude_above(v, 255.0f)) return sign_bit(v) ? -255 : 255;
-  return static_cast<int16_t>(round_to_i32(v));
+  return static_cast<int16_t>(lroundf(v));
 }
 
 /// v rounded into 0..65535 (0 for NaN), for the wire.
 inline ROVERNAV_NOINLINE uint16_t saturate_u16(float v) {
   if (!positive(v)) return 0;
   if (float_bits(v) > float_bits(65535.0f)) return 65535;   // positive: no sign bit, no NaN
-  return static_cast<uint16_t>(round_to_i32(v));
+  return static_cast<uint16_t>(lroundf(v));
 }
 
 /// v rounded into -32768..32767, for the wire.
@@ -112,7 +100,7 @@ inline ROVERNAV_NOINLINE int16_t saturate_i16(float v) {
   } else if (magnitude_above(v, 32767.0f)) {
     return 32767;
   }
-  return static_cast<int16_t>(round_to_i32(v));
+  return static_cast<int16_t>(lroundf(v));
 }
 
 }  // namespace core
