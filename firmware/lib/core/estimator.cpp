@@ -113,8 +113,10 @@ ROVERNAV_NOINLINE void Estimator::odometry_since(uint32_t t_ms, uint32_t now_ms,
   float n[3];
   memcpy(n, odo_, sizeof n);
   int32_t n_age = 0;
+  uint8_t at = history_next_;
   for (uint8_t k = 1; k <= history_count_; ++k) {
-    const Past& h = history_[(history_next_ + kHistory - k) % kHistory];
+    at = at > 0 ? static_cast<uint8_t>(at - 1) : static_cast<uint8_t>(kHistory - 1);   // back one, a wrap (no division)
+    const Past& h = history_[at];
     const int32_t age = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - h.t_ms);
     const float o[3] = {to_float(h.x_mm), to_float(h.y_mm), cdeg_to_rad(h.heading_cdeg)};
     if (age >= want) {
