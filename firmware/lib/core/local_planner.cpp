@@ -140,6 +140,17 @@ bool LocalPlanner::cell_free(int16_t ix, int16_t iy) const { return !inside(cell
 // goal; 9 = the goal), the blocked cells, and two frontier bitsets.
 namespace {
 constexpr uint16_t kBits = (LocalPlanner::kCellCount + 7) / 8;
+
+// The cell, along one axis, of a point d_mm from the grid's origin, as d_mm / kCellMm truncates
+// (0 for -kCellMm < d_mm < 0); kNoCell off the grid. The range on the unsigned sum, the cell by an
+// unsigned division: the signed one was the image's only use of the library's signed 16-bit
+// division (38 bytes).
+enum : uint8_t { kNoCell = 0xFF };
+ROVERNAV_NOINLINE uint8_t grid_cell(int d_mm) {
+  const unsigned below = LocalPlanner::kCellMm - 1;   // the offsets truncated to cell 0 from below
+  if (static_cast<unsigned>(d_mm) + below >= LocalPlanner::kCells * LocalPlanner::kCellMm + below) return kNoCell;
+  return d_mm < 0 ? 0 : static_cast<uint8_t>(static_cast<unsigned>(d_mm) / LocalPlanner::kCellMm);
+}
 }
 
 bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
@@ -148,11 +159,9 @@ bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
   const int16_t half = static_cast<int16_t>(kCells * kCellMm / 2);
   origin_.x_mm = static_cast<int16_t>((start.x_mm + goal.x_mm) / 2 - half);
   origin_.y_mm = static_cast<int16_t>((start.y_mm + goal.y_mm) / 2 - half);
-  const int16_t sx = static_cast<int16_t>((start.x_mm - origin_.x_mm) / kCellMm);
-  const int16_t sy = static_cast<int16_t>((start.y_mm - origin_.y_mm) / kCellMm);
-  const int16_t gx = static_cast<int16_t>((goal.x_mm - origin_.x_mm) / kCellMm);
-  const int16_t gy = static_cast<int16_t>((goal.y_mm - origin_.y_mm) / kCellMm);
-  if (sx < 0 || sy < 0 || gx < 0 || gy < 0 || sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return false;
+  const uint8_t sx = grid_cell(start.x_mm - origin_.x_mm), sy = grid_cell(start.y_mm - origin_.y_mm);
+  const uint8_t gx = grid_cell(goal.x_mm - origin_.x_mm), gy = grid_cell(goal.y_mm - origin_.y_mm);
+  if (sx >= kCells || sy >= kCells || gx >= kCells || gy >= kCells) return false;
   if (inside(goal)) return false;
   anchor_ = prev_ = start;   // where the walk back starts
   goal_ = goal;
