@@ -33,7 +33,7 @@ ROVERNAV_NOINLINE float effective_pwm(int16_t pwm, int16_t deadband) {
 }  // namespace
 
 void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
-  if (dt_s <= 0.0f) return;
+  if (!positive(dt_s)) return;   // dt_s is never NaN: the same as dt_s <= 0, without the library call
   float d_mm = 0.0f;
   float var_d = 0.0f;
   const float mm_per_tick = params_.wheel_mm_per_tick();
