@@ -101,7 +101,7 @@ ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
 // track (its corners sweep what they swept turning off it), then backs out along it.
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  if (track_known_ && !(back_off_mm_ > 0.0f)) {
+  if (track_known_ && !positive(back_off_mm_)) {
     const float off = rad_to_deg(wrap_rad(track_rad_ - est_.heading_rad()));
     if (fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
       turn_on_spot(off, dt_s, out);
