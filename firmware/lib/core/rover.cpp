@@ -235,7 +235,8 @@ uint8_t Rover::closest_target() const {
                                        to_float(b.x_mm - a.x_mm), to_float(b.y_mm - a.y_mm), t);
     if (d2 < best) {
       best = d2;
-      target = (i == 0 && t <= 0.0f) ? 0 : static_cast<uint8_t>(i + 1);
+      // t is no NaN here (with it, d2 is NaN too): t <= 0 is !positive(t), with no library call.
+      target = (i == 0 && !positive(t)) ? 0 : static_cast<uint8_t>(i + 1);
     }
   }
   return target;
