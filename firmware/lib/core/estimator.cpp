@@ -169,8 +169,10 @@ ROVERNAV_NOINLINE Estimator::Correction Estimator::correct(const float* z, const
   float P[9];
   for (uint8_t i = 0; i < 9; ++i) P[i] = p_[flash_read_u8(&kIndex[i])];
   const float chi2 = sequential_update(z, h, q_, r_pos, q, P);
-  if (chi2 < 0.0f) return Correction::Degenerate;
-  if (!(chi2 <= kGateChi2)) return Correction::Gated;
+  // On the bits, no library call: the only negative float sequential_update() returns is its
+  // -1; the rest are +0, positive or NaN, whose bits lie above 25's for exactly those not <= 25.
+  if (float_bits(chi2) == float_bits(-1.0f)) return Correction::Degenerate;
+  if (float_bits(chi2) > float_bits(kGateChi2)) return Correction::Gated;
   q[T] = wrap_rad(q[T]);
   memcpy(q_, q, sizeof q_);
   // Back into the six entries (the lower triangle's copy of an off-diagonal entry, written last,
