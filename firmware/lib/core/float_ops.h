@@ -47,6 +47,9 @@ inline bool magnitude_above(float v, float limit) {
 /// |v| < limit (limit >= 0; false for a NaN), on the bits.
 inline bool magnitude_below(float v, float limit) { return (float_bits(v) & ~kFloatSignBit) < float_bits(limit); }
 
+/// |v| <= limit (limit >= 0; false for a NaN), on the bits.
+inline bool magnitude_at_most(float v, float limit) { return (float_bits(v) & ~kFloatSignBit) <= float_bits(limit); }
+
 /// v's sign bit (set for -0 and the negative floats).
 inline bool sign_bit(float v) { return (float_bits(v) & kFloatSignBit) != 0; }
 

@@ -85,7 +85,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
   const float look_deg = params_.sweep_before_turn_deg();
   // sweep_distance_mm_ is a sum of magnitudes (its sign bit clear, a NaN's too): < 100 on its bits.
   const bool looked = magnitude_below(sweep_distance_mm_, static_cast<float>(kTurnLookAfterMm)) &&
-                      fabsf(wrap_rad(est_.heading_rad() - sweep_heading_rad_)) <= static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg;
+                      magnitude_at_most(wrap_rad(est_.heading_rad() - sweep_heading_rad_), static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg);
   if (positive(look_deg) && turn_deg > look_deg && !looked) {
     start_sweep();
     return false;
