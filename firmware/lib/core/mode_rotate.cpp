@@ -53,7 +53,8 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     const float half_cone = 0.5f * cone_deg(l);
     if (half_cone < done_deg) done_deg = half_cone;
   }
-  if (fabsf(err) <= done_deg && rate_mdps_ < kRotateSettledMdps && rate_mdps_ > -kRotateSettledMdps) {
+  // done_deg is neither negative nor NaN (a NaN half cone is not taken): |err| <= done_deg on the bits.
+  if (magnitude_at_most(err, done_deg) && rate_mdps_ < kRotateSettledMdps && rate_mdps_ > -kRotateSettledMdps) {
     enter(RoverState::Drive);
     return false;
   }
