@@ -47,6 +47,12 @@ inline bool magnitude_above(float v, float limit) {
 /// |v| < limit (limit >= 0; false for a NaN), on the bits.
 inline bool magnitude_below(float v, float limit) { return (float_bits(v) & ~kFloatSignBit) < float_bits(limit); }
 
+/// v >= limit (limit > 0 and finite; false for a NaN), on the bits: v's lie in [limit's, +infinity's],
+/// one unsigned range check (a negative float's bits lie above them all).
+inline bool at_least(float v, float limit) {
+  return float_bits(v) - float_bits(limit) <= kInfinityBits - float_bits(limit);
+}
+
 /// |v| <= limit (limit >= 0; false for a NaN), on the bits.
 inline bool magnitude_at_most(float v, float limit) { return (float_bits(v) & ~kFloatSignBit) <= float_bits(limit); }
 

@@ -113,7 +113,7 @@ void Rover::back_off(float dt_s, Outputs& out) {
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
   const bool fix_step = (step_work_ & kWorkFix) != 0;
   if (fix_step) put_off_ = true;
-  if ((!fix_step && room_to_turn()) || back_off_mm_ >= static_cast<float>(kBackOffMaxMm)) {
+  if ((!fix_step && room_to_turn()) || at_least(back_off_mm_, static_cast<float>(kBackOffMaxMm))) {
     enter(RoverState::Rotate);
     rotate_checked_ = true;
     return;
