@@ -78,7 +78,7 @@ void Rover::calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r) {
     calib_model_mm_ = 0.0f;
     return;
   }
-  if (calib_model_mm_ >= static_cast<float>(kCalibrateMinMm)) {
+  if (at_least(calib_model_mm_, static_cast<float>(kCalibrateMinMm))) {
     const float fix_mm = length(to_float(m.x_mm - calib_x_mm_), to_float(m.y_mm - calib_y_mm_));
     const float ratio = fix_mm / calib_model_mm_;
     speed_scale_ = clamp(speed_scale_ * (0.7f + 0.3f * ratio), 0.3f, 3.0f);   // 30 % of the way to the ratio
