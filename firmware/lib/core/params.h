@@ -41,7 +41,7 @@ class Params {
   uint32_t radio_timeout_ms() const { return static_cast<uint32_t>(raw(Param::RadioTimeoutMs)); }
   float dr_max_distance_mm() const { return as_float(Param::DrMaxDistanceMm); }
   float clearance_margin_mm() const { return as_float(Param::ClearanceMarginMm); }
-  uint32_t status_period_ms() const { return static_cast<uint32_t>(raw(Param::StatusPeriodMs)); }
+  uint16_t status_period_ms() const { return static_cast<uint16_t>(raw(Param::StatusPeriodMs)); }   // at most 10,000 ([[params]])
   float rotate_done_deg() const { return hundredths(Param::RotateDoneCdeg); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
   int32_t gyro_max_rate_cdeg_s() const { return raw(Param::GyroMaxRateCdegS); }
