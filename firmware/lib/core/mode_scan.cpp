@@ -38,7 +38,7 @@ void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
   out.fire_sonar = fire;
   if (echo.valid) {
     step_work_ = static_cast<uint8_t>(step_work_ | kWorkOther);
-    if (echo.range_mm > 0 && echo.range_mm <= p.sonar_report_mm()) {
+    if (static_cast<uint16_t>(echo.range_mm - 1u) < p.sonar_report_mm()) {   // 0 < range <= report: 0 wraps to 65,535
       report_echo(echo.bearing_cdeg, echo.range_mm);
     } else {
       report_clear(echo.bearing_cdeg);   // nothing within the report range: the host clears the cone
