@@ -70,7 +70,7 @@ void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
   if (fabsf(u) > 0.5f) {
     float lifted = fabsf(u) + to_float(params_.motor_deadband_pwm());
     if (!(lifted < out_max)) lifted = out_max;
-    u = positive(u) ? lifted : -lifted;
+    u = sign_bit(u) ? -lifted : lifted;   // |u| > 0.5: neither zero nor NaN, its sign bit is its sign
   }
   set_wheels(0.0f, u, false, out);
 }
