@@ -35,7 +35,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
       // ahead is clear (Rover::reflex).
       reflex_look_ = true;
       reflex_waiting_ = false;   // a ping still out was aimed at another look
-      reflex_look_i_ = positive(err) ? 1 : 4;
+      reflex_look_i_ = sign_bit(err) ? 4 : 1;   // |err| > 20: its sign bit is its sign
     }
     if (back) {
       send_event(EventKind::TurnRefused, saturate_u16(fabsf(err)));
