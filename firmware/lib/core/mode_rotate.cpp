@@ -67,7 +67,7 @@ void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
   const float out_max = params_.pid_out_max_pwm();
   float u = heading_command(err, dt_s);
   // Lift the command over the motors' dead band, or small errors never close.
-  if (fabsf(u) > 0.5f) {
+  if (magnitude_above(u, 0.5f)) {
     float lifted = fabsf(u) + to_float(params_.motor_deadband_pwm());
     if (!(lifted < out_max)) lifted = out_max;
     u = sign_bit(u) ? -lifted : lifted;   // |u| > 0.5: neither zero nor NaN, its sign bit is its sign
