@@ -24,7 +24,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
       return;
     }
     // Too far off (the goal behind the rover): turn on the spot first, as the seed would.
-    if (fabsf(err) > kPoseMaxErrorDeg) {
+    if (magnitude_above(err, kPoseMaxErrorDeg)) {
       enter(RoverState::Rotate);
       return;
     }
