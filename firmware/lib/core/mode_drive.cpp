@@ -83,7 +83,8 @@ bool Rover::reached_waypoint(float& l, float& err) {
   // that turned about after a sweep and met its next waypoint within 100 mm turned again into
   // a wall's end no beam had covered (arena 157).
   const float look_deg = params_.sweep_before_turn_deg();
-  // sweep_distance_mm_ is a sum of magnitudes (its sign bit clear, a NaN's too): < 100 on its bits.
+  // sweep_distance_mm_ is a sum of magnitudes, never negative: < 100 on its bits (false for a NaN,
+  // as the comparison).
   const bool looked = magnitude_below(sweep_distance_mm_, static_cast<float>(kTurnLookAfterMm)) &&
                       magnitude_at_most(wrap_rad(est_.heading_rad() - sweep_heading_rad_), static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg);
   if (positive(look_deg) && turn_deg > look_deg && !looked) {
