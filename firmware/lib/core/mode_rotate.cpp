@@ -64,6 +64,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
 
 // The gyro PID's turn on the spot towards an error of err degrees.
 void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
+  turned_mm_ = 0.0f;   // where it last turned: backing out retraces the drive since
   const float out_max = params_.pid_out_max_pwm();
   float u = heading_command(err, dt_s);
   // Lift the command over the motors' dead band, or small errors never close.
@@ -98,11 +99,13 @@ ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
 // Backing out: straight back, holding the heading, the way the rover came (the only ground it
 // knows is clear behind it), until its corners can swing clear of what the sweep saw, or for
 // kBackOffMaxMm at most; then the turn it put off. A rover that has turned on the spot since it
-// last drove would back over ground no part of it has been on: it first turns back onto its
-// track (its corners sweep what they swept turning off it), then backs out along it.
+// last drove a while would back over ground no part of it has been on: it first backs over what
+// it has driven since that turn, back to where it turned, then turns back onto its track there
+// (its corners sweep what they swept turning off it), then backs out along it. (Turning back
+// where it stands, off that spot, turned a corner into a box: seed 1's arena 119.)
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  if (track_known_ && !positive(back_off_mm_)) {
+  if (track_known_ && back_off_mm_ >= turned_mm_) {
     const float off = rad_to_deg(wrap_rad(track_rad_ - est_.heading_rad()));
     if (fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
       turn_on_spot(off, dt_s, out);

@@ -53,6 +53,7 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   if (dead_reckoning_) add_to(dr_distance_mm_, ad);
   if (state_ == RoverState::Drive) {
     add_to(sweep_distance_mm_, ad);
+    add_to(turned_mm_, ad);
     add_to(calib_model_mm_, d_mm);
     // The way it drives, once it has driven a while (a step of Drive between a turn and a sweep
     // is no track): backing out goes along it.

@@ -106,6 +106,7 @@ struct RoverFields {
   int16_t right_cmd_ = 0;
   float back_off_mm_ = 0.0f;                  // distance backed out so far
   float track_rad_ = 0.0f;                    // the heading it last drove at (track_known_): backing out goes along it
+  float turned_mm_ = 0.0f;                    // driven since it last turned on the spot: backing out retraces it first
 
   // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
   Sweep sweep_;

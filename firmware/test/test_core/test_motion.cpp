@@ -405,3 +405,47 @@ TEST_CASE("a rover that has turned since it drove turns back onto its track befo
   CHECK(fabsf(b.plant.x_mm - 300.0f) < 40.0f);
   CHECK_FALSE(touched);
 }
+
+TEST_CASE("a rover refused a turn after a short drive backs straight over that drive, to where it turned") {
+  // North from (300, 300) to (300, 600): its track. There it turns east on the spot and drives
+  // on towards (700, 600); 5 mm on, less than a track's worth (kTrackAfterMs), a box appears
+  // 50 mm ahead of its sensor: the reflex stops it and the sweep sees the box. The host sends it
+  // back south. No room to turn: it backs west, facing east, over the way it drove, to where it
+  // turned, and turns back onto its track only there, not where it was refused (seed 1's arena
+  // 119: that turn swung a corner into a box).
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 600}, {700, 600}};
+  b.start_mission(wps, 3);
+  REQUIRE(b.run_until([&] { return b.plant.x_mm >= 305.0f; }, 30000));
+  REQUIRE(b.rover.state() == RoverState::Drive);
+  b.set_box(b.plant.x_mm + 100.0f + 50.0f + 50.0f, 600.0f, 100.0f, 160.0f);   // its face 50 mm ahead of the sensor
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Blocked; }, 10000));
+  const float x0 = b.plant.x_mm, y0 = b.plant.y_mm;
+  MESSAGE("drove " << x0 - 300.0f << " mm east");
+  CHECK(x0 - 300.0f > 5.0f);   // it had driven on east
+  const core::Waypoint back[] = {{static_cast<int16_t>(x0), static_cast<int16_t>(y0)}, {300, 300}};
+  b.load_path(2, back, 2);
+  bool touched = false, backed = false, turned_off_east = false;
+  float least_x = 1e9f;
+  REQUIRE(b.run_until([&] {
+    touched = touched || corner_in_box(b);
+    if (b.rover.state() == RoverState::BackOff) {
+      backed = true;
+      least_x = fminf(least_x, b.plant.x_mm);
+      // Off east before it is back where it turned (the drive's first 5 mm aside).
+      if (b.plant.x_mm > 305.0f && fabsf(b.plant.heading_rad - 1.5708f) > 0.35f) turned_off_east = true;
+    }
+    return b.rover.state() == RoverState::Arrived;
+  }, 60000));
+  CHECK(backed);
+  CHECK_FALSE(turned_off_east);                   // no turn on the spot until back where it turned
+  MESSAGE("least x " << least_x);
+  // Back over its drive to where it turned, by its own dead reckoning (a model of speed, which
+  // runs ahead of a rover gathering speed: a few centimetres beyond).
+  CHECK(least_x < 305.0f);
+  CHECK(least_x > 300.0f - 40.0f);
+  CHECK(fabsf(b.plant.x_mm - 300.0f) < 40.0f);
+  CHECK_FALSE(touched);
+}
