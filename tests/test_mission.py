@@ -16,6 +16,7 @@ from rovernav.link.transport import PipeTransport
 from rovernav.mission import Detection, Failure, Mission, Outcome, Phase
 from rovernav.mission import core
 from rovernav.planning import OccupancyGrid, PlannerConfig
+from rovernav.planning.turns import body_clear
 
 from tests.core_transport import CoreRover, firmware_hello
 
@@ -364,3 +365,40 @@ def test_a_goal_an_echo_s_arc_covers_is_reached_from_beside_it_but_a_wall_is_not
     grid.add_box(1.6, 0.55, 0.3, 0.1)
     mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.4), grid=grid)
     assert mission.plan_from((0.3, 0.3), (1.6, 0.4)) is None
+
+
+@pytest.mark.parametrize("backed_to, replans", [((1.17, 0.50), 1), ((1.30, 0.45), 0)])
+def test_a_rover_that_backed_out_is_sent_a_new_path_when_its_line_on_would_scrape(backed_to, replans):
+    # The path passes below a box and turns up beside it; the rover refused the turn there and
+    # backed out. From where it stopped, the straight line to its next waypoint runs 0.025 m
+    # from the box's face (its sides need 0.085 m): the host replans. From 0.15 m off, it does not.
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    grid.add_box(1.0, 0.8, 0.3, 0.3)                       # x 0.85..1.15, y 0.65..0.95
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.6, 0.5), target=(1.3, 1.4), grid=grid)
+    t = _run(mission, rover, 1.5, pose=(0.6, 0.5, 90.0))
+    assert mission.phase is Phase.RUN
+    mission.load_path([(0.6, 0.5), (1.3, 0.5), (1.3, 1.4)])
+    t = _run(mission, rover, 0.5, pose=(0.6, 0.5, 90.0), t0=t)
+    flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE | mg.StatusFlag.PATH_LOADED)
+    x_mm, y_mm = round(backed_to[0] * 1000), round(backed_to[1] * 1000)
+    for state in (mg.RoverState.BACK_OFF, mg.RoverState.ROTATE):
+        rover.say(mg.Status(state=int(state), flags=flags, path_id=mission.path_id, waypoint_index=2,
+                            x_mm=x_mm, y_mm=y_mm, heading_cdeg=9000))
+        t = _run(mission, rover, 0.2, pose=(*backed_to, 90.0), t0=t)
+    assert mission.replans == replans
+    if replans:
+        assert body_clear(mission.grid, mission.path[0], mission.path[1])
+
+
+def test_a_turn_refused_twice_in_one_spot_is_not_planned_there_again():
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(2.0, 1.4))
+    t = _run(mission, rover, 1.5)
+    assert mission.phase is Phase.RUN
+    leg = mission.current_leg
+    for x_mm in (1000, 1020):
+        rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=x_mm, y_mm=800))
+        t = _run(mission, rover, 0.1, t0=t)
+    rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=1500, y_mm=500))
+    _run(mission, rover, 0.1, t0=t)
+    assert leg.turns_refused_at == [(1.0, 0.8), (1.02, 0.8), (1.5, 0.5)]
+    assert leg.refused_twice() == [(1.0, 0.8), (1.02, 0.8)]           # once is not enough

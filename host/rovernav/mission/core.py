@@ -30,7 +30,7 @@ from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import turnable
+from ..planning.turns import turnable, turnable_start
 from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
@@ -499,7 +499,13 @@ class Mission:
             self._send(host_hello(self.host_boot_id))
 
     def _on_status(self, m: mg.Status) -> None:
+        backed_out = (self.last_status is not None and self.last_status.state == mg.RoverState.BACK_OFF
+                      and m.state != mg.RoverState.BACK_OFF)
         self.last_status = m
+        if backed_out and self.host_replan and self._leg_open():
+            # The rover backed out to make room for a turn (TURN_REFUSED) and heads for its next
+            # waypoint from off its path, along a line no planner chose.
+            self.strategy.backed_out(self)
         self.quality.on_status(m, self.frames_sent, self._now)
         if self.phase is not Phase.HELLO and not m.flags & mg.StatusFlag.SCHEMA_OK:
             self._say_hello_again()
@@ -553,6 +559,9 @@ class Mission:
                        Failure.ROVER_FAULT)
         elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
             self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
+            if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
+                # Planned paths do not turn there again in this leg (rovernav.planning.turns).
+                self.current_leg.turns_refused_at.append((m.x_mm / 1000, m.y_mm / 1000))
 
     def _leg_open(self) -> bool:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
@@ -728,6 +737,10 @@ class Mission:
                         if reason is None or isinstance(exc, Unreachable):
                             reason = exc
                         continue
+                    # Where a bend asks for a turn the body's corners cannot make, the bend moves;
+                    # a path that still turns where the rover refused to is no way for it.
+                    refused = self.current_leg.refused_twice() if self.legs else []
+                    waypoints, moved, left = turnable(grid, result.waypoints, refused)
                     if grid is lenient:
                         self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
                     elif grid is not self.grid:
@@ -735,13 +748,18 @@ class Mission:
                     if end is not goal:
                         self.on_event(self._now, f"the goal lies within an echo's arc: planned to "
                                                  f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on")
-                    # Where a bend asks for a turn the body's corners cannot make, the bend moves.
-                    waypoints, moved, left = turnable(grid, result.waypoints)
                     if moved or left:
                         self.on_event(self._now, f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
                                                  f"where the body can turn" + (f", {left} without room near" if left else ""))
                     path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
-                    return path if origin is start else [start] + path
+                    path = path if origin is start else [start] + path
+                    heading = self._rover_heading_deg(start)
+                    if heading is not None:
+                        path, ahead = turnable_start(grid, path, heading)
+                        if ahead:
+                            self.on_event(self._now, "turns: no room to turn where the rover stands: "
+                                                     f"straight on {math.dist(path[0], path[1]) * 100:.0f} cm first")
+                    return path
         self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
 
@@ -872,6 +890,18 @@ class Mission:
     def _rover_seen(self) -> bool:
         d = self._last_detection
         return d is not None and d.x_m is not None and self._now - d.t_s < 1.0
+
+    def _rover_heading_deg(self, at: tuple[float, float]) -> float | None:
+        """The rover's heading [deg] when a path is planned from where it stands (within 5 cm of
+        `at`): the camera's last fix (if recent), else its own estimate; None otherwise."""
+        d = self._last_detection
+        if (d is not None and d.x_m is not None and d.heading_deg is not None and self._now - d.t_s < 0.5
+                and math.dist((d.x_m, d.y_m), at) < 0.05):
+            return d.heading_deg
+        st = self.last_status
+        if st is not None and math.dist((st.x_mm / 1000, st.y_mm / 1000), at) < 0.05:
+            return st.heading_cdeg / 100
+        return None
 
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix (if recent), else its own estimate, else the start."""

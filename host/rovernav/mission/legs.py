@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from ..files import write_atomic
+from ..planning.turns import REFUSED_NEAR_M
 
 
 def legs_per_trip(kind: str) -> int:
@@ -38,6 +39,14 @@ class Leg:
     obstacles_found: int = 0
     deadline_s: float = math.inf   # when the host steps in if the leg is still not done
     recoveries: int = 0            # times the host re-sent the leg after its deadline
+    turns_refused_at: list[tuple[float, float]] = dataclasses.field(default_factory=list)   # TURN_REFUSED's spots [m]
+
+    def refused_twice(self) -> list[tuple[float, float]]:
+        """The spots where the rover refused a turn twice in this leg (within REFUSED_NEAR_M): a
+        path that turns there again is no way for it (once may be a memory the next sweep clears)."""
+        spots = self.turns_refused_at
+        return [p for i, p in enumerate(spots)
+                if any(math.dist(p, q) <= REFUSED_NEAR_M for j, q in enumerate(spots) if j != i)]
 
 
 @dataclasses.dataclass(frozen=True)

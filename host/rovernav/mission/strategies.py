@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from ..link import messages_gen as mg
 from ..planning import NoPathError, plan
+from ..planning.turns import body_clear
 
 if TYPE_CHECKING:  # pragma: no cover
     from .core import Mission
@@ -46,6 +47,9 @@ class Strategy(Protocol):
     def map_changed(self, m: "Mission") -> None:
         """The map changed (after a sweep): replan if the rest of the leg is blocked."""
 
+    def backed_out(self, m: "Mission") -> None:
+        """The rover backed out to make room for a turn and heads for its next waypoint from there."""
+
 
 class RovernavStrategy:
     name = "rovernav"
@@ -67,6 +71,17 @@ class RovernavStrategy:
         remaining = m.remaining_path()
         if not remaining or not m.grid.path_blocked(remaining):
             return
+        self._replan(m)
+
+    def backed_out(self, m):
+        # The straight line from where it stopped backing out to its next waypoint cuts the
+        # corner the path went round: replanned when the body's sides would not clear it (seed
+        # 1's arena 189: a rover backed out from the end of a divider and drove on into it).
+        remaining = m.remaining_path()
+        if len(remaining) >= 2 and not body_clear(m.grid, remaining[0], remaining[1]):
+            self._replan(m)
+
+    def _replan(self, m):
         new = m.plan_from(m.rover_xy(), m.current_leg.goal)
         if new is not None:
             m.replanned(new, f"{len(new)} waypoints")
@@ -115,6 +130,9 @@ class SeedStrategy:
         self.next_cell += 1
         self._send_next(m)
         return False
+
+    def backed_out(self, m):
+        pass   # the seed's rover goes one cell at a time: its next cell is a few centimetres on
 
     def map_changed(self, m):
         if not self.cells:

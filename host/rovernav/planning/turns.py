@@ -12,6 +12,13 @@ circle is clear of every obstacle the grid holds, known or seen by the sonar (it
 the arena's wall), and whose two legs stay on the planner's free cells; the start and the
 target stay where they are. Where no such point is near, the waypoint stays: the rover's own
 check (room_to_turn) backs it out before it turns.
+
+The first turn, where the rover stands, is `turnable_start`'s: a new path from a rover beside
+something (a replan after a sweep, the way out of an inflated margin) may ask it to turn on the
+spot where its corners cannot swing, and neither the start nor, often, the rover's own memory
+(its sonar looks from its nose, never beside its rear half) says so. Then the path first drives
+straight on, as far as the nearest point with room to turn (seed 1's arena 193: a rover beside a
+known box, told to turn 120 degrees 134 mm from the box's corner, turned into it).
 """
 from __future__ import annotations
 
@@ -33,6 +40,10 @@ SWING_MARGIN_M = 0.01
 MIN_TURN_DEG = 20.0
 #: How far a waypoint may move to find room for its turn [m].
 SEARCH_M = 0.3
+#: A turn this near where the rover refused one (TURN_REFUSED: its own memory said its corners
+#: would hit) has no room, whatever the grid says: a refusal comes within the arrival radius
+#: (36 mm) of the waypoint, and the waypoint may have moved a cell since [m].
+REFUSED_NEAR_M = 0.06
 
 
 def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0) -> np.ndarray:
@@ -61,9 +72,26 @@ def _room(clear: np.ndarray, grid: OccupancyGrid, p: Sequence[float]) -> float:
     return float(clear[iy, ix])
 
 
-def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]]) -> tuple[list[tuple[float, float]], int, int]:
+def _refused_near(p: Sequence[float], refused: Sequence[Sequence[float]]) -> bool:
+    return any(math.dist(p, r) <= REFUSED_NEAR_M for r in refused)
+
+
+def refused_turn(waypoints: Sequence[Sequence[float]], refused: Sequence[Sequence[float]]
+                 ) -> tuple[float, float] | None:
+    """Where the path asks for a turn (of more than MIN_TURN_DEG, at a waypoint between its ends)
+    near a spot where the rover refused one; None when it does not."""
+    pts = [(float(x), float(y)) for x, y in waypoints]
+    for i in range(1, len(pts) - 1):
+        if turn_deg(pts[i - 1], pts[i], pts[i + 1]) > MIN_TURN_DEG and _refused_near(pts[i], refused):
+            return pts[i]
+    return None
+
+
+def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
+             refused: Sequence[Sequence[float]] = ()) -> tuple[list[tuple[float, float]], int, int]:
     """The path with each waypoint whose turn the body cannot make moved where it can.
 
+    A waypoint near a spot in `refused` (where the rover refused a turn) has no room either.
     Returns (waypoints, moved, left): how many waypoints were moved, and how many still ask for
     a turn without room (none near had room and clear legs).
     """
@@ -84,10 +112,10 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]]) -> tuple
         changed = False
         for i in range(1, len(pts) - 1):
             a, b, c = pts[i - 1], pts[i], pts[i + 1]
-            if turn_deg(a, b, c) <= MIN_TURN_DEG or _room(clear, grid, b) >= need:
+            if turn_deg(a, b, c) <= MIN_TURN_DEG or (_room(clear, grid, b) >= need and not _refused_near(b, refused)):
                 stuck.discard(i)
                 continue
-            q = _nearest_room(grid, clear, need, offs, a, b, c)
+            q = _nearest_room(grid, clear, need, offs, a, b, c, refused)
             if q is None:
                 stuck.add(i)
                 continue
@@ -101,7 +129,8 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]]) -> tuple
 
 
 def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: list[tuple[float, float]],
-                  a: tuple[float, float], b: tuple[float, float], c: tuple[float, float]) -> tuple[float, float] | None:
+                  a: tuple[float, float], b: tuple[float, float], c: tuple[float, float],
+                  refused: Sequence[Sequence[float]] = ()) -> tuple[float, float] | None:
     """The point near b, for the least added length, with room to turn (or little turn to make)
     and clear legs from a and to c; None when there is none within SEARCH_M."""
     base = math.dist(a, b) + math.dist(b, c)
@@ -110,7 +139,7 @@ def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: lis
         q = (b[0] + dx, b[1] + dy)
         if not grid.contains(*q) or not grid.is_free(*q):
             continue
-        if _room(clear, grid, q) < need and turn_deg(a, q, c) > MIN_TURN_DEG:
+        if (_room(clear, grid, q) < need or _refused_near(q, refused)) and turn_deg(a, q, c) > MIN_TURN_DEG:
             continue
         options.append((math.dist(a, q) + math.dist(q, c) - base, q))
     options.sort()
@@ -118,3 +147,57 @@ def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: lis
         if grid.segment_clear(a, q) and grid.segment_clear(q, c):
             return q
     return None
+
+
+def turnable_start(grid: OccupancyGrid, path: Sequence[Sequence[float]], heading_deg: float
+                   ) -> tuple[list[tuple[float, float]], bool]:
+    """The path with a straight stretch first, along the rover's heading, where its first turn (at
+    path[0], from heading_deg: 0 up the arena, clockwise positive) has no room.
+
+    The stretch ends at the nearest point (cell steps, within SEARCH_M) with room to turn whose
+    leg to one of the next three waypoints is clear; the body's sides must clear everything on
+    the way there. Returns (path, changed); the path is unchanged when the turn is small, has
+    room, or no such point is straight ahead.
+    """
+    pts = [(float(x), float(y)) for x, y in path]
+    if len(pts) < 2:
+        return pts, False
+    s = pts[0]
+    h = math.radians(heading_deg)
+    ux, uy = math.sin(h), math.cos(h)
+    if turn_deg((s[0] - ux, s[1] - uy), s, pts[1]) <= MIN_TURN_DEG:
+        return pts, False
+    need = SWING_M + SWING_MARGIN_M
+    res = grid.resolution_m
+    clear = clearance_map(grid, reach_m=need + res)
+    if not grid.contains(*s) or _room(clear, grid, s) >= need:
+        return pts, False
+    side = BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M
+    for k in range(1, int(SEARCH_M / res) + 1):
+        q = (s[0] + k * res * ux, s[1] + k * res * uy)
+        if not grid.contains(*q):
+            break
+        room = _room(clear, grid, q)
+        if room < side:
+            break   # driving on would scrape a side
+        if room < need:
+            continue
+        for j in range(1, min(len(pts), 4)):
+            if grid.segment_clear(q, pts[j]):
+                return [s, q] + pts[j:], True
+    return pts, False
+
+
+def body_clear(grid: OccupancyGrid, a: Sequence[float], b: Sequence[float]) -> bool:
+    """Whether the body's sides clear every obstacle the grid holds (known, seen by the sonar, and
+    the arena's wall) as the rover drives straight from a to b [m]: the clearance of its centre,
+    every half cell along the way, at least half its width and SWING_MARGIN_M."""
+    side = BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M
+    res = grid.resolution_m
+    clear = clearance_map(grid, reach_m=side + res)
+    n = max(1, int(math.ceil(math.dist(a, b) / (res / 2))))
+    for k in range(n + 1):
+        p = (a[0] + (b[0] - a[0]) * k / n, a[1] + (b[1] - a[1]) * k / n)
+        if not grid.contains(*p) or _room(clear, grid, p) < side:
+            return False
+    return True
