@@ -402,3 +402,16 @@ def test_a_turn_refused_twice_in_one_spot_is_not_planned_there_again():
     _run(mission, rover, 0.1, t0=t)
     assert leg.turns_refused_at == [(1.0, 0.8), (1.02, 0.8), (1.5, 0.5)]
     assert leg.refused_twice() == [(1.0, 0.8), (1.02, 0.8)]           # once is not enough
+
+
+def test_a_check_that_finds_no_way_is_no_verdict():
+    # The target walled in: the leg's planning says 'no path' and ends the mission; a check (after
+    # a back-off) that finds no way from where the rover stands keeps the path it has.
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    for box in ((1.6, 1.15, 0.6, 0.05), (1.6, 0.65, 0.6, 0.05), (1.3, 0.9, 0.05, 0.55), (1.9, 0.9, 0.05, 0.55)):
+        grid.add_box(*box)
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.9), grid=grid)
+    assert mission.plan_from((0.3, 0.3), (1.6, 0.9), verdict=False) is None
+    assert mission.phase is not Phase.FAILED and mission.failure is None
+    assert mission.plan_from((0.3, 0.3), (1.6, 0.9)) is None
+    assert mission.phase is Phase.FAILED and mission.failure is Failure.NO_PATH

@@ -689,9 +689,11 @@ class Mission:
         leg.deadline_s = max(leg.deadline_s, self._now + self.deadlines.leg_s(path_length_m(path)))
         self.on_event(self._now, f"the sonar found the path blocked: replanned ({what}, {path_length_m(path):.2f} m)")
 
-    def plan_from(self, start: tuple[float, float], goal: tuple[float, float]) -> list[tuple[float, float]] | None:
+    def plan_from(self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
+                  ) -> list[tuple[float, float]] | None:
         """A* from `start` to `goal`, simplified; None when there is none (the mission has then
-        ended with the no-path verdict and the planner's reason).
+        ended with the no-path verdict and the planner's reason, unless `verdict` is False: a
+        check that may keep the path the rover has).
 
         Before that verdict: from the nearest free cell when the rover stands inside an inflated
         margin (close to what it has just found), and, round what only the sonar has seen, with
@@ -760,7 +762,8 @@ class Mission:
                             self.on_event(self._now, "turns: no room to turn where the rover stands: "
                                                      f"straight on {math.dist(path[0], path[1]) * 100:.0f} cm first")
                     return path
-        self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
+        if verdict:
+            self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
 
     def _nearest_free(self, xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.3

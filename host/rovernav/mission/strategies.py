@@ -77,12 +77,13 @@ class RovernavStrategy:
         # The straight line from where it stopped backing out to its next waypoint cuts the
         # corner the path went round: replanned when the body's sides would not clear it (seed
         # 1's arena 189: a rover backed out from the end of a divider and drove on into it).
+        # No way from there (it may stand inside a margin) is no verdict: the path it has stays.
         remaining = m.remaining_path()
         if len(remaining) >= 2 and not body_clear(m.grid, remaining[0], remaining[1]):
-            self._replan(m)
+            self._replan(m, verdict=False)
 
-    def _replan(self, m):
-        new = m.plan_from(m.rover_xy(), m.current_leg.goal)
+    def _replan(self, m, verdict=True):
+        new = m.plan_from(m.rover_xy(), m.current_leg.goal, verdict)
         if new is not None:
             m.replanned(new, f"{len(new)} waypoints")
             m.load_path(new)
