@@ -55,12 +55,6 @@ Sweep::Echo Sweep::step(uint32_t now_ms, bool sonar_valid, uint16_t sonar_range_
     servo_cdeg = 0;
   } else {
     move_to(now_ms, angle_cdeg_, static_cast<int16_t>(angle_cdeg_ + kStepCdeg));
-    servo_cdeg = angle_cdeg_;   // the servo sets off in this step
-    // The next ping is timed from this one's trigger, not from its result (a step, 10 ms, later
-    // at best): the sensor's cycle runs trigger to trigger. The servo, which moves only now,
-    // keeps kSlewMsPerStep for its travel. The phase is at least kPingTimeoutMs, over that.
-    const uint16_t most = static_cast<uint16_t>(phase_ms_ - kSlewMsPerStep);
-    phase_ms_ = static_cast<uint16_t>(phase_ms_ - (elapsed < most ? elapsed : most));
   }
   return echo;
 }

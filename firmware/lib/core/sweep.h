@@ -1,7 +1,6 @@
 // The sonar sweep: stopped, the servo steps from -90 to +90 degrees in 15-degree steps, one
-// ping a step. Each step waits for its ping's result (at most kPingTimeoutMs), moves the servo,
-// and fires again sweep_step_ms after the last ping was fired (the servo's travel and settle for
-// a 15-degree step; never under kPingTimeoutMs, the HC-SR04's cycle). A longer move,
+// ping a step. Each step waits for the servo (sweep_step_ms for a 15-degree step: travel and
+// settle), fires the sonar, and waits for its result (at most kPingTimeoutMs). A longer move,
 // such as the slew to -90 degrees that starts a sweep, adds kSlewMsPerStep for each further
 // 15 degrees: an SG90 travels 60 degrees in 0.1 s, and settling is paid once, not per step.
 // Nothing waits without a bound: a sonar that never answers costs kPingTimeoutMs a step, not

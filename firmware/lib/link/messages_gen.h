@@ -160,7 +160,7 @@ enum class Param : uint8_t {
   ConeTolMm = 7,  ///< [mm] tolerance cone half-width: re-rotate when |heading error| > atan(cone_tol_mm / L) (seed: 5 px = 18 mm)
   ArrivalRadiusMm = 8,  ///< [mm] a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)
   SweepIntervalMm = 9,  ///< [mm] distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)
-  SweepStepMs = 10,  ///< [ms] time from one sweep ping to the next, a 15-degree step: the servo's travel and settle (an SG90: 25 ms and 25 ms) and never under the HC-SR04's 60 ms cycle (seed: 1000)
+  SweepStepMs = 10,  ///< [ms] time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)
   SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range ([sensors])
   FixTimeoutMs = 12,  ///< [ms] no FIX for this long: dead reckoning
   RadioTimeoutMs = 13,  ///< [ms] no valid frame at all for this long: radio lost
@@ -257,7 +257,7 @@ static const uint8_t kParamLimits[258] ROVERNAV_PROGMEM = {
   0x12, 0x00, 0x01, 0x00, 0xE8, 0x03,  // 7 cone_tol_mm: 18, 1..1000
   0x24, 0x00, 0x05, 0x00, 0x2C, 0x01,  // 8 arrival_radius_mm: 36, 5..300
   0x2C, 0x01, 0x00, 0x00, 0x10, 0x27,  // 9 sweep_interval_mm: 300, 0..10000
-  0x3C, 0x00, 0x14, 0x00, 0x88, 0x13,  // 10 sweep_step_ms: 60, 20..5000
+  0x5A, 0x00, 0x14, 0x00, 0x88, 0x13,  // 10 sweep_step_ms: 90, 20..5000
   0x58, 0x02, 0x32, 0x00, 0xE8, 0x03,  // 11 sonar_report_mm: 600, 50..1000
   0x32, 0x00, 0x05, 0x00, 0xE8, 0x03,  // 15 clearance_margin_mm: 50, 5..1000
   0xC8, 0x00, 0x14, 0x00, 0x10, 0x27,  // 16 status_period_ms: 200, 20..10000

@@ -124,7 +124,7 @@ static const ParamSpec kParamSpecs[] = {
   {7, 18L, 1L, 1000L},  // cone_tol_mm
   {8, 36L, 5L, 300L},  // arrival_radius_mm
   {9, 300L, 0L, 10000L},  // sweep_interval_mm
-  {10, 60L, 20L, 5000L},  // sweep_step_ms
+  {10, 90L, 20L, 5000L},  // sweep_step_ms
   {11, 600L, 50L, 1000L},  // sonar_report_mm
   {12, 500L, 50L, 60000L},  // fix_timeout_ms
   {13, 1000L, 100L, 60000L},  // radio_timeout_ms

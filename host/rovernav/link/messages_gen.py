@@ -244,7 +244,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.CONE_TOL_MM: ParamSpec(7, 'cone_tol_mm', 'mm', 18, 1, 1000, 'tolerance cone half-width: re-rotate when |heading error| > atan(cone_tol_mm / L) (seed: 5 px = 18 mm)'),
     Param.ARRIVAL_RADIUS_MM: ParamSpec(8, 'arrival_radius_mm', 'mm', 36, 5, 300, "a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)"),
     Param.SWEEP_INTERVAL_MM: ParamSpec(9, 'sweep_interval_mm', 'mm', 300, 0, 10000, 'distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)'),
-    Param.SWEEP_STEP_MS: ParamSpec(10, 'sweep_step_ms', 'ms', 60, 20, 5000, "time from one sweep ping to the next, a 15-degree step: the servo's travel and settle (an SG90: 25 ms and 25 ms) and never under the HC-SR04's 60 ms cycle (seed: 1000)"),
+    Param.SWEEP_STEP_MS: ParamSpec(10, 'sweep_step_ms', 'ms', 90, 20, 5000, 'time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)'),
     Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1000, "echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range ([sensors])"),
     Param.FIX_TIMEOUT_MS: ParamSpec(12, 'fix_timeout_ms', 'ms', 500, 50, 60000, 'no FIX for this long: dead reckoning'),
     Param.RADIO_TIMEOUT_MS: ParamSpec(13, 'radio_timeout_ms', 'ms', 1000, 100, 60000, 'no valid frame at all for this long: radio lost'),
