@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
-from rovernav.planning.turns import (MIN_TURN_DEG, REFUSED_NEAR_M, SEARCH_M, SWING_M, SWING_MARGIN_M, body_clear,
-                                     turn_deg, turnable, turnable_start)
+from rovernav.planning.turns import (MIN_TURN_DEG, REFUSED_NEAR_M, SWING_M, SWING_MARGIN_M, body_clear, turn_deg,
+                                     turnable)
 
 # A divider up from the bottom edge, its end 0.48 m below the top: the way from one side to the
 # other bends round its end.
@@ -105,45 +105,6 @@ def _box_grid() -> OccupancyGrid:
     g = OccupancyGrid(2.94, 2.03, PlannerConfig())
     g.add_box(0.66, 1.68, 0.25, 0.25)
     return g
-
-
-def test_a_rover_beside_a_box_is_sent_straight_on_before_it_turns():
-    # The rover stands 134 mm from the box's corner, facing east (82 degrees); its new path turns
-    # it 120 degrees on the spot: its corners (129 mm) would swing into the box.
-    g = _box_grid()
-    start = (0.813, 1.424)
-    path = [start, (0.790, 1.369), (0.825, 1.365), (1.425, 1.515), (2.077, 1.602)]
-    out, ahead = turnable_start(g, path, 82.0)
-    assert ahead
-    q = out[1]
-    assert out[0] == start and out[-1] == path[-1]
-    h = math.radians(82.0)
-    along = (q[0] - start[0]) * math.sin(h) + (q[1] - start[1]) * math.cos(h)
-    across = (q[0] - start[0]) * math.cos(h) - (q[1] - start[1]) * math.sin(h)
-    assert 0.0 < along <= SEARCH_M and abs(across) < 1e-9      # straight ahead
-    corner = (0.785, 1.555)
-    assert math.dist(q, corner) >= SWING_M + SWING_MARGIN_M    # room to turn there
-    assert g.segment_clear(q, out[2])
-    assert body_clear(g, start, q)
-
-
-def test_a_first_turn_with_room_or_too_small_to_matter_is_left_alone():
-    g = _box_grid()
-    # In the open: room to turn.
-    path = [(1.5, 0.8), (1.2, 0.8), (1.2, 0.4)]
-    assert turnable_start(g, path, 0.0) == (path, False)
-    # Beside the box, but the path runs straight on (a turn of 5 degrees).
-    start = (0.813, 1.424)
-    path = [start, (start[0] + 0.5 * math.sin(math.radians(87)), start[1] + 0.5 * math.cos(math.radians(87)))]
-    assert turnable_start(g, path, 82.0) == (path, False)
-
-
-def test_no_stretch_is_added_when_straight_on_runs_into_something():
-    # Facing the box's side from 0.14 m: straight on scrapes at once; the path stays as it was.
-    g = _box_grid()
-    start = (0.66, 1.42)
-    path = [start, (0.3, 1.2), (0.3, 0.5)]
-    assert turnable_start(g, path, 0.0) == (path, False)
 
 
 def test_body_clear_tells_a_line_past_a_corner_from_one_into_it():

@@ -30,7 +30,7 @@ from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import turnable, turnable_start
+from ..planning.turns import turnable
 from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
@@ -754,14 +754,7 @@ class Mission:
                         self.on_event(self._now, f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
                                                  f"where the body can turn" + (f", {left} without room near" if left else ""))
                     path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
-                    path = path if origin is start else [start] + path
-                    heading = self._rover_heading_deg(start)
-                    if heading is not None:
-                        path, ahead = turnable_start(grid, path, heading)
-                        if ahead:
-                            self.on_event(self._now, "turns: no room to turn where the rover stands: "
-                                                     f"straight on {math.dist(path[0], path[1]) * 100:.0f} cm first")
-                    return path
+                    return path if origin is start else [start] + path
         if verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
@@ -893,18 +886,6 @@ class Mission:
     def _rover_seen(self) -> bool:
         d = self._last_detection
         return d is not None and d.x_m is not None and self._now - d.t_s < 1.0
-
-    def _rover_heading_deg(self, at: tuple[float, float]) -> float | None:
-        """The rover's heading [deg] when a path is planned from where it stands (within 5 cm of
-        `at`): the camera's last fix (if recent), else its own estimate; None otherwise."""
-        d = self._last_detection
-        if (d is not None and d.x_m is not None and d.heading_deg is not None and self._now - d.t_s < 0.5
-                and math.dist((d.x_m, d.y_m), at) < 0.05):
-            return d.heading_deg
-        st = self.last_status
-        if st is not None and math.dist((st.x_mm / 1000, st.y_mm / 1000), at) < 0.05:
-            return st.heading_cdeg / 100
-        return None
 
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix (if recent), else its own estimate, else the start."""

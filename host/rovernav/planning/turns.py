@@ -13,12 +13,8 @@ the arena's wall), and whose two legs stay on the planner's free cells; the star
 target stay where they are. Where no such point is near, the waypoint stays: the rover's own
 check (room_to_turn) backs it out before it turns.
 
-The first turn, where the rover stands, is `turnable_start`'s: a new path from a rover beside
-something (a replan after a sweep, the way out of an inflated margin) may ask it to turn on the
-spot where its corners cannot swing, and neither the start nor, often, the rover's own memory
-(its sonar looks from its nose, never beside its rear half) says so. Then the path first drives
-straight on, as far as the nearest point with room to turn (seed 1's arena 193: a rover beside a
-known box, told to turn 120 degrees 134 mm from the box's corner, turned into it).
+`body_clear` checks a straight drive against the same map with the body's half width: the line
+on from where a rover stopped backing out (rovernav.mission.strategies).
 """
 from __future__ import annotations
 
@@ -147,45 +143,6 @@ def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: lis
         if grid.segment_clear(a, q) and grid.segment_clear(q, c):
             return q
     return None
-
-
-def turnable_start(grid: OccupancyGrid, path: Sequence[Sequence[float]], heading_deg: float
-                   ) -> tuple[list[tuple[float, float]], bool]:
-    """The path with a straight stretch first, along the rover's heading, where its first turn (at
-    path[0], from heading_deg: 0 up the arena, clockwise positive) has no room.
-
-    The stretch ends at the nearest point (cell steps, within SEARCH_M) with room to turn whose
-    leg to one of the next three waypoints is clear; the body's sides must clear everything on
-    the way there. Returns (path, changed); the path is unchanged when the turn is small, has
-    room, or no such point is straight ahead.
-    """
-    pts = [(float(x), float(y)) for x, y in path]
-    if len(pts) < 2:
-        return pts, False
-    s = pts[0]
-    h = math.radians(heading_deg)
-    ux, uy = math.sin(h), math.cos(h)
-    if turn_deg((s[0] - ux, s[1] - uy), s, pts[1]) <= MIN_TURN_DEG:
-        return pts, False
-    need = SWING_M + SWING_MARGIN_M
-    res = grid.resolution_m
-    clear = clearance_map(grid, reach_m=need + res)
-    if not grid.contains(*s) or _room(clear, grid, s) >= need:
-        return pts, False
-    side = BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M
-    for k in range(1, int(SEARCH_M / res) + 1):
-        q = (s[0] + k * res * ux, s[1] + k * res * uy)
-        if not grid.contains(*q):
-            break
-        room = _room(clear, grid, q)
-        if room < side:
-            break   # driving on would scrape a side
-        if room < need:
-            continue
-        for j in range(1, min(len(pts), 4)):
-            if grid.segment_clear(q, pts[j]):
-                return [s, q] + pts[j:], True
-    return pts, False
 
 
 def body_clear(grid: OccupancyGrid, a: Sequence[float], b: Sequence[float]) -> bool:
