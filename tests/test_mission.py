@@ -388,6 +388,7 @@ def test_a_rover_that_backed_out_is_sent_a_new_path_when_its_line_on_would_scrap
     assert mission.replans == replans
     if replans:
         assert body_clear(mission.grid, mission.path[0], mission.path[1])
+        assert any(n.startswith("the line on from where the rover backed out scrapes: replanned") for n in notes)
 
 
 def test_a_turn_refused_twice_in_one_spot_is_not_planned_there_again():

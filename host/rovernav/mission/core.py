@@ -560,7 +560,7 @@ class Mission:
         elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
             self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
             if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
-                # Planned paths do not turn there again in this leg (rovernav.planning.turns).
+                # Twice in one spot, and planned paths turn there no more this leg (Leg.refused_twice).
                 self.current_leg.turns_refused_at.append((m.x_mm / 1000, m.y_mm / 1000))
 
     def _leg_open(self) -> bool:
@@ -681,13 +681,14 @@ class Mission:
             self._chunk_at = self._now
             self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
 
-    def replanned(self, path: list[tuple[float, float]], what: str) -> None:
-        """A strategy replanned the current leg after the map changed."""
+    def replanned(self, path: list[tuple[float, float]], what: str,
+                  why: str = "the sonar found the path blocked") -> None:
+        """A strategy replanned the current leg (after the map changed, or `why`)."""
         self.replans += 1
         leg = self.current_leg
         leg.replans += 1
         leg.deadline_s = max(leg.deadline_s, self._now + self.deadlines.leg_s(path_length_m(path)))
-        self.on_event(self._now, f"the sonar found the path blocked: replanned ({what}, {path_length_m(path):.2f} m)")
+        self.on_event(self._now, f"{why}: replanned ({what}, {path_length_m(path):.2f} m)")
 
     def plan_from(self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
                   ) -> list[tuple[float, float]] | None:
@@ -739,8 +740,8 @@ class Mission:
                         if reason is None or isinstance(exc, Unreachable):
                             reason = exc
                         continue
-                    # Where a bend asks for a turn the body's corners cannot make, the bend moves;
-                    # a path that still turns where the rover refused to is no way for it.
+                    # Where a bend asks for a turn the body's corners cannot make, the bend moves; a
+                    # spot where the rover refused a turn twice in this leg has no room either.
                     refused = self.current_leg.refused_twice() if self.legs else []
                     waypoints, moved, left = turnable(grid, result.waypoints, refused)
                     if grid is lenient:

@@ -80,12 +80,12 @@ class RovernavStrategy:
         # No way from there (it may stand inside a margin) is no verdict: the path it has stays.
         remaining = m.remaining_path()
         if len(remaining) >= 2 and not body_clear(m.grid, remaining[0], remaining[1]):
-            self._replan(m, verdict=False)
+            self._replan(m, verdict=False, why="the line on from where the rover backed out scrapes")
 
-    def _replan(self, m, verdict=True):
+    def _replan(self, m, verdict=True, why="the sonar found the path blocked"):
         new = m.plan_from(m.rover_xy(), m.current_leg.goal, verdict)
         if new is not None:
-            m.replanned(new, f"{len(new)} waypoints")
+            m.replanned(new, f"{len(new)} waypoints", why)
             m.load_path(new)
 
 
