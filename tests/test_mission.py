@@ -416,3 +416,57 @@ def test_a_check_that_finds_no_way_is_no_verdict():
     assert mission.phase is not Phase.FAILED and mission.failure is None
     assert mission.plan_from((0.3, 0.3), (1.6, 0.9)) is None
     assert mission.phase is Phase.FAILED and mission.failure is Failure.NO_PATH
+
+
+def test_a_path_from_where_the_rover_stands_without_room_to_turn_starts_straight_ahead():
+    # The rover stands facing east with a box's corner 0.11 m off its right rear (the half-diagonal
+    # is 0.129 m); its new path turns it north. The host puts in a point straight ahead, where it
+    # has room, and says so. Facing north already, the turn is small: nothing goes in.
+    from rovernav.planning.turns import SWING_M, SWING_MARGIN_M, clearance_map
+
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig(sonar_margin_m=0.0))
+    grid.add_box(0.95, 0.64, 0.1, 0.1)                     # x 0.90..1.00, y 0.59..0.69
+    mission, rover, notes = _setup_with(ScriptedRover, start=(1.0, 0.8), target=(1.5, 1.5), grid=grid)
+    flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE)
+    rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=9000))
+    t = _run(mission, rover, 0.3, pose=(1.0, 0.8, 90.0))
+    assert mission.rover_heading_deg() == 90.0
+    path = mission.plan_from((1.0, 0.8), (1.0, 1.5))
+    assert path is not None and path[0] == (1.0, 0.8) and path[-1] == (1.0, 1.5)
+    q = path[1]
+    assert abs(q[1] - 0.8) < 1e-9 and 0.0 < q[0] - 1.0 <= 0.3          # straight ahead, east
+    need = SWING_M + SWING_MARGIN_M
+    clear = clearance_map(grid, 1.0)
+    ix, iy = grid.world_to_cell(*q)
+    assert clear[iy, ix] >= need
+    assert any(n.startswith("no room to turn where the rover stands") for n in notes)
+    rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=0))
+    _run(mission, rover, 0.3, pose=(1.0, 0.8, 0.0), t0=t)
+    assert mission.plan_from((1.0, 0.8), (1.0, 1.5))[1] != q
+
+
+def test_no_room_where_the_rover_stands_and_none_ahead_asks_it_to_back_out_first():
+    # As above, with a wall across its way 0.12 m ahead: no point straight ahead. The path goes
+    # out as it is, and its PATH chunks ask the rover to back out before it turns (back_out 1);
+    # the next path, planned where it has room, does not.
+    from rovernav.mission.core import PlannedPath
+
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig(sonar_margin_m=0.0))
+    grid.add_box(0.95, 0.64, 0.1, 0.1)                     # x 0.90..1.00, y 0.59..0.69
+    grid.add_box(1.2, 0.8, 0.02, 0.4)                      # the wall ahead, x 1.19..1.21
+    mission, rover, notes = _setup_with(ScriptedRover, start=(1.0, 0.8), target=(1.5, 1.5), grid=grid)
+    flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE)
+    rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=9000))
+    _run(mission, rover, 0.3, pose=(1.0, 0.8, 90.0))
+    path = mission.plan_from((1.0, 0.8), (1.0, 1.5))
+    assert isinstance(path, PlannedPath) and path.back_out
+    assert path[0] == (1.0, 0.8) and path[-1] == (1.0, 1.5)
+    assert any(n.startswith("no room to turn where the rover stands, none straight ahead") for n in notes)
+    mission.load_path(path)
+    t = _run(mission, rover, 0.3, pose=(1.0, 0.8, 90.0))
+    sent = [m for m in rover.of(mg.Path) if m.path_id == mission.path_id]
+    assert sent and all(m.back_out == 1 for m in sent)
+    mission.load_path([(1.0, 1.0), (1.0, 1.5)])
+    _run(mission, rover, 0.3, pose=(1.0, 1.0, 0.0), t0=t)
+    sent = [m for m in rover.of(mg.Path) if m.path_id == mission.path_id]
+    assert sent and all(m.back_out == 0 for m in sent)

@@ -264,7 +264,7 @@ def test_traffic_budget_of_the_readme_holds():
     # protocol/README.md: fixes at 30 Hz, heartbeat and status at 5 Hz stay under a sixth of 57,600 baud.
     size = {cls: len(framing.encode_frame(cls(), 0))
             for cls in (mg.Fix, mg.Heartbeat, mg.Status, mg.Path, mg.Obstacle, mg.Event)}
-    assert (size[mg.Fix], size[mg.Heartbeat], size[mg.Status], size[mg.Path]) == (18, 12 + 4, 52, 44)
+    assert (size[mg.Fix], size[mg.Heartbeat], size[mg.Status], size[mg.Path]) == (18, 12 + 4, 52, 45)
     bytes_per_s = 30 * size[mg.Fix] + 5 * size[mg.Heartbeat] + 5 * size[mg.Status]
     assert bytes_per_s < 57600 / 10 / 6
     # A sweep (1.5 s): 13 readings, every one an echo said three times at most, and SCAN_DONE thrice.

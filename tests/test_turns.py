@@ -7,8 +7,9 @@ import math
 import numpy as np
 
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
-from rovernav.planning.turns import (MIN_TURN_DEG, REFUSED_NEAR_M, SWING_M, SWING_MARGIN_M, body_clear, turn_deg,
-                                     turnable)
+from rovernav.mission.learned_map import Echo
+from rovernav.planning.turns import (HALF_SEEN_DEPTH_M, MIN_TURN_DEG, REFUSED_NEAR_M, SWING_M, SWING_MARGIN_M,
+                                     ahead_first, body_clear, clearance_map, half_seen, turn_deg, turnable)
 
 # A divider up from the bottom edge, its end 0.48 m below the top: the way from one side to the
 # other bends round its end.
@@ -124,3 +125,61 @@ def test_a_turn_where_the_rover_refused_one_has_no_room():
     assert moved == 1 and left == 0
     assert math.dist(out[1], (0.52, 0.49)) > REFUSED_NEAR_M
     assert not g.path_blocked(out)
+
+
+# ---------------------------------------------------------------- half seen, and the first turn
+
+def _box_face_grid() -> tuple[OccupancyGrid, Echo]:
+    """An 8 cm box's south face at y = 1.71 m (x 1.93-2.01) as one echo heard from below
+    (cellular seed 2612's arena 60): the rover 0.45 m south of it, looking north."""
+    g = OccupancyGrid(3.0, 2.5, PlannerConfig(sonar_margin_m=0.0))
+    echo = Echo(x_m=1.97, y_m=1.16, heading_deg=0.0, bearing_deg=0.0, range_m=0.45)
+    sx, sy = 1.97, 1.16 + g.config.sonar_offset_m
+    ix, iy = g.world_to_cell(sx, sy + 0.45)
+    g.raw[iy, ix - 1:ix + 2] = True   # the arc's cells
+    return g, echo
+
+
+def test_what_an_echo_hides_lies_behind_its_face_along_the_beam():
+    g, echo = _box_face_grid()
+    hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
+    ys = g.ys[np.nonzero(hidden.any(axis=1))[0]]
+    face_y = 1.16 + g.config.sonar_offset_m + 0.45
+    assert ys.min() > face_y - g.resolution_m            # nothing in front of the face
+    assert face_y + HALF_SEEN_DEPTH_M - g.resolution_m <= ys.max() <= face_y + HALF_SEEN_DEPTH_M + g.resolution_m
+    xs = g.xs[np.nonzero(hidden.any(axis=0))[0]]
+    assert xs.min() > 1.85 and xs.max() < 2.09          # within the cone's width there
+    # An arc the sonar has since seen clear (its cells no longer held) casts nothing.
+    g.raw[:] = False
+    assert not half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg).any()
+
+
+def test_the_hidden_depth_takes_room_from_a_turn_beside_the_face():
+    # The rover stands north of the box, 0.19 m from the face it saw, 0.11 m from its far side:
+    # room by the face alone, none with what the face hides.
+    g, echo = _box_face_grid()
+    hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
+    need = SWING_M + SWING_MARGIN_M
+    here = (1.965, 1.71 + 0.19)
+    ix, iy = g.world_to_cell(*here)
+    assert clearance_map(g, need + 0.1)[iy, ix] >= need
+    assert clearance_map(g, need + 0.1, hidden=hidden)[iy, ix] < need
+
+
+def test_no_room_to_turn_where_the_rover_stands_puts_a_point_straight_ahead_first():
+    g, echo = _box_face_grid()
+    hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
+    start, heading = (1.965, 1.90), -90.0          # facing west, the box beside its left rear
+    path = [start, (1.55, 2.2)]                    # the next leg asks for a turn of about 125 degrees
+    out, ahead = ahead_first(g, path, heading, hidden)
+    assert ahead == 1 and len(out) == 3 and out[0] == start and out[-1] == path[-1]
+    q = out[1]
+    assert abs(q[1] - start[1]) < 1e-9 and 0.0 < start[0] - q[0] <= 0.3   # straight ahead, west
+    clear = clearance_map(g, 1.0, hidden=hidden)
+    assert clear[g.world_to_cell(*q)[1], g.world_to_cell(*q)[0]] >= SWING_M + SWING_MARGIN_M
+    # The same turn with the box known to be only its face: room where it stands, nothing added.
+    assert ahead_first(g, path, heading)[1] == 0
+    # A small turn needs no room; facing a wall close ahead there is no point to go to.
+    assert ahead_first(g, [start, (1.5, 1.95)], heading, hidden)[1] == 0
+    g.add_wall(1.90, 1.5, 1.90, 2.3, 0.02)
+    assert ahead_first(g, path, heading, hidden) == (path, -1)

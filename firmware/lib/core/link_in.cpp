@@ -165,6 +165,11 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   path_id_ = stage_id_;
   detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
   trusted_host_ = host_knows_ = false;
+  // The host's map holds something within reach of the corners where the rover stands, and no
+  // room straight ahead: its next turn on the spot backs out first (a rotation under way is
+  // checked again).
+  back_out_ = m.back_out;
+  if (back_out_ != 0) rotate_checked_ = false;
   send_event(EventKind::PathAccepted, path_id_);
   if (mission_ && est_.initialised()) {
     pick_target_ = true;

@@ -28,7 +28,10 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
       return true;
     }
     rotate_checked_ = true;
-    const bool back = fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && !room_to_turn();
+    // The host's word (back_out_, from its PATH) counts as no room: its map keeps what the
+    // rover's memory has let go.
+    const bool back = fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && (back_out_ != 0 || !room_to_turn());
+    if (!back) back_out_ = 0;   // a turn too small to swing the corners: the word is spent
     if (back || fabsf(err) > static_cast<float>(kTurnLookDeg)) {
       // Look before driving (after backing out too: no sweep looked from where the turn ends):
       // the reflex's pings right (or left) 15 and 30 degrees, then ahead, hold the wheels until
@@ -116,7 +119,9 @@ void Rover::back_off(float dt_s, Outputs& out) {
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
   const bool fix_step = (step_work_ & kWorkFix) != 0;
   if (fix_step) put_off_ = true;
-  if ((!fix_step && room_to_turn()) || at_least(back_off_mm_, static_cast<float>(kBackOffMaxMm))) {
+  // Asked by the host, it backs out the whole way: its own check would find room at once.
+  if ((!fix_step && back_out_ == 0 && room_to_turn()) || at_least(back_off_mm_, static_cast<float>(kBackOffMaxMm))) {
+    back_out_ = 0;
     enter(RoverState::Rotate);
     rotate_checked_ = true;
     return;

@@ -107,6 +107,7 @@ struct RoverFields {
   float back_off_mm_ = 0.0f;                  // distance backed out so far
   float track_rad_ = 0.0f;                    // the heading it last drove at (track_known_): backing out goes along it
   float turned_mm_ = 0.0f;                    // driven since it last turned on the spot: backing out retraces it first
+  uint8_t back_out_ = 0;                      // the host's PATH: back out the whole way before the next turn on the spot
 
   // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
   Sweep sweep_;

@@ -8,7 +8,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0xEBED0D7BUL;
+static const uint32_t kSchemaHash = 0x3BF68CB5UL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -368,11 +368,12 @@ static_assert(sizeof(Fix) == Fix::kPayloadSize, "fix: its layout is its payload"
 
 /// One chunk of a waypoint list. Chunks of one path share path_id and arrive in order; the rover ACKs each and switches to the new path only when it is complete. (host to rover)
 struct Path {
-  enum : uint8_t { kId = 0x04, kPayloadSize = 37 };
+  enum : uint8_t { kId = 0x04, kPayloadSize = 38 };
   wire::u16le path_id;  ///< identifies the path; a new id starts a new path
   uint8_t total;  ///< [waypoints] waypoints in the whole path
   uint8_t first_index;  ///< index of this chunk's first waypoint
   uint8_t count;  ///< [waypoints] waypoints used in this chunk (1..8)
+  uint8_t back_out;  ///< 1: the host's map holds something within reach of the corners where the rover stands, and no point straight ahead has room: before the path's first turn on the spot the rover backs out the way it came, the whole back-off distance, as after TURN_REFUSED (state back_off); 0: its own check alone. Read from the chunk that completes the path
   wire::i16le x_mm[8];  ///< [mm] waypoint x
   wire::i16le y_mm[8];  ///< [mm] waypoint y
   /// Writes kPayloadSize bytes to p.
@@ -541,7 +542,7 @@ static const uint8_t kPayloadSizes[14][2] ROVERNAV_PROGMEM = {
   {0x01, 19},  // hello
   {0x02, 9},  // heartbeat
   {0x03, 11},  // fix
-  {0x04, 37},  // path
+  {0x04, 38},  // path
   {0x05, 2},  // start
   {0x06, 1},  // stop
   {0x07, 5},  // config

@@ -173,12 +173,13 @@ class Bench {
     return f;
   }
   /// Sends a path (in chunks of 8) and runs until every chunk is answered.
-  void load_path(uint16_t path_id, const core::Waypoint* wps, uint8_t n) {
+  void load_path(uint16_t path_id, const core::Waypoint* wps, uint8_t n, uint8_t back_out = 0) {
     host_path_id = path_id;
     for (uint8_t first = 0; first < n; first = static_cast<uint8_t>(first + kWaypointsPerChunk)) {
       msg::Path p{};
       p.path_id = path_id;
       p.total = n;
+      p.back_out = back_out;
       p.first_index = first;
       p.count = static_cast<uint8_t>(n - first < kWaypointsPerChunk ? n - first : kWaypointsPerChunk);
       for (uint8_t i = 0; i < p.count; ++i) {

@@ -255,6 +255,62 @@ TEST_CASE("with something within reach of its corners the rover backs out before
   CHECK(refused.arg <= 180);
 }
 
+TEST_CASE("told by the host's PATH to back out, the rover backs out the whole way before its first turn, its own memory empty") {
+  // Nothing near it at all: its own check finds room. The host's map (back_out) says otherwise.
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  b.hello();
+  b.fix_now();
+  b.run_ms(20);
+  const core::Waypoint south[] = {{300, 300}, {300, 50}};   // facing north: a half turn
+  b.load_path(1, south, 2, 1);
+  msg::Start s{};
+  s.path_id = 1;
+  b.send(s);
+  bool backed = false;
+  float least_y = 1e9f, y_when_turning = 0.0f;
+  RoverState last = b.rover.state();
+  REQUIRE(b.run_until([&] {
+    const RoverState now = b.rover.state();
+    if (now == RoverState::BackOff) {
+      backed = true;
+      least_y = fminf(least_y, b.plant.y_mm);
+    }
+    if (last == RoverState::BackOff && now == RoverState::Rotate) y_when_turning = b.plant.y_mm;
+    last = now;
+    return now == RoverState::Arrived;
+  }, 30000));
+  CHECK(backed);
+  MESSAGE("backed to y " << least_y << ", turned at y " << y_when_turning);
+  // The whole back-off (kBackOffMaxMm, 150 mm, by its own reckoning), not one step of it.
+  CHECK(y_when_turning < 300.0f - 120.0f);
+  CHECK(b.events(EventKind::TurnRefused) == 1);
+}
+
+TEST_CASE("the host's word to back out is spent on a turn too small to swing the corners") {
+  // The first turn is 10 degrees; the sharp one at the next waypoint, 400 mm on, has room and
+  // is not backed out for.
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  b.hello();
+  b.fix_now();
+  b.run_ms(20);
+  const core::Waypoint wps[] = {{300, 300}, {370, 700}, {800, 700}};
+  b.load_path(1, wps, 3, 1);
+  msg::Start s{};
+  s.path_id = 1;
+  b.send(s);
+  bool backed = false;
+  REQUIRE(b.run_until([&] {
+    backed = backed || b.rover.state() == RoverState::BackOff;
+    return b.rover.state() == RoverState::Arrived;
+  }, 60000));
+  CHECK_FALSE(backed);
+  CHECK(b.events(EventKind::TurnRefused) == 0);
+}
+
 TEST_CASE("a rover with room to turn turns on the spot and refuses nothing") {
   Bench b;
   b.without_periodic_sweeps();

@@ -11,7 +11,7 @@ from typing import ClassVar
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xEBED0D7B
+SCHEMA_HASH = 0x3BF68CB5
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -355,12 +355,13 @@ class Path(Message):
     ID: ClassVar[int] = 0x04
     NAME: ClassVar[str] = 'path'
     DIRECTION: ClassVar[str] = 'host_to_rover'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<HBBBhhhhhhhhhhhhhhhh')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<HBBBBhhhhhhhhhhhhhhhh')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('path_id', 'u16', 0, '', 'identifies the path; a new id starts a new path'),
         FieldSpec('total', 'u8', 0, 'waypoints', 'waypoints in the whole path'),
         FieldSpec('first_index', 'u8', 0, '', "index of this chunk's first waypoint"),
         FieldSpec('count', 'u8', 0, 'waypoints', 'waypoints used in this chunk (1..8)'),
+        FieldSpec('back_out', 'u8', 0, '', "1: the host's map holds something within reach of the corners where the rover stands, and no point straight ahead has room: before the path's first turn on the spot the rover backs out the way it came, the whole back-off distance, as after TURN_REFUSED (state back_off); 0: its own check alone. Read from the chunk that completes the path"),
         FieldSpec('x_mm', 'i16', 8, 'mm', 'waypoint x'),
         FieldSpec('y_mm', 'i16', 8, 'mm', 'waypoint y'),
     )
@@ -369,6 +370,7 @@ class Path(Message):
     total: int = 0
     first_index: int = 0
     count: int = 0
+    back_out: int = 0
     x_mm: tuple[int, ...] = (0, 0, 0, 0, 0, 0, 0, 0)
     y_mm: tuple[int, ...] = (0, 0, 0, 0, 0, 0, 0, 0)
 

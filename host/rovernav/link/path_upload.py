@@ -56,10 +56,14 @@ class _Chunk:
     sent_by_nack: bool = False     # ... and its last attempt was that one
 
 
-def path_chunks(path_id: int, waypoints_mm: list[tuple[int, int]]) -> list[mg.Path]:
-    """The PATH messages that carry `waypoints_mm` (at most MAX_WAYPOINTS) under `path_id`."""
+def path_chunks(path_id: int, waypoints_mm: list[tuple[int, int]], back_out: int = 0) -> list[mg.Path]:
+    """The PATH messages that carry `waypoints_mm` (at most MAX_WAYPOINTS) under `path_id`; each
+    carries `back_out` (1: back out before the first turn; the rover reads it from the chunk that
+    completes the path)."""
     if not 1 <= len(waypoints_mm) <= mg.MAX_WAYPOINTS:
         raise ValueError(f"a path holds 1 to {mg.MAX_WAYPOINTS} waypoints, not {len(waypoints_mm)}")
+    if back_out not in (0, 1):
+        raise ValueError(f"back_out must be 0 or 1, not {back_out!r}")
     n = mg.WAYPOINTS_PER_CHUNK
     out = []
     for first in range(0, len(waypoints_mm), n):
@@ -67,19 +71,19 @@ def path_chunks(path_id: int, waypoints_mm: list[tuple[int, int]]) -> list[mg.Pa
         xs = tuple(x for x, _ in chunk) + (0,) * (n - len(chunk))
         ys = tuple(y for _, y in chunk) + (0,) * (n - len(chunk))
         out.append(mg.Path(path_id=path_id, total=len(waypoints_mm), first_index=first, count=len(chunk),
-                           x_mm=xs, y_mm=ys))
+                           back_out=back_out, x_mm=xs, y_mm=ys))
     return out
 
 
 class PathUpload:
     """One path on its way to the rover. See the module docstring."""
 
-    def __init__(self, path_id: int, waypoints_mm: list[tuple[int, int]], resend_s: float) -> None:
+    def __init__(self, path_id: int, waypoints_mm: list[tuple[int, int]], resend_s: float, back_out: int = 0) -> None:
         if not resend_s > 0:
             raise ValueError(f"resend_s must be > 0 s, not {resend_s!r}")
         self.path_id = path_id
         self.resend_s = resend_s
-        self._chunks = [_Chunk(m) for m in path_chunks(path_id, waypoints_mm)]
+        self._chunks = [_Chunk(m) for m in path_chunks(path_id, waypoints_mm, back_out)]
         self._attempts: dict[int, tuple[int, float]] = {}   # seq -> (chunk index, when sent)
         self.frames_sent = 0
         self.frames_resent = 0

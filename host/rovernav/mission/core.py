@@ -30,7 +30,7 @@ from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import turnable
+from ..planning.turns import ahead_first, half_seen, turnable
 from ..mapping import SonarReading
 from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
@@ -49,6 +49,9 @@ RESEND_S = 0.4        # an un-ACKed request goes again after this long
 MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, then the mission fails
 #: How far from a goal that an echo's arc covers the last tries may end their plan [m].
 GOAL_SHIFT_M = 0.06
+#: A path whose start lies this near the rover starts where it stands: its first turn is made
+#: from the rover's heading, and is checked for room (rovernav.planning.turns.ahead_first) [m].
+START_NEAR_M = 0.05
 HELLO_EVERY_S = 0.25
 SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
 CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
@@ -137,6 +140,15 @@ class Recorder:
 
     def host_link(self, t_s: float, quality: dict) -> None:
         """Frames through both ways (recent and whole-run) and frames sent again: once a second."""
+
+
+class PlannedPath(list):
+    """A path (waypoints [m]) that asks the rover to back out before its first turn on the spot
+    (PATH back_out): the host's map has no room for its corners where it stands."""
+
+    def __init__(self, points, back_out: bool = False) -> None:
+        super().__init__(points)
+        self.back_out = back_out
 
 
 class Mission:
@@ -659,7 +671,8 @@ class Mission:
 
         The rover holds MAX_WAYPOINTS: a longer path goes in parts, the first MAX_WAYPOINTS now and
         the rest, from the last of them, when the rover says it has arrived there (`_arrived`)."""
-        path, self.path_rest = path[:mg.MAX_WAYPOINTS], list(path[mg.MAX_WAYPOINTS:])
+        back_out = int(getattr(path, "back_out", False))
+        path, self.path_rest = list(path[:mg.MAX_WAYPOINTS]), list(path[mg.MAX_WAYPOINTS:])
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
         self.recorder.host_path(self._now, self.path_id, path)
@@ -670,7 +683,7 @@ class Mission:
         for pending in self.requests:
             if isinstance(pending.message, (mg.Path, mg.Start)):
                 self.requests.drop(pending)
-        self.upload = PathUpload(self.path_id, [(_mm(x), _mm(y)) for x, y in path], RESEND_S)
+        self.upload = PathUpload(self.path_id, [(_mm(x), _mm(y)) for x, y in path], RESEND_S, back_out)
         self._send_chunks()
 
     def _send_chunks(self, count: bool = True) -> None:
@@ -708,6 +721,10 @@ class Mission:
         reason = None
         lenient = self.map.lenient_grid()
         opened: list = []
+        # The turn at the start counts from the rover's heading when the path starts where it stands.
+        heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
+        cfg = self.grid.config
+        echoes = self.echoes
 
         def grids():
             # The careful map, then the open one (built only when the careful map found no way),
@@ -743,7 +760,8 @@ class Mission:
                     # Where a bend asks for a turn the body's corners cannot make, the bend moves; a
                     # spot where the rover refused a turn twice in this leg has no room either.
                     refused = self.current_leg.refused_twice() if self.legs else []
-                    waypoints, moved, left = turnable(grid, result.waypoints, refused)
+                    hidden = half_seen(grid, echoes, cfg.sonar_offset_m, cfg.sonar_cone_deg)
+                    waypoints, moved, left = turnable(grid, result.waypoints, refused, hidden)
                     if grid is lenient:
                         self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
                     elif grid is not self.grid:
@@ -755,7 +773,20 @@ class Mission:
                         self.on_event(self._now, f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
                                                  f"where the body can turn" + (f", {left} without room near" if left else ""))
                     path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
-                    return path if origin is start else [start] + path
+                    path = path if origin is start else [start] + path
+                    if heading is not None:
+                        # The first turn, from the heading the rover has where it stands.
+                        path, ahead = ahead_first(grid, path, heading, hidden)
+                        if ahead > 0:
+                            self.on_event(self._now, "no room to turn where the rover stands: "
+                                                     "it drives straight on to turn first")
+                        elif ahead < 0:
+                            # Its own memory may have let go of what the map holds: the path
+                            # asks it to back out the way it came before it turns (PATH back_out).
+                            path = PlannedPath(path, back_out=True)
+                            self.on_event(self._now, "no room to turn where the rover stands, none "
+                                                     "straight ahead: it backs out first")
+                    return path
         if verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return None
@@ -887,6 +918,13 @@ class Mission:
     def _rover_seen(self) -> bool:
         d = self._last_detection
         return d is not None and d.x_m is not None and self._now - d.t_s < 1.0
+
+    def rover_heading_deg(self) -> float | None:
+        """The rover's heading by its own estimate (0 up the arena, clockwise) [deg]; None before
+        its first STATUS. Its turns are made from this heading, not from the camera's."""
+        if self.last_status is None:
+            return None
+        return self.last_status.heading_cdeg / 100.0
 
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix (if recent), else its own estimate, else the start."""

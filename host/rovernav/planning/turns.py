@@ -13,6 +13,17 @@ the arena's wall), and whose two legs stay on the planner's free cells; the star
 target stay where they are. Where no such point is near, the waypoint stays: the rover's own
 check (room_to_turn) backs it out before it turns.
 
+The turn at the start, from the heading the rover has to the path's first leg, is checked too
+when the heading is given: where the rover stands with no room to turn, a point straight ahead
+where it has room (reached without turning) goes in first. The rover's own memory forgets what
+slips behind its centre; the host's map does not (cellular seed 2612's arena 60: a turn on the
+spot beside a box seen 18 s before). Where no point ahead has room the path stays as it is.
+
+What only the sonar has seen is half seen: an echo shows the face the burst met, and the
+obstacle runs on behind it by an unknown depth. `half_seen` marks HALF_SEEN_DEPTH_M behind each
+occupied cell of an echo's arc, along the beam, for the turn checks (arena 60's box was 8 cm
+deep; its face was 19 cm from where the rover turned, its far side 11 cm).
+
 `body_clear` checks a straight drive against the same map with the body's half width: the line
 on from where a rover stopped backing out (rovernav.mission.strategies).
 """
@@ -40,16 +51,63 @@ SEARCH_M = 0.3
 #: would hit) has no room, whatever the grid says: a refusal comes within the arrival radius
 #: (36 mm) of the waypoint, and the waypoint may have moved a cell since [m].
 REFUSED_NEAR_M = 0.06
+#: What an echo leaves unseen behind the face it shows, along the beam [m]: the smallest box the
+#: arena generators make (8 cm); the half body width.
+HALF_SEEN_DEPTH_M = 0.08
 
 
-def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0) -> np.ndarray:
+def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone_deg: float,
+              depth_m: float = HALF_SEEN_DEPTH_M) -> np.ndarray:
+    """Cells [ny, nx] within depth_m behind each occupied cell of an echo's arc, along the beam.
+
+    echoes: anything with x_m, y_m, heading_deg, bearing_deg and range_m (rovernav.mission.learned_map.Echo),
+    the rover's pose when it pinged; the arc is sampled across the cone, and only where the grid
+    holds an obstacle (an arc the sonar has since seen clear casts nothing).
+    """
+    mask = np.zeros((grid.ny, grid.nx), dtype=np.bool_)
+    rows = [(e.x_m, e.y_m, e.heading_deg + e.bearing_deg, e.range_m, e.heading_deg) for e in echoes
+            if e.range_m is not None and e.range_m > 0]
+    if not rows or depth_m <= 0:
+        return mask
+    a = np.asarray(rows, dtype=np.float64)
+    h = np.radians(a[:, 4])
+    sx = a[:, 0] + sonar_offset_m * np.sin(h)
+    sy = a[:, 1] + sonar_offset_m * np.cos(h)
+    res = grid.resolution_m
+    across = np.radians(np.linspace(-cone_deg / 2, cone_deg / 2, 5))
+    axis = np.radians(a[:, 2])[:, None] + across[None, :]          # [echo, ray]
+    ux, uy = np.sin(axis), np.cos(axis)
+    r = a[:, 3][:, None]
+    ix = np.floor((sx[:, None] + r * ux) / res).astype(np.int64)
+    iy = np.floor((sy[:, None] + r * uy) / res).astype(np.int64)
+    inside = (ix >= 0) & (ix < grid.nx) & (iy >= 0) & (iy < grid.ny)
+    hit = np.zeros_like(inside)
+    hit[inside] = grid.raw[iy[inside], ix[inside]]
+    if not hit.any():
+        return mask
+    steps = np.arange(1, int(math.ceil(depth_m / (res / 2))) + 1) * min(res / 2, depth_m)
+    e, k = np.nonzero(hit)
+    d = r[e, 0][:, None] + steps[None, :]                             # [hit, step]
+    px = sx[e][:, None] + d * ux[e, k][:, None]
+    py = sy[e][:, None] + d * uy[e, k][:, None]
+    jx = np.floor(px / res).astype(np.int64).ravel()
+    jy = np.floor(py / res).astype(np.int64).ravel()
+    ok = (jx >= 0) & (jx < grid.nx) & (jy >= 0) & (jy < grid.ny)
+    mask[jy[ok], jx[ok]] = True
+    return mask
+
+
+def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0, hidden: np.ndarray | None = None) -> np.ndarray:
     """Distance [m] from each cell centre to the nearest obstacle or the arena's wall (inf past reach_m).
 
     Exact to the known obstacles' geometry (boxes, walls, posts); to the cells only the sonar has
-    filled (raw cells no known obstacle overlaps), from their centres less half a cell.
+    filled (raw cells no known obstacle overlaps), and to the `hidden` ones (half_seen), from
+    their centres less half a cell.
     """
     exact = grid.obstacle_distance(reach_m)
     seen = grid.raw & (exact > grid.resolution_m * math.sqrt(0.5))   # no known obstacle explains them
+    if hidden is not None:
+        seen = seen | (hidden & (exact > grid.resolution_m * math.sqrt(0.5)))
     if seen.any():
         to_seen = cv2.distanceTransform((~seen).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         exact = np.minimum(exact, np.maximum(to_seen.astype(np.float64) - 0.5, 0.0) * grid.resolution_m)
@@ -84,19 +142,20 @@ def refused_turn(waypoints: Sequence[Sequence[float]], refused: Sequence[Sequenc
 
 
 def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
-             refused: Sequence[Sequence[float]] = ()) -> tuple[list[tuple[float, float]], int, int]:
+             refused: Sequence[Sequence[float]] = (), hidden: np.ndarray | None = None
+             ) -> tuple[list[tuple[float, float]], int, int]:
     """The path with each waypoint whose turn the body cannot make moved where it can.
 
-    A waypoint near a spot in `refused` (where the rover refused a turn) has no room either.
-    Returns (waypoints, moved, left): how many waypoints were moved, and how many still ask for
-    a turn without room (none near had room and clear legs).
+    A waypoint near a spot in `refused` (where the rover refused a turn) has no room either;
+    `hidden` (half_seen) counts as obstacle. Returns (waypoints, moved, left): how many waypoints
+    were moved, and how many still ask for a turn without room (none near had room and clear legs).
     """
     pts = [(float(x), float(y)) for x, y in waypoints]
     if len(pts) < 3:
         return pts, 0, 0
     need = SWING_M + SWING_MARGIN_M
     res = grid.resolution_m
-    clear = clearance_map(grid, reach_m=need + res)   # only whether there is room matters
+    clear = clearance_map(grid, reach_m=need + res, hidden=hidden)   # only whether there is room matters
     # Candidate offsets: every cell's step within SEARCH_M (tried for the least added length).
     k = int(SEARCH_M / res)
     offs = [(dx * res, dy * res) for dx in range(-k, k + 1) for dy in range(-k, k + 1)
@@ -122,6 +181,44 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
         if not changed:
             break
     return pts, moved, len(stuck)
+
+
+def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], heading_deg: float,
+                hidden: np.ndarray | None = None) -> tuple[list[tuple[float, float]], int]:
+    """The turn at the path's first point, where the rover stands facing heading_deg.
+
+    When that turn is more than MIN_TURN_DEG and the corners have no room there (the grid's
+    obstacles, known and seen, and `hidden`), the nearest point straight ahead (within SEARCH_M,
+    a cell at a time) with room, whose drive keeps the body's sides clear and whose leg to the
+    next waypoint is clear, goes in after it: the rover drives there without turning, and turns
+    there. Returns (points, 1) with it, (points, -1) when there is none, (points, 0) when the
+    turn needs no room.
+    """
+    pts = [(float(x), float(y)) for x, y in waypoints]
+    if len(pts) < 2:
+        return pts, 0
+    need = SWING_M + SWING_MARGIN_M
+    res = grid.resolution_m
+    clear = clearance_map(grid, reach_m=need + res, hidden=hidden)
+    h = math.radians(heading_deg)
+    p0, p1 = pts[0], pts[1]
+    leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
+    if abs(math.degrees(wrap_rad(leg - h))) <= MIN_TURN_DEG or not grid.contains(*p0) or _room(clear, grid, p0) >= need:
+        return pts, 0
+    # The sides must clear the way: by half the body's width and the margin, or, where the rover
+    # already stands nearer than that, by no less than where it stands.
+    side = min(BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M, _room(clear, grid, p0))
+    ux, uy = math.sin(h), math.cos(h)
+    for k in range(1, int(SEARCH_M / res) + 1):
+        q = (p0[0] + k * res * ux, p0[1] + k * res * uy)
+        if not grid.contains(*q):
+            break
+        if _room(clear, grid, q) < side:
+            break   # the sides would scrape on the way: nothing further on is reached either
+        # (A rover standing inside the planner's margin drives out of it before a point is free.)
+        if _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
+            return [p0, q] + pts[1:], 1
+    return pts, -1
 
 
 def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: list[tuple[float, float]],
