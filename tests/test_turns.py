@@ -183,18 +183,3 @@ def test_no_room_to_turn_where_the_rover_stands_puts_a_point_straight_ahead_firs
     assert ahead_first(g, [start, (1.5, 1.95)], heading, hidden)[1] == 0
     g.add_wall(1.90, 1.5, 1.90, 2.3, 0.02)
     assert ahead_first(g, path, heading, hidden) == (path, -1)
-
-
-def test_a_first_waypoint_within_the_arrival_radius_is_reached_where_the_rover_stands():
-    # A hop of 3 cm out of the planner's margin, then the leg: the turn that matters is onto the
-    # leg; the point ahead leads straight to its end, the hop dropped.
-    g, echo = _box_face_grid()
-    hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
-    start, heading = (1.965, 1.90), -90.0
-    hop = (1.985, 1.92)                             # 28 mm off, north-east: a turn of 135 degrees to it
-    path = [start, hop, (1.55, 2.2)]
-    out, ahead = ahead_first(g, path, heading, hidden, arrival_m=0.036)
-    assert ahead == 1 and len(out) == 3 and out[0] == start and out[2] == path[2]
-    assert abs(out[1][1] - start[1]) < 1e-9 and out[1][0] < start[0]
-    # Facing the leg already (west-north-west), the hop's direction does not count: no room needed.
-    assert ahead_first(g, path, -55.0, hidden, arrival_m=0.036)[1] == 0

@@ -776,7 +776,7 @@ class Mission:
                     path = path if origin is start else [start] + path
                     if heading is not None:
                         # The first turn, from the heading the rover has where it stands.
-                        path, ahead = ahead_first(grid, path, heading, hidden, self.arrival_radius_m)
+                        path, ahead = ahead_first(grid, path, heading, hidden)
                         if ahead > 0:
                             self.on_event(self._now, "no room to turn where the rover stands: "
                                                      "it drives straight on to turn first")

@@ -184,7 +184,7 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
 
 
 def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], heading_deg: float,
-                hidden: np.ndarray | None = None, arrival_m: float = 0.0) -> tuple[list[tuple[float, float]], int]:
+                hidden: np.ndarray | None = None) -> tuple[list[tuple[float, float]], int]:
     """The turn at the path's first point, where the rover stands facing heading_deg.
 
     When that turn is more than MIN_TURN_DEG and the corners have no room there (the grid's
@@ -192,9 +192,7 @@ def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], headi
     a cell at a time) with room, whose drive keeps the body's sides clear and whose leg to the
     next waypoint is clear, goes in after it: the rover drives there without turning, and turns
     there. Returns (points, 1) with it, (points, -1) when there is none, (points, 0) when the
-    turn needs no room. A first waypoint within `arrival_m` of where the rover stands (a hop out
-    of the planner's margin) is reached there: the turn is onto the leg after it, and a point
-    ahead leads straight to that leg's end.
+    turn needs no room.
     """
     pts = [(float(x), float(y)) for x, y in waypoints]
     if len(pts) < 2:
@@ -203,10 +201,7 @@ def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], headi
     res = grid.resolution_m
     clear = clearance_map(grid, reach_m=need + res, hidden=hidden)
     h = math.radians(heading_deg)
-    skip = 1
-    while skip + 1 < len(pts) and math.dist(pts[0], pts[skip]) <= arrival_m:
-        skip += 1
-    p0, p1 = pts[0], pts[skip]
+    p0, p1 = pts[0], pts[1]
     leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
     if abs(math.degrees(wrap_rad(leg - h))) <= MIN_TURN_DEG or not grid.contains(*p0) or _room(clear, grid, p0) >= need:
         return pts, 0
@@ -222,7 +217,7 @@ def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], headi
             break   # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
         if _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
-            return [p0, q] + pts[skip:], 1
+            return [p0, q] + pts[1:], 1
     return pts, -1
 
 
