@@ -190,12 +190,12 @@ class Bench {
       run_ms(20);
     }
   }
-  /// HELLO, a fix, the path, START: a mission under way.
-  void start_mission(const core::Waypoint* wps, uint8_t n, uint16_t path_id = 1) {
+  /// HELLO, a fix, the path (its chunks carrying back_out), START: a mission under way.
+  void start_mission(const core::Waypoint* wps, uint8_t n, uint16_t path_id = 1, uint8_t back_out = 0) {
     hello();
     fix_now();
     run_ms(20);
-    load_path(path_id, wps, n);
+    load_path(path_id, wps, n, back_out);
     msg::Start s{};
     s.path_id = path_id;
     send(s);

@@ -260,14 +260,8 @@ TEST_CASE("told by the host's PATH to back out, the rover backs out the whole wa
   Bench b;
   b.without_periodic_sweeps();
   b.heartbeats = true;
-  b.hello();
-  b.fix_now();
-  b.run_ms(20);
   const core::Waypoint south[] = {{300, 300}, {300, 50}};   // facing north: a half turn
-  b.load_path(1, south, 2, 1);
-  msg::Start s{};
-  s.path_id = 1;
-  b.send(s);
+  b.start_mission(south, 2, 1, 1);
   bool backed = false;
   float least_y = 1e9f, y_when_turning = 0.0f;
   RoverState last = b.rover.state();
@@ -294,14 +288,8 @@ TEST_CASE("the host's word to back out is spent on a turn too small to swing the
   Bench b;
   b.without_periodic_sweeps();
   b.heartbeats = true;
-  b.hello();
-  b.fix_now();
-  b.run_ms(20);
   const core::Waypoint wps[] = {{300, 300}, {370, 700}, {800, 700}};
-  b.load_path(1, wps, 3, 1);
-  msg::Start s{};
-  s.path_id = 1;
-  b.send(s);
+  b.start_mission(wps, 3, 1, 1);
   bool backed = false;
   REQUIRE(b.run_until([&] {
     backed = backed || b.rover.state() == RoverState::BackOff;
