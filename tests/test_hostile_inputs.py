@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -151,7 +152,20 @@ def _toml(doc: dict) -> str:
 
 
 def test_the_good_scenario_loads():
-    parse_scenario(_toml(GOOD_SCENARIO), "good.toml")
+    """The document every hostile one is made from loads with each of its values, so a refusal
+    below is the hostile value's doing."""
+    s = parse_scenario(_toml(GOOD_SCENARIO), "good.toml")
+    for key, value in GOOD_SCENARIO.items():
+        if isinstance(value, dict):
+            assert dataclasses.asdict(getattr(s, key)) == value, key
+        elif isinstance(value, list):
+            loaded = getattr(s, key)
+            assert len(loaded) == len(value), key
+            for i, table in enumerate(value):
+                assert {k: getattr(loaded[i], k) for k in table} == table, f"{key}[{i}]"
+            assert all(item.known for item in loaded), key   # the default where a table leaves it out
+        else:
+            assert getattr(s, key) == value, key
 
 
 @pytest.mark.parametrize("table, index, key", SCENARIO_KEYS, ids=[f"{t}.{k}" for t, _, k in SCENARIO_KEYS])
