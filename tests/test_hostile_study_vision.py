@@ -12,8 +12,6 @@ import json
 import math
 import os
 import struct
-import subprocess
-import sys
 import zlib
 from pathlib import Path
 
@@ -31,8 +29,6 @@ from rovernav.study.cli import MAX_RUNS, MAX_SEED, dumps
 from rovernav.study.ekf import nees_monte_carlo
 from rovernav.validate import MAX_ARENA_M, MAX_SIM_STEPS
 from rovernav.vision.cli import MAX_IMAGE_PIXELS, MIN_IMAGE_SIDE_PX
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
@@ -296,14 +292,12 @@ def test_locate_json_is_strict(frame_png):
     assert data["rover"] is None and data["reason"]
 
 
-def test_the_real_command_exits_2_with_one_line_and_no_traceback(tmp_path):
+def test_the_real_command_exits_2_with_one_line_and_no_traceback(rovernav_command, repo_root, tmp_path):
     """Two runs through `python -m rovernav.cli`, as a user types them."""
     tiny = tmp_path / "tiny.png"
     cv2.imwrite(str(tiny), np.zeros((1, 1, 3), np.uint8))
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "host")}
     for argv, words in [(["pose", "--dt", "0.001"], ["--dt 0.001"]), (["locate", str(tiny)], [str(tiny), "too small"])]:
-        proc = subprocess.run([sys.executable, "-m", "rovernav.cli", *argv], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=60)
+        proc = rovernav_command(*argv, cwd=repo_root)
         assert_refused((proc.returncode, proc.stdout, proc.stderr), *words)
 
 

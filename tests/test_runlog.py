@@ -20,14 +20,11 @@ from mcap_protobuf.decoder import DecoderFactory
 from rovernav.angles import wrap_deg
 from rovernav import hardware
 from rovernav.cli import main
-from rovernav.firmware import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.mission.spec import MissionSpec
 from rovernav.runlog import CHANNELS
 from rovernav.runlog.channels import META_RUN
 from rovernav.runlog.replay import paths_sent, read_log, replay
-from rovernav.scenario import load_scenario
-from rovernav.sim.runner import SimOptions, Simulation
 
 from tests.core_transport import CoreTransport
 
@@ -50,9 +47,9 @@ def _json_messages(path: Path, topic: str) -> list[dict]:
 
 
 @pytest.fixture(scope="module")
-def fig48_run(tmp_path_factory):
+def fig48_run(tmp_path_factory, simulate, fig48):
     out = tmp_path_factory.mktemp("fig48")
-    sim = Simulation(load_scenario(FIG48), SimOptions(seed=1, log=out / "run.mcap"), progress=lambda t, text: None)
+    sim = simulate(fig48, seed=1, log=out / "run.mcap")
     sim.run()
     sim.close_log()
     return sim, out / "run.mcap"
@@ -159,9 +156,8 @@ def test_replay_of_an_out_and_back_log_gives_the_same_decisions_and_shows_a_chan
 
 
 @pytest.mark.mission
-def test_replay_follows_host_restarts_and_firmware_resets(tmp_path):
-    sim = Simulation(load_scenario(FIG48), SimOptions(seed=2, log=tmp_path / "run.mcap", log_image_hz=0,
-                                                      faults=_faults()), progress=lambda t, text: None)
+def test_replay_follows_host_restarts_and_firmware_resets(simulate, fig48, tmp_path):
+    sim = simulate(fig48, seed=2, log=tmp_path / "run.mcap", log_image_hz=0, faults=_faults())
     sim.run()
     sim.close_log()
     run = read_log(tmp_path / "run.mcap")
@@ -201,10 +197,9 @@ def test_replay_refuses_a_bad_setting(fig48_run, setting, capsys):
     assert err.startswith("rovernav replay: --set") and "Traceback" not in err
 
 
-def test_the_live_view_answers_a_foxglove_websocket_client():
+def test_the_live_view_answers_a_foxglove_websocket_client(simulate, fig48):
     websockets = pytest.importorskip("websockets")
-    sim = Simulation(load_scenario(FIG48), SimOptions(seed=1, live_port=0, pace=20.0, max_time_s=3.0),
-                     progress=lambda t, text: None)
+    sim = simulate(fig48, seed=1, live_port=0, pace=20.0, max_time_s=3.0)
     port = sim.runlog.live_port
     runner = threading.Thread(target=sim.run, daemon=True)
     runner.start()
@@ -243,11 +238,11 @@ def test_a_live_port_in_use_is_a_one_line_error(tmp_path, capsys):
 
 
 @pytest.mark.mission
-def test_rovernav_run_logs_the_hardware_mission_and_it_replays(tmp_path, monkeypatch):
+def test_rovernav_run_logs_the_hardware_mission_and_it_replays(native_core, tmp_path, monkeypatch):
     from tests.test_config import _video
 
     video = _video(tmp_path / "arena.mp4")
-    core = CoreTransport(RoverCore())
+    core = CoreTransport(native_core())
     monkeypatch.setattr(hardware, "SerialTransport", lambda name, baud: core)
     log = tmp_path / "hw.mcap"
     hardware.run_hardware("/dev/ttyFAKE", str(video), None, FIG48, max_time_s=3.0, log_path=log)

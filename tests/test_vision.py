@@ -7,8 +7,6 @@ import argparse
 import json
 import math
 import re
-import subprocess
-import sys
 
 import cv2
 import numpy as np
@@ -345,13 +343,12 @@ def _locate_cli(argv: list[str], capsys) -> tuple[int, str, str]:
     return code, out.out, out.err
 
 
-def test_rovernav_locate_prints_json_and_exits_0_when_the_rover_is_found(tmp_path):
+def test_rovernav_locate_prints_json_and_exits_0_when_the_rover_is_found(rovernav_command, tmp_path):
     cfg = VisionConfig()
     frame = _renderer(cfg).render(Scene(rover=(1.2, 0.6, 45.0), target=(2.0, 1.4)), np.random.default_rng(1))
     image = tmp_path / "frame.png"
     cv2.imwrite(str(image), frame)
-    out = subprocess.run([sys.executable, "-m", "rovernav.cli", "locate", str(image), "--json"],
-                         capture_output=True, text=True)
+    out = rovernav_command("locate", image, "--json")
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     assert abs(data["rover"]["x_m"] - 1.2) < 0.005 and abs(data["rover"]["heading_deg"] - 45.0) < 1.0
