@@ -335,3 +335,28 @@ def test_a_log_cut_off_mid_run_replays_up_to_its_last_whole_chunk(fig48_run, tmp
     assert main(["replay", str(cut)]) == 0
     out = capsys.readouterr().out
     assert "the log ends early" in out and "identical" in out
+
+
+# ---------------------------------------------------------------- what the records carry, and the live view's handshake
+
+def _runlog(tmp_path, fig48, **kwargs):
+    from rovernav.config import config_from_dict
+    from rovernav.runlog import RunLog
+
+    return RunLog(tmp_path / "run.mcap" if "live_port" not in kwargs else None,
+                  MissionSpec.for_run(fig48, config_from_dict({})), source="test", **kwargs)
+
+
+def test_rover_status_carries_the_state_by_name_and_its_number(tmp_path, fig48):
+    from rovernav.link.framing import Frame
+
+    log = _runlog(tmp_path, fig48)
+    codes = [int(s) for s in mg.RoverState] + [200]   # 200: a state this host does not know
+    for k, code in enumerate(codes):
+        status = mg.Status(state=code, sd_x_mm=10 + k)
+        log.host_rx(0.1 * k, Frame(mg.Status.ID, k, status.pack(), status, None))
+    log.close()
+    records = _json_messages(tmp_path / "run.mcap", "/rover/status")
+    assert [r["state"] for r in records] == [s.name.lower() for s in mg.RoverState] + ["unknown 200"]
+    assert [r["state_code"] for r in records] == codes
+    assert [r["sd_x_mm"] for r in records] == [10 + k for k in range(len(codes))]   # the rest as it was

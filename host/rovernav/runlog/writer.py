@@ -342,8 +342,10 @@ class RunLog(Recorder):
         if m.flags & mg.StatusFlag.MISSION_ACTIVE or m.x_mm or m.y_mm:
             self._log("/rover/estimate", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
                                                           pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100)))
-        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else str(m.state)
-        self._log("/rover/status", t_s, _json({"t_s": t_s, "state": state, **m.to_dict()}))
+        # The state by name ("drive"), and by number in state_code (a Plot panel plots numbers).
+        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ \
+            else f"unknown {m.state}"
+        self._log("/rover/status", t_s, _json({"t_s": t_s, **m.to_dict(), "state": state, "state_code": m.state}))
 
     def _drive(self, t_s: float, x_m: float, y_m: float) -> None:
         if not self._driven or math.dist(self._driven[-1][:2], (x_m, y_m)) >= DRIVEN_PATH_STEP_M:
