@@ -347,6 +347,34 @@ def _runlog(tmp_path, fig48, **kwargs):
                   MissionSpec.for_run(fig48, config_from_dict({})), source="test", **kwargs)
 
 
+def test_a_signed_frame_is_logged_with_the_counter_it_went_out_with(tmp_path, fig48):
+    # What Mission._send does: the link sends, then the recorder is told of the frame.
+    from rovernav.link.framing import FrameDecoder, Verifier
+    from rovernav.link.link import Link, host_hello
+    from rovernav.link.transport import PipeTransport
+    from rovernav.runlog import RecordingTransport
+
+    key = bytes(range(16))
+    host_end, rover_end = PipeTransport.pair()
+    log = _runlog(tmp_path, fig48)
+    link = Link(RecordingTransport(host_end, log), key=key)
+    for k, message in enumerate([host_hello(7), mg.Heartbeat(host_time_ms=100), mg.Fix(x_mm=300, y_mm=300),
+                                 mg.Start(path_id=1), mg.Heartbeat(host_time_ms=200)]):
+        t_s = 0.1 * k
+        log.set_time(t_s)
+        log.host_tx(t_s, message, link.send(message))
+    log.host_tx(0.6, mg.Stop(), 5)   # told of a frame that was not the one written last: no counter
+    log.close()
+    # The rover's end checks each frame's tag and reads its counter.
+    on_the_wire = FrameDecoder(Verifier(key, mg.SIGN_HOST_TO_ROVER)).feed(rover_end.read(4096))
+    assert [f.message.NAME for f in on_the_wire] == ["hello", "heartbeat", "fix", "start", "heartbeat"]
+    counters = [r["counter"] for r in _json_messages(tmp_path / "run.mcap", "/link/host_to_rover")]
+    assert counters == [f.counter for f in on_the_wire] + [None]
+    assert counters[0] is None                                   # HELLO goes unsigned
+    assert all(isinstance(c, int) for c in counters[1:5]) and counters[1:5] == sorted(set(counters[1:5]))
+    assert counters[4] == link.signer.last_counter
+
+
 def test_rover_status_carries_the_state_by_name_and_its_number(tmp_path, fig48):
     from rovernav.link.framing import Frame
 
@@ -360,3 +388,18 @@ def test_rover_status_carries_the_state_by_name_and_its_number(tmp_path, fig48):
     assert [r["state"] for r in records] == [s.name.lower() for s in mg.RoverState] + ["unknown 200"]
     assert [r["state_code"] for r in records] == codes
     assert [r["sd_x_mm"] for r in records] == [10 + k for k in range(len(codes))]   # the rest as it was
+
+
+@pytest.mark.mission
+def test_a_signed_run_logs_every_signed_frame_with_its_counter_and_the_states_by_name(fig48_run):
+    sim, path = fig48_run
+    assert sim.opt.signed
+    sent = _json_messages(path, "/link/host_to_rover")
+    unsigned = [r for r in sent if r["counter"] is None]
+    assert {r["type"] for r in unsigned} == {"hello"}
+    counters = [r["counter"] for r in sent if r["counter"] is not None]
+    assert len(counters) == len(sent) - len(unsigned) > 100
+    assert all(b > a for a, b in zip(counters, counters[1:]))   # each above the last, as the rover requires
+    states = _json_messages(path, "/rover/status")
+    assert all(r["state"] == mg.RoverState(r["state_code"]).name.lower() for r in states)
+    assert {"drive", "scan", "arrived"} <= {r["state"] for r in states}

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import RovernavError
 from ..link import messages_gen as mg
+from ..link.framing import CRC_BYTES, HEADER_BYTES, cobs_decode
 from ..link.transport import Transport
 from ..mission.core import Recorder
 from .channels import (ARENA_FRAME, CHANNELS, DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT, LOG_FORMAT, LOG_VERSION,  # noqa: F401
@@ -85,6 +86,24 @@ def message_record(message, seq: int, n: int, t_s: float, counter: int | None = 
             "payload_hex": message.pack().hex(), "fields": message.to_dict(), "counter": counter}
 
 
+def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
+    """(message id, sequence number, counter) of the one frame `data` holds as the link writes it
+    (COBS, delimiter last); the counter None for an unsigned frame. None if `data` is not exactly
+    one well-formed frame (the CRC is not checked: these are the host's own bytes)."""
+    if len(data) < 2 or data[-1] != 0 or 0 in data[:-1]:
+        return None
+    raw = cobs_decode(data[:-1])
+    if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES:
+        return None
+    version, msg_id, seq = raw[0], raw[1], raw[2]
+    if version == mg.PROTOCOL_VERSION:
+        return msg_id, seq, None
+    end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES   # the counter ends where the tag begins
+    if version != mg.PROTOCOL_VERSION | mg.SIGN_FLAG or end - mg.SIGN_COUNTER_BYTES < HEADER_BYTES:
+        return None
+    return msg_id, seq, int.from_bytes(raw[end - mg.SIGN_COUNTER_BYTES:end], "little")
+
+
 class RunLog(Recorder):
     """The channels of one run. `path`: the MCAP file (None: no file); `live_port`: serve the
     channels over Foxglove's WebSocket protocol on 127.0.0.1 at that port (0: any free port;
@@ -116,6 +135,7 @@ class RunLog(Recorder):
         self._radio = None          # the simulator's radio counts (watch_radio)
         self._next_radio_s = 0.0
         self._echoes = 0
+        self._sent: tuple[int, int, int | None] | None = None   # the frame the host wrote last (id, seq, counter)
         self._closed = False
         self.ctx = foxglove.Context()
         typed = {"foxglove.CompressedImage": CompressedImageChannel, "foxglove.PoseInFrame": PoseInFrameChannel,
@@ -208,7 +228,12 @@ class RunLog(Recorder):
             self._status(t_s, m)
 
     def host_tx(self, t_s: float, message, seq: int) -> None:
-        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s)))
+        # A signed frame's counter is the Link's Signer's, put in the bytes as they were written:
+        # RecordingTransport read it back from them (sent_frame). The mission tells of a frame
+        # right after sending it; one that is not the frame written last gets no counter.
+        sent, self._sent = self._sent, None
+        counter = sent[2] if sent is not None and sent[:2] == (message.ID, seq) else None
+        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s, counter)))
 
     def host_event(self, t_s: float, text: str) -> None:
         self.event(t_s, text, source="host")
@@ -263,6 +288,8 @@ class RunLog(Recorder):
 
     def raw(self, direction: str, data: bytes) -> None:
         """Bytes through the host's transport: direction "host_to_rover" or "rover_to_host"."""
+        if direction == "host_to_rover":
+            self._sent = sent_frame(data)
         if data:
             self._log(f"/link/raw/{direction}", self.t_s,
                       _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}))
