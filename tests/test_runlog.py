@@ -403,3 +403,40 @@ def test_a_signed_run_logs_every_signed_frame_with_its_counter_and_the_states_by
     states = _json_messages(path, "/rover/status")
     assert all(r["state"] == mg.RoverState(r["state_code"]).name.lower() for r in states)
     assert {"drive", "scan", "arrived"} <= {r["state"] for r in states}
+
+
+def _offer(port: int, subprotocols: str | None) -> tuple[str, str | None]:
+    """A WebSocket upgrade offering `subprotocols` (a Sec-WebSocket-Protocol value; None: no
+    header): the answer's status line and the subprotocol it chose."""
+    header = "" if subprotocols is None else f"Sec-WebSocket-Protocol: {subprotocols}\r\n"
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                   f"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n{header}\r\n").encode())
+        answer = b""
+        while b"\r\n\r\n" not in answer:
+            chunk = s.recv(4096)
+            if not chunk:
+                break
+            answer += chunk
+    lines = answer.split(b"\r\n\r\n")[0].decode("latin-1").split("\r\n")
+    chosen = [line.split(":", 1)[1].strip() for line in lines[1:] if line.lower().startswith("sec-websocket-protocol:")]
+    return lines[0], chosen[0] if chosen else None
+
+
+def test_the_live_view_accepts_only_the_sdk_subprotocol(tmp_path, fig48):
+    # The foxglove-sdk's server speaks foxglove.sdk.v1 and refuses a client that offers only the
+    # older name, foxglove.websocket.v1 (runlog/writer.py's docstring: the SDK cannot be told to
+    # take it). Should an SDK take it one day, this fails: then say so in the docs.
+    from rovernav.runlog.writer import LIVE_SUBPROTOCOL
+
+    log = _runlog(tmp_path, fig48, live_port=0)
+    try:
+        port = log.live_port
+        assert LIVE_SUBPROTOCOL == "foxglove.sdk.v1"
+        assert _offer(port, "foxglove.sdk.v1") == ("HTTP/1.1 101 Switching Protocols", LIVE_SUBPROTOCOL)
+        assert _offer(port, "foxglove.websocket.v1, foxglove.sdk.v1") == ("HTTP/1.1 101 Switching Protocols",
+                                                                         LIVE_SUBPROTOCOL)
+        assert _offer(port, "foxglove.websocket.v1") == ("HTTP/1.1 400 Bad Request", None)
+        assert _offer(port, None) == ("HTTP/1.1 400 Bad Request", None)
+    finally:
+        log.close()

@@ -8,6 +8,20 @@ mission time, and a record's MCAP log time is the run's start (wall clock) plus 
 The file is written to a hidden partial name and renamed into place by `close()`, also when a
 run is cut short (Ctrl-C, a crash): a log is worth most then. The foxglove-sdk does the
 writing (zstd-compressed chunks) and the WebSocket server; `mcap` reads it back.
+
+The live view's WebSocket subprotocol (LIVE_SUBPROTOCOL): the foxglove-sdk's server (`foxglove.
+start_server`, checked with foxglove-sdk 0.30.3) takes only a client that offers
+`foxglove.sdk.v1` in its Sec-WebSocket-Protocol header (0.30.3 also takes `foxglove.sdk.v1.1`),
+and answers it with that name. A client that offers only `foxglove.websocket.v1` (older Foxglove
+and Lichtblick builds, `@foxglove/ws-protocol`), or no subprotocol, gets "HTTP 400 Missing
+expected sec-websocket-protocol header" and no connection. The name is a constant compiled into
+the SDK's Rust handshake (rust/foxglove/src/websocket/handshake.rs, SUBPROTOCOL); `start_server`
+has no argument to add another, so rovernav cannot make it accept `foxglove.websocket.v1`. The
+messages are, for now, the same under both names (Foxglove renamed the protocol): a client that
+offers both, `foxglove.sdk.v1` among them, connects. Use a Foxglove or Lichtblick build that
+offers `foxglove.sdk.v1`, or open the run's MCAP file instead. tests/test_runlog.py's
+test_the_live_view_accepts_only_the_sdk_subprotocol checks these four answers (sdk.v1 alone,
+both names, websocket.v1 alone, none) against the installed SDK.
 """
 from __future__ import annotations
 
@@ -43,6 +57,9 @@ RADIO_EVERY_S = 1.0
 LIVE_ARENA_EVERY_S = 2.0
 #: Live only: the server's clock is moved on this often [s].
 LIVE_TIME_EVERY_S = 0.1
+#: The WebSocket subprotocol the live view speaks: the only one the foxglove-sdk's server takes
+#: (see the module's docstring; a client offering only `foxglove.websocket.v1` gets HTTP 400).
+LIVE_SUBPROTOCOL = "foxglove.sdk.v1"
 
 
 class RunLogError(RovernavError):
@@ -167,6 +184,8 @@ class RunLog(Recorder):
         self.server = None
         if live_port is not None:
             try:
+                # Speaks LIVE_SUBPROTOCOL ("foxglove.sdk.v1") only: the SDK has no way to take
+                # "foxglove.websocket.v1" too (see the module's docstring).
                 self.server = foxglove.start_server(name="rovernav", host="127.0.0.1", port=live_port,
                                                     context=self.ctx, capabilities=[foxglove.Capability.Time])
             except Exception as exc:
