@@ -402,7 +402,7 @@ def test_a_signed_run_logs_every_signed_frame_with_its_counter_and_the_states_by
     assert all(b > a for a, b in zip(counters, counters[1:]))   # each above the last, as the rover requires
     states = _json_messages(path, "/rover/status")
     assert all(r["state"] == mg.RoverState(r["state_code"]).name.lower() for r in states)
-    assert {"drive", "scan", "arrived"} <= {r["state"] for r in states}
+    assert {"rotate", "drive", "scan"} <= {r["state"] for r in states}
 
 
 def _offer(port: int, subprotocols: str | None) -> tuple[str, str | None]:
