@@ -56,7 +56,80 @@ def run_one(scenario: str, rover: str, seed: int) -> dict:
 
 
 def outcome(r: dict) -> str:
+    """One run, as the progress lines show it: reached or not, its collisions, its mission time."""
     return f"{'reached' if r['reached'] else 'NOT reached'}, {r['collisions']} collisions, {r['mission_time_s']:.1f} s"
+
+
+def _median_time_s(runs: list[dict]) -> float | None:
+    """The median mission time [s] of the runs that reached (None: none did)."""
+    times_s = [r["mission_time_s"] for r in runs if r["reached"] and r["mission_time_s"] is not None]
+    return statistics.median(times_s) if times_s else None
+
+
+def runs_cell(runs: list[dict]) -> str:
+    """One column of the table: the runs that reached, the collisions of all of them (their sum,
+    as each run's report counts them), and the median mission time of those that reached."""
+    reached = sum(1 for r in runs if r["reached"])
+    collisions = sum(r["collisions"] for r in runs)
+    t_s = _median_time_s(runs)
+    return f"{reached}/{len(runs)} reached, {collisions} collisions, {'no time' if t_s is None else f'{t_s:.1f} s'}"
+
+
+def label_of(scenario: str) -> str:
+    """The scenario's name in the table: its file's stem, and whether the rover was alone."""
+    return Path(scenario[: -len(ALONE)]).stem + ALONE if scenario.endswith(ALONE) else Path(scenario).stem
+
+
+def table_row(scenario: str, native: list[dict], uno: list[dict]) -> str:
+    """The table's row for one scenario: the native core's runs and the Uno image's (one per seed,
+    each a report as run_one returns it), and the image's step times, jitter and stack."""
+    timing = [r["uno_timing"] for r in uno]
+    worst = max((t["worst_step"] for t in timing), key=lambda w: w["us"])
+    jitter_ms = max(t["period_jitter"]["max_abs_us"] for t in timing) / 1000
+    used_bytes = max(t["stack"]["used_bytes"] for t in timing)
+    margin_bytes = min(t["stack"]["margin_bytes"] for t in timing)
+    t_nat_s, t_uno_s = _median_time_s(native), _median_time_s(uno)
+    dt = f" ({100 * (t_uno_s - t_nat_s) / t_nat_s:+.1f} %)" if t_nat_s and t_uno_s else ""
+    did = ", ".join(worst["flags"] or []) or "nothing flagged"
+    return (f"| {label_of(scenario)} | {runs_cell(native)} | {runs_cell(uno)}{dt} | "
+            f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
+            f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
+            f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used_bytes} / {margin_bytes} B |")
+
+
+def failures_of(scenario: str, seeds: list[int], native: list[dict], uno: list[dict]) -> list[str]:
+    """What fails the benchmark for one scenario: a seed whose outcomes differ, a step past
+    STEP_LIMIT_US, jitter past JITTER_LIMIT_MS, a stack margin under STACK_MARGIN_MIN."""
+    timing = [r["uno_timing"] for r in uno]
+    worst_us = max(t["worst_step"]["us"] for t in timing)
+    jitter_ms = max(t["period_jitter"]["max_abs_us"] for t in timing) / 1000
+    margin_bytes = min(t["stack"]["margin_bytes"] for t in timing)
+    failures = []
+    for seed, a, b in zip(seeds, native, uno):
+        if (a["reached"], a["collisions"]) != (b["reached"], b["collisions"]):
+            failures.append(f"{scenario} seed {seed}: outcomes differ (native {outcome(a)}; Uno image {outcome(b)})")
+    if worst_us > STEP_LIMIT_US:
+        failures.append(f"{scenario}: worst step {worst_us / 1000:.2f} ms > {STEP_LIMIT_US / 1000:g} ms")
+    if jitter_ms > JITTER_LIMIT_MS:
+        failures.append(f"{scenario}: jitter {jitter_ms:.2f} ms > {JITTER_LIMIT_MS:g} ms")
+    if margin_bytes < STACK_MARGIN_MIN:
+        failures.append(f"{scenario}: stack margin {margin_bytes} B < {STACK_MARGIN_MIN} B")
+    return failures
+
+
+TABLE_HEADER = ("| scenario | native | Uno image | Uno step: median / p99 / worst (what the worst did) | jitter "
+                "| stack used / spare |\n|---|---|---|---|---|---|")
+
+
+def table(scenarios: list[str], seeds: list[int], results: dict[tuple, dict]) -> tuple[str, list[str]]:
+    """The whole table (Markdown) and what fails, from every run's report keyed (scenario, rover, seed)."""
+    rows, failures = [TABLE_HEADER], []
+    for sc in scenarios:
+        native = [results[(sc, "native", s)] for s in seeds]
+        uno = [results[(sc, "uno", s)] for s in seeds]
+        rows.append(table_row(sc, native, uno))
+        failures += failures_of(sc, seeds, native, uno)
+    return "\n".join(rows), failures
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -89,40 +162,8 @@ def main(argv: list[str] | None = None) -> int:
             results[(sc, rover, seed)] = r
             print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
                   file=sys.stderr, flush=True)
-    failures = []
-    med = statistics.median
-    print("| scenario | native | Uno image | Uno step: median / p99 / worst (what the worst did) | jitter | stack used / spare |")
-    print("|---|---|---|---|---|---|")
-    for sc in args.scenarios:
-        nat = [results[(sc, "native", s)] for s in args.seeds]
-        uno = [results[(sc, "uno", s)] for s in args.seeds]
-        timing = [r["uno_timing"] for r in uno]
-        worst = max((t["worst_step"] for t in timing), key=lambda w: w["us"])
-        jitter_ms = max(t["period_jitter"]["max_abs_us"] for t in timing) / 1000
-        used = max(t["stack"]["used_bytes"] for t in timing)
-        margin = min(t["stack"]["margin_bytes"] for t in timing)
-        times = lambda rs: [r["mission_time_s"] for r in rs if r["reached"] and r["mission_time_s"] is not None]
-        t_nat, t_uno = (med(times(rs)) if times(rs) else None for rs in (nat, uno))
-        reached = lambda rs: sum(1 for r in rs if r["reached"])
-        hits = lambda rs: sum(r["collisions"] for r in rs)
-        did = ", ".join(worst["flags"] or []) or "nothing flagged"
-        dt = f" ({100 * (t_uno - t_nat) / t_nat:+.1f} %)" if t_nat and t_uno else ""
-        fmt = lambda t: f"{t:.1f} s" if t is not None else "no time"
-        label = Path(sc[: -len(ALONE)]).stem + ALONE if sc.endswith(ALONE) else Path(sc).stem
-        print(f"| {label} | {reached(nat)}/{len(nat)} reached, {hits(nat)} collisions, {fmt(t_nat)} | "
-              f"{reached(uno)}/{len(uno)} reached, {hits(uno)} collisions, {fmt(t_uno)}{dt} | "
-              f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
-              f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
-              f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used} / {margin} B |")
-        for s_, a_, b_ in zip(args.seeds, nat, uno):
-            if (a_["reached"], a_["collisions"]) != (b_["reached"], b_["collisions"]):
-                failures.append(f"{sc} seed {s_}: outcomes differ")
-        if worst["us"] > STEP_LIMIT_US:
-            failures.append(f"{sc}: worst step {worst['us'] / 1000:.2f} ms > 5 ms")
-        if jitter_ms > JITTER_LIMIT_MS:
-            failures.append(f"{sc}: jitter {jitter_ms:.2f} ms > 1 ms")
-        if margin < STACK_MARGIN_MIN:
-            failures.append(f"{sc}: stack margin {margin} B < {STACK_MARGIN_MIN} B")
+    text, failures = table(args.scenarios, args.seeds, results)
+    print(text)
     print(f"\n({time.monotonic() - t0:.0f} s for {len(jobs)} runs, {args.jobs} at a time)")
     if args.json:
         args.json.write_text(json.dumps({f"{sc}/{rv}/{seed}": r for (sc, rv, seed), r in results.items()}, indent=1))

@@ -13,14 +13,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
-import os
-import resource
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -30,7 +25,6 @@ from rovernav.cli import build_parser
 from rovernav.config import ConfigError, config_from_dict
 from rovernav.scenario import ScenarioError, parse_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
 HOSTILE = ["nan", "NaN", "inf", "-inf", "infinity", "0", "-0", "-1", "-1e308", "1e308", "1e999", "", " ", "abc",
            "1e-300", "0x10", "1_000", "--", "9" * 400, "\x00", "1:2:3", "nan:nan", "-5:10", "5:-1", "1:inf"]
 
@@ -151,7 +145,20 @@ def _toml(doc: dict) -> str:
 
 
 def test_the_good_scenario_loads():
-    parse_scenario(_toml(GOOD_SCENARIO), "good.toml")
+    """The document every hostile one is made from loads with each of its values, so a refusal
+    below is the hostile value's doing."""
+    s = parse_scenario(_toml(GOOD_SCENARIO), "good.toml")
+    for key, value in GOOD_SCENARIO.items():
+        if isinstance(value, dict):
+            assert dataclasses.asdict(getattr(s, key)) == value, key
+        elif isinstance(value, list):
+            loaded = getattr(s, key)
+            assert len(loaded) == len(value), key
+            for i, table in enumerate(value):
+                assert {k: getattr(loaded[i], k) for k in table} == table, f"{key}[{i}]"
+            assert all(item.known for item in loaded), key   # the default where a table leaves it out
+        else:
+            assert getattr(s, key) == value, key
 
 
 @pytest.mark.parametrize("table, index, key", SCENARIO_KEYS, ids=[f"{t}.{k}" for t, _, k in SCENARIO_KEYS])
@@ -201,38 +208,37 @@ def test_unstable_pose_gains_in_a_configuration_are_refused_as_rovernav_pose_ref
 
 # ---------------------------------------------------------------- end to end: bad input to each command
 
-BASE = (ROOT / "scenarios" / "seed-fig4-8-unknown-obstacle.toml").read_text()
-
-
-def _limit_memory():
-    resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
-
-
-def rovernav(*args, cwd=None, timeout=60):
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "host"))
-    started = time.monotonic()
-    r = subprocess.run([sys.executable, "-m", "rovernav.cli", *map(str, args)], capture_output=True, text=True,
-                       timeout=timeout, preexec_fn=_limit_memory, env=env, cwd=cwd)
-    return r.returncode, r.stdout, r.stderr, time.monotonic() - started
+SC = "seed-fig4-8-unknown-obstacle"
+#: The address space each command run end to end may take.
+MEMORY_LIMIT_BYTES = 3 << 30
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
+def rovernav(rovernav_command):
+    """`python -m rovernav.cli ARGS` under MEMORY_LIMIT_BYTES: (exit status, stdout, stderr)."""
+    def run(*args, cwd=None):
+        r = rovernav_command(*args, cwd=cwd, memory_limit_bytes=MEMORY_LIMIT_BYTES)
+        return r.returncode, r.stdout, r.stderr
+    return run
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, scenario_toml):
+    base = scenario_toml(SC)
     d = tmp_path_factory.mktemp("hostile")
     (d / "afile").write_text("x")
     (d / "adir").mkdir()
     (d / "latin.toml").write_bytes(b"\xff\xfe[mission]\n")
-    (d / "outside.toml").write_text(BASE + "\n[[obstacles]]\nx_m = 9.0\ny_m = 9.0\nw_m = 0.2\nh_m = 0.2\n")
-    (d / "start_in.toml").write_text(BASE + "\n[[obstacles]]\nx_m = 0.42\ny_m = 0.30\nw_m = 0.2\nh_m = 0.2\n")
-    (d / "trips.toml").write_text(BASE.replace('kind = "reach"', 'kind = "out-and-back"\ntrips = 1000000000'))
-    (d / "km.toml").write_text(BASE.replace("width_m = 2.36", "width_m = 1000.0"))
+    (d / "outside.toml").write_text(base + "\n[[obstacles]]\nx_m = 9.0\ny_m = 9.0\nw_m = 0.2\nh_m = 0.2\n")
+    (d / "start_in.toml").write_text(base + "\n[[obstacles]]\nx_m = 0.42\ny_m = 0.30\nw_m = 0.2\nh_m = 0.2\n")
+    (d / "trips.toml").write_text(base.replace('kind = "reach"', 'kind = "out-and-back"\ntrips = 1000000000'))
+    (d / "km.toml").write_text(base.replace("width_m = 2.36", "width_m = 1000.0"))
     (d / "inf.toml").write_text("[mission]\nheartbeat_hz = inf\n")
     (d / "arrival.toml").write_text("[rover]\narrival_radius_mm = 1000\n")
     (d / "gains.toml").write_text("[rover]\npose_k_rho_x1000 = 5000\npose_k_alpha_x1000 = 1\n")
     return d
 
 
-SC = "seed-fig4-8-unknown-obstacle"
 CASES = [
     ("sim --camera-fps 0", lambda d: ["sim", SC, "--camera-fps", "0"], "--camera-fps"),
     ("sim --out a file", lambda d: ["sim", SC, "--out", d / "afile"], "--out"),
@@ -265,8 +271,8 @@ CASES = [
 
 
 @pytest.mark.parametrize("what, argv, names", CASES, ids=[c[0] for c in CASES])
-def test_bad_input_end_to_end_gives_one_line_and_status_2(files, what, argv, names):
-    code, out, err, _took = rovernav(*argv(files), cwd=files)
+def test_bad_input_end_to_end_gives_one_line_and_status_2(rovernav, files, what, argv, names):
+    code, out, err = rovernav(*argv(files), cwd=files)
     assert code == 2, (what, code, out, err)
     assert "Traceback" not in err + out
     lines = [line for line in err.splitlines() if line.strip()]
@@ -291,13 +297,13 @@ def _strict(text: str):
 
 
 @pytest.mark.mission
-def test_an_unreachable_target_gives_a_strict_json_report_with_nulls(tmp_path):
-    walled = BASE.replace("known = false", "known = true") + "".join(
+def test_an_unreachable_target_gives_a_strict_json_report_with_nulls(rovernav, scenario_toml, tmp_path):
+    walled = scenario_toml(SC).replace("known = false", "known = true") + "".join(
         f"\n[[walls]]\nx0_m = {a}\ny0_m = {b}\nx1_m = {c}\ny1_m = {e}\nthickness_m = 0.05\n"
         for a, b, c, e in ((1.7, 1.1, 2.3, 1.1), (1.7, 1.1, 1.7, 1.7), (2.3, 1.1, 2.3, 1.7)))
     sc = tmp_path / "walled.toml"
     sc.write_text(walled.replace("height_m = 1.75", "height_m = 1.70"))
-    code, out, err, _ = rovernav("sim", sc, "--no-video", "--quiet", "--out", tmp_path / "run", "--max-time", "60")
+    code, out, err = rovernav("sim", sc, "--no-video", "--quiet", "--out", tmp_path / "run", "--max-time", "60")
     assert code == 1 and "Traceback" not in err, err
     report = _strict((tmp_path / "run" / "report.json").read_text())
     assert report["reached"] is False and report["optimal_length_m"] is None and report["spl"] in (None, 0, 0.0)
@@ -327,10 +333,10 @@ def test_a_run_cut_short_leaves_a_report_saying_so_and_none_of_the_last_runs_fil
 
 
 @pytest.mark.mission
-def test_the_report_names_the_drive_mode_the_configuration_sent(tmp_path):
+def test_the_report_names_the_drive_mode_the_configuration_sent(rovernav, tmp_path):
     cfg = tmp_path / "pose.toml"
     cfg.write_text("[rover]\ndrive_mode = 1\n")
-    code, out, err, _ = rovernav("sim", SC, "--config", cfg, "--no-video", "--quiet", "--out", tmp_path / "run",
-                                 "--max-time", "5")
+    code, out, err = rovernav("sim", SC, "--config", cfg, "--no-video", "--quiet", "--out", tmp_path / "run",
+                              "--max-time", "5")
     assert "Traceback" not in err
     assert _strict((tmp_path / "run" / "report.json").read_text())["drive_mode"] == "pose_law"

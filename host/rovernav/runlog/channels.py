@@ -57,7 +57,10 @@ _JSON = {
                            "properties": {"n": {"type": "integer"}, "t_s": {"type": "number"},
                                           "kind": {"type": "string",
                                                    "enum": ["tick", "detection", "fail", "new_host"]}}},
-    "rovernav.Sample": {"type": "object", "title": "rovernav.Sample"},
+    "rovernav.Sample": {"type": "object", "title": "rovernav.Sample", "properties": {
+        "t_s": {"type": "number", "description": "mission time [s]"},
+        "state": {"type": "string", "description": "the rover's state by name (idle, rotate, drive, scan, ...)"},
+        "state_code": {"type": "integer", "description": "the same state as its number (RoverState), to plot"}}},
     "rovernav.Radio": {"type": "object", "title": "rovernav.Radio", "properties": {
         "t_s": {"type": "number", "description": "mission time [s]"},
         "to_rover": {"type": "object", "description": "host to rover, counts since the start: bytes_sent, "
@@ -87,7 +90,8 @@ CHANNELS: tuple[ChannelSpec, ...] = (
     ChannelSpec("/camera/image", "foxglove.CompressedImage", "the camera's frames, JPEG, thinned (--log-image-hz)"),
     ChannelSpec("/camera/fix", "foxglove.PoseInFrame", "where the host's vision located the rover"),
     ChannelSpec("/rover/estimate", "foxglove.PoseInFrame", "the rover's own estimate, from its STATUS"),
-    ChannelSpec("/rover/status", "rovernav.Sample", "the rover's STATUS as numbers to plot: state, speeds, sd"),
+    ChannelSpec("/rover/status", "rovernav.Sample",
+                "the rover's STATUS: its state by name (state_code: its number, to plot), speeds, sd"),
     ChannelSpec("/host/link", "rovernav.LinkQuality",
                 "frames through both ways as the host measures them (last 10 s and since the start), and the frames "
                 "it sent again by kind (1 Hz)"),

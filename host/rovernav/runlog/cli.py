@@ -37,7 +37,9 @@ def add_log_flags(p: argparse.ArgumentParser, default_log: str) -> None:
     p.add_argument("--live", action="store_true",
                    help=f"serve the log's channels live over Foxglove's WebSocket protocol on 127.0.0.1 (port "
                         f"{DEFAULT_LIVE_PORT}, or --live-port): in Foxglove, 'Open connection', "
-                        f"ws://localhost:{DEFAULT_LIVE_PORT}")
+                        f"ws://localhost:{DEFAULT_LIVE_PORT}. The server takes only a client that offers the "
+                        "foxglove.sdk.v1 subprotocol: one that offers only foxglove.websocket.v1 (older Foxglove "
+                        "and Lichtblick builds) gets HTTP 400")
     p.add_argument("--live-port", type=live_port, default=DEFAULT_LIVE_PORT, metavar="PORT",
                    help=f"the live view's port, 0 to {MAX_PORT} (0: any free one; default {DEFAULT_LIVE_PORT})")
 

@@ -8,6 +8,20 @@ mission time, and a record's MCAP log time is the run's start (wall clock) plus 
 The file is written to a hidden partial name and renamed into place by `close()`, also when a
 run is cut short (Ctrl-C, a crash): a log is worth most then. The foxglove-sdk does the
 writing (zstd-compressed chunks) and the WebSocket server; `mcap` reads it back.
+
+The live view's WebSocket subprotocol (LIVE_SUBPROTOCOL): the foxglove-sdk's server (`foxglove.
+start_server`, checked with foxglove-sdk 0.30.3) takes only a client that offers
+`foxglove.sdk.v1` in its Sec-WebSocket-Protocol header (0.30.3 also takes `foxglove.sdk.v1.1`),
+and answers it with that name. A client that offers only `foxglove.websocket.v1` (older Foxglove
+and Lichtblick builds, `@foxglove/ws-protocol`), or no subprotocol, gets "HTTP 400 Missing
+expected sec-websocket-protocol header" and no connection. The name is a constant compiled into
+the SDK's Rust handshake (rust/foxglove/src/websocket/handshake.rs, SUBPROTOCOL); `start_server`
+has no argument to add another, so rovernav cannot make it accept `foxglove.websocket.v1`. The
+messages are, for now, the same under both names (Foxglove renamed the protocol): a client that
+offers both, `foxglove.sdk.v1` among them, connects. Use a Foxglove or Lichtblick build that
+offers `foxglove.sdk.v1`, or open the run's MCAP file instead. tests/test_runlog.py's
+test_the_live_view_accepts_only_the_sdk_subprotocol checks these four answers (sdk.v1 alone,
+both names, websocket.v1 alone, none) against the installed SDK.
 """
 from __future__ import annotations
 
@@ -22,6 +36,7 @@ import numpy as np
 
 from ..errors import RovernavError
 from ..link import messages_gen as mg
+from ..link.framing import CRC_BYTES, HEADER_BYTES, cobs_decode
 from ..link.transport import Transport
 from ..mission.core import Recorder
 from .channels import (ARENA_FRAME, CHANNELS, DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT, LOG_FORMAT, LOG_VERSION,  # noqa: F401
@@ -42,6 +57,9 @@ RADIO_EVERY_S = 1.0
 LIVE_ARENA_EVERY_S = 2.0
 #: Live only: the server's clock is moved on this often [s].
 LIVE_TIME_EVERY_S = 0.1
+#: The WebSocket subprotocol the live view speaks: the only one the foxglove-sdk's server takes
+#: (see the module's docstring; a client offering only `foxglove.websocket.v1` gets HTTP 400).
+LIVE_SUBPROTOCOL = "foxglove.sdk.v1"
 
 
 class RunLogError(RovernavError):
@@ -85,6 +103,24 @@ def message_record(message, seq: int, n: int, t_s: float, counter: int | None = 
             "payload_hex": message.pack().hex(), "fields": message.to_dict(), "counter": counter}
 
 
+def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
+    """(message id, sequence number, counter) of the one frame `data` holds as the link writes it
+    (COBS, delimiter last); the counter None for an unsigned frame. None if `data` is not exactly
+    one well-formed frame (the CRC is not checked: these are the host's own bytes)."""
+    if len(data) < 2 or data[-1] != 0 or 0 in data[:-1]:
+        return None
+    raw = cobs_decode(data[:-1])
+    if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES:
+        return None
+    version, msg_id, seq = raw[0], raw[1], raw[2]
+    if version == mg.PROTOCOL_VERSION:
+        return msg_id, seq, None
+    end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES   # the counter ends where the tag begins
+    if version != mg.PROTOCOL_VERSION | mg.SIGN_FLAG or end - mg.SIGN_COUNTER_BYTES < HEADER_BYTES:
+        return None
+    return msg_id, seq, int.from_bytes(raw[end - mg.SIGN_COUNTER_BYTES:end], "little")
+
+
 class RunLog(Recorder):
     """The channels of one run. `path`: the MCAP file (None: no file); `live_port`: serve the
     channels over Foxglove's WebSocket protocol on 127.0.0.1 at that port (0: any free port;
@@ -116,6 +152,7 @@ class RunLog(Recorder):
         self._radio = None          # the simulator's radio counts (watch_radio)
         self._next_radio_s = 0.0
         self._echoes = 0
+        self._sent: tuple[int, int, int | None] | None = None   # the frame the host wrote last (id, seq, counter)
         self._closed = False
         self.ctx = foxglove.Context()
         typed = {"foxglove.CompressedImage": CompressedImageChannel, "foxglove.PoseInFrame": PoseInFrameChannel,
@@ -147,6 +184,8 @@ class RunLog(Recorder):
         self.server = None
         if live_port is not None:
             try:
+                # Speaks LIVE_SUBPROTOCOL ("foxglove.sdk.v1") only: the SDK has no way to take
+                # "foxglove.websocket.v1" too (see the module's docstring).
                 self.server = foxglove.start_server(name="rovernav", host="127.0.0.1", port=live_port,
                                                     context=self.ctx, capabilities=[foxglove.Capability.Time])
             except Exception as exc:
@@ -208,7 +247,12 @@ class RunLog(Recorder):
             self._status(t_s, m)
 
     def host_tx(self, t_s: float, message, seq: int) -> None:
-        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s)))
+        # A signed frame's counter is the Link's Signer's, put in the bytes as they were written:
+        # RecordingTransport read it back from them (sent_frame). The mission tells of a frame
+        # right after sending it; one that is not the frame written last gets no counter.
+        sent, self._sent = self._sent, None
+        counter = sent[2] if sent is not None and sent[:2] == (message.ID, seq) else None
+        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s, counter)))
 
     def host_event(self, t_s: float, text: str) -> None:
         self.event(t_s, text, source="host")
@@ -263,6 +307,8 @@ class RunLog(Recorder):
 
     def raw(self, direction: str, data: bytes) -> None:
         """Bytes through the host's transport: direction "host_to_rover" or "rover_to_host"."""
+        if direction == "host_to_rover":
+            self._sent = sent_frame(data)
         if data:
             self._log(f"/link/raw/{direction}", self.t_s,
                       _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}))
@@ -342,8 +388,10 @@ class RunLog(Recorder):
         if m.flags & mg.StatusFlag.MISSION_ACTIVE or m.x_mm or m.y_mm:
             self._log("/rover/estimate", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
                                                           pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100)))
-        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else str(m.state)
-        self._log("/rover/status", t_s, _json({"t_s": t_s, "state": state, **m.to_dict()}))
+        # The state by name ("drive"), and by number in state_code (a Plot panel plots numbers).
+        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ \
+            else f"unknown {m.state}"
+        self._log("/rover/status", t_s, _json({"t_s": t_s, **m.to_dict(), "state": state, "state_code": m.state}))
 
     def _drive(self, t_s: float, x_m: float, y_m: float) -> None:
         if not self._driven or math.dist(self._driven[-1][:2], (x_m, y_m)) >= DRIVEN_PATH_STEP_M:
