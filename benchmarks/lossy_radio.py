@@ -70,7 +70,7 @@ def arenas(count: int) -> list[str]:
         subprocess.run([str(ROOT / ".venv" / "bin" / "rovernav"), "arenas", "--count", "200", "--seed", "1",
                         "--out", str(folder)], check=True, stdout=subprocess.DEVNULL)
     sys.path.insert(0, str(ROOT / "host"))
-    from rovernav.sim.trials import find_arenas, sample_arenas
+    from rovernav.evaluation.trials import find_arenas, sample_arenas
 
     return [str(p) for p, _ in sample_arenas(find_arenas(folder), count)]
 

@@ -1527,7 +1527,7 @@ straight start-target segment when unsolvable), in the spirit of BARN:
   known_path_blocked          the path planned on the known obstacles crosses an unknown one
   score in [0, 1] = {' + '.join(f'{w:.2f} {k}' for k, w in SCORE_WEIGHTS.items())}
   band: easy below {BAND_MEDIUM}, medium, hard from {BAND_HARD}
-(rovernav.sim.arenas explains each term.)
+(rovernav.evaluation.arenas explains each term.)
 
 writes DIR/arena-0001-<family>.toml ..., DIR/index.json and DIR/index.csv (one row per arena),
 and a contact sheet of the first {GALLERY_COUNT} arenas (DIR/gallery.png, or --picture FILE); arena

@@ -83,7 +83,7 @@ from ..errors import InputError
 from ..files import strict_json_value, write_atomic
 from ..validate import MAX_SIM_TIME_S, number, out_dir, seconds
 
-log = logging.getLogger("rovernav.sim.trials")
+log = logging.getLogger("rovernav.evaluation.trials")
 
 STRATEGIES = ("rovernav", "seed")
 GATED_STRATEGY = "rovernav"
@@ -211,9 +211,9 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     """
     from ..scenario import load_scenario
-    from .channel import ChannelConfig, radio_config
-    from .report import build_report, summary_picture, write_report
-    from .runner import SimOptions, Simulation
+    from ..sim.channel import ChannelConfig, radio_config
+    from ..sim.report import build_report, summary_picture, write_report
+    from ..sim.runner import SimOptions, Simulation
 
     started = time.monotonic()
     deadline = None if run_timeout_s is None else started + run_timeout_s
@@ -759,7 +759,7 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
     p.add_argument("--fail-on", default=",".join(DEFAULT_FAIL_ON), metavar="LIST",
                    help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
                         f"(default {','.join(DEFAULT_FAIL_ON)})")
-    from .cli import add_radio_flags
+    from ..sim.cli import add_radio_flags
 
     add_radio_flags(p, config=False)   # every run's radio; trials.json's settings.radio says what it was
     p.set_defaults(func=cmd_trials)
@@ -818,8 +818,8 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if args.max_time <= 0 or args.run_timeout <= 0:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)
-    from .channel import ChannelConfig, radio_config
-    from .cli import radio_values
+    from ..sim.channel import ChannelConfig, radio_config
+    from ..sim.cli import radio_values
 
     values, names = radio_values(args)
     channel = radio_config(**values, names=names)   # refused here (one line, exit 2), before any run
