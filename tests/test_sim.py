@@ -532,7 +532,7 @@ known = false
 @pytest.mark.mission
 def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(tmp_path):
     from rovernav.scenario import parse_scenario
-    from rovernav.sim.report import Canvas, draw_arena
+    from rovernav.arena_picture import Canvas, draw_arena
 
     sim = Simulation(parse_scenario(WALL_AND_POST), SimOptions(seed=1, max_time_s=300))
     assert len(sim.world.walls) == 2 and len(sim.world.posts) == 1
