@@ -1,14 +1,15 @@
-"""Running the jobs: in this process, or on a dask.distributed cluster with hung runs cancelled
-(run_jobs)."""
+"""Running the jobs: `rovernav trials`' in this process, or on a dask.distributed cluster with hung
+runs cancelled (run_jobs); the benchmarks' (benchmarks/*.py) in a pool of local processes (map_runs)."""
 from __future__ import annotations
 
 import collections
+import concurrent.futures
 import contextlib
 import logging
 import time
 import traceback
 import uuid
-from typing import Callable
+from typing import Any, Callable, Iterable, Iterator
 
 from ..files import write_atomic
 from .jobs import TrialJob, TrialsError, failure_row, run_trial
@@ -139,3 +140,27 @@ def _kill(client, future) -> None:
         status = client.restart_workers(holders, raise_for_error=False)
         if any(s != "OK" for s in status.values()):
             log.warning("could not restart the worker of a hung run (%s): it stays busy", status)
+
+
+# ---------------------------------------------------------------- the benchmarks' runs
+
+def map_runs(run: Callable[..., Any], items: Iterable[Any], workers: int, *, ordered: bool = True,
+             star: bool = False) -> Iterator[tuple[Any, Any]]:
+    """Call `run(item)` (`run(*item)` with star) for every item in a pool of `workers` local
+    processes, and yield (item, result) pairs: in the items' order (ordered, as Executor.map
+    does) or as each run ends. The caller prints its progress as the pairs come.
+
+    Every item is submitted at once. A run that raises raises here when its pair is due; the runs
+    not yet started are then cancelled. The pool is shut down, waiting for the runs under way,
+    when the iteration ends. `run` must be picklable: a module-level function.
+    """
+    items = list(items)
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {(pool.submit(run, *item) if star else pool.submit(run, item)): item for item in items}
+        try:
+            for future in (futures if ordered else concurrent.futures.as_completed(futures)):
+                yield futures[future], future.result()
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
