@@ -23,7 +23,6 @@ or collides, or calibration fails, or a motor figure is more than 5 % off, the b
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import statistics
 import sys
@@ -109,20 +108,22 @@ def main() -> int:
     jobs = [(a.first + i, SHARED[i % len(SHARED)]) for i in range(a.setups)]
     t0 = time.monotonic()
     rows = []
-    with concurrent.futures.ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        for row in pool.map(run_one, jobs):
-            rows.append(row)
-            if not row["calibrated"]:
-                print(f"{row['seed']} {row['scenario']}: calibration failed: {row['error']}", flush=True)
-                continue
-            c, d = row["with_calibration"], row["with_defaults"]
-            print(f"{row['seed']} {row['scenario']:<30} {'/'.join(row['colours'].values()):<22} light {row['light']:.2f}  "
-                  f"corners {row['corner_err_px']:.2f} px  pose {row['pose_err_mm']:.1f} mm (true settings "
-                  f"{row['pose_err_true_mm']:.1f})  motors {'/'.join(f'{v:+.1f}' for v in row['motor_err_pct'].values())} %"
-                  f"  bias {row['gyro_bias_dps']['fit']}/{row['gyro_bias_dps']['true']} deg/s"
-                  f"  sonar {row['sonar_offset_mm']['fit']}/{row['sonar_offset_mm']['true']} mm"
-                  f"  calibrated: {c['outcome']} {c['time_s']} s, "
-                  f"{c['collisions']} coll.  default: {d['outcome']} ({d['error'] or ''})", flush=True)
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.evaluation.pool import map_runs
+
+    for _, row in map_runs(run_one, jobs, a.jobs):
+        rows.append(row)
+        if not row["calibrated"]:
+            print(f"{row['seed']} {row['scenario']}: calibration failed: {row['error']}", flush=True)
+            continue
+        c, d = row["with_calibration"], row["with_defaults"]
+        print(f"{row['seed']} {row['scenario']:<30} {'/'.join(row['colours'].values()):<22} light {row['light']:.2f}  "
+              f"corners {row['corner_err_px']:.2f} px  pose {row['pose_err_mm']:.1f} mm (true settings "
+              f"{row['pose_err_true_mm']:.1f})  motors {'/'.join(f'{v:+.1f}' for v in row['motor_err_pct'].values())} %"
+              f"  bias {row['gyro_bias_dps']['fit']}/{row['gyro_bias_dps']['true']} deg/s"
+              f"  sonar {row['sonar_offset_mm']['fit']}/{row['sonar_offset_mm']['true']} mm"
+              f"  calibrated: {c['outcome']} {c['time_s']} s, "
+              f"{c['collisions']} coll.  default: {d['outcome']} ({d['error'] or ''})", flush=True)
     ok = [r for r in rows if r["calibrated"]]
     reached = [r for r in ok if r["with_calibration"]["outcome"] == "reached" and r["with_calibration"]["collisions"] == 0]
     default_failed = [r for r in ok if r["with_defaults"]["outcome"] != "reached" or r["with_defaults"]["collisions"]]

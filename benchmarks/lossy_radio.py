@@ -20,7 +20,6 @@ both ways as the host measured them, and frames the host sent again. The generat
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import statistics
 import subprocess
@@ -70,7 +69,7 @@ def arenas(count: int) -> list[str]:
         subprocess.run([str(ROOT / ".venv" / "bin" / "rovernav"), "arenas", "--count", "200", "--seed", "1",
                         "--out", str(folder)], check=True, stdout=subprocess.DEVNULL)
     sys.path.insert(0, str(ROOT / "host"))
-    from rovernav.sim.trials import find_arenas, sample_arenas
+    from rovernav.evaluation.trials import find_arenas, sample_arenas
 
     return [str(p) for p, _ in sample_arenas(find_arenas(folder), count)]
 
@@ -145,14 +144,16 @@ def main() -> int:
         jobs = [(s, k, r) for s in scenarios for k in seeds for r in radios]
         print(f"{len(scenarios)} scenarios x {len(seeds)} seeds x {len(radios)} radios = {len(jobs)} runs, "
               f"{a.jobs} processes", file=sys.stderr)
-    with concurrent.futures.ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        for n, row in enumerate(pool.map(run_one, jobs, chunksize=1), 1):
-            rows.append(row)
-            if a.rows:
-                with open(a.rows, "a") as f:
-                    f.write(json.dumps(row) + "\n")
-            if n % 12 == 0 or n == len(jobs):
-                print(f"  {n}/{len(jobs)} runs, {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.evaluation.pool import map_runs
+
+    for n, (_, row) in enumerate(map_runs(run_one, jobs, a.jobs), 1):
+        rows.append(row)
+        if a.rows:
+            with open(a.rows, "a") as f:
+                f.write(json.dumps(row) + "\n")
+        if n % 12 == 0 or n == len(jobs):
+            print(f"  {n}/{len(jobs)} runs, {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
     clean = {(r["scenario"], r["seed"]): r["mission_time_s"] for r in rows
              if r["radio"] == "clean" and r["outcome"] == "reached"}
     summaries = [summarise(rows, radio, clean) for radio in radios]

@@ -11,7 +11,6 @@ because its estimate grew too uncertain, and how long it took to recover.
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import sys
 import time
@@ -51,11 +50,12 @@ def main() -> int:
              round(float(rng.uniform(2, 30)), 1)) for _ in range(a.trials)]
     t0 = time.monotonic()
     results = []
-    with concurrent.futures.ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        for n, r in enumerate(pool.map(trial, jobs), 1):
-            results.append(r)
-            if n % 10 == 0:
-                print(f"  {n}/{len(jobs)} trials, {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
+    from rovernav.evaluation.pool import map_runs
+
+    for n, (_, r) in enumerate(map_runs(trial, jobs, a.jobs), 1):
+        results.append(r)
+        if n % 10 == 0:
+            print(f"  {n}/{len(jobs)} trials, {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
     reached = sum(r["reached"] for r in results)
     collisions = sum(r["collisions"] for r in results)
     errors = np.array([e for r in results for e in r["dr_errors_m"]]) * 1000

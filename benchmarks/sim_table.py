@@ -9,7 +9,6 @@ seeds reached the goal with zero collisions, as a Markdown table. Runs headless 
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import statistics
 import sys
@@ -44,15 +43,13 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(sc, st, seed) for sc in args.scenarios for st in args.strategies for seed in args.seeds]
     results: dict[tuple, list[dict]] = {}
     t0 = time.monotonic()
-    with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = {pool.submit(run_one, *job): job for job in jobs}
-        for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
-            sc, st, seed = futures[fut]
-            r = fut.result()
-            results.setdefault((sc, st), []).append(r)
-            print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {st} / seed {seed}: "
-                  f"{'reached' if r['reached'] else 'NOT reached'}, {r['mission_time_s']:.1f} s, "
-                  f"{r['collisions']} collisions, {r['speedup']}x", file=sys.stderr, flush=True)
+    from rovernav.evaluation.pool import map_runs
+
+    for n, ((sc, st, seed), r) in enumerate(map_runs(run_one, jobs, args.jobs, ordered=False, star=True), 1):
+        results.setdefault((sc, st), []).append(r)
+        print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {st} / seed {seed}: "
+              f"{'reached' if r['reached'] else 'NOT reached'}, {r['mission_time_s']:.1f} s, "
+              f"{r['collisions']} collisions, {r['speedup']}x", file=sys.stderr, flush=True)
     med = statistics.median
     print("| scenario | strategy | reached, 0 collisions | mission time (s) | path (m) | optimum (m) | SPL | replans | min clearance (m) | speed-up |")
     print("|---|---|---|---|---|---|---|---|---|---|")

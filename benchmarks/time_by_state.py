@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import concurrent.futures
 import json
 import sys
 import time
@@ -90,10 +89,11 @@ def main() -> int:
     files = files[::a.every]
     t0 = time.monotonic()
     results = []
-    with concurrent.futures.ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        for n, r in enumerate(pool.map(run, [(str(f), a.seed) for f in files]), 1):
-            results.append(r)
-            print(f"  {n}/{len(files)} {r['arena']}: {r['outcome']} {r['mission_s']:.1f} s", file=sys.stderr, flush=True)
+    from rovernav.evaluation.pool import map_runs
+
+    for n, (_, r) in enumerate(map_runs(run, [(str(f), a.seed) for f in files], a.jobs), 1):
+        results.append(r)
+        print(f"  {n}/{len(files)} {r['arena']}: {r['outcome']} {r['mission_s']:.1f} s", file=sys.stderr, flush=True)
     total: dict[str, float] = collections.Counter()
     for r in results:
         total.update(r["states_s"])

@@ -12,7 +12,7 @@ import pytest
 from rovernav.cli import main
 from rovernav.planning import OccupancyGrid, PlannerConfig, Unreachable, plan
 from rovernav.scenario import Arena, Mission, Obstacle, Pose, Scenario, Target, load_scenario, parse_scenario
-from rovernav.sim.arenas import (
+from rovernav.evaluation.arenas import (
     ALL_FAMILY_NAMES, CELLULAR_CELL_M, FAMILIES, FAMILY_NAMES, NARROW_EXTRA_M, ArenaError, generate_arenas,
     measure_scenario, write_arenas,
 )
@@ -225,7 +225,7 @@ def test_rooms_are_drawn_with_walls_and_clutter_with_posts(arenas200):
         assert not any(a.scenario.walls or a.scenario.posts for a in of_family(arenas200, family)), family
     # the index counts every obstacle, whatever its shape
     a = next(a for a in arenas200 if a.scenario.walls and a.scenario.posts == () and a.scenario.obstacles == ())
-    from rovernav.sim.arenas import index_row
+    from rovernav.evaluation.arenas import index_row
     row = index_row(a)
     assert row["known_obstacles"] + row["unknown_obstacles"] == len(a.scenario.walls)
 

@@ -836,7 +836,7 @@ def test_the_hosts_exceptions_are_one_small_tree():
     from rovernav.planning import NoPathError, Unreachable
     from rovernav.runlog.replay import LogFileError
     from rovernav.scenario import ScenarioError
-    from rovernav.sim.arenas import GenerationFailed
+    from rovernav.evaluation.arenas import GenerationFailed
     from rovernav.sim.uno import UnoSetupError
 
     branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,

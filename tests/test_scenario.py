@@ -353,7 +353,7 @@ def test_a_scenario_written_by_scenario_toml_reads_back_the_same():
     import dataclasses
 
     from rovernav.scenario import parse_scenario, scenario_names, scenario_toml
-    from rovernav.sim.arenas import generate_arenas
+    from rovernav.evaluation.arenas import generate_arenas
 
     scenarios = [load_scenario(n) for n in scenario_names()] + [a.scenario for a in generate_arenas(70, seed=3)]
     assert any(s.walls for s in scenarios) and any(s.posts for s in scenarios)

@@ -251,7 +251,7 @@ def test_a_host_restarted_on_the_first_leg_gets_its_path_taken():
     # Found replaying logs of generated arenas with random faults: the new host's first path had
     # the id and size of the one the rover held from the old host, so the rover took it for a
     # repeat, ACKed it and never said PATH_ACCEPTED; the mission failed 30 s later.
-    from rovernav.sim.arenas import generate_arenas
+    from rovernav.evaluation.arenas import generate_arenas
     from rovernav.sim.runner import Faults
 
     arena = next(a for a in generate_arenas(24, seed=1) if a.scenario.name.startswith("arena-0023"))
@@ -532,7 +532,7 @@ known = false
 @pytest.mark.mission
 def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(tmp_path):
     from rovernav.scenario import parse_scenario
-    from rovernav.sim.report import Canvas, draw_arena
+    from rovernav.arena_picture import Canvas, draw_arena
 
     sim = Simulation(parse_scenario(WALL_AND_POST), SimOptions(seed=1, max_time_s=300))
     assert len(sim.world.walls) == 2 and len(sim.world.posts) == 1
@@ -656,7 +656,7 @@ def test_cellular_arena_38_where_a_rover_backed_out_into_what_it_never_saw_is_re
     # after a sharp turn (issue 26) its way through this arena no longer backs out there, and the
     # rule itself is tested natively ("a rover that has turned since it drove turns back onto its
     # track before it backs out along it", test_motion.cpp). The arena stays as a regression.
-    from rovernav.sim.arenas import generate_arena
+    from rovernav.evaluation.arenas import generate_arena
 
     sim = Simulation(generate_arena(2611, 38, "cellular").scenario, SimOptions(seed=1, max_time_s=400))
     sim.run()

@@ -218,9 +218,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .calibrate.cli import add_calibrate_parser
     from .planning.cli import add_plan_parser
     from .runlog.cli import add_replay_parser
-    from .sim.arenas import add_arenas_parser
+    from .evaluation.arenas import add_arenas_parser
     from .sim.cli import add_sim_parser
-    from .sim.trials import add_trials_parser
+    from .evaluation.trials import add_trials_parser
     from .study.cli import add_pose_parser, add_study_parser
     from .vision.cli import add_locate_parser
 

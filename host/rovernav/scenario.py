@@ -26,7 +26,7 @@ points (a wall drawn from the arena's edge starts at the edge; where two walls m
 extend one by half the thickness to close the outer corner). A post is a round pillar (a
 disk in plan). Boxes, walls and posts are all obstacles: `Scenario.shapes` lists every one.
 
-A generated arena (rovernav.sim.arenas) carries its labels; none of them changes the mission:
+A generated arena (rovernav.evaluation.arenas) carries its labels; none of them changes the mission:
 
     [generated]   family (text), seed (whole ≥ 0), index (whole ≥ 0), solvable (true/false),
                   passage_width_m (optional, > 0: the narrow_passage family's gap)

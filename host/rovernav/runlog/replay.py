@@ -392,7 +392,7 @@ def replay_picture(result: ReplayResult, path: Path) -> None:
 
     from ..files import write_atomic
     from ..scenario import parse_scenario
-    from ..sim.report import Canvas, draw_arena
+    from ..arena_picture import Canvas, draw_arena
 
     spec = result.spec
     if spec.scenario_toml is not None:
