@@ -12,6 +12,7 @@ import pytest
 
 from tests.core_transport import firmware_hello
 
+from rovernav import vehicle_gen as vehicle
 from rovernav.config import ConfigError, config_from_dict, load_config
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
@@ -46,7 +47,7 @@ def test_a_full_file_is_read(tmp_path):
     ({"vision": {"markers": "lasers"}}, "vision.markers"),
     ({"planner": {"resolution_m": -0.1}}, "[planner]"),
     ({"warp": {}}, "unknown section [warp]"),
-    # The sensor's facts, once ([sensors] in protocol/messages.toml): no report range past what
+    # The sensor's facts, once (protocol/vehicle.toml): no report range past what
     # the HC-SR04 driver measures, no beam wider than the rover's parameter takes.
     ({"rover": {"sonar_report_mm": 4000}}, "sonar_report_mm = 4000 is outside [50, 1000]"),
     ({"planner": {"sonar_max_range_m": 4.0}}, "sonar_max_range_m is gone: the sensor's range is the protocol's"),
@@ -144,4 +145,4 @@ def test_a_report_range_past_the_sensor_s_is_refused_in_one_line_exit_2(tmp_path
     assert main(["sim", "--config", str(f)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sonar_report_mm = 4000 is outside [50, 1000] (mm)" in err[0]
-    assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == mg.SONAR_MAX_RANGE_MM == 1000
+    assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == vehicle.SONAR_MAX_RANGE_MM

@@ -22,6 +22,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from . import vehicle_gen as vehicle
 from .errors import InputError
 from .link import messages_gen as mg
 from .validate import MAX_ARENA_M, MAX_TRIPS, check_number, read_text_file
@@ -149,7 +150,7 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         raise ConfigError(f"{where}[vision] {exc}") from None
     if isinstance(data.get("planner"), dict) and "sonar_max_range_m" in data["planner"]:
         raise ConfigError(f"{where}[planner] sonar_max_range_m is gone: the sensor's range is the protocol's "
-                          f"([sensors] sonar_max_range_mm = {mg.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
+                          f"(protocol/vehicle.toml: sonar_max_range_mm = {vehicle.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
                           "far the rover reports")
     try:
         planner = PlannerConfig.from_dict(data.get("planner", {}))

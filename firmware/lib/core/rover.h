@@ -197,7 +197,7 @@ class Rover : private RoverFields {
     // inside the body's way, no beam of it covered (seed 1's arena 157).
     kTurnLookDeg = 45,
   };
-  // The corners' reach holds the body ([body] in protocol/messages.toml): its half-diagonal.
+  // The corners' reach holds the body (protocol/vehicle.toml): its half-diagonal.
   static_assert(4L * kCornerReachMm * kCornerReachMm >=
                     static_cast<int32_t>(kBodyLengthMm) * kBodyLengthMm + static_cast<int32_t>(kBodyWidthMm) * kBodyWidthMm,
                 "kCornerReachMm is less than the body's half-diagonal");

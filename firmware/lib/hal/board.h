@@ -34,7 +34,7 @@ constexpr int8_t kServoClockwiseSign = 1;
 constexpr uint8_t kPinSonarEcho = 14;   // A0
 constexpr uint8_t kPinSonarTrig = 15;   // A1
 constexpr uint16_t kSonarMinIntervalMs = 60;    // datasheet: >= 60 ms between pings
-// (Its range, past which an echo is NoEcho, is the protocol's: kSonarMaxRangeMm, [sensors].)
+// (Its range, past which an echo is NoEcho, is a vehicle fact: kSonarMaxRangeMm, protocol/vehicle.toml.)
 constexpr uint16_t kSpeedOfSoundMmPerMs = 343;  // dry air at 20 C
 
 // --- MPU-6050 on the hardware I2C pins (A4 SDA, A5 SCL). Its INT line is wired to pin 2

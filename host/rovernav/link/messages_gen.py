@@ -8,6 +8,7 @@ import enum
 import struct
 from typing import ClassVar
 
+from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the link reads it here)
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
@@ -30,13 +31,6 @@ MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50
 MAX_WAYPOINTS = 32
 WAYPOINTS_PER_CHUNK = 8
-UART_BUFFER_BYTES = 64   # the Uno's serial buffers: a whole frame fits
-# The sensors' facts ([sensors] in protocol/messages.toml).
-SONAR_MAX_RANGE_MM = 1000
-
-# The rover's body ([body] in protocol/messages.toml).
-BODY_LENGTH_MM = 210
-BODY_WIDTH_MM = 150
 
 
 class Role(enum.IntEnum):
@@ -245,7 +239,7 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.ARRIVAL_RADIUS_MM: ParamSpec(8, 'arrival_radius_mm', 'mm', 36, 5, 300, "a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)"),
     Param.SWEEP_INTERVAL_MM: ParamSpec(9, 'sweep_interval_mm', 'mm', 300, 0, 10000, 'distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)'),
     Param.SWEEP_STEP_MS: ParamSpec(10, 'sweep_step_ms', 'ms', 90, 20, 5000, 'time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)'),
-    Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1000, "echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range ([sensors])"),
+    Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1000, "echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range (protocol/vehicle.toml)"),
     Param.FIX_TIMEOUT_MS: ParamSpec(12, 'fix_timeout_ms', 'ms', 500, 50, 60000, 'no FIX for this long: dead reckoning'),
     Param.RADIO_TIMEOUT_MS: ParamSpec(13, 'radio_timeout_ms', 'ms', 1000, 100, 60000, 'no valid frame at all for this long: radio lost'),
     Param.DR_MAX_DISTANCE_MM: ParamSpec(14, 'dr_max_distance_mm', 'mm', 1500, 0, 100000, 'hold after driving this far without a fix'),

@@ -43,10 +43,11 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
-from ..link.messages_gen import PARAMS, SONAR_MAX_RANGE_MM, Param
+from ..link.messages_gen import PARAMS, Param
+from ..vehicle_gen import SONAR_MAX_RANGE_MM
 from ..validate import check_grid
 
-#: The sensor's range [m] (the protocol's [sensors]): silence says nothing of what lies past it,
+#: The sensor's range [m] (protocol/vehicle.toml): silence says nothing of what lies past it,
 #: whatever range a reading (or an old map file) claims.
 SENSOR_MAX_RANGE_M = SONAR_MAX_RANGE_MM / 1000.0
 

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..angles import wrap_deg
 from ..mapping.sonar_map import sonar_origin
-from ..link.messages_gen import PARAMS, SONAR_MAX_RANGE_MM, Param
+from ..link.messages_gen import PARAMS, Param
+from ..vehicle_gen import SONAR_MAX_RANGE_MM
 from ..planning.config import geometry_m
 from .world import World
 
@@ -47,7 +48,7 @@ class PlantConfig:
     sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0
     sonar_noise_mm: float = 3.0
     sonar_floor_m: float = 0.65       # floor echoes from beyond here
-    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0   # the driver's last echo ([sensors]): past it, none
+    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0   # the driver's last echo (protocol/vehicle.toml): past it, none
     sonar_max_incidence_deg: float = 40.0   # a flat face further off its normal gives no echo (90: always)
     sonar_rays: int = 7               # rays sampled across the cone
     sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre
