@@ -25,6 +25,7 @@ import sys
 
 from . import __version__
 from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, number, output_file, port_spec, seconds
+from .vehicle_gen import LINK_BAUD
 
 log = logging.getLogger("rovernav")
 
@@ -245,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
                                            "message the rover sends for a few seconds, and the link's error "
                                            "counters.") + "\n\n" + sk.help_text())
     p.add_argument("--port", required=True, type=port_spec,
-                   help="serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@57600")
+                   help=f"serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@{LINK_BAUD}")
     p.add_argument("--seconds", type=seconds(3600.0), default=None,
                    help="how long to listen after the HELLO, 0 to 3600 (default 3)")
     p.add_argument("--soak", type=number(sk.MIN_SOAK_S, sk.MAX_SOAK_S), metavar="SECONDS",

@@ -8,6 +8,8 @@
 
 #include <stdint.h>
 
+#include "vehicle_gen.h"   // the vehicle's facts (protocol/vehicle.toml): the baud rate, the sonar's range
+
 namespace rovernav {
 namespace board {
 
@@ -50,8 +52,8 @@ constexpr uint16_t kGyroCalSamples = 100;       // at the 100 Hz sample rate: on
 constexpr uint16_t kGyroCalMaxMs = 2000;        // give up calibrating after this long
 constexpr int32_t kGyroCalMaxSpreadMdps = 3000; // a wider spread means the rover moved
 
-// --- Serial link (3DR radio), 8N1.
-constexpr uint32_t kSerialBaud = 57600;
+// --- Serial link (3DR radio), 8N1, at the vehicle's baud rate (protocol/vehicle.toml).
+constexpr uint32_t kSerialBaud = kLinkBaud;
 
 // --- Status LED.
 constexpr uint8_t kPinLed = 13;

@@ -10,7 +10,7 @@ namespace {
 #ifdef SERIAL_RX_BUFFER_SIZE
 constexpr uint8_t kRxBytes = SERIAL_RX_BUFFER_SIZE;
 #else
-constexpr uint8_t kRxBytes = 64;
+constexpr uint8_t kRxBytes = rovernav::kUartBufferBytes;
 #endif
 #ifdef SERIAL_TX_BUFFER_SIZE
 constexpr uint8_t kTxBytes = SERIAL_TX_BUFFER_SIZE;
