@@ -21,8 +21,8 @@ from rovernav.link.transport import PtyTransport
 
 def test_defaults_are_the_seeds_set_up():
     cfg = load_config(None)
-    assert (cfg.arena.width_m, cfg.arena.height_m) == (2.36, 1.75)
-    assert cfg.link.baud == 57600
+    assert (cfg.arena.width_m, cfg.arena.height_m) == (vehicle.DEFAULT_ARENA_WIDTH_MM / 1000, vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000)
+    assert cfg.link.baud == vehicle.LINK_BAUD
     assert cfg.vision.markers == "colour" and cfg.vision.hsv.rover_back == ((55, 50, 50), (80, 255, 255))
     assert cfg.planner.resolution_m == 0.03 and cfg.planner.robot_radius_m == 0.12
 

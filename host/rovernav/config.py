@@ -34,14 +34,14 @@ class ConfigError(InputError):
 
 @dataclasses.dataclass(frozen=True)
 class ArenaConfig:
-    width_m: float = 2.36   # the seed's test area
-    height_m: float = 1.75
+    width_m: float = vehicle.DEFAULT_ARENA_WIDTH_MM / 1000.0   # the seed's test area (protocol/vehicle.toml)
+    height_m: float = vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000.0
 
 
 @dataclasses.dataclass(frozen=True)
 class LinkConfig:
     port: str = ""
-    baud: int = 57600
+    baud: int = vehicle.LINK_BAUD
     key_file: str = ""   # the link key for signed frames (`rovernav keygen`, stored on the rover by `rovernav provision`)
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM, DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 from ..vision.calibration import Calibration
 from ..vision.config import ARUCO_SIZE_M, MARKER_DISTANCE_M, ROVER_CENTRE_FRACTION, VisionConfig
 
@@ -58,8 +58,8 @@ class Scene:
         "target" (a colour square like that marker) or an int (an ArUco tag with that id).
     """
 
-    arena_w_m: float = 2.36
-    arena_h_m: float = 1.75
+    arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0   # protocol/vehicle.toml
+    arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0
     obstacles: tuple[tuple[float, float, float, float], ...] = ()
     walls: tuple[tuple[float, float, float, float, float], ...] = ()
     posts: tuple[tuple[float, float, float], ...] = ()
