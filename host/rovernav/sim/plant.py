@@ -2,7 +2,7 @@
 
 - Drive: two wheels, each following its PWM command through a dead band and a first-order
   lag, the right motor stronger than the left (the seed compensated with a 0.8 bias), a little
-  speed noise; a differential-drive kinematic model (track 0.13 m).
+  speed noise; a differential-drive kinematic model (its track: protocol/vehicle.toml).
 - Gyro: an MPU6050's yaw rate with white noise and a slowly drifting bias, left over after the
   start-up calibration.
 - Sonar: an HC-SR04 on a servo: the nearest echo inside its 15-degree cone, range noise, and
@@ -28,7 +28,7 @@ import numpy as np
 from ..angles import wrap_deg
 from ..mapping.sonar_map import sonar_origin
 from ..link.messages_gen import PARAMS, Param
-from ..vehicle_gen import SONAR_MAX_RANGE_MM
+from ..vehicle_gen import SONAR_MAX_RANGE_MM, WHEEL_TRACK_MM
 from ..planning.config import geometry_m
 from .world import World
 
@@ -39,7 +39,7 @@ class PlantConfig:
     deadband_pwm: float = float(PARAMS[Param.MOTOR_DEADBAND_PWM].default)   # as the firmware assumes
     lag_s: float = 0.08               # motor and inertia
     right_gain: float = 1.10          # the right motor is the stronger
-    track_m: float = 0.13             # distance between the wheels
+    track_m: float = WHEEL_TRACK_MM / 1000.0   # distance between the wheels (protocol/vehicle.toml)
     speed_noise: float = 0.02         # relative, slowly varying (floor, battery)
     gyro_noise_dps: float = 0.05      # white noise of one sample
     gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
