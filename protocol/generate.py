@@ -68,6 +68,15 @@ def camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
 
+def param_scale(name: str) -> int:
+    """A parameter's scale, from its name: the wire's integer is the working value times this
+    (pid_kp_x100: 100, speed_mm_s_per_pwm_x1000: 1000, right_bias_permille: 1000; else 1)."""
+    m = re.search(r"_x(\d+)$", name)
+    if m:
+        return int(m.group(1))
+    return 1000 if name.endswith("_permille") else 1
+
+
 def payload_size(message: dict) -> int:
     return sum(TYPES[f["type"]][0] * f.get("count", 1) for f in message["fields"])
 
@@ -509,6 +518,12 @@ def render_cpp(d: dict) -> str:
         out.append(f"  {camel(prm['name'])} = {prm['id']},  ///< [{prm['unit']}] {prm['doc']}\n")
     out.append("};\n")
     out.append(f"enum : uint8_t {{ kParamMaxId = {max(x['id'] for x in d['params'])} }};\n\n")
+    scaled = [prm for prm in d.get("params", []) if param_scale(prm["name"]) != 1]
+    out.append("/// A parameter's scale, from its name: the wire's integer is the working value times this\n"
+               "/// (_x100: 100, _x1000 and _permille: 1000; 1 for the rest). For constants only.\n"
+               "constexpr uint16_t param_scale(Param p) {\n  return "
+               + "".join(f"p == Param::{camel(prm['name'])} ? {param_scale(prm['name'])} :\n         "
+                         for prm in scaled) + "1;\n}\n\n")
     out.append(render_param_table(d))
     out.append("namespace msg {\n\n"
                "// Each message's bytes are its payload on the wire (fields in order, little-endian, no\n"
@@ -588,8 +603,10 @@ def render_py(d: dict) -> str:
         out.append(f"    {prm['name'].upper()} = {prm['id']}\n")
     out.append("\n\nPARAMS: dict[Param, ParamSpec] = {\n")
     for prm in d.get("params", []):
+        scale = param_scale(prm["name"])
         out.append(f"    Param.{prm['name'].upper()}: ParamSpec({prm['id']}, {prm['name']!r}, {prm['unit']!r}, "
-                   f"{prm['default']}, {prm['min']}, {prm['max']}, {prm['doc']!r}),\n")
+                   f"{prm['default']}, {prm['min']}, {prm['max']}, {prm['doc']!r}"
+                   + (f", scale={scale}" if scale != 1 else "") + "),\n")
     out.append("}\n")
     for m in d["messages"]:
         fmt = "<" + "".join(TYPES[f["type"]][1] * f.get("count", 1) for f in m["fields"])

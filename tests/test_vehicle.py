@@ -150,6 +150,9 @@ COPIES = {
     "wheel_track_mm": re.compile(r"(?i)\btrack_?(m|mm)\s*(:\s*\w+\s*)?=\s*[\d.]+"),
     "sonar_max_range_mm": re.compile(r"(?i)\b\w*(sonar|sensor)_?(max_?(range|m\b|mm\b)|range_?max)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+"),
     "sonar_cone_cdeg": re.compile(r"(?i)\bcone_?(deg|cdeg|rad)\s*(:\s*\w+\s*)?=\s*[\d.]+"),
+    # A parameter's scale is its name's (param_scale): not a number next to its read.
+    "a parameter's scale": re.compile(r"\bParam\s*\.\s*\w+_(X100|X1000|PERMILLE)\s*\)?\s*[*/]\s*100"
+                                      r"|\b(hundredths|thousandths)\(Param::\w*(X100|X1000|Permille)\)"),
 }
 # Lines that hold the number for another reason, each with it.
 NOT_COPIES = {
@@ -227,9 +230,34 @@ def test_no_tracked_source_writes_a_vehicle_fact_by_hand():
     ("host/rovernav/sim/plant.py", "    sonar_max_m: float = 4.0"),
     ("firmware/lib/hal/board.h", "constexpr uint16_t kSonarMaxRangeMm = 1000;"),
     ("host/rovernav/calibrate/rover.py", "def fit(runs, cone_deg: float = 15.0):"),
+    ("host/rovernav/sim/report.py", "    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000"),
+    ("firmware/lib/core/params.h", "  float kp() const { return hundredths(Param::PidKpX100); }"),
 ])
 def test_the_scan_finds_a_copy_added_by_hand(path, line):
     # The copies this change removed, put back: each is found. Prose about them is not.
     assert find_copies(path, line + "\n")
     prose = f'"""{line}"""\n' if path.endswith(".py") else f"// {line}\n"
     assert not find_copies(path, prose)
+
+
+# ---------------------------------------------------------------- parameter scales
+
+def _camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+def test_a_parameter_s_scale_is_the_one_its_name_gives_on_both_sides():
+    from rovernav.link import messages_gen as mg
+
+    header = (ROOT / "firmware/lib/link/messages_gen.h").read_text()
+    scaled = 0
+    for spec in mg.PARAMS.values():
+        m = re.search(r"_x(\d+)$", spec.name)
+        want = int(m.group(1)) if m else 1000 if spec.name.endswith("_permille") else 1
+        assert spec.scale == want, spec.name
+        assert (f"p == Param::{_camel(spec.name)} ? {want} :" in header) == (want != 1), spec.name
+        assert spec.to_raw(spec.to_value(spec.default)) == spec.default
+        scaled += want != 1
+    assert scaled == 10
+    assert mg.PARAMS[mg.Param.PID_KP_X100].to_value(3000) == 30.0
+    assert mg.PARAMS[mg.Param.RIGHT_BIAS_PERMILLE].to_raw(0.8) == 800

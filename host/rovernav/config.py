@@ -199,7 +199,7 @@ def _check_pose_gains(rover: dict, where: str) -> None:
     keys = (mg.Param.POSE_K_RHO_X1000, mg.Param.POSE_K_ALPHA_X1000, mg.Param.POSE_K_BETA_X1000)
     if not any(k in rover for k in keys):
         return
-    k_rho, k_alpha, k_beta = (rover.get(k, mg.PARAMS[k].default) / 1000.0 for k in keys)
+    k_rho, k_alpha, k_beta = (mg.PARAMS[k].to_value(rover.get(k, mg.PARAMS[k].default)) for k in keys)
     try:
         PoseGains(k_rho=k_rho, k_alpha=k_alpha, k_beta=k_beta)
     except ValueError as exc:

@@ -178,6 +178,22 @@ enum class Param : uint8_t {
 };
 enum : uint8_t { kParamMaxId = 35 };
 
+/// A parameter's scale, from its name: the wire's integer is the working value times this
+/// (_x100: 100, _x1000 and _permille: 1000; 1 for the rest). For constants only.
+constexpr uint16_t param_scale(Param p) {
+  return p == Param::PidKpX100 ? 100 :
+         p == Param::PidKiX100 ? 100 :
+         p == Param::PidKdX100 ? 100 :
+         p == Param::RightBiasPermille ? 1000 :
+         p == Param::SpeedMmSPerPwmX1000 ? 1000 :
+         p == Param::WheelMmPerTickX1000 ? 1000 :
+         p == Param::PoseKRhoX1000 ? 1000 :
+         p == Param::PoseKAlphaX1000 ? 1000 :
+         p == Param::PoseKBetaX1000 ? 1000 :
+         p == Param::PosePwmPerDpsX1000 ? 1000 :
+         1;
+}
+
 /// Where each parameter's value lies in the rover's store of kParamBytes bytes, by id - 1 (0xFF: no
 /// such parameter). A value takes the least width its limits allow, little-endian, the widest first:
 /// int32 from 0, then uint16 from kParamAtU16, int16 from kParamAtI16, uint8 from kParamAtU8 and

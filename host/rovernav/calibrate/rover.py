@@ -276,9 +276,9 @@ class Fit:
 
     def params(self) -> dict[mg.Param, int]:
         """The rover's parameters the fit gives ([rover] table)."""
-        return {mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * self.mm_s_per_pwm),
+        return {mg.Param.SPEED_MM_S_PER_PWM_X1000: mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].to_raw(self.mm_s_per_pwm),
                 mg.Param.MOTOR_DEADBAND_PWM: round(self.deadband_pwm),
-                mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / self.right_gain)}
+                mg.Param.RIGHT_BIAS_PERMILLE: round(mg.PARAMS[mg.Param.RIGHT_BIAS_PERMILLE].scale / self.right_gain)}
 
     def planner(self) -> dict[str, float]:
         """The planner's geometry the fit gives ([planner] table): the sonar's offset, if measured."""
