@@ -145,7 +145,7 @@ COPIES = {
     "link_baud": re.compile(r"\b57_?600[uUlL]*\b"),
     "default arena": re.compile(r"\b(2\.36|1\.75|2_?360|1_?750)\b"),
     "step_period_ms": re.compile(r"(?i)\b\w*step_?(s|ms|us|period\w*)\s*(:\s*\w+\s*)?=\s*(0?\.010?|10|10_?000)\b(?!\.)"),
-    "the body": re.compile(r"(?i)\b\w*(body|rover|half)_?(width|length|diagonal)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+\b"
+    "the body": re.compile(r"(?i)\b\w*(body|rover|half)_?(width|length|diagonal|radius)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+\b"
                            r"|\bk(CornerReach|HalfWidth)Mm\s*=\s*\d"),
     "wheel_track_mm": re.compile(r"(?i)\btrack_?(m|mm)\s*(:\s*\w+\s*)?=\s*[\d.]+"),
     "sonar_max_range_mm": re.compile(r"(?i)\b\w*(sonar|sensor)_?(max_?(range|m\b|mm\b)|range_?max)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+"),
@@ -226,6 +226,7 @@ def test_no_tracked_source_writes_a_vehicle_fact_by_hand():
     ("firmware/lib/core/rover.h", "    kCornerReachMm = 140,"),
     ("host/rovernav/sim/plant.py", "    track_m: float = 0.13             # distance between the wheels"),
     ("host/rovernav/sim/world.py", "ROVER_WIDTH_M = 0.15"),
+    ("host/rovernav/mapping/sonar_map.py", "    body_radius_m: float = 0.075      # (half its width)"),
     ("host/rovernav/mapping/sonar_map.py", "SENSOR_MAX_RANGE_M = 4.0"),
     ("host/rovernav/sim/plant.py", "    sonar_max_m: float = 4.0"),
     ("firmware/lib/hal/board.h", "constexpr uint16_t kSonarMaxRangeMm = 1000;"),
