@@ -241,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends, or soak the radio",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description=sk.wrap("Open PORT at 57,600 baud, exchange HELLO with the rover (checking that "
+                       description=sk.wrap(f"Open PORT at {LINK_BAUD:,} baud, exchange HELLO with the rover (checking that "
                                            "both were built from the same protocol definition), then print every "
                                            "message the rover sends for a few seconds, and the link's error "
                                            "counters.") + "\n\n" + sk.help_text())
