@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
-"""Generate the link protocol code from protocol/messages.toml.
+"""Generate the link protocol code from protocol/messages.toml, and the vehicle's facts from
+protocol/vehicle.toml.
 
 Writes, with a banner naming this file and the definition:
   firmware/lib/link/messages_gen.h       C++ structs, enums, parameter limits
   host/rovernav/link/messages_gen.py     Python dataclasses and enums
   firmware/test/test_link/vectors_gen.h  the golden vectors as C++ test cases
+  firmware/lib/link/vehicle_gen.h        the vehicle's facts as C++ constants
+  host/rovernav/vehicle_gen.py           the vehicle's facts as Python constants
 
     python3 protocol/generate.py                 write the outputs
     python3 protocol/generate.py --check         exit 1 if a committed output drifted
@@ -25,10 +28,20 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFINITION = ROOT / "protocol" / "messages.toml"
+VEHICLE = ROOT / "protocol" / "vehicle.toml"
 VECTORS = ROOT / "protocol" / "vectors.json"
 OUT_CPP = ROOT / "firmware" / "lib" / "link" / "messages_gen.h"
 OUT_PY = ROOT / "host" / "rovernav" / "link" / "messages_gen.py"
 OUT_VECTORS_H = ROOT / "firmware" / "test" / "test_link" / "vectors_gen.h"
+OUT_VEHICLE_H = ROOT / "firmware" / "lib" / "link" / "vehicle_gen.h"
+OUT_VEHICLE_PY = ROOT / "host" / "rovernav" / "vehicle_gen.py"
+
+# A vehicle fact's name ends in its unit.
+FACT_UNITS = ("_mm", "_ms", "_cdeg", "_baud", "_bytes")
+# The vehicle's facts that change the meaning of bytes on the wire, and the table of the schema
+# hash's input each was hashed under before it moved to vehicle.toml (so that the move left the
+# hash as it was): the sonar's range is a parameter's limit, the buffer bounds the largest frame.
+WIRE_FACTS = {"uart_buffer_bytes": "protocol", "sonar_max_range_mm": "sensors"}
 
 # type -> (bytes, struct code, C++ type, min, max)
 TYPES = {
@@ -55,16 +68,64 @@ def camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
 
+def param_scale(name: str) -> int:
+    """A parameter's scale, from its name: the wire's integer is the working value times this
+    (pid_kp_x100: 100, speed_mm_s_per_pwm_x1000: 1000, right_bias_permille: 1000; else 1)."""
+    m = re.search(r"_x(\d+)$", name)
+    if m:
+        return int(m.group(1))
+    return 1000 if name.endswith("_permille") else 1
+
+
 def payload_size(message: dict) -> int:
     return sum(TYPES[f["type"]][0] * f.get("count", 1) for f in message["fields"])
 
 
-def load(path: Path = DEFINITION) -> dict:
-    """Read and validate the definition; raise DefinitionError naming the bad entry."""
+def load_vehicle(path: Path = VEHICLE) -> list[dict]:
+    """Read and validate the vehicle's facts: each a name ending in its unit, a positive integer
+    and a doc line; raise DefinitionError naming the bad entry."""
+    with open(path, "rb") as fh:
+        v = tomllib.load(fh)
+    facts = v.get("fact")
+    if not isinstance(facts, list) or not facts or set(v) != {"fact"}:
+        raise DefinitionError("vehicle.toml must hold [[fact]] entries and nothing else")
+    seen: set[str] = set()
+    for f in facts:
+        name = f.get("name", "?")
+        if not isinstance(name, str) or not IDENT.match(name) or name in seen:
+            raise DefinitionError(f"fact {name!r}: bad or repeated name")
+        seen.add(name)
+        if not name.endswith(FACT_UNITS):
+            raise DefinitionError(f"fact {name}: its name must end in its unit ({', '.join(FACT_UNITS)})")
+        value = f.get("value")
+        if not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 1 << 31:
+            raise DefinitionError(f"fact {name}: value must be an integer 1..2^31-1")
+        if not isinstance(f.get("doc"), str) or not f["doc"].strip():
+            raise DefinitionError(f"fact {name}: a doc line is missing")
+        if set(f) != {"name", "value", "doc"}:
+            raise DefinitionError(f"fact {name}: only name, value and doc")
+    for name in WIRE_FACTS:
+        if name not in seen:
+            raise DefinitionError(f"fact {name} is missing (the wire depends on it)")
+    return facts
+
+
+def load(path: Path = DEFINITION, vehicle_path: Path | None = None) -> dict:
+    """Read and validate the definition and the vehicle's facts (vehicle.toml beside `path`, else
+    the repository's); raise DefinitionError naming the bad entry."""
     with open(path, "rb") as fh:
         d = tomllib.load(fh)
+    if vehicle_path is None:
+        vehicle_path = path.with_name("vehicle.toml") if path.with_name("vehicle.toml").exists() else VEHICLE
+    d["vehicle_facts"] = load_vehicle(vehicle_path)
+    vehicle = d["vehicle"] = {f["name"]: f["value"] for f in d["vehicle_facts"]}
+    for table in ("sensors", "body"):
+        if table in d:
+            raise DefinitionError(f"[{table}] moved to protocol/vehicle.toml")
     proto = d.get("protocol", {})
-    for key in ("version", "max_payload", "max_waypoints", "waypoints_per_chunk", "uart_buffer_bytes"):
+    if "uart_buffer_bytes" in proto:
+        raise DefinitionError("[protocol].uart_buffer_bytes moved to protocol/vehicle.toml")
+    for key in ("version", "max_payload", "max_waypoints", "waypoints_per_chunk"):
         if not isinstance(proto.get(key), int):
             raise DefinitionError(f"[protocol].{key} must be an integer")
     seen_ids: dict[int, str] = {}
@@ -114,21 +175,9 @@ def load(path: Path = DEFINITION) -> dict:
     for name in sig.get("unsigned", []):
         if name not in seen_names:
             raise DefinitionError(f"[signing].unsigned: no message {name!r}")
-    if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > proto["uart_buffer_bytes"]:
-        raise DefinitionError(f"a signed frame of max_payload bytes would pass [protocol].uart_buffer_bytes "
-                              f"({proto['uart_buffer_bytes']}) on the wire")
-    sensors = d.get("sensors")
-    if not isinstance(sensors, dict) or not sensors:
-        raise DefinitionError("[sensors] is missing")
-    for key, value in sensors.items():
-        if not IDENT.match(key) or not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 65536:
-            raise DefinitionError(f"[sensors].{key} must be an integer 1..65535")
-    body = d.get("body")
-    if not isinstance(body, dict) or set(body) != {"length_mm", "width_mm"}:
-        raise DefinitionError("[body] must give length_mm and width_mm")
-    for key, value in body.items():
-        if not isinstance(value, int) or isinstance(value, bool) or not 0 < value < 2000:
-            raise DefinitionError(f"[body].{key} must be an integer 1..1999")
+    if max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"]) > vehicle["uart_buffer_bytes"]:
+        raise DefinitionError(f"a signed frame of max_payload bytes would pass vehicle.toml's uart_buffer_bytes "
+                              f"({vehicle['uart_buffer_bytes']}) on the wire")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -142,11 +191,11 @@ def load(path: Path = DEFINITION) -> dict:
         if p["id"] in pids or not 0 < p["id"] < 256:
             raise DefinitionError(f"param {p['name']}: id {p['id']} repeated or not 1..255")
         pids.add(p["id"])
-        for key in ("min", "default", "max"):   # a limit may name a sensor's fact
+        for key in ("min", "default", "max"):   # a default or limit may name a vehicle's fact
             if isinstance(p[key], str):
-                if p[key] not in sensors:
-                    raise DefinitionError(f"param {p['name']}: {key} {p[key]!r} is not a key of [sensors]")
-                p[key] = sensors[p[key]]
+                if p[key] not in vehicle:
+                    raise DefinitionError(f"param {p['name']}: {key} {p[key]!r} is not a fact of protocol/vehicle.toml")
+                p[key] = vehicle[p[key]]
         if not p["min"] <= p["default"] <= p["max"]:
             raise DefinitionError(f"param {p['name']}: default {p['default']} outside [{p['min']}, {p['max']}]")
     d["schema_hash"] = schema_hash(d)
@@ -166,8 +215,11 @@ def schema_hash(d: dict) -> int:
     Documentation is left out, so a reworded `doc` does not split a fleet; names, ids,
     types, units, enum values and parameter ids and limits are in.
     """
+    wire_facts: dict[str, dict] = {}
+    for name, table in WIRE_FACTS.items():
+        wire_facts.setdefault(table, {})[name] = d["vehicle"][name]
     canon = {
-        "protocol": d["protocol"],
+        "protocol": {**d["protocol"], **wire_facts["protocol"]},
         "messages": [
             {"name": m["name"], "id": m["id"], "direction": m["direction"],
              "fields": [[f["name"], f["type"], f.get("count", 1), f.get("unit", "")] for f in m["fields"]]}
@@ -177,14 +229,14 @@ def schema_hash(d: dict) -> int:
                   for e in d.get("enums", [])],
         "params": [[p["id"], p["name"], p["unit"], p["min"], p["max"]] for p in d.get("params", [])],
         "signing": {k: v for k, v in d["signing"].items()},
-        "sensors": d["sensors"],
+        "sensors": wire_facts["sensors"],
     }
     text = json.dumps(canon, sort_keys=True, separators=(",", ":"))
     return binascii.crc32(text.encode()) & 0xFFFFFFFF
 
 
-def banner(comment: str) -> str:
-    return (f"{comment} GENERATED by protocol/generate.py from protocol/messages.toml. Do not edit:\n"
+def banner(comment: str, source: str = "protocol/messages.toml") -> str:
+    return (f"{comment} GENERATED by protocol/generate.py from {source}. Do not edit:\n"
             f"{comment} change the definition and run `python3 protocol/generate.py`.\n")
 
 
@@ -425,17 +477,14 @@ def render_param_table(d: dict) -> str:
 def render_cpp(d: dict) -> str:
     p = d["protocol"]
     max_raw = HEADER_BYTES + p["max_payload"] + CRC_BYTES
-    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "progmem.h"\n', '#include "wire_layout.h"\n\n',
+    out = [banner("//"), "#pragma once\n", "#include <stdint.h>\n", '#include "progmem.h"\n',
+           '#include "vehicle_gen.h"  // the vehicle\'s facts (kUartBufferBytes, kSonarMaxRangeMm, ...)\n',
+           '#include "wire_layout.h"\n\n',
            "namespace rovernav {\n\n",
            f"enum : uint8_t {{ kProtocolVersion = {p['version']} }};\n",
            f"static const uint32_t kSchemaHash = 0x{d['schema_hash']:08X}UL;\n",
            f"enum : uint8_t {{\n  kMaxPayload = {p['max_payload']},\n  kMaxRawFrame = {max_raw},  // header + payload + CRC\n"
-           f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']},\n"
-           f"  kUartBufferBytes = {p['uart_buffer_bytes']}  // the Uno's serial buffers: a whole frame fits\n}};\n\n",
-           "// The sensors' facts ([sensors] in protocol/messages.toml).\nenum : uint16_t {\n"
-           + ",\n".join(f"  k{camel(k)} = {v}" for k, v in d["sensors"].items()) + "\n};\n\n",
-           "// The rover's body ([body] in protocol/messages.toml).\nenum : uint16_t {\n"
-           + ",\n".join(f"  kBody{camel(k)} = {v}" for k, v in d["body"].items()) + "\n};\n\n"]
+           f"  kMaxWaypoints = {p['max_waypoints']},\n  kWaypointsPerChunk = {p['waypoints_per_chunk']}\n}};\n\n"]
     sig = d["signing"]
     by_name = {m["name"]: m["id"] for m in d["messages"]}
     out.append("// Signed frames ([signing] in protocol/messages.toml).\n"
@@ -469,6 +518,12 @@ def render_cpp(d: dict) -> str:
         out.append(f"  {camel(prm['name'])} = {prm['id']},  ///< [{prm['unit']}] {prm['doc']}\n")
     out.append("};\n")
     out.append(f"enum : uint8_t {{ kParamMaxId = {max(x['id'] for x in d['params'])} }};\n\n")
+    scaled = [prm for prm in d.get("params", []) if param_scale(prm["name"]) != 1]
+    out.append("/// A parameter's scale, from its name: the wire's integer is the working value times this\n"
+               "/// (_x100: 100, _x1000 and _permille: 1000; 1 for the rest). For constants only.\n"
+               "constexpr uint16_t param_scale(Param p) {\n  return "
+               + "".join(f"p == Param::{camel(prm['name'])} ? {param_scale(prm['name'])} :\n         "
+                         for prm in scaled) + "1;\n}\n\n")
     out.append(render_param_table(d))
     out.append("namespace msg {\n\n"
                "// Each message's bytes are its payload on the wire (fields in order, little-endian, no\n"
@@ -512,6 +567,7 @@ def render_py(d: dict) -> str:
     out = [banner("#"), '"""The link protocol\'s messages, enums and parameters (generated)."""\n',
            "from __future__ import annotations\n\n",
            "import dataclasses\nimport enum\nimport struct\nfrom typing import ClassVar\n\n",
+           "from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the link reads it here)\n",
            "from .schema import FieldSpec, Message, ParamSpec\n\n",
            f"PROTOCOL_VERSION = {p['version']}\n",
            f"SCHEMA_HASH = 0x{d['schema_hash']:08X}\n",
@@ -534,11 +590,7 @@ def render_py(d: dict) -> str:
            f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",
            f"MAX_WAYPOINTS = {p['max_waypoints']}\n",
            f"WAYPOINTS_PER_CHUNK = {p['waypoints_per_chunk']}\n",
-           f"UART_BUFFER_BYTES = {p['uart_buffer_bytes']}   # the Uno's serial buffers: a whole frame fits\n",
-           "# The sensors' facts ([sensors] in protocol/messages.toml).\n"
-           + "".join(f"{k.upper()} = {v}\n" for k, v in d["sensors"].items()) + "\n",
-           "# The rover's body ([body] in protocol/messages.toml).\n"
-           + "".join(f"BODY_{k.upper()} = {v}\n" for k, v in d["body"].items()) + "\n"]
+           "\n"]
     for e in d.get("enums", []):
         base = "enum.IntFlag" if e.get("bitmask") else "enum.IntEnum"
         out.append(f"\nclass {camel(e['name'])}({base}):\n    \"\"\"{e.get('doc', '')}\"\"\"\n\n")
@@ -551,8 +603,10 @@ def render_py(d: dict) -> str:
         out.append(f"    {prm['name'].upper()} = {prm['id']}\n")
     out.append("\n\nPARAMS: dict[Param, ParamSpec] = {\n")
     for prm in d.get("params", []):
+        scale = param_scale(prm["name"])
         out.append(f"    Param.{prm['name'].upper()}: ParamSpec({prm['id']}, {prm['name']!r}, {prm['unit']!r}, "
-                   f"{prm['default']}, {prm['min']}, {prm['max']}, {prm['doc']!r}),\n")
+                   f"{prm['default']}, {prm['min']}, {prm['max']}, {prm['doc']!r}"
+                   + (f", scale={scale}" if scale != 1 else "") + "),\n")
     out.append("}\n")
     for m in d["messages"]:
         fmt = "<" + "".join(TYPES[f["type"]][1] * f.get("count", 1) for f in m["fields"])
@@ -708,9 +762,56 @@ def _uncobs(data: bytes) -> bytes:
     return bytes(out)
 
 
+# ---------------------------------------------------------------- the vehicle's facts
+
+def _cpp_type(value: int) -> tuple[str, str]:
+    return ("uint16_t", "") if value <= 0xFFFF else ("uint32_t", "UL")
+
+
+def _wrap(text: str, prefix: str, width: int = 100) -> str:
+    lines, line = [], ""
+    for word in text.split():
+        if line and len(prefix) + len(line) + 1 + len(word) > width:
+            lines.append(prefix + line)
+            line = word
+        else:
+            line = f"{line} {word}" if line else word
+    lines.append(prefix + line)
+    return "\n".join(lines) + "\n"
+
+
+def render_vehicle_h(d: dict) -> str:
+    out = [banner("//", "protocol/vehicle.toml"),
+           "// The rover's and the board's facts: one definition for the firmware (core, hal, shell), the\n"
+           "// host and the simulator. Derived values (half-widths, diagonals) are computed from these.\n",
+           "#pragma once\n#include <stdint.h>\n\nnamespace rovernav {\n\n"]
+    for f in d["vehicle_facts"]:
+        ctype, suffix = _cpp_type(f["value"])
+        out.append(_wrap(f["doc"], "/// "))
+        out.append(f"constexpr {ctype} k{camel(f['name'])} = {f['value']}{suffix};\n")
+    out.append("\n}  // namespace rovernav\n")
+    return "".join(out)
+
+
+def render_vehicle_py(d: dict) -> str:
+    out = [banner("#", "protocol/vehicle.toml"),
+           '"""The rover\'s and the board\'s facts (generated from protocol/vehicle.toml).\n\n'
+           "One definition for the firmware, the host and the simulator; each name ends in its unit.\n"
+           'Derived values (metres, half-widths, diagonals) are computed from these where they are used.\n"""\n']
+    for f in d["vehicle_facts"]:
+        out.append("\n" + _wrap(f["doc"], "#: "))
+        out.append(f"{f['name'].upper()} = {f['value']}\n")
+    out.append("\nFACTS: dict[str, int] = {\n")
+    for f in d["vehicle_facts"]:
+        out.append(f"    {f['name']!r}: {f['name'].upper()},\n")
+    out.append("}\n")
+    return "".join(out)
+
+
 def outputs(d: dict) -> dict[Path, str]:
     vectors = json.loads(VECTORS.read_text())
-    return {OUT_CPP: render_cpp(d), OUT_PY: render_py(d), OUT_VECTORS_H: render_vectors_h(d, vectors)}
+    return {OUT_CPP: render_cpp(d), OUT_PY: render_py(d), OUT_VECTORS_H: render_vectors_h(d, vectors),
+            OUT_VEHICLE_H: render_vehicle_h(d), OUT_VEHICLE_PY: render_vehicle_py(d)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -721,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         d = load()
     except DefinitionError as exc:
-        print(f"protocol/messages.toml: {exc}", file=sys.stderr)
+        print(f"protocol/messages.toml or protocol/vehicle.toml: {exc}", file=sys.stderr)
         return 2
     if args.update_vectors:
         vectors = update_vectors(d, json.loads(VECTORS.read_text()))
@@ -742,7 +843,7 @@ def main(argv: list[str] | None = None) -> int:
         if update_vectors(d, json.loads(VECTORS.read_text())) != vectors:
             drifted.append(str(VECTORS.relative_to(ROOT)) + " (its computed bytes: run --update-vectors)")
         if drifted:
-            print("generated files drifted from protocol/messages.toml: " + ", ".join(drifted)
+            print("generated files drifted from protocol/messages.toml and protocol/vehicle.toml: " + ", ".join(drifted)
                   + "\nrun: python3 protocol/generate.py", file=sys.stderr)
             return 1
         print(f"generated files match the definition (schema hash 0x{d['schema_hash']:08X})")

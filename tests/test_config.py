@@ -12,6 +12,7 @@ import pytest
 
 from tests.core_transport import firmware_hello
 
+from rovernav import vehicle_gen as vehicle
 from rovernav.config import ConfigError, config_from_dict, load_config
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
@@ -20,8 +21,8 @@ from rovernav.link.transport import PtyTransport
 
 def test_defaults_are_the_seeds_set_up():
     cfg = load_config(None)
-    assert (cfg.arena.width_m, cfg.arena.height_m) == (2.36, 1.75)
-    assert cfg.link.baud == 57600
+    assert (cfg.arena.width_m, cfg.arena.height_m) == (vehicle.DEFAULT_ARENA_WIDTH_MM / 1000, vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000)
+    assert cfg.link.baud == vehicle.LINK_BAUD
     assert cfg.vision.markers == "colour" and cfg.vision.hsv.rover_back == ((55, 50, 50), (80, 255, 255))
     assert cfg.planner.resolution_m == 0.03 and cfg.planner.robot_radius_m == 0.12
 
@@ -46,7 +47,7 @@ def test_a_full_file_is_read(tmp_path):
     ({"vision": {"markers": "lasers"}}, "vision.markers"),
     ({"planner": {"resolution_m": -0.1}}, "[planner]"),
     ({"warp": {}}, "unknown section [warp]"),
-    # The sensor's facts, once ([sensors] in protocol/messages.toml): no report range past what
+    # The sensor's facts, once (protocol/vehicle.toml): no report range past what
     # the HC-SR04 driver measures, no beam wider than the rover's parameter takes.
     ({"rover": {"sonar_report_mm": 4000}}, "sonar_report_mm = 4000 is outside [50, 1000]"),
     ({"planner": {"sonar_max_range_m": 4.0}}, "sonar_max_range_m is gone: the sensor's range is the protocol's"),
@@ -144,4 +145,4 @@ def test_a_report_range_past_the_sensor_s_is_refused_in_one_line_exit_2(tmp_path
     assert main(["sim", "--config", str(f)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sonar_report_mm = 4000 is outside [50, 1000] (mm)" in err[0]
-    assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == mg.SONAR_MAX_RANGE_MM == 1000
+    assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == vehicle.SONAR_MAX_RANGE_MM

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from rovernav import vehicle_gen as vehicle
 from rovernav.mapping import SensorModel, SonarMap, SonarReading
 from rovernav.mission.learned_map import LearnedMap, read_map_file
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
@@ -204,7 +205,7 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
 
 def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_claims():
     # An old map file (or a rover told to report out to 4 m) says "no echo within 4 m"; the
-    # HC-SR04's driver measures nothing past the protocol's [sensors] range, 1 m.
+    # HC-SR04's driver measures nothing past the sensor's range (protocol/vehicle.toml), 1 m.
     from rovernav.link import messages_gen as mg
     from rovernav.mapping.sonar_map import SonarMap, SonarReading
 
@@ -212,7 +213,7 @@ def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_cla
     m.update(SonarReading(0.2, 0.5, 90.0, 0.0, None, 4.0))   # facing +x from x = 0.2 (sensor at 0.3)
     free = m.logodds < 0
     xs_free = m.xs[free.any(axis=0)]
-    assert xs_free.max() <= 0.3 + mg.SONAR_MAX_RANGE_MM / 1000 + 0.03
+    assert xs_free.max() <= 0.3 + vehicle.SONAR_MAX_RANGE_MM / 1000 + 0.03
     assert xs_free.max() > 1.2   # it does clear out to the sensor's range
 
 

@@ -29,8 +29,8 @@ namespace {
 
 using namespace rovernav;
 
-constexpr uint8_t kStepMs = 10;  // the core runs at 100 Hz
-constexpr uint8_t kRxChunk = 64;
+constexpr uint8_t kStepMs = kStepPeriodMs;       // protocol/vehicle.toml: the core runs at 100 Hz
+constexpr uint8_t kRxChunk = kUartBufferBytes;   // a read takes at most what the RX buffer holds
 
 core::Rover rover;
 core::Outputs out;

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from . import vehicle_gen as vehicle
 from .link import messages_gen as mg
 from .mission import Detection
 from .mission.core import Failure
@@ -40,7 +41,7 @@ MIN_FRAMES_MEASURED = 40
 #: Share of camera frames in which the rover must be found.
 MIN_FOUND = 0.8
 #: The parameters the probe sets: echoes reported out to the sensor's range, a sweep before it moves.
-PROBE_PARAMS = [(mg.Param.SONAR_REPORT_MM, mg.SONAR_MAX_RANGE_MM), (mg.Param.SWEEP_AT_START, 1)]
+PROBE_PARAMS = [(mg.Param.SONAR_REPORT_MM, vehicle.SONAR_MAX_RANGE_MM), (mg.Param.SWEEP_AT_START, 1)]
 FAULTS = ("dead-gyro", "sonar-unwired", "motor-reversed", "no-markers", "radio-loss-20")
 
 
@@ -159,7 +160,7 @@ def judge(mission, watch: CameraWatch, elapsed_s: float, start_pose) -> list[Che
         lines.append(CheckLine("sonar", "not checked", blocked))
         lines.append(CheckLine("servo", "not checked", blocked))
     elif not echoes:
-        lines.append(CheckLine("sonar", "FAIL", f"no echo in {len(readings)} pings out to {mg.SONAR_MAX_RANGE_MM / 1000:g} m, where the floor answers "
+        lines.append(CheckLine("sonar", "FAIL", f"no echo in {len(readings)} pings out to {vehicle.SONAR_MAX_RANGE_MM / 1000:g} m, where the floor answers "
                                                 "from 0.65 m: check the HC-SR04's wiring (TRIG A1, ECHO A0, 5 V, GND)"))
         lines.append(CheckLine("servo", "not checked", "no echoes to compare across bearings"))
     else:

@@ -25,6 +25,7 @@ import sys
 
 from . import __version__
 from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, number, output_file, port_spec, seconds
+from .vehicle_gen import LINK_BAUD
 
 log = logging.getLogger("rovernav")
 
@@ -240,12 +241,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends, or soak the radio",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description=sk.wrap("Open PORT at 57,600 baud, exchange HELLO with the rover (checking that "
+                       description=sk.wrap(f"Open PORT at {LINK_BAUD:,} baud, exchange HELLO with the rover (checking that "
                                            "both were built from the same protocol definition), then print every "
                                            "message the rover sends for a few seconds, and the link's error "
                                            "counters.") + "\n\n" + sk.help_text())
     p.add_argument("--port", required=True, type=port_spec,
-                   help="serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@57600")
+                   help=f"serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@{LINK_BAUD}")
     p.add_argument("--seconds", type=seconds(3600.0), default=None,
                    help="how long to listen after the HELLO, 0 to 3600 (default 3)")
     p.add_argument("--soak", type=number(sk.MIN_SOAK_S, sk.MAX_SOAK_S), metavar="SECONDS",

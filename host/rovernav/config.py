@@ -22,6 +22,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from . import vehicle_gen as vehicle
 from .errors import InputError
 from .link import messages_gen as mg
 from .validate import MAX_ARENA_M, MAX_TRIPS, check_number, read_text_file
@@ -33,14 +34,14 @@ class ConfigError(InputError):
 
 @dataclasses.dataclass(frozen=True)
 class ArenaConfig:
-    width_m: float = 2.36   # the seed's test area
-    height_m: float = 1.75
+    width_m: float = vehicle.DEFAULT_ARENA_WIDTH_MM / 1000.0   # the seed's test area (protocol/vehicle.toml)
+    height_m: float = vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000.0
 
 
 @dataclasses.dataclass(frozen=True)
 class LinkConfig:
     port: str = ""
-    baud: int = 57600
+    baud: int = vehicle.LINK_BAUD
     key_file: str = ""   # the link key for signed frames (`rovernav keygen`, stored on the rover by `rovernav provision`)
 
 
@@ -149,7 +150,7 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         raise ConfigError(f"{where}[vision] {exc}") from None
     if isinstance(data.get("planner"), dict) and "sonar_max_range_m" in data["planner"]:
         raise ConfigError(f"{where}[planner] sonar_max_range_m is gone: the sensor's range is the protocol's "
-                          f"([sensors] sonar_max_range_mm = {mg.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
+                          f"(protocol/vehicle.toml: sonar_max_range_mm = {vehicle.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
                           "far the rover reports")
     try:
         planner = PlannerConfig.from_dict(data.get("planner", {}))
@@ -198,7 +199,7 @@ def _check_pose_gains(rover: dict, where: str) -> None:
     keys = (mg.Param.POSE_K_RHO_X1000, mg.Param.POSE_K_ALPHA_X1000, mg.Param.POSE_K_BETA_X1000)
     if not any(k in rover for k in keys):
         return
-    k_rho, k_alpha, k_beta = (rover.get(k, mg.PARAMS[k].default) / 1000.0 for k in keys)
+    k_rho, k_alpha, k_beta = (mg.PARAMS[k].to_value(rover.get(k, mg.PARAMS[k].default)) for k in keys)
     try:
         PoseGains(k_rho=k_rho, k_alpha=k_alpha, k_beta=k_beta)
     except ValueError as exc:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from .errors import SetupError
 from .validate import check_number
+from .vehicle_gen import LINK_BAUD
 
 log = logging.getLogger("rovernav.demo")
 
@@ -133,7 +134,7 @@ def run_demo(seconds: float = 3.0) -> int:
     proc, pty = start_avrsim(elf, speed=1.0)
     print(f"booted build/uno/firmware.elf in simavr (ATmega328P, 16 MHz); its serial port is {pty}")
     try:
-        with SerialTransport(pty, 57600) as transport:
+        with SerialTransport(pty, LINK_BAUD) as transport:
             link = Link(transport)
             talk_to_rover(link, seconds, 5.0, " (no gyro is simulated: the rover must say so, not hang)")
     finally:

@@ -4,10 +4,12 @@
 #pragma once
 #include <stdint.h>
 
+#include "vehicle_gen.h"
+
 namespace rovernav {
 namespace core {
 
-enum : uint8_t { kTxPerStep = 64 };  // at most this many bytes leave per step
+enum : uint8_t { kTxPerStep = kUartBufferBytes };  // at most this many bytes leave per step: the TX buffer
 
 struct Inputs {
   uint32_t now_ms;            ///< monotonic time; wraps after 49 days

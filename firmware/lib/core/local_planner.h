@@ -24,6 +24,8 @@
 #pragma once
 #include <stdint.h>
 
+#include "body.h"
+
 namespace rovernav {
 namespace core {
 
@@ -72,7 +74,7 @@ class LocalPlanner {
   /// centre, that runs on alongside the rover. An echo kBehindMm or more behind p counts for
   /// nothing. The fresh echoes only (a kept one is no longer abeam of the sonar).
   bool beside(Point p, int16_t fx_q8, int16_t fy_q8, uint16_t clearance_mm) const;
-  enum : int16_t { kFaceRunMm = 250, kSideReachMm = 140, kHalfWidthMm = 75, kBehindMm = 130 };
+  enum : int16_t { kFaceRunMm = 250, kSideReachMm = 140, kHalfWidthMm = kBodyHalfWidthMm, kBehindMm = 130 };
   /// Plans from start round the disks to goal. Writes the detour's waypoints (turning points,
   /// the goal last) to out and returns how many (1..kMaxDetour), or 0 when there is no way on
   /// the grid. scratch: kScratchBytes bytes the planner may use.

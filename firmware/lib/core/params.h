@@ -25,12 +25,12 @@ class Params {
   /// one, two or four bytes.
   ROVERNAV_NOINLINE int32_t raw(Param p) const;
 
-  float kp() const { return hundredths(Param::PidKpX100); }         // PWM per degree
-  float ki() const { return hundredths(Param::PidKiX100); }         // PWM per degree-second
-  float kd() const { return hundredths(Param::PidKdX100); }         // PWM per degree/second
+  float kp() const { return unscaled<Param::PidKpX100>(); }         // PWM per degree
+  float ki() const { return unscaled<Param::PidKiX100>(); }         // PWM per degree-second
+  float kd() const { return unscaled<Param::PidKdX100>(); }         // PWM per degree/second
   float pid_out_max_pwm() const { return as_float(Param::PidOutMaxPwm); }
   PidGains pid_gains() const { return {kp(), ki(), kd(), pid_out_max_pwm()}; }
-  float right_bias() const { return thousandths(Param::RightBiasPermille); }
+  float right_bias() const { return unscaled<Param::RightBiasPermille>(); }
   float drive_pwm() const { return as_float(Param::DrivePwm); }
   float cone_tol_mm() const { return as_float(Param::ConeTolMm); }
   float arrival_radius_mm() const { return as_float(Param::ArrivalRadiusMm); }
@@ -45,14 +45,14 @@ class Params {
   float rotate_done_deg() const { return hundredths(Param::RotateDoneCdeg); }
   uint32_t gyro_timeout_ms() const { return static_cast<uint32_t>(raw(Param::GyroTimeoutMs)); }
   int32_t gyro_max_rate_cdeg_s() const { return raw(Param::GyroMaxRateCdegS); }
-  float speed_mm_s_per_pwm() const { return thousandths(Param::SpeedMmSPerPwmX1000); }
+  float speed_mm_s_per_pwm() const { return unscaled<Param::SpeedMmSPerPwmX1000>(); }
   int16_t motor_deadband_pwm() const { return static_cast<int16_t>(raw(Param::MotorDeadbandPwm)); }
-  float wheel_mm_per_tick() const { return thousandths(Param::WheelMmPerTickX1000); }
+  float wheel_mm_per_tick() const { return unscaled<Param::WheelMmPerTickX1000>(); }
   bool pose_law() const { return raw(Param::DriveMode) == static_cast<int32_t>(DriveMode::PoseLaw); }
-  float pose_k_rho() const { return thousandths(Param::PoseKRhoX1000); }      // 1/s
-  float pose_k_alpha() const { return thousandths(Param::PoseKAlphaX1000); }  // 1/s
-  float pose_k_beta() const { return thousandths(Param::PoseKBetaX1000); }    // 1/s
-  float pose_pwm_per_dps() const { return thousandths(Param::PosePwmPerDpsX1000); }
+  float pose_k_rho() const { return unscaled<Param::PoseKRhoX1000>(); }      // 1/s
+  float pose_k_alpha() const { return unscaled<Param::PoseKAlphaX1000>(); }  // 1/s
+  float pose_k_beta() const { return unscaled<Param::PoseKBetaX1000>(); }    // 1/s
+  float pose_pwm_per_dps() const { return unscaled<Param::PosePwmPerDpsX1000>(); }
   uint16_t reflex_ping_ms() const { return static_cast<uint16_t>(raw(Param::ReflexPingMs)); }
   float reflex_margin_mm() const { return as_float(Param::ReflexMarginMm); }
   float sweep_before_turn_deg() const { return as_float(Param::SweepBeforeTurnDeg); }
@@ -69,6 +69,13 @@ class Params {
   float scaled(Param p, float scale) const { return as_float(p) * scale; }
   ROVERNAV_NOINLINE float hundredths(Param p) const { return scaled(p, 0.01f); }
   ROVERNAV_NOINLINE float thousandths(Param p) const { return scaled(p, 0.001f); }
+  /// A scaled parameter's working value: its integer over its scale, which the definition gives
+  /// by its name (param_scale: _x100, _x1000, _permille), chosen at compile time.
+  template <Param P>
+  float unscaled() const {
+    static_assert(param_scale(P) == 100 || param_scale(P) == 1000, "not a parameter scaled by 100 or 1000");
+    return param_scale(P) == 100 ? hundredths(P) : thousandths(P);
+  }
   void store(uint8_t id, int32_t value);
   uint8_t store_[kParamBytes];
 };

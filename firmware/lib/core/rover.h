@@ -10,6 +10,8 @@
 #pragma once
 #include <stdint.h>
 
+#include "body.h"
+
 #include "estimator.h"
 #include "frame.h"
 #include "frame_auth.h"
@@ -186,10 +188,11 @@ class Rover : private RoverFields {
     kKeepNearMm = 350,
     // A kept echo (behind the sensor: no longer a face seen abeam that may run on alongside the
     // body) is within the corners' reach when its point is nearer than this to the centre: the
-    // half-diagonal, 129 mm, and 11 mm for the turn's wobble. Its arc is not added: with it, an
-    // echo seen 0.3 m off (an arc of 40 mm) stopped turns with room to spare, and the back-offs
-    // that followed led 2 of 9 arenas tried into what the rover had passed (seed 1: 22, 30).
-    kCornerReachMm = 140,
+    // half-diagonal (body.h: 129 mm for the seed's body), and 11 mm for the turn's wobble. Its
+    // arc is not added: with it, an echo seen 0.3 m off (an arc of 40 mm) stopped turns with
+    // room to spare, and the back-offs that followed led 2 of 9 arenas tried into what the
+    // rover had passed (seed 1: 22, 30).
+    kCornerReachMm = kBodyHalfDiagonalMm + 11,
     kRememberPingMm = 400,
     // A turn on the spot of more than kTurnLookDeg ends with a look (the reflex's pings on the
     // side turned to, then ahead) before the drive: the sweep before it looked from the old
@@ -197,7 +200,7 @@ class Rover : private RoverFields {
     // inside the body's way, no beam of it covered (seed 1's arena 157).
     kTurnLookDeg = 45,
   };
-  // The corners' reach holds the body ([body] in protocol/messages.toml): its half-diagonal.
+  // The corners' reach holds the body (protocol/vehicle.toml): its half-diagonal.
   static_assert(4L * kCornerReachMm * kCornerReachMm >=
                     static_cast<int32_t>(kBodyLengthMm) * kBodyLengthMm + static_cast<int32_t>(kBodyWidthMm) * kBodyWidthMm,
                 "kCornerReachMm is less than the body's half-diagonal");

@@ -8,6 +8,8 @@
 
 #include <stdint.h>
 
+#include "vehicle_gen.h"   // the vehicle's facts (protocol/vehicle.toml): the baud rate, the sonar's range
+
 namespace rovernav {
 namespace board {
 
@@ -34,7 +36,7 @@ constexpr int8_t kServoClockwiseSign = 1;
 constexpr uint8_t kPinSonarEcho = 14;   // A0
 constexpr uint8_t kPinSonarTrig = 15;   // A1
 constexpr uint16_t kSonarMinIntervalMs = 60;    // datasheet: >= 60 ms between pings
-// (Its range, past which an echo is NoEcho, is the protocol's: kSonarMaxRangeMm, [sensors].)
+// (Its range, past which an echo is NoEcho, is a vehicle fact: kSonarMaxRangeMm, protocol/vehicle.toml.)
 constexpr uint16_t kSpeedOfSoundMmPerMs = 343;  // dry air at 20 C
 
 // --- MPU-6050 on the hardware I2C pins (A4 SDA, A5 SCL). Its INT line is wired to pin 2
@@ -50,8 +52,8 @@ constexpr uint16_t kGyroCalSamples = 100;       // at the 100 Hz sample rate: on
 constexpr uint16_t kGyroCalMaxMs = 2000;        // give up calibrating after this long
 constexpr int32_t kGyroCalMaxSpreadMdps = 3000; // a wider spread means the rover moved
 
-// --- Serial link (3DR radio), 8N1.
-constexpr uint32_t kSerialBaud = 57600;
+// --- Serial link (3DR radio), 8N1, at the vehicle's baud rate (protocol/vehicle.toml).
+constexpr uint32_t kSerialBaud = kLinkBaud;
 
 // --- Status LED.
 constexpr uint8_t kPinLed = 13;

@@ -10,7 +10,7 @@ namespace {
 #ifdef SERIAL_RX_BUFFER_SIZE
 constexpr uint8_t kRxBytes = SERIAL_RX_BUFFER_SIZE;
 #else
-constexpr uint8_t kRxBytes = 64;
+constexpr uint8_t kRxBytes = rovernav::kUartBufferBytes;
 #endif
 #ifdef SERIAL_TX_BUFFER_SIZE
 constexpr uint8_t kTxBytes = SERIAL_TX_BUFFER_SIZE;
@@ -18,7 +18,7 @@ constexpr uint8_t kTxBytes = SERIAL_TX_BUFFER_SIZE;
 constexpr uint8_t kTxBytes = rovernav::kUartBufferBytes;
 #endif
 static_assert(kTxBytes >= rovernav::kUartBufferBytes && kRxBytes >= rovernav::kUartBufferBytes,
-              "a whole frame must fit the serial buffers ([protocol] uart_buffer_bytes)");
+              "a whole frame must fit the serial buffers (uart_buffer_bytes, protocol/vehicle.toml)");
 
 constexpr bool power_of_two_to_128(uint8_t n) { return n >= 2 && n <= 128 && (n & (n - 1)) == 0; }
 static_assert(power_of_two_to_128(kRxBytes), "SERIAL_RX_BUFFER_SIZE: a power of two, 2..128");

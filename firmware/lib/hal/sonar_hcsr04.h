@@ -42,7 +42,7 @@ enum class SonarResult : uint8_t {
 class SonarHcsr04 {
  public:
   static constexpr uint16_t kRiseTimeoutUs = 5000;
-  static constexpr uint16_t kMaxRangeMm = kSonarMaxRangeMm;   // [sensors] in protocol/messages.toml
+  static constexpr uint16_t kMaxRangeMm = kSonarMaxRangeMm;   // protocol/vehicle.toml
 
   // Trigger (A1) an output held low, echo (A0) an input without pull-up, its interrupt on.
   void begin();

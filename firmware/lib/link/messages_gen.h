@@ -3,6 +3,7 @@
 #pragma once
 #include <stdint.h>
 #include "progmem.h"
+#include "vehicle_gen.h"  // the vehicle's facts (kUartBufferBytes, kSonarMaxRangeMm, ...)
 #include "wire_layout.h"
 
 namespace rovernav {
@@ -13,19 +14,7 @@ enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
   kMaxWaypoints = 32,
-  kWaypointsPerChunk = 8,
-  kUartBufferBytes = 64  // the Uno's serial buffers: a whole frame fits
-};
-
-// The sensors' facts ([sensors] in protocol/messages.toml).
-enum : uint16_t {
-  kSonarMaxRangeMm = 1000
-};
-
-// The rover's body ([body] in protocol/messages.toml).
-enum : uint16_t {
-  kBodyLengthMm = 210,
-  kBodyWidthMm = 150
+  kWaypointsPerChunk = 8
 };
 
 // Signed frames ([signing] in protocol/messages.toml).
@@ -161,7 +150,7 @@ enum class Param : uint8_t {
   ArrivalRadiusMm = 8,  ///< [mm] a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)
   SweepIntervalMm = 9,  ///< [mm] distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)
   SweepStepMs = 10,  ///< [ms] time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)
-  SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range ([sensors])
+  SonarReportMm = 11,  ///< [mm] echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range (protocol/vehicle.toml)
   FixTimeoutMs = 12,  ///< [ms] no FIX for this long: dead reckoning
   RadioTimeoutMs = 13,  ///< [ms] no valid frame at all for this long: radio lost
   DrMaxDistanceMm = 14,  ///< [mm] hold after driving this far without a fix
@@ -188,6 +177,22 @@ enum class Param : uint8_t {
   SweepBeforeTurnDeg = 35,  ///< [deg] at a waypoint where the rover must turn on the spot by more than this, it sweeps first (unless it swept within the last 100 mm, facing within 45 degrees of its heading): its corners swing wider than its sides; 0 disables
 };
 enum : uint8_t { kParamMaxId = 35 };
+
+/// A parameter's scale, from its name: the wire's integer is the working value times this
+/// (_x100: 100, _x1000 and _permille: 1000; 1 for the rest). For constants only.
+constexpr uint16_t param_scale(Param p) {
+  return p == Param::PidKpX100 ? 100 :
+         p == Param::PidKiX100 ? 100 :
+         p == Param::PidKdX100 ? 100 :
+         p == Param::RightBiasPermille ? 1000 :
+         p == Param::SpeedMmSPerPwmX1000 ? 1000 :
+         p == Param::WheelMmPerTickX1000 ? 1000 :
+         p == Param::PoseKRhoX1000 ? 1000 :
+         p == Param::PoseKAlphaX1000 ? 1000 :
+         p == Param::PoseKBetaX1000 ? 1000 :
+         p == Param::PosePwmPerDpsX1000 ? 1000 :
+         1;
+}
 
 /// Where each parameter's value lies in the rover's store of kParamBytes bytes, by id - 1 (0xFF: no
 /// such parameter). A value takes the least width its limits allow, little-endian, the widest first:

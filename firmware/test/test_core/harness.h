@@ -65,11 +65,12 @@ struct Plant {
 
 class Bench {
  public:
-  enum : uint16_t { kRxPerStep = 57 };
+  // What the line brings in one step: 10 bits a byte (8N1).
+  enum : uint16_t { kRxPerStep = static_cast<uint32_t>(kLinkBaud) / 10 * kStepPeriodMs / 1000 };
   core::Rover rover;
   Plant plant;
   uint32_t now_ms = 1000;
-  uint16_t step_ms = 10;
+  uint16_t step_ms = kStepPeriodMs;
   bool gyro_alive = true;
   int32_t gyro_override_mdps = 0;
   bool gyro_override = false;
@@ -223,11 +224,11 @@ class Bench {
       h.path_id = host_path_id;
       send_auto(h);
     }
-    // 57,600 baud brings about 57 bytes in a 10 ms step; the rest waits for the next one.
+    // The line brings about kRxPerStep bytes in a step (57 at 57,600 baud); the rest waits for the next one.
     const uint16_t chunk = rx_len_ < kRxPerStep ? rx_len_ : static_cast<uint16_t>(kRxPerStep);
     in.rx = rx_;
     in.rx_len = radio ? static_cast<uint8_t>(chunk) : 0;
-    in.tx_room = 64;
+    in.tx_room = kUartBufferBytes;
     rover.step(in, out);
     memmove(rx_, rx_ + chunk, rx_len_ - chunk);
     rx_len_ = static_cast<uint16_t>(rx_len_ - chunk);

@@ -134,7 +134,7 @@ TEST_CASE("a sonar that never answers costs a timeout per step, and the rover go
   for (int i = 0; i < 500 && b.rover.state() == RoverState::Scan; ++i) {
     in.now_ms = t;
     in.gyro_valid = true;
-    in.tx_room = 64;
+    in.tx_room = kUartBufferBytes;
     b.rover.step(in, out);
     t += 10;
   }

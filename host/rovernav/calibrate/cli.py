@@ -11,6 +11,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..link import messages_gen as mg
 from ..validate import number, output_file
+from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 from . import camera as cc
 
 HELP = """\
@@ -82,7 +83,8 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
                    help="the arena's corners in the frame, in pixels (bottom-left, bottom-right, top-right, top-left), "
                         "instead of corner tags")
     c.add_argument("--arena-size", nargs=2, type=number(0.0, 100.0, lo_open=True), metavar=("W", "H"),
-                   help="arena width and height in metres (default: the configuration's [arena], else 2.36 1.75)")
+                   help="arena width and height in metres (default: the configuration's [arena], else "
+                        f"{DEFAULT_ARENA_WIDTH_MM / 1000:g} {DEFAULT_ARENA_HEIGHT_MM / 1000:g})")
     words = sorted(cc.COLOUR_BANDS)
     for flag, role in (("--front", "rover's front"), ("--back", "rover's back"), ("--target", "target")):
         c.add_argument(flag, choices=words, metavar="COLOUR",
@@ -270,7 +272,7 @@ def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> N
             raise InputError(f"{path}: [{name}] is not a table, so it cannot be updated")
     if "arena" not in doc:
         doc["arena"] = {"width_m": arena[0], "height_m": arena[1]}
-    have = (doc["arena"].get("width_m", 2.36), doc["arena"].get("height_m", 1.75))
+    have = (doc["arena"].get("width_m", DEFAULT_ARENA_WIDTH_MM / 1000.0), doc["arena"].get("height_m", DEFAULT_ARENA_HEIGHT_MM / 1000.0))
     if any(abs(float(a) - b) > 1e-3 for a, b in zip(have, arena)):
         raise InputError(f"{path}: its [arena] is {have[0]} x {have[1]} m, the calibration's {arena[0]:g} x "
                          f"{arena[1]:g} m: give the same --arena-size, or change [arena] first")

@@ -42,6 +42,10 @@ import statistics
 
 from ..angles import wrap_deg
 from ..link import messages_gen as mg
+from ..vehicle_gen import SONAR_CONE_CDEG
+
+#: The ranger's beam width [degrees] (protocol/vehicle.toml: sonar_cone_cdeg).
+CONE_DEG = SONAR_CONE_CDEG / 100.0
 
 #: Drive commands of the runs [PWM], the length of each run [m].
 LEVELS_PWM = (60, 80, 105)
@@ -160,7 +164,7 @@ class Run:
                     "(was it pushed, or its wheels not stopped?)")
         return _slope_se(rover)
 
-    def sonar_offsets(self, wall: tuple[float, float, float, float], cone_deg: float = 15.0) -> list[float] | str:
+    def sonar_offsets(self, wall: tuple[float, float, float, float], cone_deg: float = CONE_DEG) -> list[float] | str:
         """The sonar's offset [m] from each echo of this run's sweep square to `wall` (x0, y0, x1,
         y1 of its face), with the rover's centre and heading from the camera while it swept; or
         why none. An echo off the wall's face square to the beam (within SQUARE_DEG, and the
@@ -272,9 +276,9 @@ class Fit:
 
     def params(self) -> dict[mg.Param, int]:
         """The rover's parameters the fit gives ([rover] table)."""
-        return {mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * self.mm_s_per_pwm),
+        return {mg.Param.SPEED_MM_S_PER_PWM_X1000: mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].to_raw(self.mm_s_per_pwm),
                 mg.Param.MOTOR_DEADBAND_PWM: round(self.deadband_pwm),
-                mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / self.right_gain)}
+                mg.Param.RIGHT_BIAS_PERMILLE: round(mg.PARAMS[mg.Param.RIGHT_BIAS_PERMILLE].scale / self.right_gain)}
 
     def planner(self) -> dict[str, float]:
         """The planner's geometry the fit gives ([planner] table): the sonar's offset, if measured."""
@@ -331,7 +335,7 @@ def _slope(pts: list[tuple[float, float]]) -> float:
     return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx if sxx > 0 else 0.0
 
 
-def fit(runs: list[Run], wall: tuple[float, float, float, float] | None = None, cone_deg: float = 15.0) -> Fit:
+def fit(runs: list[Run], wall: tuple[float, float, float, float] | None = None, cone_deg: float = CONE_DEG) -> Fit:
     """The motors' figures from the runs (CalibrationFailed says why there are none); the gyro's
     scale and bias; and with `wall` (its face, where the first run swept facing it) the sonar's
     offset."""
@@ -375,7 +379,7 @@ def fit(runs: list[Run], wall: tuple[float, float, float, float] | None = None, 
                statistics.median(scales) if scales else None, len(scales), bias, sonar)
 
 
-def sonar_offset(runs: list[Run], wall: tuple[float, float, float, float], cone_deg: float = 15.0,
+def sonar_offset(runs: list[Run], wall: tuple[float, float, float, float], cone_deg: float = CONE_DEG,
                  ) -> tuple[float, float, int] | str:
     """(offset m, spread m, echoes used) over the runs that swept facing the wall: the median of
     their echoes' offsets (Run.sonar_offsets); or why not (the first run's reason)."""

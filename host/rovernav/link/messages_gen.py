@@ -8,6 +8,7 @@ import enum
 import struct
 from typing import ClassVar
 
+from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the link reads it here)
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
@@ -30,13 +31,6 @@ MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50
 MAX_WAYPOINTS = 32
 WAYPOINTS_PER_CHUNK = 8
-UART_BUFFER_BYTES = 64   # the Uno's serial buffers: a whole frame fits
-# The sensors' facts ([sensors] in protocol/messages.toml).
-SONAR_MAX_RANGE_MM = 1000
-
-# The rover's body ([body] in protocol/messages.toml).
-BODY_LENGTH_MM = 210
-BODY_WIDTH_MM = 150
 
 
 class Role(enum.IntEnum):
@@ -235,17 +229,17 @@ class Param(enum.IntEnum):
 
 
 PARAMS: dict[Param, ParamSpec] = {
-    Param.PID_KP_X100: ParamSpec(1, 'pid_kp_x100', 'PWM per degree, x100', 3000, 0, 100000, 'proportional gain of the heading PID (seed: 30)'),
-    Param.PID_KI_X100: ParamSpec(2, 'pid_ki_x100', 'PWM per degree-second, x100', 300, 0, 100000, 'integral gain of the heading PID (seed: 3)'),
-    Param.PID_KD_X100: ParamSpec(3, 'pid_kd_x100', 'PWM-seconds per degree, x100', 500, 0, 100000, 'derivative gain of the heading PID (seed: 5)'),
+    Param.PID_KP_X100: ParamSpec(1, 'pid_kp_x100', 'PWM per degree, x100', 3000, 0, 100000, 'proportional gain of the heading PID (seed: 30)', scale=100),
+    Param.PID_KI_X100: ParamSpec(2, 'pid_ki_x100', 'PWM per degree-second, x100', 300, 0, 100000, 'integral gain of the heading PID (seed: 3)', scale=100),
+    Param.PID_KD_X100: ParamSpec(3, 'pid_kd_x100', 'PWM-seconds per degree, x100', 500, 0, 100000, 'derivative gain of the heading PID (seed: 5)', scale=100),
     Param.PID_OUT_MAX_PWM: ParamSpec(4, 'pid_out_max_pwm', 'PWM', 130, 0, 255, 'clamp on the PID output (seed: 130)'),
-    Param.RIGHT_BIAS_PERMILLE: ParamSpec(5, 'right_bias_permille', 'per mille', 800, 500, 1500, "scale on the right motor's correction, which is the stronger one (seed: 0.8)"),
+    Param.RIGHT_BIAS_PERMILLE: ParamSpec(5, 'right_bias_permille', 'per mille', 800, 500, 1500, "scale on the right motor's correction, which is the stronger one (seed: 0.8)", scale=1000),
     Param.DRIVE_PWM: ParamSpec(6, 'drive_pwm', 'PWM', 70, 0, 255, 'forward drive command (seed: 70)'),
     Param.CONE_TOL_MM: ParamSpec(7, 'cone_tol_mm', 'mm', 18, 1, 1000, 'tolerance cone half-width: re-rotate when |heading error| > atan(cone_tol_mm / L) (seed: 5 px = 18 mm)'),
     Param.ARRIVAL_RADIUS_MM: ParamSpec(8, 'arrival_radius_mm', 'mm', 36, 5, 300, "a waypoint is reached within this distance (seed: 10 px = 36 mm; at most 300 mm, beyond which 'arrived' would not mean at the target)"),
     Param.SWEEP_INTERVAL_MM: ParamSpec(9, 'sweep_interval_mm', 'mm', 300, 0, 10000, 'distance travelled between sonar sweeps; 0 disables sweeps (seed: 0.3 m)'),
     Param.SWEEP_STEP_MS: ParamSpec(10, 'sweep_step_ms', 'ms', 90, 20, 5000, 'time per 15-degree sweep step: servo travel and settle before the ping (seed: 1000)'),
-    Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1000, "echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range ([sensors])"),
+    Param.SONAR_REPORT_MM: ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1000, "echoes within this range are reported as OBSTACLE, farther ones as a clear cone (seed: 0.4 m; floor echoes beyond ~0.65 m); at most the sensor's range (protocol/vehicle.toml)"),
     Param.FIX_TIMEOUT_MS: ParamSpec(12, 'fix_timeout_ms', 'ms', 500, 50, 60000, 'no FIX for this long: dead reckoning'),
     Param.RADIO_TIMEOUT_MS: ParamSpec(13, 'radio_timeout_ms', 'ms', 1000, 100, 60000, 'no valid frame at all for this long: radio lost'),
     Param.DR_MAX_DISTANCE_MM: ParamSpec(14, 'dr_max_distance_mm', 'mm', 1500, 0, 100000, 'hold after driving this far without a fix'),
@@ -255,13 +249,13 @@ PARAMS: dict[Param, ParamSpec] = {
     Param.ROTATE_DONE_CDEG: ParamSpec(18, 'rotate_done_cdeg', 'cdeg', 100, 10, 3000, 'rotation is done within this heading error (seed: 1 degree)'),
     Param.GYRO_TIMEOUT_MS: ParamSpec(19, 'gyro_timeout_ms', 'ms', 50, 5, 1000, 'no gyro sample for this long is a fault'),
     Param.GYRO_MAX_RATE_CDEG_S: ParamSpec(20, 'gyro_max_rate_cdeg_s', 'cdeg/s', 50000, 1000, 200000, 'a gyro rate beyond this is implausible for the rover: a fault'),
-    Param.SPEED_MM_S_PER_PWM_X1000: ParamSpec(21, 'speed_mm_s_per_pwm_x1000', 'mm/s per PWM above the dead band, x1000', 2000, 0, 100000, 'speed model for dead reckoning without encoders; corrected online by fixes'),
+    Param.SPEED_MM_S_PER_PWM_X1000: ParamSpec(21, 'speed_mm_s_per_pwm_x1000', 'mm/s per PWM above the dead band, x1000', 2000, 0, 100000, 'speed model for dead reckoning without encoders; corrected online by fixes', scale=1000),
     Param.MOTOR_DEADBAND_PWM: ParamSpec(22, 'motor_deadband_pwm', 'PWM', 30, 0, 255, 'commands below this do not move a wheel'),
-    Param.WHEEL_MM_PER_TICK_X1000: ParamSpec(23, 'wheel_mm_per_tick_x1000', 'mm per encoder tick, x1000', 0, 0, 100000, '0 = no wheel encoders fitted'),
-    Param.POSE_K_RHO_X1000: ParamSpec(24, 'pose_k_rho_x1000', '1/s, x1000', 500, 1, 100000, 'moving-to-a-pose gain K_rho: forward speed per metre to the goal'),
-    Param.POSE_K_ALPHA_X1000: ParamSpec(25, 'pose_k_alpha_x1000', '1/s, x1000', 1500, 1, 100000, 'moving-to-a-pose gain K_alpha (K_alpha > K_rho)'),
-    Param.POSE_K_BETA_X1000: ParamSpec(26, 'pose_k_beta_x1000', '1/s, x1000', -400, -100000, -1, 'moving-to-a-pose gain K_beta (negative)'),
-    Param.POSE_PWM_PER_DPS_X1000: ParamSpec(27, 'pose_pwm_per_dps_x1000', 'PWM per degree/second of yaw rate, x1000', 500, 0, 100000, 'pose law: wheel command difference (each side) per degree/second of turn asked'),
+    Param.WHEEL_MM_PER_TICK_X1000: ParamSpec(23, 'wheel_mm_per_tick_x1000', 'mm per encoder tick, x1000', 0, 0, 100000, '0 = no wheel encoders fitted', scale=1000),
+    Param.POSE_K_RHO_X1000: ParamSpec(24, 'pose_k_rho_x1000', '1/s, x1000', 500, 1, 100000, 'moving-to-a-pose gain K_rho: forward speed per metre to the goal', scale=1000),
+    Param.POSE_K_ALPHA_X1000: ParamSpec(25, 'pose_k_alpha_x1000', '1/s, x1000', 1500, 1, 100000, 'moving-to-a-pose gain K_alpha (K_alpha > K_rho)', scale=1000),
+    Param.POSE_K_BETA_X1000: ParamSpec(26, 'pose_k_beta_x1000', '1/s, x1000', -400, -100000, -1, 'moving-to-a-pose gain K_beta (negative)', scale=1000),
+    Param.POSE_PWM_PER_DPS_X1000: ParamSpec(27, 'pose_pwm_per_dps_x1000', 'PWM per degree/second of yaw rate, x1000', 500, 0, 100000, 'pose law: wheel command difference (each side) per degree/second of turn asked', scale=1000),
     Param.REFLEX_PING_MS: ParamSpec(28, 'reflex_ping_ms', 'ms', 60, 0, 1000, 'while driving, ping straight ahead this often (the HC-SR04 needs ~60 ms between pings); 0 disables the forward reflex'),
     Param.REFLEX_MARGIN_MM: ParamSpec(29, 'reflex_margin_mm', 'mm', 100, 0, 1000, 'the forward reflex stops for an echo on the path nearer than the stopping distance (speed x (ping period + 150 ms of latency and motor lag)) plus this, from the sensor'),
     Param.ROBOT_RADIUS_MM: ParamSpec(30, 'robot_radius_mm', 'mm', 120, 50, 500, "geometry: how far the rover's centre keeps from an obstacle for its body (the seed's robot_radius)"),

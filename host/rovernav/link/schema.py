@@ -34,7 +34,9 @@ class FieldSpec:
 
 @dataclasses.dataclass(frozen=True)
 class ParamSpec:
-    """A parameter set by CONFIG: id, name, unit, default and inclusive limits."""
+    """A parameter set by CONFIG: id, name, unit, default and inclusive limits, and its scale:
+    the wire's integer is the working value times `scale` (the name's _x100, _x1000, _permille;
+    1 for the rest)."""
 
     id: int
     name: str
@@ -43,6 +45,15 @@ class ParamSpec:
     min: int
     max: int
     doc: str
+    scale: int = 1
+
+    def to_value(self, raw: int) -> float:
+        """The working value of the wire's integer `raw` (pid_kp_x100 = 3000: 30.0)."""
+        return raw / self.scale
+
+    def to_raw(self, value: float) -> int:
+        """The wire's integer for the working value `value`, rounded (not checked: see check)."""
+        return round(value * self.scale)
 
     def check(self, value: int) -> int:
         """Return value if it is allowed, else raise ValueError naming the parameter."""

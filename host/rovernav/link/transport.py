@@ -43,12 +43,13 @@ import time
 from types import TracebackType
 
 from ..validate import check_number
+from ..vehicle_gen import LINK_BAUD
 from .errors import LinkClosed, LinkTimeout, PortError, PortSpecError
 
 log = logging.getLogger("rovernav.link")
 
 #: The radio's line rate (3DR 433 MHz telemetry radio) and the Uno's serial speed.
-DEFAULT_BAUD = 57600
+DEFAULT_BAUD = LINK_BAUD
 #: Baud rates a spec may ask for: the slowest standard rate to the fastest USB-serial chips'.
 MIN_BAUD, MAX_BAUD = 50, 4_000_000
 #: Longest spec accepted (a device path; PATH_MAX is 4096 on Linux, 260 on Windows).
@@ -495,7 +496,7 @@ def _why(exc: BaseException) -> str:
 
 # ------------------------------------------------------------------ by name
 
-_SPEC_HELP = "give loop://, pty:// or a serial port such as /dev/ttyUSB0, /dev/ttyUSB0@57600 or COM4"
+_SPEC_HELP = f"give loop://, pty:// or a serial port such as /dev/ttyUSB0, /dev/ttyUSB0@{DEFAULT_BAUD} or COM4"
 
 
 def _check_characters(text: str, spec: str) -> None:
@@ -522,7 +523,7 @@ def parse_serial_spec(spec: str) -> tuple[str, int]:
     """Split "PORT" or "PORT@BAUD" into (port, baud); PortSpecError (a ValueError) naming a bad spec."""
     spec = check_spec(spec)
     if "://" in spec:
-        raise PortSpecError(f"{spec!r} is not a serial port: give one such as /dev/ttyUSB0, /dev/ttyUSB0@57600 or COM4")
+        raise PortSpecError(f"{spec!r} is not a serial port: give one such as /dev/ttyUSB0, /dev/ttyUSB0@{DEFAULT_BAUD} or COM4")
     port, sep, baud_text = spec.rpartition("@")
     if not sep:
         return spec, DEFAULT_BAUD
@@ -534,7 +535,7 @@ def parse_serial_spec(spec: str) -> tuple[str, int]:
     baud = int(baud_text, 10)
     if not MIN_BAUD <= baud <= MAX_BAUD:
         raise PortSpecError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: must be from {MIN_BAUD} "
-                            f"to {MAX_BAUD:,} (a port whose name has '@' in it needs its baud added: NAME@57600)")
+                            f"to {MAX_BAUD:,} (a port whose name has '@' in it needs its baud added: NAME@{DEFAULT_BAUD})")
     return port, baud
 
 

@@ -43,10 +43,11 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
-from ..link.messages_gen import PARAMS, SONAR_MAX_RANGE_MM, Param
+from ..link.messages_gen import PARAMS, Param
+from ..vehicle_gen import BODY_WIDTH_MM, SONAR_MAX_RANGE_MM
 from ..validate import check_grid
 
-#: The sensor's range [m] (the protocol's [sensors]): silence says nothing of what lies past it,
+#: The sensor's range [m] (protocol/vehicle.toml): silence says nothing of what lies past it,
 #: whatever range a reading (or an old map file) claims.
 SENSOR_MAX_RANGE_M = SONAR_MAX_RANGE_MM / 1000.0
 
@@ -79,7 +80,7 @@ class SensorModel:
     occupied_threshold: float = 0.6   # believed occupied at or above this (p >= 0.65)
     clamp_logodds: float = 4.0        # |L| never exceeds this, so a change of world can be learned
     band_m: float = 0.03              # half-thickness of the arc, plus the reading's position sd
-    body_radius_m: float = 0.075      # cells within this of the rover's centre are free (half its width)
+    body_radius_m: float = BODY_WIDTH_MM / 2000.0   # cells within this of the rover's centre are free (half its width)
     clear_cut_cells: bool = False     # silence clears cells the cone's edge only cuts too (the open map)
 
 

@@ -2,7 +2,7 @@
 
 Where its path bends by more than a few degrees the rover stops and turns on the spot, and its
 corners sweep a circle of the body's half-diagonal round the waypoint (0.129 m for the seed's
-0.15 x 0.21 m body: [body] in protocol/messages.toml). That is wider than the robot radius the
+0.15 x 0.21 m body: protocol/vehicle.toml). That is wider than the robot radius the
 planner keeps from obstacles (0.12 m): a path that bends just past the end of a wall, as A*'s
 shortest paths do, asks for a turn the corners cannot make (seed 1's arena 189, where the rover
 turned its front corner into the end of a divider it had passed).
@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
-from ..link.messages_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 from .grid import OccupancyGrid
 
 #: The corners' reach from the centre as the rover turns on the spot [m]: the half-diagonal.

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..link.messages_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM, DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 from ..vision.calibration import Calibration
 from ..vision.config import ARUCO_SIZE_M, MARKER_DISTANCE_M, ROVER_CENTRE_FRACTION, VisionConfig
 
@@ -58,8 +58,8 @@ class Scene:
         "target" (a colour square like that marker) or an int (an ArUco tag with that id).
     """
 
-    arena_w_m: float = 2.36
-    arena_h_m: float = 1.75
+    arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0   # protocol/vehicle.toml
+    arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0
     obstacles: tuple[tuple[float, float, float, float], ...] = ()
     walls: tuple[tuple[float, float, float, float, float], ...] = ()
     posts: tuple[tuple[float, float, float], ...] = ()
@@ -80,7 +80,7 @@ class RoverLook:
     The rover's ArUco tag is centred on the rover centre, its top edge facing forward.
     """
 
-    body_length_m: float = BODY_LENGTH_MM / 1000.0   # [body] in protocol/messages.toml
+    body_length_m: float = BODY_LENGTH_MM / 1000.0   # protocol/vehicle.toml
     body_width_m: float = BODY_WIDTH_MM / 1000.0
     body_offset_m: float = -0.005
     marker_size_m: float = 0.05

@@ -54,6 +54,7 @@ from ..errors import InputError
 from ..link.framing import cobs_decode
 from ..link.messages_gen import MESSAGES
 from ..link.transport import Transport
+from ..vehicle_gen import LINK_BAUD
 
 if TYPE_CHECKING:   # the simulation's generator; this module needs no numpy of its own
     import numpy as np
@@ -70,7 +71,7 @@ _PRUNE_EDGES = 4096
 
 @dataclasses.dataclass(frozen=True)
 class ChannelConfig:
-    baud: int = 57600
+    baud: int = LINK_BAUD           # protocol/vehicle.toml
     delay_s: float = 0.015          # radio modem latency, one way
     byte_loss: float = 0.0          # long-run mean share of the bytes sent that are lost
     bit_error: float = 0.0          # long-run mean share of the bytes sent that arrive with one bit flipped

@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from ..validate import MAX_SIM_TIME_S, input_file, number, out_dir, seconds, time_window
+from ..vehicle_gen import LINK_BAUD
 
 # What a run writes into its folder (and a new run there first removes).
 RESULT_FILES = ("report.json", "summary.png", "video.mp4", "run.mcap", "comparison.json")
@@ -18,7 +19,7 @@ def add_sim_parser(sub) -> None:
         "sim", help="run a mission in the simulator (the main job without hardware)",
         description="Simulate a mission: the firmware core the Uno runs (through its C ABI), a rover plant "
                     "with motor lag and dead band, a drifting gyro, an HC-SR04 on a servo, an overhead camera "
-                    "rendering 640x480 frames that the host's vision code reads, and a 57,600-baud radio; the "
+                    f"rendering 640x480 frames that the host's vision code reads, and a {LINK_BAUD:,}-baud radio; the "
                     "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4, "
                     "summary.png and run.mcap (the run log: open it in Foxglove, or `rovernav replay` it) "
                     "into the output folder; --live shows the run in Foxglove as it happens.",
@@ -68,7 +69,7 @@ def add_sim_parser(sub) -> None:
                         "built for this machine; uno runs the Uno image itself (build/uno/firmware.elf, "
                         "built if missing) in simavr at 16 MHz, with the world on its pins: motor PWM "
                         "registers, the servo's Timer1 pulse, HC-SR04 TRIG/ECHO, an MPU-6050 on the TWI bus, "
-                        "the UART at 57,600 baud. uno runs several times faster than real time (about 9x "
+                        f"the UART at {LINK_BAUD:,} baud. uno runs several times faster than real time (about 9x "
                         "without video on a 2-core machine, native about 15x; the harness skips the image's "
                         "idle polling, cycle-exactly), and adds \"uno_timing\" to report.json: step times per "
                         "state and per flag (from the image's PB0 probe and GPIOR0 step descriptor), the worst "
@@ -155,7 +156,7 @@ def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
     import textwrap
 
     g = p.add_argument_group(
-        "the simulated radio", textwrap.fill(width=100, text="57,600 baud 8N1 (5,760 bytes/s each way), 15 ms modem latency. By default it "
+        "the simulated radio", textwrap.fill(width=100, text=f"{LINK_BAUD:,} baud 8N1 ({LINK_BAUD // 10:,} bytes/s each way), 15 ms modem latency. By default it "
         "loses and corrupts nothing, is full duplex and has no jitter"
         + ("; a configuration's [radio] table (loss_pct, ber_pct, burst_mean_s, burst_share, jitter_ms, "
            "half_duplex) sets the same, and these flags win over it" if config else "")
@@ -181,9 +182,9 @@ def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
                         "exponential, drawn per frame, on top of the 15 ms latency; bytes keep their order (a "
                         "late frame holds up those behind it, as in a serial modem)")
     g.add_argument("--radio-half-duplex", action=argparse.BooleanOptionalAction, default=None,
-                   help="both ends share one 57,600-baud medium, as 433 MHz transparent modems (HC-12, APC220, "
+                   help=f"both ends share one {LINK_BAUD:,}-baud medium, as 433 MHz transparent modems (HC-12, APC220, "
                         "3DR-style) do: bytes on the air from both ends at once collide and both are lost (no "
-                        "carrier sense). Default off (full duplex, each direction its own 57,600 baud, as the "
+                        f"carrier sense). Default off (full duplex, each direction its own {LINK_BAUD:,} baud, as the "
                         "figures so far were made, so that they stay comparable); --no-radio-half-duplex "
                         "overrides a configuration that turns it on")
 

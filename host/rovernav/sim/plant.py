@@ -2,7 +2,7 @@
 
 - Drive: two wheels, each following its PWM command through a dead band and a first-order
   lag, the right motor stronger than the left (the seed compensated with a 0.8 bias), a little
-  speed noise; a differential-drive kinematic model (track 0.13 m).
+  speed noise; a differential-drive kinematic model (its track: protocol/vehicle.toml).
 - Gyro: an MPU6050's yaw rate with white noise and a slowly drifting bias, left over after the
   start-up calibration.
 - Sonar: an HC-SR04 on a servo: the nearest echo inside its 15-degree cone, range noise, and
@@ -27,7 +27,8 @@ import numpy as np
 
 from ..angles import wrap_deg
 from ..mapping.sonar_map import sonar_origin
-from ..link.messages_gen import PARAMS, SONAR_MAX_RANGE_MM, Param
+from ..link.messages_gen import PARAMS, Param
+from ..vehicle_gen import SONAR_MAX_RANGE_MM, WHEEL_TRACK_MM
 from ..planning.config import geometry_m
 from .world import World
 
@@ -38,7 +39,7 @@ class PlantConfig:
     deadband_pwm: float = float(PARAMS[Param.MOTOR_DEADBAND_PWM].default)   # as the firmware assumes
     lag_s: float = 0.08               # motor and inertia
     right_gain: float = 1.10          # the right motor is the stronger
-    track_m: float = 0.13             # distance between the wheels
+    track_m: float = WHEEL_TRACK_MM / 1000.0   # distance between the wheels (protocol/vehicle.toml)
     speed_noise: float = 0.02         # relative, slowly varying (floor, battery)
     gyro_noise_dps: float = 0.05      # white noise of one sample
     gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
@@ -47,7 +48,7 @@ class PlantConfig:
     sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0
     sonar_noise_mm: float = 3.0
     sonar_floor_m: float = 0.65       # floor echoes from beyond here
-    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0   # the driver's last echo ([sensors]): past it, none
+    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0   # the driver's last echo (protocol/vehicle.toml): past it, none
     sonar_max_incidence_deg: float = 40.0   # a flat face further off its normal gives no echo (90: always)
     sonar_rays: int = 7               # rays sampled across the cone
     sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre

@@ -61,7 +61,7 @@ def cruise_speed_m_s(params: list) -> float:
         return p.get(int(param), mg.PARAMS[param].default)
 
     pwm = get(mg.Param.DRIVE_PWM) - get(mg.Param.MOTOR_DEADBAND_PWM)
-    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000
+    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].scale / 1000
 
 
 def build_report(sim, wall_time_s: float) -> dict:

@@ -34,9 +34,10 @@ from ..vision import Locator
 from .channel import ChannelConfig, SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
 from .world import World
+from ..vehicle_gen import STEP_PERIOD_MS
 
 
-STEP_S = 0.010
+STEP_S = STEP_PERIOD_MS / 1000.0   # the rover's step (protocol/vehicle.toml)
 HOST_PERIOD_S = 0.030
 ROVER_CLOCK_SKEW = 0.005   # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
 HOST_BOOT_ID = 0x484F5354   # "HOST": the simulated host's boot id (+1 per restart)

@@ -27,10 +27,10 @@ import math
 
 import numpy as np
 
-from ..link.messages_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 from ..scenario import Post, Wall   # the same in the scenario and the world: one definition each
 
-ROVER_WIDTH_M = BODY_WIDTH_MM / 1000.0    # [body] in protocol/messages.toml
+ROVER_WIDTH_M = BODY_WIDTH_MM / 1000.0    # protocol/vehicle.toml
 ROVER_LENGTH_M = BODY_LENGTH_MM / 1000.0
 HALF_DIAGONAL_M = math.hypot(ROVER_WIDTH_M, ROVER_LENGTH_M) / 2
 

@@ -16,6 +16,7 @@ import warnings
 from pathlib import Path
 
 from ..validate import MAX_ARENA_M, check_number, number
+from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 
 EXIT_FOUND = 0
 EXIT_NOT_FOUND = 1
@@ -50,7 +51,7 @@ def add_locate_parser(subparsers) -> argparse.ArgumentParser:
                         "ranges, ArUco ids, calibration, ...) and [arena] width_m / height_m")
     p.add_argument("--arena-size", nargs=2, type=number(0.0, MAX_ARENA_M, lo_open=True), metavar=("W", "H"),
                    help=f"arena width and height in metres, each > 0 and <= {MAX_ARENA_M:g} (default: the "
-                        "config's [arena], else 2.36 1.75)")
+                        f"config's [arena], else {DEFAULT_ARENA_WIDTH_MM / 1000:g} {DEFAULT_ARENA_HEIGHT_MM / 1000:g})")
     p.add_argument("--json", action="store_true",
                    help='print {"rover": {"x_m", "y_m", "heading_deg"} | null, '
                         '"target": {"x_m", "y_m"} | null, "reason": str | null, "target_reason": str | null} '

@@ -30,6 +30,7 @@ from .aruco_markers import ArucoMarkers
 from .calibration import Calibration, heading_deg
 from .colour_markers import ColourMarkers
 from .config import VisionConfig
+from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 
 
 class RoverPose(NamedTuple):
@@ -87,7 +88,8 @@ class Locator:
     Keeps the last good fix (and its time) for the jump check; `reset()` forgets it.
     """
 
-    def __init__(self, config: VisionConfig | None = None, arena_w_m: float = 2.36, arena_h_m: float = 1.75):
+    def __init__(self, config: VisionConfig | None = None, arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0,
+                 arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0):
         self.config = config or VisionConfig()
         if arena_w_m <= 0 or arena_h_m <= 0:
             raise ValueError(f"arena size {arena_w_m} x {arena_h_m} m: both must be positive")
