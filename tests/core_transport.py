@@ -2,7 +2,7 @@
 Used by the provisioning, Uno, run-log, mission and lossy-exchange tests."""
 from __future__ import annotations
 
-from rovernav.firmware import RoverCore
+from rovernav.cores.native import RoverCore
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.transport import Transport

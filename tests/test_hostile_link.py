@@ -831,13 +831,13 @@ def test_the_hosts_exceptions_are_one_small_tree():
     from rovernav import errors
     from rovernav.config import ConfigError
     from rovernav.demo import DemoError
-    from rovernav.firmware import FirmwareBuildError
+    from rovernav.cores.native import FirmwareBuildError
     from rovernav.link.provision import ProvisionError
     from rovernav.planning import NoPathError, Unreachable
     from rovernav.runlog.replay import LogFileError
     from rovernav.scenario import ScenarioError
     from rovernav.sim.arenas import GenerationFailed
-    from rovernav.sim.uno import UnoSetupError
+    from rovernav.cores.uno import UnoSetupError
 
     branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,
                 errors.MissionFailed)

@@ -13,7 +13,7 @@ import time
 import pytest
 
 from rovernav.cli import main
-from rovernav.firmware import RoverCore
+from rovernav.cores.native import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.link import soak as sk
 from rovernav.link.errors import LinkClosed

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovernav.firmware import RoverCore
+from rovernav.cores.native import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
 from rovernav.link.provision import NeedsConsent, ProvisionError, WrongCurrentKey, provision

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rovernav.angles import heading_cdeg
-from rovernav.firmware import RoverCore, build_library
+from rovernav.cores.native import RoverCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import host_hello
@@ -119,12 +119,12 @@ def test_a_wrong_key_length_is_refused_clearly():
 def test_the_python_structs_are_checked_against_the_librarys_layout():
     import ctypes
 
-    from rovernav.firmware import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
+    from rovernav.cores.native import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
 
     lib = load_library()
     check_layout(lib)   # the real copies agree (load_library checks this too)
 
-    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that firmware.py lacks
+    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that cores/native.py lacks
         _fields_ = [("state", ctypes.c_uint8), ("fault", ctypes.c_uint8), ("flags", ctypes.c_uint32)] + \
             _Probe._fields_[3:]
 

@@ -20,7 +20,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from rovernav.angles import wrap_deg
 from rovernav import hardware
 from rovernav.cli import main
-from rovernav.firmware import RoverCore
+from rovernav.cores.native import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.mission.spec import MissionSpec
 from rovernav.runlog import CHANNELS

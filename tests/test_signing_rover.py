@@ -2,7 +2,7 @@
 what a rover with a key takes and refuses, and a recorded session played back after a reset."""
 from __future__ import annotations
 
-from rovernav.firmware import RoverCore
+from rovernav.cores.native import RoverCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import (FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16,
                                    encode_frame)

@@ -98,7 +98,7 @@ def test_siphash_on_the_avr_image(tmp_path):
     gives the host's tags for every length 0..64 (every block boundary and tail)."""
     import shutil
 
-    from rovernav.sim import uno
+    from rovernav.cores import uno
 
     if shutil.which("avr-g++") is None or uno.missing_packages():
         pytest.skip("the AVR toolchain or simavr is not installed (scripts/test installs them)")

@@ -15,8 +15,8 @@ import pytest
 
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder
-from rovernav.sim import uno
-from rovernav.sim.uno import UnoCore, UnoSetupError, _Regs
+from rovernav.cores import uno
+from rovernav.cores.uno import UnoCore, UnoSetupError, _Regs
 
 
 def _skip_reason() -> str | None:

@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config, config_from_dict
-from ..firmware import RoverCore
+from ..cores.native import RoverCore
 from ..link import messages_gen as mg
 from ..link.link import Link
 from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
@@ -68,7 +68,7 @@ class SimOptions:
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
     config: Config | None = None
-    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (sim/uno.py)
+    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (cores/uno.py)
     signed: bool = True               # host and rover share a link key ([signing]); False: unsigned
     attacker: bool = False            # a second transmitter injects forged and replayed frames (attacker.py)
     log: Path | None = None           # the run's MCAP log (rovernav.runlog); None: none
@@ -198,7 +198,7 @@ class Simulation:
         if self.core is not None:
             self.core.reset(reset_cause)
             return self.core
-        from .uno import UnoCore
+        from ..cores.uno import UnoCore
         return UnoCore(boot_id=boot_id, reset_cause=reset_cause, sonar=lambda: self.plant.sonar_mm(self.world),
                        start_ms=int(round(getattr(self, "t", 0.0) * 1000)), key=self.link_key)
 

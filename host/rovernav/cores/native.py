@@ -14,11 +14,11 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .errors import SetupError
+from ..errors import SetupError
 
-log = logging.getLogger("rovernav.firmware")
+log = logging.getLogger("rovernav.cores.native")
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = ROOT / "firmware"
 BUILD_DIR = ROOT / "build" / "native"
 LIBRARY = BUILD_DIR / "librovernav_rover.so"
@@ -98,9 +98,9 @@ def check_layout(lib, structs=STRUCTS) -> None:
         [f"{st.__name__}.{name}" for st in structs for name, _type in st._fields_]
     for i, (a, b) in enumerate(zip(theirs, ours)):
         if a != b:
-            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: "
+            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: "
                                      f"{names[i]} is {a} there, {b} here")
-    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: {count} layout "
+    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: {count} layout "
                              f"words there, {len(ours)} here (a field added on one side only)")
 
 
@@ -144,7 +144,7 @@ def build_library(force: bool = False) -> Path:
     One process builds at a time (the others wait, then find it built)."""
     if not FIRMWARE.is_dir():
         raise FirmwareBuildError(f"no firmware sources under {ROOT}: the core is built from a checkout")
-    from .files import build_lock
+    from ..files import build_lock
 
     with build_lock(BUILD_DIR):
         return _build_library(force)
@@ -201,7 +201,7 @@ def load_library() -> ctypes.CDLL:
     lib.rover_abi_layout.restype = ctypes.c_uint32
     lib.rover_abi_layout.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
     check_layout(lib)
-    from .link.messages_gen import SCHEMA_HASH
+    from ..link.messages_gen import SCHEMA_HASH
     if lib.rover_schema_hash() != SCHEMA_HASH:
         raise FirmwareBuildError(f"{LIBRARY} was built from another protocol definition "
                                  f"(0x{lib.rover_schema_hash():08X}, ours 0x{SCHEMA_HASH:08X}): rebuild it")

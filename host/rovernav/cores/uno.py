@@ -2,8 +2,8 @@
 
 `UnoCore` runs build/uno/firmware.elf in simavr (tools/avrsim/unocore.c, loaded from
 build/avrsim/libunocore.so with ctypes) with the simulated world on its pins, and offers the
-same `step()` / `probe()` / `close()` as `rovernav.firmware.RoverCore`, so the simulator's loop
-(runner.py) steps either one:
+same `step()` / `probe()` / `close()` as `rovernav.cores.native.RoverCore`, so the simulator's
+loop (sim/runner.py) steps either one:
 
 - `step(now_ms, gyro_rate_mdps=..., rx=...)` hands the MPU-6050 model the yaw rate and the
   UART the radio's bytes (paced at 57,600 baud), runs the AVR up to cycle now * 16 MHz, and
@@ -44,12 +44,12 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from ..firmware import FirmwareBuildError, Probe, StepOut
+from .native import FirmwareBuildError, Probe, StepOut
 from ..link import messages_gen as mg
 from ..link.framing import FrameDecoder, Verifier, crc16
 from ..link.messages_gen import SIGN_ROVER_TO_HOST
 
-log = logging.getLogger("rovernav.sim.uno")
+log = logging.getLogger("rovernav.cores.uno")
 
 ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = ROOT / "firmware"
@@ -271,10 +271,10 @@ def load_library() -> ctypes.CDLL:
     for name, st, size in zip(("step", "regs", "stats", "prof_info", "prof_entry", "prof_step"), HARNESS_STRUCTS,
                               sizes[:count]):
         if ctypes.sizeof(st) != size:
-            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/sim/uno.py disagree: unocore_{name} is "
+            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/cores/uno.py disagree: unocore_{name} is "
                                 f"{size} bytes there, {ctypes.sizeof(st)} here")
     if count != len(HARNESS_STRUCTS):
-        raise UnoSetupError(f"unocore.c names {count} structs, sim/uno.py {len(HARNESS_STRUCTS)}")
+        raise UnoSetupError(f"unocore.c names {count} structs, cores/uno.py {len(HARNESS_STRUCTS)}")
     _lib = lib
     return lib
 
