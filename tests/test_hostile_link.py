@@ -831,7 +831,7 @@ def test_the_hosts_exceptions_are_one_small_tree():
     from rovernav import errors
     from rovernav.config import ConfigError
     from rovernav.demo import DemoError
-    from rovernav.cores.native import FirmwareBuildError
+    from rovernav.cores import FirmwareBuildError
     from rovernav.link.provision import ProvisionError
     from rovernav.planning import NoPathError, Unreachable
     from rovernav.runlog.replay import LogFileError

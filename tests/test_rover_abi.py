@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rovernav.angles import heading_cdeg
-from rovernav.cores.native import RoverCore, build_library
+from rovernav.cores.native import NativeCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import host_hello
@@ -58,7 +58,7 @@ class Host:
 
 
 def test_library_reports_our_schema_and_boots_with_hello():
-    core = RoverCore(boot_id=77)
+    core = NativeCore(boot_id=77)
     out = core.step(0, gyro_rate_mdps=0)
     frames = framing.FrameDecoder().feed(out.tx)
     hello = frames[0].message
@@ -67,7 +67,7 @@ def test_library_reports_our_schema_and_boots_with_hello():
 
 
 def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
-    core, plant, host = RoverCore(boot_id=5), ideal_plant(), Host()
+    core, plant, host = NativeCore(boot_id=5), ideal_plant(), Host()
     waypoints = [(300, 300), (300, 700), (700, 900), (900, 500)]
     host.send(host_hello(1))
     host.send(mg.Config(param=mg.Param.SWEEP_INTERVAL_MM, value=0))
@@ -106,14 +106,14 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
 
 def test_more_bytes_than_the_rover_holds_are_dropped_and_counted():
     # As on the Uno, whose serial buffer drops what comes while it is full.
-    core = RoverCore()
+    core = NativeCore()
     core.step(0, gyro_rate_mdps=0, rx=bytes(300))
-    assert core.rx_dropped == 300 - RoverCore.RX_HELD_MAX
+    assert core.rx_dropped == 300 - NativeCore.RX_HELD_MAX
 
 
 def test_a_wrong_key_length_is_refused_clearly():
     with pytest.raises(ValueError, match="16 bytes"):
-        RoverCore(key=bytes(5))
+        NativeCore(key=bytes(5))
 
 
 def test_the_python_structs_are_checked_against_the_librarys_layout():

@@ -20,7 +20,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from rovernav.angles import wrap_deg
 from rovernav import hardware
 from rovernav.cli import main
-from rovernav.cores.native import RoverCore
+from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
 from rovernav.mission.spec import MissionSpec
 from rovernav.runlog import CHANNELS
@@ -247,7 +247,7 @@ def test_rovernav_run_logs_the_hardware_mission_and_it_replays(tmp_path, monkeyp
     from tests.test_config import _video
 
     video = _video(tmp_path / "arena.mp4")
-    core = CoreTransport(RoverCore())
+    core = CoreTransport(NativeCore())
     monkeypatch.setattr(hardware, "SerialTransport", lambda name, baud: core)
     log = tmp_path / "hw.mcap"
     hardware.run_hardware("/dev/ttyFAKE", str(video), None, FIG48, max_time_s=3.0, log_path=log)

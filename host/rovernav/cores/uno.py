@@ -1,8 +1,8 @@
 """The Uno image itself as the simulated rover's firmware: `rovernav sim --rover uno`.
 
 `UnoCore` runs build/uno/firmware.elf in simavr (tools/avrsim/unocore.c, loaded from
-build/avrsim/libunocore.so with ctypes) with the simulated world on its pins, and offers the
-same `step()` / `probe()` / `close()` as `rovernav.cores.native.RoverCore`, so the simulator's
+build/avrsim/libunocore.so with ctypes) with the simulated world on its pins, and is a
+`rovernav.cores.protocol.RoverCore` like `rovernav.cores.native.NativeCore`, so the simulator's
 loop (sim/runner.py) steps either one:
 
 - `step(now_ms, gyro_rate_mdps=..., rx=...)` hands the MPU-6050 model the yaw rate and the
@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from .native import FirmwareBuildError, Probe, StepOut
+from .protocol import FirmwareBuildError, Probe, StepOut
 from ..link import messages_gen as mg
 from ..link.framing import FrameDecoder, Verifier, crc16
 from ..link.messages_gen import SIGN_ROVER_TO_HOST
@@ -559,7 +559,7 @@ def _flag_names(desc: int) -> list[str]:
 # ---------------------------------------------------------------------------- the core
 
 class UnoCore:
-    """The Uno image in simavr, stepped like RoverCore. Not thread-safe."""
+    """The Uno image in simavr, a `RoverCore`. Not thread-safe."""
 
     def __init__(self, boot_id: int = 1, reset_cause: int = 1, *, sonar: Callable[[], int] | None = None,
                  start_ms: int = 0, elf: Path | None = None, fast_forward: bool | None = None,

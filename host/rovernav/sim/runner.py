@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config, config_from_dict
-from ..cores.native import RoverCore
+from ..cores import NativeCore, RoverCore
 from ..link import messages_gen as mg
 from ..link.link import Link
 from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
@@ -128,7 +128,7 @@ class Simulation:
             from .attacker import Attacker
             self.attacker = Attacker(self.to_rover, seed=options.seed)
             self.to_rover.tap = self.attacker.observe
-        self.core = None
+        self.core: RoverCore | None = None
         self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
         look = RoverLook.for_vision(self.cfg.vision)
         lighting = Lighting.random(self.rng)
@@ -185,14 +185,14 @@ class Simulation:
 
     # ---------------------------------------------------------------- set-up
 
-    def _new_core(self, boot_id: int, reset_cause: int):
+    def _new_core(self, boot_id: int, reset_cause: int) -> RoverCore:
         """The rover's firmware: the core through its C ABI, or the Uno image in simavr, which
         pings the plant's sonar itself. A reset of the Uno keeps its EEPROM (boot counter)."""
         if self.opt.rover == "native":
             if self.core is not None:
                 self.core.close()
-            return RoverCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
-                             counters=self._stored_counters)
+            return NativeCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
+                              counters=self._stored_counters)
         if self.opt.rover != "uno":
             raise ValueError(f"unknown rover {self.opt.rover!r}: native or uno")
         if self.core is not None:
