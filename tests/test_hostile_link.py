@@ -837,7 +837,7 @@ def test_the_hosts_exceptions_are_one_small_tree():
     from rovernav.runlog.replay import LogFileError
     from rovernav.scenario import ScenarioError
     from rovernav.sim.arenas import GenerationFailed
-    from rovernav.cores.uno import UnoSetupError
+    from rovernav.cores.uno_harness import UnoSetupError
 
     branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,
                 errors.MissionFailed)

@@ -1,7 +1,7 @@
 /*
  * unocore: the rover's Uno image (build/uno/firmware.elf) in simavr, with the simulated world
  * wired to its pins, as a shared library (build/avrsim/libunocore.so) that the Python
- * simulator loads with ctypes (host/rovernav/cores/uno.py, `rovernav sim --rover uno`).
+ * simulator loads with ctypes (host/rovernav/cores/uno_harness.py, `rovernav sim --rover uno`).
  *
  * Why a library in the simulator's process and not a subprocess with a byte protocol
  *   The simulator steps the rover every 10 ms of simulated time, and an HC-SR04 ping needs the
@@ -181,7 +181,7 @@ enum {
 typedef uint32_t (*unocore_sonar_fn)(void *user);
 
 /* ------------------------------------------------------------------------------ structures
- * Shared with host/rovernav/cores/uno.py (ctypes); keep the layouts in step. */
+ * Shared with host/rovernav/cores/uno_harness.py (ctypes); keep the layouts in step. */
 
 typedef struct unocore_step {
 	uint64_t rise;           /* cycle PB0 went high */
@@ -1226,7 +1226,7 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 
 UNOCORE_API uint32_t unocore_abi_version(void) { return UNOCORE_ABI_VERSION; }
 
-/* sizeof the structs the host reads (cores/uno.py checks its ctypes copies against these), in
+/* sizeof the structs the host reads (cores/uno_harness.py checks its ctypes copies against these), in
  * this order: step, regs, stats, prof_info, prof_entry, prof_step. Returns how many there are. */
 UNOCORE_API uint32_t unocore_struct_sizes(uint32_t* out, uint32_t n) {
   const uint32_t sizes[] = {sizeof(unocore_step), sizeof(unocore_regs), sizeof(unocore_stats),
