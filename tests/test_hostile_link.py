@@ -29,7 +29,7 @@ from rovernav.link.transport import (
     MAX_READ_BYTES, LoopbackTransport, PipeTransport, PtyTransport, open_transport, parse_serial_spec,
 )
 from rovernav.mapping import SonarReading
-from rovernav.mission.learned_map import (
+from rovernav.mapping.learned_map import (
     MAX_MAP_BYTES, MAX_MAP_READINGS, LearnedMap, check_map_path, read_map_file,
 )
 from rovernav.planning import OccupancyGrid, PlannerConfig
@@ -477,7 +477,7 @@ def test_more_readings_than_the_limit_are_refused_before_any_is_checked(tmp_path
 
 
 def test_more_replay_work_than_allowed_on_a_huge_arena_is_refused(tmp_path, monkeypatch):
-    from rovernav.mission import learned_map
+    from rovernav.mapping import learned_map
 
     monkeypatch.setattr(learned_map, "MAX_REPLAY_CELLS", 10 * grid().raw.size)
     path = tmp_path / "m.json"

@@ -3,14 +3,13 @@
     core.py          Mission: phases with deadlines, legs, what the rover says
     legs.py          Leg, Deadlines, leg goals, the record of legs done
     strategies.py    how a leg is driven: rovernav's strategy and the 2019 seed's
-    learned_map.py   the sonar's echoes folded into the planner's grid, saved and reloaded
-Requests and their resends are the link's (rovernav.link.requests), shared with Link.request.
+Requests and their resends are the link's (rovernav.link.requests), shared with Link.request;
+the learned map (the sonar's echoes folded into the planner's grid) is rovernav.mapping's.
 """
 from ..errors import MissionFailed
 from .core import Detection, Failure, Mission, Outcome, Phase
-from .learned_map import Echo, LearnedMap
 from .legs import Deadlines, Leg, leg_goal, leg_origin, legs_per_trip
 from .strategies import RovernavStrategy, SeedStrategy, Strategy, make_strategy
 
-__all__ = ["Deadlines", "Detection", "Echo", "Failure", "LearnedMap", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
+__all__ = ["Deadlines", "Detection", "Failure", "Leg", "Mission", "MissionFailed", "Outcome", "Phase",
            "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "legs_per_trip", "make_strategy"]

@@ -31,8 +31,7 @@ from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..planning.turns import ahead_first, half_seen, turnable
-from ..mapping import SonarReading
-from .learned_map import Echo, LearnedMap
+from ..mapping import Echo, LearnedMap, SonarReading
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
 from .strategies import RovernavStrategy, Strategy
 
@@ -714,7 +713,7 @@ class Mission:
         the robot radius alone (the log-odds map already places an echo anywhere across its
         cone, so the sonar's placement margin counts it twice). Each on the careful map first, then
         on the open map, whose silence also clears the cells the cone's edge only cuts
-        (rovernav.mission.learned_map): careful, open, careful with the radius alone, open with
+        (rovernav.mapping.learned_map): careful, open, careful with the radius alone, open with
         the radius alone. A target is unreachable only
         when the obstacles enclose it even then.
         """
@@ -955,7 +954,7 @@ class Mission:
         return done
 
     def save_map(self, path: str | Path) -> None:
-        """Write what the sonar found (see rovernav.mission.learned_map for the format)."""
+        """Write what the sonar found (see rovernav.mapping.learned_map for the format)."""
         self.map.save(path)
 
     def load_map(self, path: str | Path) -> int:

@@ -42,8 +42,8 @@ from pathlib import Path
 
 from ..errors import MapFileError
 from ..files import write_atomic
-from ..mapping import SensorModel, SonarMap, SonarReading, echo_point
 from ..planning import OccupancyGrid
+from .sonar_map import SensorModel, SonarMap, SonarReading, echo_point
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
 #: Readings a file may hold: a long mission sweeps a few thousand; replaying this many takes
