@@ -33,7 +33,8 @@ from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..planning.turns import ahead_first, half_seen, turnable
 from ..mapping import Echo, LearnedMap, SonarReading
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
-from .strategies import RovernavStrategy, Strategy
+from .interface import Strategy
+from .strategies import RovernavStrategy
 
 log = logging.getLogger("rovernav.mission")
 
