@@ -27,6 +27,7 @@ FIRMWARE = ROOT / "firmware"
 ELF = ROOT / "build" / "uno" / "firmware.elf"
 LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
 HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
+UART_LINE_H = ROOT / "tools" / "avrsim" / "uart_line.h"   # included by unocore.c
 BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
@@ -164,7 +165,7 @@ def _ensure_built(elf: Path) -> tuple[Path, Path]:
                 raise
             log.warning("the Uno image is older than the firmware sources and does not rebuild; "
                         "running the old %s", elf)
-    if need_lib or HARNESS_SRC.stat().st_mtime > LIBRARY.stat().st_mtime:
+    if need_lib or _newest_mtime((HARNESS_SRC, UART_LINE_H)) > LIBRARY.stat().st_mtime:
         _run(["make", "-s", "-C", str(ROOT / "tools" / "avrsim"), "unocore"], "building the simavr harness")
     return elf, LIBRARY
 
