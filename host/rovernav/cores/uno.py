@@ -30,6 +30,7 @@ Time: the AVR's cycle 0 is the simulated time the core was made at; step(now_ms)
 and the plant moves under them for the next 10 ms, as with the native core.
 """
 from __future__ import annotations
+
 import ctypes
 import dataclasses
 import math
