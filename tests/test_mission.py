@@ -470,3 +470,23 @@ def test_no_room_where_the_rover_stands_and_none_ahead_asks_it_to_back_out_first
     _run(mission, rover, 0.3, pose=(1.0, 1.0, 0.0), t0=t)
     sent = [m for m in rover.of(mg.Path) if m.path_id == mission.path_id]
     assert sent and all(m.back_out == 0 for m in sent)
+
+
+def test_the_strategies_use_only_what_the_mission_view_declares_and_the_mission_has_it():
+    # The strategies talk to the mission through interface.MissionView: every attribute they read
+    # on the mission (`m.<name>`) is declared there, and a Mission has every one of them.
+    import ast
+    import inspect
+
+    from rovernav.mission import interface, strategies
+
+    declared = set(interface.MissionView.__annotations__) | {
+        name for name in vars(interface.MissionView) if not name.startswith("_")}
+    tree = ast.parse(inspect.getsource(strategies))
+    used = {node.attr for node in ast.walk(tree)
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "m"}
+    assert used and used <= declared, used - declared
+    assert not any(isinstance(node, ast.ImportFrom) and node.module == "core" for node in ast.walk(tree))
+    mission, _rover, _notes = _setup_with(ScriptedRover)
+    assert all(hasattr(type(mission), name) or hasattr(mission, name) for name in declared - {"current_leg"})
+    assert isinstance(inspect.getattr_static(Mission, "current_leg"), property)

@@ -131,3 +131,12 @@ def test_the_python_structs_are_checked_against_the_librarys_layout():
     Probe.__name__ = "_Probe"
     with pytest.raises(FirmwareBuildError, match=r"sizeof\(_Probe\) is 32 there, 36 here"):
         check_layout(lib, STRUCTS[:2] + (Probe,))
+
+
+def test_the_native_core_keeps_the_rover_core_protocol():
+    from rovernav.cores import RoverCore
+
+    core = NativeCore()
+    assert isinstance(core, RoverCore)
+    core.close()
+    core.close()   # idempotent, as the protocol says

@@ -97,6 +97,15 @@ def test_the_servo_angle_is_the_inverse_of_servo_timer1s_mapping():
 
 # ---------------------------------------------------------------- the image in simavr
 
+def test_the_uno_core_keeps_the_rover_core_protocol(built):
+    from rovernav.cores import RoverCore
+
+    core = UnoCore(reset_cause=1)
+    assert isinstance(core, RoverCore)
+    core.close()
+    core.close()   # idempotent, as the protocol says
+
+
 def test_the_gyro_model_answers_who_am_i_and_the_firmware_reports_no_gyro_fault(built):
     core = UnoCore(boot_id=42, reset_cause=1, sonar=lambda: 0)
     try:
