@@ -5,7 +5,7 @@
 For each MAC and message length it builds a small ATmega328P program with the project's AVR flags
 (platformio.ini's [env:uno], as tools/build_uno.py reads them) that computes the tag of the
 message again and again with D8 (PB0) high, runs it in simavr through the simulator's harness
-(rovernav.sim.uno.UnoCore), and prints the microseconds per tag at 16 MHz (the median of the
+(rovernav.cores.uno.UnoCore), and prints the microseconds per tag at 16 MHz (the median of the
 steps: cycle counts, not wall time) and the flash the MAC adds over the same program without
 it (avr-size). The MACs: firmware/lib/link/siphash.cpp, and benchmarks/avr/hmac_sha256.cpp
 (checked against Python's hmac by tests/test_siphash.py).
@@ -76,7 +76,7 @@ def build(mac: int, length: int, work: Path) -> tuple[Path, int]:
 
 
 def tag_us(elf: Path) -> float:
-    from rovernav.sim.uno import UnoCore
+    from rovernav.cores.uno import UnoCore
 
     core = UnoCore(elf=elf, reset_cause=1)
     try:

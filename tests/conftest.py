@@ -78,12 +78,12 @@ def benchmark_module():
 
 @pytest.fixture(scope="session")
 def native_core():
-    """The RoverCore class, its library built first (once a session; build_library is a no-op when
+    """The native core class (rovernav.cores.NativeCore), its library built first (once a session; build_library is a no-op when
     the library is newer than every source)."""
-    from rovernav.firmware import RoverCore, build_library
+    from rovernav.cores.native import NativeCore, build_library
 
     build_library()
-    return RoverCore
+    return NativeCore
 
 
 @pytest.fixture(scope="session")

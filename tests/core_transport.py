@@ -2,7 +2,7 @@
 Used by the provisioning, Uno, run-log, mission and lossy-exchange tests."""
 from __future__ import annotations
 
-from rovernav.firmware import RoverCore
+from rovernav.cores import NativeCore
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.transport import Transport
@@ -11,7 +11,7 @@ from rovernav.link.transport import Transport
 class CoreTransport(Transport):
     """The rover core behind a serial port: a read steps it for the time the read may wait."""
 
-    def __init__(self, core: RoverCore):
+    def __init__(self, core: NativeCore):
         super().__init__("core://")
         self.core, self.t_ms, self.to_rover, self.from_rover = core, 0, b"", b""
         self.sent_to_rover = b""
@@ -48,7 +48,7 @@ def firmware_hello(**changes):
     from rovernav.link import framing
     from rovernav.link import messages_gen as mg
 
-    core = RoverCore(boot_id=1)
+    core = NativeCore(boot_id=1)
     try:
         frames = framing.FrameDecoder().feed(core.step(0, gyro_rate_mdps=0).tx)
     finally:
@@ -63,7 +63,7 @@ class CoreRover:
     (`say`). What the host sent is kept, decoded, for the test to look at."""
 
     def __init__(self, end, boot_id=11):
-        self.end, self.core, self.t_ms = end, RoverCore(boot_id=boot_id), 0
+        self.end, self.core, self.t_ms = end, NativeCore(boot_id=boot_id), 0
         self.decoder = framing.FrameDecoder()
         self.got: list = []
         self.said: list = []    # what the rover itself sent, decoded
@@ -83,7 +83,7 @@ class CoreRover:
 
     def reboot(self, boot_id):
         self.core.close()
-        self.core = RoverCore(boot_id=boot_id, reset_cause=4)
+        self.core = NativeCore(boot_id=boot_id, reset_cause=4)
 
     def say(self, m):
         self.end.write(framing.encode_frame(m, self.seq))

@@ -29,7 +29,7 @@ from rovernav.link.transport import (
     MAX_READ_BYTES, LoopbackTransport, PipeTransport, PtyTransport, open_transport, parse_serial_spec,
 )
 from rovernav.mapping import SonarReading
-from rovernav.mission.learned_map import (
+from rovernav.mapping.learned_map import (
     MAX_MAP_BYTES, MAX_MAP_READINGS, LearnedMap, check_map_path, read_map_file,
 )
 from rovernav.planning import OccupancyGrid, PlannerConfig
@@ -477,7 +477,7 @@ def test_more_readings_than_the_limit_are_refused_before_any_is_checked(tmp_path
 
 
 def test_more_replay_work_than_allowed_on_a_huge_arena_is_refused(tmp_path, monkeypatch):
-    from rovernav.mission import learned_map
+    from rovernav.mapping import learned_map
 
     monkeypatch.setattr(learned_map, "MAX_REPLAY_CELLS", 10 * grid().raw.size)
     path = tmp_path / "m.json"
@@ -831,13 +831,13 @@ def test_the_hosts_exceptions_are_one_small_tree():
     from rovernav import errors
     from rovernav.config import ConfigError
     from rovernav.demo import DemoError
-    from rovernav.firmware import FirmwareBuildError
+    from rovernav.cores import FirmwareBuildError
     from rovernav.link.provision import ProvisionError
     from rovernav.planning import NoPathError, Unreachable
     from rovernav.runlog.replay import LogFileError
     from rovernav.scenario import ScenarioError
     from rovernav.evaluation.arenas import GenerationFailed
-    from rovernav.sim.uno import UnoSetupError
+    from rovernav.cores.uno_harness import UnoSetupError
 
     branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,
                 errors.MissionFailed)

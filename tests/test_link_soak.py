@@ -13,7 +13,7 @@ import time
 import pytest
 
 from rovernav.cli import main
-from rovernav.firmware import RoverCore
+from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
 from rovernav.link import soak as sk
 from rovernav.link.errors import LinkClosed
@@ -70,7 +70,7 @@ class Loss:
 class Line(CoreTransport):
     """The rover core behind a 57,600-baud line that may lose bytes or frames each way."""
 
-    def __init__(self, core: RoverCore, to_rover: Loss | None = None, to_host: Loss | None = None):
+    def __init__(self, core: NativeCore, to_rover: Loss | None = None, to_host: Loss | None = None):
         super().__init__(core)
         self.loss_to_rover, self.loss_to_host = to_rover or Loss(), to_host or Loss()
 
@@ -98,7 +98,7 @@ class Line(CoreTransport):
 
 def _soak(seconds: float, to_rover: Loss | None = None, to_host: Loss | None = None, key: bytes | None = None,
           **kwargs) -> tuple[sk.Soak, Line]:
-    line = Line(RoverCore(boot_id=11, key=key), to_rover, to_host)
+    line = Line(NativeCore(boot_id=11, key=key), to_rover, to_host)
     link = Link(line, key=key)
     link.handshake(boot_id=5)
     line.lose()
@@ -215,7 +215,7 @@ def test_the_advice_is_for_one_way_when_only_that_way_loses():
 # ------------------------------------------------------------------ what a soak does not do
 
 def test_no_path_is_sent_to_a_rover_running_a_mission():
-    line = Line(RoverCore(boot_id=11))
+    line = Line(NativeCore(boot_id=11))
     link = Link(line)
     link.handshake(boot_id=5)
     soak = sk.Soak(link, clock=line.clock, poll_s=0.0, host_boot_id=5)
@@ -234,7 +234,7 @@ def test_no_path_is_sent_to_a_rover_running_a_mission():
 
 
 def test_ctrl_c_ends_the_soak_early_with_its_figures():
-    line = Line(RoverCore(boot_id=11))
+    line = Line(NativeCore(boot_id=11))
     link = Link(line)
     link.handshake(boot_id=5)
     read = line._read
@@ -261,7 +261,7 @@ def test_progress_lines_every_few_seconds():
 def test_a_rover_that_restarts_mid_soak_is_followed():
     soak, line = _soak(5.0)
     line.core.close()
-    line.core = RoverCore(boot_id=99)           # a reset: a new boot id, counters from 0
+    line.core = NativeCore(boot_id=99)           # a reset: a new boot id, counters from 0
     soak.run(10.0)
     s = soak.summary()
     assert s["rover"]["restarts"] == 1 and s["rover"]["boot_id"] == 99
@@ -277,7 +277,7 @@ class _RealTimeRover:
 
     def __init__(self, key: bytes | None = None):
         self.host_end, self.rover_end = PipeTransport.pair()
-        self.core = RoverCore(boot_id=3, key=key)
+        self.core = NativeCore(boot_id=3, key=key)
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
 

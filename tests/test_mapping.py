@@ -9,7 +9,7 @@ import pytest
 
 from rovernav import vehicle_gen as vehicle
 from rovernav.mapping import SensorModel, SonarMap, SonarReading
-from rovernav.mission.learned_map import LearnedMap, read_map_file
+from rovernav.mapping.learned_map import LearnedMap, read_map_file
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
 
 RES = 0.03
@@ -191,7 +191,7 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
     # centre; an echo lies on the beam's axis (heading + servo bearing, clockwise from +y).
     from rovernav.link import messages_gen as mg
     from rovernav.mapping import echo_point, sonar_origin
-    from rovernav.mission.learned_map import Echo
+    from rovernav.mapping.learned_map import Echo
     from rovernav.mission.legs import legs_per_trip
 
     off = mg.PARAMS[mg.Param.SONAR_OFFSET_MM].default / 1000
@@ -219,7 +219,7 @@ def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_cla
 
 def test_the_host_map_uses_the_cone_the_configuration_sends():
     from rovernav.config import config_from_dict
-    from rovernav.mission.learned_map import LearnedMap
+    from rovernav.mapping.learned_map import LearnedMap
     from rovernav.planning.grid import OccupancyGrid
 
     cfg = config_from_dict({"planner": {"sonar_cone_deg": 30}})

@@ -14,7 +14,7 @@ from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
 from rovernav.mission import Detection, Failure, Mission, Outcome, Phase
-from rovernav.mission import core
+from rovernav.mission import phases
 from rovernav.planning import OccupancyGrid, PlannerConfig
 from rovernav.planning.turns import body_clear
 
@@ -161,7 +161,7 @@ def test_a_rover_that_hears_but_does_not_answer_fails_the_mission_after_the_retr
     # The request's attempts, or the phase's deadline, whichever ends first: both name it.
     assert mission.phase is Phase.FAILED and mission.failure in (Failure.NOT_ANSWERED, Failure.NOT_LOADED)
     # Counted in attempts and time: a lossy link that answers now and then is given 30 s.
-    assert t >= min((core.MAX_TRIES - 1) * core.RESEND_S, mission.deadlines.load_s)
+    assert t >= min((phases.MAX_TRIES - 1) * phases.RESEND_S, mission.deadlines.load_s)
 
 
 def test_a_silent_rover_is_waited_for_then_given_up_on():
@@ -351,14 +351,14 @@ def test_a_goal_an_echo_s_arc_covers_is_reached_from_beside_it_but_a_wall_is_not
     # arc's cells lie 0.10 m from the goal, inside even the robot radius. The last tries plan to
     # the nearest free cell within GOAL_SHIFT_M and then straight on to the goal.
     from rovernav.mapping import SonarReading
-    from rovernav.mission import core
+    from rovernav.mission import leg_plan
 
     mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.4))
     mission.map.add(SonarReading(1.25, 0.4, 90.0, 0.0, 0.15, 0.6))   # an arc at x 1.50 (sensor at 1.35)
     assert not mission.map.lenient_grid().is_free(1.6, 0.4) and mission.map.known_grid.is_free(1.6, 0.4)
     path = mission.plan_from((0.3, 0.3), (1.6, 0.4))
     assert path is not None and path[-1] == (1.6, 0.4)
-    assert 0 < math.dist(path[-2], path[-1]) <= core.GOAL_SHIFT_M + 1e-9
+    assert 0 < math.dist(path[-2], path[-1]) <= leg_plan.GOAL_SHIFT_M + 1e-9
     assert any("within an echo's arc" in n for n in notes)
     # A target that a known box's margin covers is not shifted: the verdict stands.
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
@@ -449,7 +449,7 @@ def test_no_room_where_the_rover_stands_and_none_ahead_asks_it_to_back_out_first
     # As above, with a wall across its way 0.12 m ahead: no point straight ahead. The path goes
     # out as it is, and its PATH chunks ask the rover to back out before it turns (back_out 1);
     # the next path, planned where it has room, does not.
-    from rovernav.mission.core import PlannedPath
+    from rovernav.mission.leg_plan import PlannedPath
 
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig(sonar_margin_m=0.0))
     grid.add_box(0.95, 0.64, 0.1, 0.1)                     # x 0.90..1.00, y 0.59..0.69
@@ -470,3 +470,23 @@ def test_no_room_where_the_rover_stands_and_none_ahead_asks_it_to_back_out_first
     _run(mission, rover, 0.3, pose=(1.0, 1.0, 0.0), t0=t)
     sent = [m for m in rover.of(mg.Path) if m.path_id == mission.path_id]
     assert sent and all(m.back_out == 0 for m in sent)
+
+
+def test_the_strategies_use_only_what_the_mission_view_declares_and_the_mission_has_it():
+    # The strategies talk to the mission through interface.MissionView: every attribute they read
+    # on the mission (`m.<name>`) is declared there, and a Mission has every one of them.
+    import ast
+    import inspect
+
+    from rovernav.mission import interface, strategies
+
+    declared = set(interface.MissionView.__annotations__) | {
+        name for name in vars(interface.MissionView) if not name.startswith("_")}
+    tree = ast.parse(inspect.getsource(strategies))
+    used = {node.attr for node in ast.walk(tree)
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "m"}
+    assert used and used <= declared, used - declared
+    assert not any(isinstance(node, ast.ImportFrom) and node.module == "core" for node in ast.walk(tree))
+    mission, _rover, _notes = _setup_with(ScriptedRover)
+    assert all(hasattr(type(mission), name) or hasattr(mission, name) for name in declared - {"current_leg"})
+    assert isinstance(inspect.getattr_static(Mission, "current_leg"), property)

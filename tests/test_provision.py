@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovernav.firmware import RoverCore
+from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
 from rovernav.link.provision import NeedsConsent, ProvisionError, WrongCurrentKey, provision
@@ -20,7 +20,7 @@ RESET_CAUSES = (0x01, 0x02, 0x04, 0x08, 0x00)
 
 
 def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it():
-    port = CoreTransport(RoverCore())              # opening the USB port reset it: it boots now
+    port = CoreTransport(NativeCore())              # opening the USB port reset it: it boots now
     line = provision(port, KEY, clock=port.clock)
     assert line.startswith("stored the key")
     assert port.core.take_key_change() == ("store", KEY)
@@ -36,7 +36,7 @@ def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it()
 
 
 def test_over_a_port_that_did_not_reset_the_rover_nothing_is_sent():
-    port = CoreTransport(RoverCore())
+    port = CoreTransport(NativeCore())
     port.run_ms(10_000)                            # running for 10 s: a radio link opens no reset
     port.from_rover = b""
     with pytest.raises(ProvisionError, match="no rover booted .* USB cable"):
@@ -46,7 +46,7 @@ def test_over_a_port_that_did_not_reset_the_rover_nothing_is_sent():
 
 
 def test_a_key_sent_after_the_window_is_refused_by_the_rover():
-    port = CoreTransport(RoverCore())
+    port = CoreTransport(NativeCore())
     port.run_ms(6_000)                             # its boot HELLO still unread, 6 s later
     with pytest.raises(ProvisionError, match="6 s after its reset, past its 5 s window"):
         provision(port, KEY, clock=port.clock)
@@ -54,7 +54,7 @@ def test_a_key_sent_after_the_window_is_refused_by_the_rover():
 
 
 def test_erase_of_a_rover_with_no_key_is_taken_as_before():
-    port = CoreTransport(RoverCore())
+    port = CoreTransport(NativeCore())
     assert provision(port, None, clock=port.clock).startswith("the rover's link key is erased")
     assert port.core.take_key_change() == ("erase", None)
 
@@ -62,7 +62,7 @@ def test_erase_of_a_rover_with_no_key_is_taken_as_before():
 @pytest.mark.parametrize("cause", RESET_CAUSES)
 def test_a_keyed_rover_refuses_a_new_key_or_an_erase_without_consent_after_any_reset(cause):
     for new in (NEW_KEY, None):
-        port = CoreTransport(RoverCore(key=KEY, reset_cause=cause))
+        port = CoreTransport(NativeCore(key=KEY, reset_cause=cause))
         with pytest.raises(NeedsConsent) as info:
             provision(port, new, clock=port.clock)
         assert port.core.take_key_change() is None
@@ -79,7 +79,7 @@ def test_a_keyed_rover_refuses_a_new_key_or_an_erase_without_consent_after_any_r
 
 @pytest.mark.parametrize("cause", RESET_CAUSES)
 def test_a_keyed_rover_takes_a_new_key_signed_with_its_current_one(cause):
-    port = CoreTransport(RoverCore(key=KEY, reset_cause=cause))
+    port = CoreTransport(NativeCore(key=KEY, reset_cause=cause))
     line = provision(port, NEW_KEY, clock=port.clock, current_key=KEY)
     assert line.startswith("stored the key") and "current key's signature" in line
     assert port.core.take_key_change() == ("store", NEW_KEY)
@@ -89,13 +89,13 @@ def test_a_keyed_rover_takes_a_new_key_signed_with_its_current_one(cause):
 
 
 def test_a_keyed_rover_erases_its_key_for_an_erase_signed_with_it():
-    port = CoreTransport(RoverCore(key=KEY, reset_cause=0x01))
+    port = CoreTransport(NativeCore(key=KEY, reset_cause=0x01))
     assert provision(port, None, clock=port.clock, current_key=KEY).startswith("the rover's link key is erased")
     assert port.core.take_key_change() == ("erase", None)
 
 
 def test_a_wrong_current_key_is_named_before_anything_is_sent():
-    port = CoreTransport(RoverCore(key=KEY))
+    port = CoreTransport(NativeCore(key=KEY))
     with pytest.raises(WrongCurrentKey, match="not the one given with --current-key-file") as info:
         provision(port, NEW_KEY, clock=port.clock, current_key=NEW_KEY)
     assert info.value.exit_code == 2
@@ -104,14 +104,14 @@ def test_a_wrong_current_key_is_named_before_anything_is_sent():
 
 @pytest.mark.parametrize("cause", RESET_CAUSES)
 def test_a_keyed_rover_reset_with_the_consent_pin_held_takes_an_unsigned_key(cause):
-    port = CoreTransport(RoverCore(key=KEY, reset_cause=cause | mg.SIGN_CONSENT_RESET_BIT))
+    port = CoreTransport(NativeCore(key=KEY, reset_cause=cause | mg.SIGN_CONSENT_RESET_BIT))
     line = provision(port, NEW_KEY, clock=port.clock)
     assert "consent pin (D7) held at its reset: take the jumper off" in line
     assert port.core.take_key_change() == ("store", NEW_KEY)
 
 
 def test_a_rover_with_no_key_is_given_one_unsigned_even_with_a_current_key_named():
-    port = CoreTransport(RoverCore())
+    port = CoreTransport(NativeCore())
     assert provision(port, NEW_KEY, clock=port.clock, current_key=KEY).startswith("stored the key")
     assert port.core.take_key_change() == ("store", NEW_KEY)
     assert all(f.counter is None for f in FrameDecoder().feed(port.sent_to_rover))
@@ -127,7 +127,7 @@ def test_the_command_says_the_two_ways_to_consent_in_one_line_and_exits_2(tmp_pa
     import rovernav.link.transport as transport
     from rovernav.cli import main
 
-    monkeypatch.setattr(transport, "open_transport", lambda spec: CoreTransport(RoverCore(key=KEY, reset_cause=1)))
+    monkeypatch.setattr(transport, "open_transport", lambda spec: CoreTransport(NativeCore(key=KEY, reset_cause=1)))
     new = _key_file(tmp_path / "new.key", NEW_KEY)
     assert main(["provision", "--port", "/dev/ttyACM0", "--key-file", new]) == 2
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
@@ -137,7 +137,7 @@ def test_the_command_says_the_two_ways_to_consent_in_one_line_and_exits_2(tmp_pa
     cores = []
 
     def rover(spec):
-        cores.append(RoverCore(key=KEY, reset_cause=1))
+        cores.append(NativeCore(key=KEY, reset_cause=1))
         return CoreTransport(cores[-1])
 
     monkeypatch.setattr(transport, "open_transport", rover)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rovernav.angles import heading_cdeg
-from rovernav.firmware import RoverCore, build_library
+from rovernav.cores.native import NativeCore, build_library
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import host_hello
@@ -58,7 +58,7 @@ class Host:
 
 
 def test_library_reports_our_schema_and_boots_with_hello():
-    core = RoverCore(boot_id=77)
+    core = NativeCore(boot_id=77)
     out = core.step(0, gyro_rate_mdps=0)
     frames = framing.FrameDecoder().feed(out.tx)
     hello = frames[0].message
@@ -67,7 +67,7 @@ def test_library_reports_our_schema_and_boots_with_hello():
 
 
 def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
-    core, plant, host = RoverCore(boot_id=5), ideal_plant(), Host()
+    core, plant, host = NativeCore(boot_id=5), ideal_plant(), Host()
     waypoints = [(300, 300), (300, 700), (700, 900), (900, 500)]
     host.send(host_hello(1))
     host.send(mg.Config(param=mg.Param.SWEEP_INTERVAL_MM, value=0))
@@ -106,28 +106,37 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
 
 def test_more_bytes_than_the_rover_holds_are_dropped_and_counted():
     # As on the Uno, whose serial buffer drops what comes while it is full.
-    core = RoverCore()
+    core = NativeCore()
     core.step(0, gyro_rate_mdps=0, rx=bytes(300))
-    assert core.rx_dropped == 300 - RoverCore.RX_HELD_MAX
+    assert core.rx_dropped == 300 - NativeCore.RX_HELD_MAX
 
 
 def test_a_wrong_key_length_is_refused_clearly():
     with pytest.raises(ValueError, match="16 bytes"):
-        RoverCore(key=bytes(5))
+        NativeCore(key=bytes(5))
 
 
 def test_the_python_structs_are_checked_against_the_librarys_layout():
     import ctypes
 
-    from rovernav.firmware import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
+    from rovernav.cores.native import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
 
     lib = load_library()
     check_layout(lib)   # the real copies agree (load_library checks this too)
 
-    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that firmware.py lacks
+    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that cores/native.py lacks
         _fields_ = [("state", ctypes.c_uint8), ("fault", ctypes.c_uint8), ("flags", ctypes.c_uint32)] + \
             _Probe._fields_[3:]
 
     Probe.__name__ = "_Probe"
     with pytest.raises(FirmwareBuildError, match=r"sizeof\(_Probe\) is 32 there, 36 here"):
         check_layout(lib, STRUCTS[:2] + (Probe,))
+
+
+def test_the_native_core_keeps_the_rover_core_protocol():
+    from rovernav.cores import RoverCore
+
+    core = NativeCore()
+    assert isinstance(core, RoverCore)
+    core.close()
+    core.close()   # idempotent, as the protocol says

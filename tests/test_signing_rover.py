@@ -2,7 +2,7 @@
 what a rover with a key takes and refuses, and a recorded session played back after a reset."""
 from __future__ import annotations
 
-from rovernav.firmware import RoverCore
+from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import (FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16,
                                    encode_frame)
@@ -14,7 +14,7 @@ class Bench:
     """A keyed rover core stepped at 100 Hz; what it says, checked with the key."""
 
     def __init__(self, counters=(0, 0)):
-        self.core = RoverCore(key=KEY, counters=counters)
+        self.core = NativeCore(key=KEY, counters=counters)
         self.t_ms = 0
         self.heard = FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST))
         self.said: list = []
@@ -91,7 +91,7 @@ def test_a_recorded_session_played_back_after_a_reset_is_refused():
 
 
 def test_a_rover_without_a_key_refuses_signed_frames_and_takes_unsigned_ones():
-    core = RoverCore()
+    core = NativeCore()
     heard = FrameDecoder()
     said = []
     for i, frame in enumerate([encode_frame(config(1), 1, Signer(KEY, mg.SIGN_HOST_TO_ROVER)),
@@ -129,7 +129,7 @@ def test_the_rovers_own_counter_never_repeats_across_resets():
     heard: list[int] = []
     stored = (0, 0)
     for _boot in range(3):
-        core = RoverCore(key=KEY, counters=stored)
+        core = NativeCore(key=KEY, counters=stored)
         decoder = FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST))
         counters = []
         for t in range(0, 2000, 10):

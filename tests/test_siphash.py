@@ -98,9 +98,10 @@ def test_siphash_on_the_avr_image(tmp_path):
     gives the host's tags for every length 0..64 (every block boundary and tail)."""
     import shutil
 
-    from rovernav.sim import uno
+    from rovernav.cores.uno import UnoCore
+    from rovernav.cores.uno_harness import missing_packages
 
-    if shutil.which("avr-g++") is None or uno.missing_packages():
+    if shutil.which("avr-g++") is None or missing_packages():
         pytest.skip("the AVR toolchain or simavr is not installed (scripts/test installs them)")
     root = Path(__file__).resolve().parents[1]
     src, elf = tmp_path / "main.cpp", tmp_path / "sip.elf"
@@ -110,7 +111,7 @@ def test_siphash_on_the_avr_image(tmp_path):
                     str(root / "firmware/lib/link/sip_round_avr.S"), "-o", str(elf)], check=True)
     symbols = subprocess.run(["avr-nm", str(elf)], capture_output=True, text=True, check=True).stdout
     addr = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" tags")) & 0xFFFF
-    core = uno.UnoCore(elf=elf, reset_cause=1)
+    core = UnoCore(elf=elf, reset_cause=1)
     try:
         for k in range(1, 40):
             core.step(k * 10, gyro_rate_mdps=0)

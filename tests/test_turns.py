@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
-from rovernav.mission.learned_map import Echo
+from rovernav.mapping.learned_map import Echo
 from rovernav.planning.turns import (HALF_SEEN_DEPTH_M, MIN_TURN_DEG, REFUSED_NEAR_M, SWING_M, SWING_MARGIN_M,
                                      ahead_first, body_clear, clearance_map, half_seen, turn_deg, turnable)
 

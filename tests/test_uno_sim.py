@@ -13,14 +13,17 @@ import sys
 
 import pytest
 
+from rovernav.cores import uno
+from rovernav.cores import uno_harness as harness
+from rovernav.cores.elf import function_map, short_name
+from rovernav.cores.uno import UnoCore
+from rovernav.cores.uno_harness import UnoSetupError, _Regs
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder
-from rovernav.sim import uno
-from rovernav.sim.uno import UnoCore, UnoSetupError, _Regs
 
 
 def _skip_reason() -> str | None:
-    missing = uno.missing_packages()
+    missing = harness.missing_packages()
     if missing:
         return "the Uno simulation needs Debian packages: " + ", ".join(sorted(missing))
     return None
@@ -32,7 +35,7 @@ def built():
     if reason:
         pytest.skip(reason)
     try:
-        return uno.ensure_built()
+        return harness.ensure_built()
     except UnoSetupError as exc:
         if "apt-get install" in str(exc) or "toolchain" in str(exc):
             pytest.skip(str(exc))
@@ -54,10 +57,10 @@ def _messages(core: UnoCore, seconds: float, gyro_mdps: int | None = 0, rx_at: d
 # ---------------------------------------------------------------- no toolchain needed
 
 def test_a_missing_libsimavr_is_named_in_the_error(monkeypatch, tmp_path):
-    monkeypatch.setattr(uno, "missing_packages", lambda: {"libsimavr-dev": "/usr/include/simavr/sim_avr.h"})
-    monkeypatch.setattr(uno, "LIBRARY", tmp_path / "libunocore.so")
+    monkeypatch.setattr(harness, "missing_packages", lambda: {"libsimavr-dev": "/usr/include/simavr/sim_avr.h"})
+    monkeypatch.setattr(harness, "LIBRARY", tmp_path / "libunocore.so")
     with pytest.raises(UnoSetupError, match=r"libsimavr-dev.*apt-get install libsimavr-dev"):
-        uno.ensure_built(tmp_path / "firmware.elf")
+        harness.ensure_built(tmp_path / "firmware.elf")
 
 
 def test_motor_pwm_is_read_from_the_compare_registers_or_the_port_bits():
@@ -93,6 +96,15 @@ def test_the_servo_angle_is_the_inverse_of_servo_timer1s_mapping():
 
 
 # ---------------------------------------------------------------- the image in simavr
+
+def test_the_uno_core_keeps_the_rover_core_protocol(built):
+    from rovernav.cores import RoverCore
+
+    core = UnoCore(reset_cause=1)
+    assert isinstance(core, RoverCore)
+    core.close()
+    core.close()   # idempotent, as the protocol says
+
 
 def test_the_gyro_model_answers_who_am_i_and_the_firmware_reports_no_gyro_fault(built):
     core = UnoCore(boot_id=42, reset_cause=1, sonar=lambda: 0)
@@ -182,7 +194,7 @@ def test_a_watchdog_reset_is_seen_and_cuts_the_step_it_interrupts(built, tmp_pat
     assert stats["resets"] >= 5                              # WDTO_15MS: ~16 ms each
     assert [r[4] for r in records] == list(range(len(records)))   # one step per boot
     assert [r[2] for r in records][:3] == [0x01, 0x08, 0x08]      # PORF, then WDRF
-    periods_ms = [(b[0] - a[0]) / uno.CYCLES_PER_MS for a, b in zip(records, records[1:])]
+    periods_ms = [(b[0] - a[0]) / harness.CYCLES_PER_MS for a, b in zip(records, records[1:])]
     assert all(14 < p < 20 for p in periods_ms)
     assert all(r[1] > r[0] for r in records)                 # each cut where the reset came
 
@@ -354,7 +366,7 @@ def test_the_profile_counts_every_cycle_of_a_step_to_its_function_and_interrupts
     src, elf = tmp_path / "prof.c", tmp_path / "prof.elf"
     src.write_text(PROFILE_PROGRAM)
     subprocess.run(["avr-gcc", "-mmcu=atmega328p", "-Os", "-o", str(elf), str(src)], check=True)
-    fmap = uno.function_map(elf)
+    fmap = function_map(elf)
     assert "work" in fmap.names and "main" in fmap.names and "__vector_16" in fmap.names
     assert fmap.vector_handlers[16] == "__vector_16" and fmap.vector_handlers[1] == "__bad_interrupt"
     core = UnoCore(elf=elf, reset_cause=1, profile=True)
@@ -426,13 +438,13 @@ def test_rovernav_sim_help_documents_the_profile_flag_and_it_needs_the_uno():
 
 
 def test_short_names_drop_parameters_clones_and_the_namespace():
-    assert uno.short_name("rovernav::core::Rover::step(rovernav::core::Inputs const&, rovernav::core::Outputs&) "
+    assert short_name("rovernav::core::Rover::step(rovernav::core::Inputs const&, rovernav::core::Outputs&) "
                           "[clone .constprop.3]") == "core::Rover::step"
-    assert uno.short_name("rovernav::core::(anonymous namespace)::sequential_update(float const*, float*) "
+    assert short_name("rovernav::core::(anonymous namespace)::sequential_update(float const*, float*) "
                           "[clone .lto_priv.164]") == "core::sequential_update"
-    assert uno.short_name("rovernav::core::Estimator::position_sd_mm() const [clone .constprop.102]") == \
+    assert short_name("rovernav::core::Estimator::position_sd_mm() const [clone .constprop.102]") == \
         "core::Estimator::position_sd_mm"
-    assert uno.short_name("__subsf3 / __addsf3") == "__subsf3 / __addsf3"
+    assert short_name("__subsf3 / __addsf3") == "__subsf3 / __addsf3"
 
 
 # ---------------------------------------------------------------- signed frames on the image

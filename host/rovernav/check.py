@@ -27,8 +27,7 @@ import math
 
 from . import vehicle_gen as vehicle
 from .link import messages_gen as mg
-from .mission import Detection
-from .mission.core import Failure
+from .mission import Detection, Failure
 
 #: How far ahead the probe drives [m], and how long the probe may take [s].
 PROBE_AHEAD_M = 0.20

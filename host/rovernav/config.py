@@ -194,7 +194,7 @@ def _radio(table: Any, where: str) -> RadioConfig:
 def _check_pose_gains(rover: dict, where: str) -> None:
     """The moving-to-a-pose gains the rover would run with (the file's over the defaults) must be
     stable, by the rule `rovernav pose` applies: a rover must not be sent gains the study refuses."""
-    from .study.pose import PoseGains
+    from .control import PoseGains
 
     keys = (mg.Param.POSE_K_RHO_X1000, mg.Param.POSE_K_ALPHA_X1000, mg.Param.POSE_K_BETA_X1000)
     if not any(k in rover for k in keys):

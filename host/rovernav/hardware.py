@@ -27,7 +27,7 @@ from .link.errors import LinkError, PortSpecError
 from .link.link import Link
 from .link.transport import SerialTransport, parse_serial_spec
 from .mission import Detection, Mission, MissionFailed, Phase
-from .mission.learned_map import check_map_path, read_map_file
+from .mapping.learned_map import check_map_path, read_map_file
 from .planning import OccupancyGrid
 from .validate import MAX_SIM_TIME_S, check_number
 

@@ -13,8 +13,8 @@
  *   Bytes from the outside enter the simulated UART from a cycle timer, at most one byte per
  *   byte-time of the line (10 bits at --baud, default 57,600: ~174 us, 2,778 cycles at 16 MHz)
  *   and only while the UART says it has room (its XON/XOFF IRQs), so no byte is lost inside
- *   the simulated UART. When the input ring is full the bridge stops reading its input, and
- *   the kernel's pty/pipe buffer holds the rest.
+ *   the simulated UART (uart_line.h, the line model unocore.c uses too). When the input ring is
+ *   full the bridge stops reading its input, and the kernel's pty/pipe buffer holds the rest.
  *
  *   Bytes the AVR sends go out as they are written to UDR0 (simavr already paces them at the
  *   configured baud rate). With --pty, if nobody reads the pty and the output ring fills up,
@@ -50,11 +50,12 @@
 #include "sim_irq.h"
 #include "sim_vcd_file.h"
 
+#include "uart_line.h"
+
 #define PROG "rovernav_avrsim"
 #define DEFAULT_MCU "atmega328p"
 #define DEFAULT_FREQ_HZ 16000000u
 #define DEFAULT_BAUD 57600u
-#define BITS_PER_BYTE 10u            /* 8N1: start, 8 data, stop */
 #define UART_NAME '0'
 #define RING_BYTES (64u * 1024u)
 #define IO_CHUNK 512u
@@ -121,11 +122,7 @@ static struct {
 
 	/* simulation */
 	avr_t *avr;
-	avr_irq_t *uart_in;
-	avr_cycle_count_t cycles_per_byte; /* input pacing */
-	avr_cycle_count_t last_feed_cycle;
-	int feed_timer_armed;
-	int uart_rx_ready;       /* XON seen and no XOFF since */
+	uart_line_t uart;        /* UART0 (uart_line.h): input paced at the line's rate */
 	avr_vcd_t vcd;
 	int vcd_open;
 
@@ -137,11 +134,8 @@ static struct {
 	ring_t in;
 	ring_t out;
 
-	/* counters */
-	uint64_t bytes_to_avr;
-	uint64_t bytes_from_avr;
+	/* counters (bytes to and from the AVR, XOFFs: the line's) */
 	uint64_t bytes_dropped_out;
-	uint64_t uart_xoffs;     /* times the UART's input FIFO filled up */
 } g = {
 	.mode = MODE_PTY,
 	.speed = 1.0,
@@ -205,66 +199,30 @@ static const char *state_name(int state)
 
 static int flush_output(int block);
 
-/* Every byte the firmware writes to UDR0. */
-static void uart_output_hook(avr_irq_t *irq, uint32_t value, void *param)
+/* Every byte the firmware writes to UDR0 (the line's `sent`). */
+static void uart_sent(void *param, uint8_t byte)
 {
-	(void)irq;
 	(void)param;
-	g.bytes_from_avr++;
 	if (ring_space(&g.out) == 0 && g.mode == MODE_STDIO)
 		flush_output(1); /* a pipe reader is slow: wait for it rather than lose bytes */
 	if (ring_space(&g.out) == 0) {
 		g.bytes_dropped_out++;
 		return;
 	}
-	ring_push(&g.out, (uint8_t)value);
+	ring_push(&g.out, byte);
 }
 
-/* XON: the UART's input FIFO is empty (raised again and again while it stays so). */
-static void uart_xon_hook(avr_irq_t *irq, uint32_t value, void *param)
+/* The bytes from the outside waiting for the UART, and the oldest of them (the line's). */
+static uint32_t uart_waiting(void *param)
 {
-	(void)irq;
 	(void)param;
-	(void)value;
-	g.uart_rx_ready = 1;
+	return (uint32_t)g.in.len;
 }
 
-/* XOFF: 1 when the FIFO is full or the receiver was turned off; 0 before an XON. */
-static void uart_xoff_hook(avr_irq_t *irq, uint32_t value, void *param)
+static uint8_t uart_take(void *param)
 {
-	(void)irq;
 	(void)param;
-	if (value) {
-		g.uart_rx_ready = 0;
-		g.uart_xoffs++;
-	}
-}
-
-/* Feeds one byte per byte-time of the line while the UART has room. */
-static avr_cycle_count_t feed_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)avr;
-	(void)param;
-	if (g.in.len > 0 && g.uart_rx_ready) {
-		uint8_t b = ring_pop(&g.in);
-		g.last_feed_cycle = when;
-		g.bytes_to_avr++;
-		avr_raise_irq(g.uart_in, b); /* may call uart_xoff_hook re-entrantly */
-	}
-	if (g.in.len > 0)
-		return when + g.cycles_per_byte;
-	g.feed_timer_armed = 0;
-	return 0;
-}
-
-static void arm_feed_timer(void)
-{
-	if (g.feed_timer_armed || g.in.len == 0)
-		return;
-	avr_cycle_count_t due = g.last_feed_cycle + g.cycles_per_byte;
-	avr_cycle_count_t delay = due > g.avr->cycle ? due - g.avr->cycle : 1;
-	avr_cycle_timer_register(g.avr, delay, feed_timer, NULL);
-	g.feed_timer_armed = 1;
+	return ring_pop(&g.in);
 }
 
 /* ------------------------------------------------------------------------------ outside I/O */
@@ -316,7 +274,7 @@ static int read_input(void)
 	if (r > 0) {
 		for (ssize_t i = 0; i < r; i++)
 			ring_push(&g.in, buf[i]);
-		arm_feed_timer();
+		uart_line_kick(&g.uart);
 		return 0;
 	}
 	if (r == 0) {
@@ -499,20 +457,13 @@ static int load_avr(void)
 	g.avr->sleep = no_sleep;
 
 	/* no console echo of UART output, no usleep() when the firmware polls UCSR0A */
-	uint32_t flags = 0;
-	if (avr_ioctl(g.avr, AVR_IOCTL_UART_SET_FLAGS(UART_NAME), &flags) != 0) {
+	g.uart = (uart_line_t){.waiting = uart_waiting, .take = uart_take, .sent = uart_sent};
+	if (uart_line_attach(&g.uart, g.avr, UART_NAME, g.baud) != 0) {
 		logmsg("MCU %s has no UART%c", fw.mmcu, UART_NAME);
 		return -1;
 	}
-	uint32_t ctl = AVR_IOCTL_UART_GETIRQ(UART_NAME);
-	g.uart_in = avr_io_getirq(g.avr, ctl, UART_IRQ_INPUT);
-	avr_irq_register_notify(avr_io_getirq(g.avr, ctl, UART_IRQ_OUTPUT), uart_output_hook, NULL);
-	avr_irq_register_notify(avr_io_getirq(g.avr, ctl, UART_IRQ_OUT_XON), uart_xon_hook, NULL);
-	avr_irq_register_notify(avr_io_getirq(g.avr, ctl, UART_IRQ_OUT_XOFF), uart_xoff_hook, NULL);
-
-	g.cycles_per_byte = ((uint64_t)g.avr->frequency * BITS_PER_BYTE + g.baud - 1) / g.baud;
 	logmsg("%s: %s at %" PRIu32 " Hz, UART%c input paced at %" PRIu64 " cycles/byte (%u baud)",
-	       g.elf_path, fw.mmcu, g.avr->frequency, UART_NAME, (uint64_t)g.cycles_per_byte, g.baud);
+	       g.elf_path, fw.mmcu, g.avr->frequency, UART_NAME, (uint64_t)g.uart.cycles_per_byte, g.baud);
 	return 0;
 }
 
@@ -711,8 +662,8 @@ int main(int argc, char **argv)
 	       (uint32_t)avr->pc, (uint32_t)avr->pc / 2);
 	logmsg("UART0: %" PRIu64 " bytes out, %" PRIu64 " bytes in, %" PRIu64
 	       " output bytes dropped (nobody reading), %zu input bytes not delivered, %" PRIu64
-	       " XOFF", g.bytes_from_avr, g.bytes_to_avr, g.bytes_dropped_out, g.in.len,
-	       g.uart_xoffs);
+	       " XOFF", g.uart.bytes_out, g.uart.bytes_in, g.bytes_dropped_out, g.in.len,
+	       g.uart.xoffs);
 	if (state == cpu_Crashed)
 		logmsg("CRASH: the simulated core crashed at pc 0x%04" PRIx32
 		       " (word 0x%04" PRIx32 "); disassemble with avr-objdump -d %s",

@@ -1,7 +1,7 @@
 /*
  * unocore: the rover's Uno image (build/uno/firmware.elf) in simavr, with the simulated world
  * wired to its pins, as a shared library (build/avrsim/libunocore.so) that the Python
- * simulator loads with ctypes (host/rovernav/sim/uno.py, `rovernav sim --rover uno`).
+ * simulator loads with ctypes (host/rovernav/cores/uno_harness.py, `rovernav sim --rover uno`).
  *
  * Why a library in the simulator's process and not a subprocess with a byte protocol
  *   The simulator steps the rover every 10 ms of simulated time, and an HC-SR04 ping needs the
@@ -24,7 +24,8 @@
  *   - MPU-6050: a TWI slave at 0x68 with a register file (auto-incrementing register pointer,
  *     WHO_AM_I 0x68, DEVICE_RESET, SLEEP, FS_SEL) whose GYRO_ZOUT is the host's yaw rate.
  *   - UART0: bytes from the host enter at the line rate (10 bits at 57,600 baud), and only
- *     while the UART has room (XON/XOFF); bytes the firmware sends are collected for the host.
+ *     while the UART has room (XON/XOFF); bytes the firmware sends are collected for the host
+ *     (the line is uart_line.h's, shared with rovernav_avrsim.c).
  *   - Measurement hooks of the image, when present: PB0 (D8) high while a 10 ms step works,
  *     and GPIOR0 written with a step descriptor at its end. Every edge of PB0 is time-stamped
  *     in CPU cycles; each step record keeps its rise, its fall and its descriptor.
@@ -148,6 +149,8 @@
 #include "sim_io.h"
 #include "sim_irq.h"
 
+#include "uart_line.h"
+
 #define UNOCORE_API __attribute__((visibility("default")))
 #define UNOCORE_ABI_VERSION 3
 
@@ -181,7 +184,7 @@ enum {
 typedef uint32_t (*unocore_sonar_fn)(void *user);
 
 /* ------------------------------------------------------------------------------ structures
- * Shared with host/rovernav/sim/uno.py (ctypes); keep the layouts in step. */
+ * Shared with host/rovernav/cores/uno_harness.py (ctypes); keep the layouts in step. */
 
 typedef struct unocore_step {
 	uint64_t rise;           /* cycle PB0 went high */
@@ -319,13 +322,9 @@ typedef struct unocore {
 	uint64_t base;                 /* cycles run before the last reset */
 	uint64_t last_avr_cycle;
 
-	/* UART */
-	avr_irq_t *uart_in;
+	/* UART0 (uart_line.h): bytes for the firmware wait in rx, what it sends waits in tx */
+	uart_line_t uart;
 	ring_t rx, tx;
-	avr_cycle_count_t cycles_per_byte;
-	avr_cycle_count_t last_feed_cycle;
-	int feed_armed;
-	int uart_ready;
 
 	/* TWI: the MPU-6050 */
 	avr_irq_t *twi_in;
@@ -430,56 +429,12 @@ static uint8_t ring_pop(ring_t *r)
 
 /* ------------------------------------------------------------------------------ UART */
 
-static void uart_output_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	u->st.uart_bytes_out++;
-	ring_push(&u->tx, (uint8_t)value);
-}
+/* The line (uart_line.h) takes the bytes for the firmware from rx and puts what it sends in tx. */
+static uint32_t uart_waiting(void *param) { return ((unocore *)param)->rx.len; }
 
-static void uart_xon_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	(void)value;
-	((unocore *)param)->uart_ready = 1;
-}
+static uint8_t uart_take(void *param) { return ring_pop(&((unocore *)param)->rx); }
 
-static void uart_xoff_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	if (value) {
-		u->uart_ready = 0;
-		u->st.uart_xoffs++;
-	}
-}
-
-static avr_cycle_count_t feed_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)avr;
-	unocore *u = param;
-	if (u->rx.len > 0 && u->uart_ready) {
-		uint8_t b = ring_pop(&u->rx);
-		u->last_feed_cycle = when;
-		u->st.uart_bytes_in++;
-		avr_raise_irq(u->uart_in, b);
-	}
-	if (u->rx.len > 0)
-		return when + u->cycles_per_byte;
-	u->feed_armed = 0;
-	return 0;
-}
-
-static void arm_feed_timer(unocore *u)
-{
-	if (u->feed_armed || u->rx.len == 0)
-		return;
-	avr_cycle_count_t due = u->last_feed_cycle + u->cycles_per_byte;
-	avr_cycle_count_t delay = due > u->avr->cycle ? due - u->avr->cycle : 1;
-	avr_cycle_timer_register(u->avr, delay, feed_timer, u);
-	u->feed_armed = 1;
-}
+static void uart_sent(void *param, uint8_t byte) { ring_push(&((unocore *)param)->tx, byte); }
 
 /* ------------------------------------------------------------------------------ MPU-6050 */
 
@@ -1188,9 +1143,7 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 	avr_t *avr = u->avr;
 	u->base = cycle_before - avr->cycle;
 	u->last_avr_cycle = avr->cycle;
-	u->feed_armed = 0;
-	u->last_feed_cycle = avr->cycle;
-	u->uart_ready = 0;
+	uart_line_after_reset(&u->uart);
 	if (u->echo_busy) {
 		u->echo_busy = 0;
 		avr_raise_irq(u->echo_irq, 0);
@@ -1210,7 +1163,7 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 	u->eimsk = 0;
 	extint_polling_off(u);
 	stack_paint(u);
-	arm_feed_timer(u);
+	uart_line_kick(&u->uart);
 	/* 5: the pin IRQs' values as PINx now has them (see the head of this file) */
 	for (int i = 0; i < 3; i++) {
 		const uint8_t pin = avr->data[A_PINB + 3 * i];
@@ -1226,7 +1179,7 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 
 UNOCORE_API uint32_t unocore_abi_version(void) { return UNOCORE_ABI_VERSION; }
 
-/* sizeof the structs the host reads (sim/uno.py checks its ctypes copies against these), in
+/* sizeof the structs the host reads (cores/uno_harness.py checks its ctypes copies against these), in
  * this order: step, regs, stats, prof_info, prof_entry, prof_step. Returns how many there are. */
 UNOCORE_API uint32_t unocore_struct_sizes(uint32_t* out, uint32_t n) {
   const uint32_t sizes[] = {sizeof(unocore_step), sizeof(unocore_regs), sizeof(unocore_stats),
@@ -1285,19 +1238,13 @@ UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uin
 	avr_load_firmware(avr, &u->fw);
 	avr->sleep = no_sleep;
 
-	/* UART0: no console echo, no usleep when the firmware polls */
-	uint32_t flags = 0;
-	if (avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags) != 0) {
+	/* UART0: no console echo, no usleep when the firmware polls; input paced at the line's rate */
+	u->uart = (uart_line_t){.user = u, .waiting = uart_waiting, .take = uart_take, .sent = uart_sent};
+	if (uart_line_attach(&u->uart, avr, '0', baud) != 0) {
 		snprintf(err, errlen, "MCU %s has no UART0", u->fw.mmcu);
 		unocore_free(u);
 		return NULL;
 	}
-	uint32_t uctl = AVR_IOCTL_UART_GETIRQ('0');
-	u->uart_in = avr_io_getirq(avr, uctl, UART_IRQ_INPUT);
-	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUTPUT), uart_output_hook, u);
-	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUT_XON), uart_xon_hook, u);
-	avr_irq_register_notify(avr_io_getirq(avr, uctl, UART_IRQ_OUT_XOFF), uart_xoff_hook, u);
-	u->cycles_per_byte = ((uint64_t)avr->frequency * 10u + baud - 1) / baud;
 
 	/* TWI */
 	u->twi_in = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT);
@@ -1397,7 +1344,7 @@ UNOCORE_API uint32_t unocore_rx(unocore *u, const uint8_t *data, uint32_t len)
 	uint32_t n = 0;
 	for (; n < len && u->rx.len < RING_BYTES; n++)
 		ring_push(&u->rx, data[n]);
-	arm_feed_timer(u);
+	uart_line_kick(&u->uart);
 	return n;
 }
 
@@ -1516,6 +1463,9 @@ UNOCORE_API void unocore_stats_read(unocore *u, unocore_stats *s)
 {
 	stack_measure(u);
 	u->st.cycle = now_cycle(u);
+	u->st.uart_bytes_in = (uint32_t)u->uart.bytes_in;
+	u->st.uart_bytes_out = (uint32_t)u->uart.bytes_out;
+	u->st.uart_xoffs = (uint32_t)u->uart.xoffs;
 	u->st.uart_rx_queued = u->rx.len;
 	u->st.pings = u->pings_total;
 	u->st.echoes = u->echoes_total;

@@ -13,7 +13,7 @@ which makes the inverse sensor model:
 
 The arc takes every cell any part of which lies in the cone; the free marks only the cells whose
 centre does (a cell the cone's edge cuts may hold a corner in the part the sound missed), unless
-the model's `clear_cut_cells` is set: the host keeps a second map so (rovernav.mission.learned_map).
+the model's `clear_cut_cells` is set: the host keeps a second map so (rovernav.mapping.learned_map).
 
 An echo already explained, because its arc meets the arena's wall, a known obstacle or cells
 already believed occupied, raises only those cells, not the rest of its arc: a second look

@@ -10,11 +10,14 @@ in `rovernav run`, the simulator in lockstep) calls `on_detection()` for each ca
 `tick(now_s)` often, with its own notion of time. Every phase has a deadline and a recovery
 (see `Deadlines`): a mission ends by itself, reached or failed with the reason, and never
 waits for ever.
+
+Here: the phase machine, the ticks and the camera's fixes, and the means of acting (requests,
+paths, STOP). Apart: what the rover says (rover_frames.py, a base class of Mission), a leg's
+path (leg_plan.py), the phases and timings (phases.py), the run log's interface (recorder.py),
+and what a strategy may see of the mission (interface.py).
 """
 from __future__ import annotations
 
-import dataclasses
-import enum
 import logging
 import math
 import os
@@ -24,134 +27,26 @@ from typing import Callable
 from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
 from ..angles import heading_cdeg
 from ..link import messages_gen as mg
-from ..link.errors import LinkError, Nacked, SchemaMismatch
+from ..link.errors import LinkError
 from ..link.link import host_hello
-from ..link.path_upload import CHUNK_SPACING_S, Answer, PathUpload
+from ..link.path_upload import CHUNK_SPACING_S, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
-from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import ahead_first, half_seen, turnable
-from ..mapping import SonarReading
-from .learned_map import Echo, LearnedMap
+from ..planning import OccupancyGrid
+from ..mapping import Echo, LearnedMap
+from .interface import Strategy
+from .leg_plan import START_NEAR_M, plan_leg
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
-from .strategies import RovernavStrategy, Strategy
+from .phases import (CLOSE_S, HEARD_RECENTLY_S, HELLO_ALIVE_FACTOR, HELLO_EVERY_S, LINK_LOG_S, MAP_CHECK_S,
+                     MAX_FRAMES_PER_TICK, MAX_TRIES, RESEND_S, SILENT_S, Detection, Failure, Outcome, Phase)
+from .recorder import Recorder
+from .rover_frames import RoverFrames
+from .strategies import RovernavStrategy
 
 log = logging.getLogger("rovernav.mission")
 
-# Every exchange is made for a radio that loses frames (protocol/README.md, "Exchanges and
-# their retry rules"): a request goes again after RESEND_S, and fails after MAX_TRIES attempts
-# made while the rover is heard (an attempt while it is silent does not count: it is carrying
-# on alone and answers once the radio is back). At 1 % of bytes lost a signed request and its
-# answer get through together about half the time: 30 attempts fail together once in 10^7; 75
-# (30 s) give a 5 % radio, where a PATH chunk and its ACK get through together 2 % of the time,
-# a fair chance.
-RESEND_S = 0.4        # an un-ACKed request goes again after this long
-MAX_TRIES = 75        # ... this many times (30 s) while the rover is heard, then the mission fails
-#: How far from a goal that an echo's arc covers the last tries may end their plan [m].
-GOAL_SHIFT_M = 0.06
-#: A path whose start lies this near the rover starts where it stands: its first turn is made
-#: from the rover's heading, and is checked for room (rovernav.planning.turns.ahead_first) [m].
-START_NEAR_M = 0.05
-HELLO_EVERY_S = 0.25
-SILENT_S = 1.0        # no frame from the rover for this long: the radio is down
-CLOSE_S = 10.0        # an ended mission's STOP is re-sent until ACKed, for at most this long
-LINK_LOG_S = 1.0          # the link's quality goes to the run log this often
-HEARD_RECENTLY_S = 5.0    # a rover heard this recently is alive, if the radio is lossy
-HELLO_ALIVE_FACTOR = 4    # no HELLO from a rover that is heard: the deadline is this many times longer
-MAP_CHECK_S = 2.0     # the map changed and no SCAN_DONE came this long after: check the path anyway
 
-
-# Frames handled in one tick at most: the rest wait for the next (at 57,600 baud about 100 frames
-# arrive a second; a flood on a faster line must not starve the heartbeat and the deadlines).
-MAX_FRAMES_PER_TICK = 256
-
-class Phase(enum.Enum):
-    HELLO = "hello"            # waiting for the rover's HELLO
-    CONFIGURE = "configure"    # sending parameters
-    LOCATE = "locate"          # waiting for the camera to see the rover
-    LOAD = "load"              # a path is being sent
-    RUN = "run"                # the rover follows the path
-    DONE = "done"
-    FAILED = "failed"
-
-
-class Failure(enum.Enum):
-    """Why a mission failed, as a kind a caller can act on (the message says it in words)."""
-
-    NO_HELLO = "no_hello"              # the rover never said HELLO
-    SCHEMA = "schema"                  # the rover was built from another protocol definition
-    NOT_CONFIGURED = "not_configured"  # parameters not acknowledged in time
-    NO_CAMERA = "no_camera"            # the camera does not see the rover
-    NOT_LOADED = "not_loaded"          # a path and START not acknowledged in time
-    REFUSED = "refused"                # the rover NACKed a command
-    NOT_ANSWERED = "not_answered"      # a request unanswered after every try
-    ROVER_FAULT = "rover_fault"        # the rover reported a fault (its gyro, ...)
-    SILENT = "silent"                  # no frame from the rover for too long
-    LEG_LATE = "leg_late"              # a leg not reached after its recoveries
-    NO_PATH = "no_path"                # the planner's verdict: the goal cannot be reached
-    FROM_OUTSIDE = "from_outside"      # ended by whoever runs the mission (a crash, an operator)
-
-
-class Outcome(enum.Enum):
-    RUNNING = "running"
-    REACHED = "reached"        # every leg reached
-    NO_PATH = "no_path"        # the planner says the goal cannot be reached on what is known
-    FAILED = "failed"          # anything else: a refusal, a fault, silence, a deadline
-
-
-@dataclasses.dataclass
-class Detection:
-    """A camera fix of the rover in arena coordinates (None fields: the rover was not seen)."""
-
-    t_s: float
-    x_m: float | None
-    y_m: float | None
-    heading_deg: float | None
-    reason: str | None = None
-
-
-class Recorder:
-    """What a mission tells a run log (rovernav.runlog.RunLog), here doing nothing.
-
-    Inputs, in the order they reach the mission: the ticks, the camera's detections, every frame
-    it takes from the rover, and a failure imposed from outside; `rovernav replay` feeds these to
-    a new Mission and compares its outputs: the frames it sends (and the events it reports)."""
-
-    def host_input(self, kind: str, t_s: float, **data) -> None:
-        pass
-
-    def host_rx(self, t_s: float, frame) -> None:
-        pass
-
-    def host_tx(self, t_s: float, message, seq: int) -> None:
-        pass
-
-    def host_event(self, t_s: float, text: str) -> None:
-        pass
-
-    def host_path(self, t_s: float, path_id: int, path: list[tuple[float, float]]) -> None:
-        pass
-
-    def host_sonar(self, t_s: float, reading: SonarReading, changed: bool) -> None:
-        pass
-
-    def host_map(self, t_s: float, learned_map: LearnedMap) -> None:
-        pass
-
-    def host_link(self, t_s: float, quality: dict) -> None:
-        """Frames through both ways (recent and whole-run) and frames sent again: once a second."""
-
-
-class PlannedPath(list):
-    """A path (waypoints [m]) that asks the rover to back out before its first turn on the spot
-    (PATH back_out): the host's map has no room for its corners where it stands."""
-
-    def __init__(self, points, back_out: bool = False) -> None:
-        super().__init__(points)
-        self.back_out = back_out
-
-
-class Mission:
+class Mission(RoverFrames):
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
     and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
 
@@ -406,224 +301,6 @@ class Mission:
                              f"(recovery {leg.recoveries} of {self.deadlines.leg_recoveries})")
         self._resume()
 
-    # ---------------------------------------------------------------- what the rover says
-
-    def _handle(self, frame) -> None:
-        if self._silent():
-            self._heard_again_s = self._now
-        self._last_heard_s = self._now
-        self._heard_any = True
-        m = frame.message
-        if isinstance(m, mg.Hello) and m.role == mg.Role.ROVER and m.boot_id != self.rover_boot_id:
-            self.quality.restart()   # a rover that restarted numbers its frames from 0 again
-        self.quality.on_frame(frame.seq, self._now)
-        if isinstance(m, mg.Hello):
-            self._on_hello(m)
-        elif isinstance(m, (mg.Ack, mg.Nack)):
-            self._on_answer(m)
-        elif isinstance(m, mg.Status):
-            self._on_status(m)
-        elif isinstance(m, mg.Obstacle):
-            self._on_obstacle(m)
-        elif isinstance(m, mg.Event):
-            self._on_event(m)
-
-    def _on_hello(self, m: mg.Hello) -> None:
-        if m.role != mg.Role.ROVER:
-            return
-        if m.schema_hash != mg.SCHEMA_HASH:
-            self.cause = SchemaMismatch(mg.SCHEMA_HASH, m.schema_hash)
-            self._fail(str(self.cause), Failure.SCHEMA)
-            return
-        if self.rover_boot_id is not None and m.boot_id != self.rover_boot_id and self.phase is not Phase.HELLO:
-            # The rover restarted: it forgot its parameters and its path. Bring it back.
-            self.on_event(self._now, f"rover restarted (boot id {self.rover_boot_id} -> {m.boot_id}); "
-                                     "re-sending parameters and path")
-            self.rover_boot_id = m.boot_id
-            self.requests.clear()
-            self.upload = None
-            self._send(host_hello(self.host_boot_id))
-            resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
-            self._configure()
-            self._resume_leg = resume   # once configured: the same leg again, from where the rover is
-            return
-        if self.phase is Phase.HELLO:
-            self.rover_boot_id = m.boot_id
-            if self._hello_at < 0:
-                # The rover's HELLO came before ours went out (it booted while this host was
-                # starting): it takes no START until it has checked our schema, so say HELLO now.
-                self._hello_at = self._now
-                self._send(host_hello(self.host_boot_id))
-            self.on_event(self._now, f"rover HELLO: boot id {m.boot_id}, firmware "
-                                     f"{m.firmware_version >> 8}.{m.firmware_version & 0xFF}, schema ok")
-            self._configure()
-
-    def _on_answer(self, m) -> None:
-        if self.upload is not None and not self.done:
-            answer = self.upload.answer(m)
-            if answer is Answer.RESUME:
-                self._send_chunks()   # from where the rover stopped, at once
-                return
-            if answer is Answer.REFUSED:
-                self.nacks.append(m)
-                self.cause = Nacked(mg.Path.NAME, m.reason, m.detail)
-                self._fail(str(self.cause), Failure.REFUSED)
-                return
-            if answer is Answer.TAKEN:
-                return
-        pending = self.requests.answer(m)
-        if pending is None:
-            return
-        message = pending.message
-        if isinstance(m, mg.Nack):
-            if isinstance(message, mg.Start) and message.path_id != self.path_id:
-                return   # a START for a path since replaced: its answer no longer matters
-            if m.reason == mg.NackReason.SCHEMA_MISMATCH or (m.reason == mg.NackReason.NO_FIX
-                                                             and isinstance(message, mg.Start)):
-                # The rover does not know this host (our HELLO was lost), or has not had a fix
-                # yet (FIXes were lost): say HELLO again, and ask again; the attempts still count.
-                if m.reason == mg.NackReason.SCHEMA_MISMATCH:
-                    self._say_hello_again()
-                self._ask_again(pending)
-                return
-            self.nacks.append(m)
-            self.cause = Nacked(message.NAME, m.reason, m.detail)
-            self._fail(str(self.cause), Failure.REFUSED)
-        elif isinstance(message, mg.Start):
-            self._start_acked_for = message.path_id
-        elif isinstance(message, mg.Stop) and self.done:
-            self._closed = True
-
-    def _ask_again(self, pending) -> None:
-        """A refused request goes again, with its attempt counted, once its resend time comes."""
-        if self.requests.exhausted(pending):
-            self._fail(f"the rover refused {pending.message.NAME.upper()} {pending.tries} times",
-                       Failure.NOT_ANSWERED)
-            return
-        self.requests.again(pending)   # due RESEND_S after its last attempt (re-sent by _resend)
-
-    def _say_hello_again(self) -> None:
-        """The rover does not know this host (a NACK schema_mismatch, or STATUS without schema_ok):
-        our HELLO was lost. Say it again (at most every HELLO_EVERY_S)."""
-        if self._now - self._hello_at >= HELLO_EVERY_S:
-            self._hello_at = self._now
-            self.hellos_again += 1
-            self._send(host_hello(self.host_boot_id))
-
-    def _on_status(self, m: mg.Status) -> None:
-        backed_out = (self.last_status is not None and self.last_status.state == mg.RoverState.BACK_OFF
-                      and m.state != mg.RoverState.BACK_OFF)
-        self.last_status = m
-        if backed_out and self.host_replan and self._leg_open():
-            # The rover backed out to make room for a turn (TURN_REFUSED) and heads for its next
-            # waypoint from off its path, along a line no planner chose.
-            self.strategy.backed_out(self)
-        self.quality.on_status(m, self.frames_sent, self._now)
-        if self.phase is not Phase.HELLO and not m.flags & mg.StatusFlag.SCHEMA_OK:
-            self._say_hello_again()
-        # A STATUS after START was acknowledged that says the rover has arrived on this path:
-        # the ARRIVED event itself was lost on the radio.
-        if (m.state == mg.RoverState.ARRIVED and m.path_id == self.path_id
-                and self._start_acked_for == self.path_id and self._leg_open()):
-            self._arrived()
-
-    def _on_obstacle(self, m: mg.Obstacle) -> None:
-        if m.scan_id != self._scan_latest:
-            self._scan_latest, self._scan_echoes_heard, self._scan_echoes_seen = m.scan_id, 0, set()
-        if m.range_mm:
-            # The rover says each echo three times (its word is taken only on a sweep heard whole): once is enough.
-            said = (m.bearing_cdeg, m.range_mm, m.x_mm, m.y_mm, m.heading_cdeg)
-            if said in self._scan_echoes_seen:
-                return
-            self._scan_echoes_seen.add(said)
-            self._scan_echoes_heard += 1
-        reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
-                               m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
-        changed = self.map.add(reading)
-        self.recorder.host_sonar(self._now, reading, changed)
-        self._map_unsaved = True
-        if m.range_mm and self.legs:
-            self.current_leg.obstacles_found += 1
-        if changed:
-            # The rover is stopped for its sweep: replan once when the sweep is done, not per reading.
-            self._map_changed_at = self._now
-
-    def _on_event(self, m: mg.Event) -> None:
-        self.events.append((self._now, m))
-        kind = mg.EventKind(m.kind) if m.kind in mg.EventKind._value2member_map_ else None
-        if kind is mg.EventKind.ARRIVED:
-            # Whatever the phase: a rover may arrive before the host has seen START's ACK (a leg
-            # that was nearly done), and that arrival must not be lost.
-            if self._start_sent_for == self.path_id and self._leg_open():
-                self._arrived()
-        elif kind is mg.EventKind.SCAN_DONE:
-            self._save_map()   # once a sweep, not once a reading: the file grows with the map
-            self.recorder.host_map(self._now, self.map)
-            if self._map_changed_at is not None:
-                self._map_changed()
-            self._scan_done(m.arg)
-        elif kind is mg.EventKind.PATH_ACCEPTED:
-            self._accepted_path_id = m.arg
-            if self.upload is not None and self.upload.path_id == m.arg:
-                self.upload.mark_complete()   # its last ACKs may be lost: this says it all
-        elif kind is mg.EventKind.FAULT:
-            self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}",
-                       Failure.ROVER_FAULT)
-        elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
-            self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
-            if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
-                # Twice in one spot, and planned paths turn there no more this leg (Leg.refused_twice).
-                self.current_leg.turns_refused_at.append((m.x_mm / 1000, m.y_mm / 1000))
-
-    def _leg_open(self) -> bool:
-        return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
-
-    def _arrived(self) -> None:
-        if self.path_rest:   # the end of a part of a long path: the next part, from here
-            rest = self.path_rest
-            self.on_event(self._now, f"part of the path done: the next {len(rest)} of its waypoints")
-            self.load_path([self.path[-1]] + rest)
-            return
-        if not self.strategy.on_arrived(self):
-            return
-        self._leg_done()
-
-    def _save_map(self) -> None:
-        if self.map_file is not None and self._map_unsaved:
-            self.map.save(self.map_file)
-            self._map_unsaved = False
-
-    def _leg_done(self) -> None:
-        self._save_map()
-        leg = self.current_leg
-        leg.finished_s, leg.reached = self._now, True
-        self.on_event(self._now, f"leg {leg.index + 1} reached ({leg.goal[0]:.2f}, {leg.goal[1]:.2f}) m")
-        self.record.save(len(self.legs))
-        if len(self.legs) >= self.legs_asked:
-            self._set_phase(Phase.DONE)
-            self.outcome = Outcome.REACHED
-            self._end_with_stop(mg.StopReason.MISSION_DONE)
-        else:
-            self._next_leg()
-
-    def _scan_done(self, echoes: int) -> None:
-        """A sweep's SCAN_DONE: the host's word that it heard the sweep whole, once its map holds every
-        echo the sweep counted and the path was checked against them (_map_changed, just before).
-        A host that does not replan gives its word too: it heard, and keeps its path."""
-        if self._scan_latest is None or self._scan_latest == self._scan_done_for:
-            return   # a copy (the rover says SCAN_DONE three times), or a sweep none of whose readings came
-        self._scan_done_for = self._scan_latest
-        if self._scan_echoes_heard == echoes:
-            self.scans_heard_whole += 1
-            self.scan_heard = self._scan_latest
-        else:
-            self.scans_heard_part += 1
-
-    def _map_changed(self) -> None:
-        self._map_changed_at = None
-        if self.host_replan and self._leg_open():
-            self.strategy.map_changed(self)
-
     # ---------------------------------------------------------------- doing things
 
     def _set_phase(self, phase: Phase) -> None:
@@ -705,105 +382,17 @@ class Mission:
 
     def plan_from(self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
                   ) -> list[tuple[float, float]] | None:
-        """A* from `start` to `goal`, simplified; None when there is none (the mission has then
-        ended with the no-path verdict and the planner's reason, unless `verdict` is False: a
-        check that may keep the path the rover has).
-
-        Before that verdict: from the nearest free cell when the rover stands inside an inflated
-        margin (close to what it has just found), and, round what only the sonar has seen, with
-        the robot radius alone (the log-odds map already places an echo anywhere across its
-        cone, so the sonar's placement margin counts it twice). Each on the careful map first, then
-        on the open map, whose silence also clears the cells the cone's edge only cuts
-        (rovernav.mission.learned_map): careful, open, careful with the radius alone, open with
-        the radius alone. A target is unreachable only
-        when the obstacles enclose it even then.
-        """
-        reason = None
-        lenient = self.map.lenient_grid()
-        opened: list = []
+        """A* from `start` to `goal`, simplified (leg_plan.plan_leg: its fallbacks, its turns); None
+        when there is none (the mission has then ended with the no-path verdict and the planner's
+        reason, unless `verdict` is False: a check that may keep the path the rover has)."""
         # The turn at the start counts from the rover's heading when the path starts where it stands.
         heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
-        cfg = self.grid.config
-        echoes = self.echoes
-
-        def grids():
-            # The careful map, then the open one (built only when the careful map found no way),
-            # each with the full margin before either with the radius alone.
-            yield self.grid
-            opened.extend(self.map.open_grids())
-            yield opened[0] if opened else None
-            yield lenient
-            yield opened[1] if len(opened) > 1 else None
-
-        # A goal the known obstacles leave free but an echo's arc covers (the home the rover left,
-        # beside a box whose corner echoed at the cone's edge) is reached from the nearest free
-        # cell within GOAL_SHIFT_M, in the last tries only: too short a way to pass any wall.
-        goal_known_free = self.map.known_grid.is_free(*goal)
-        for grid in grids():
-            if grid is None:
-                continue
-            last_tries = grid is lenient or (len(opened) > 1 and grid is opened[1])
-            shifted = self._nearest_free(goal, grid, GOAL_SHIFT_M) if last_tries and goal_known_free else None
-            for origin in (start, self._nearest_free(start, grid)):
-                if origin is None:
-                    continue
-                for end in (goal, shifted):
-                    if end is None:
-                        continue
-                    try:
-                        result = plan(grid, origin, end, planner=self.planner)
-                    except NoPathError as exc:
-                        # The most telling reason: that no route joins them, over a blocked start.
-                        if reason is None or isinstance(exc, Unreachable):
-                            reason = exc
-                        continue
-                    # Where a bend asks for a turn the body's corners cannot make, the bend moves; a
-                    # spot where the rover refused a turn twice in this leg has no room either.
-                    refused = self.current_leg.refused_twice() if self.legs else []
-                    hidden = half_seen(grid, echoes, cfg.sonar_offset_m, cfg.sonar_cone_deg)
-                    waypoints, moved, left = turnable(grid, result.waypoints, refused, hidden)
-                    if grid is lenient:
-                        self.on_event(self._now, "planned with the robot radius alone round what only the sonar has seen")
-                    elif grid is not self.grid:
-                        self.on_event(self._now, "planned on the open map (silence clears the cone's edges too)")
-                    if end is not goal:
-                        self.on_event(self._now, f"the goal lies within an echo's arc: planned to "
-                                                 f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on")
-                    if moved or left:
-                        self.on_event(self._now, f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
-                                                 f"where the body can turn" + (f", {left} without room near" if left else ""))
-                    path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
-                    path = path if origin is start else [start] + path
-                    if heading is not None:
-                        # The first turn, from the heading the rover has where it stands.
-                        path, ahead = ahead_first(grid, path, heading, hidden)
-                        if ahead > 0:
-                            self.on_event(self._now, "no room to turn where the rover stands: "
-                                                     "it drives straight on to turn first")
-                        elif ahead < 0:
-                            # Its own memory may have let go of what the map holds: the path
-                            # asks it to back out the way it came before it turns (PATH back_out).
-                            path = PlannedPath(path, back_out=True)
-                            self.on_event(self._now, "no room to turn where the rover stands, none "
-                                                     "straight ahead: it backs out first")
-                    return path
-        if verdict:
+        refused = self.current_leg.refused_twice() if self.legs else []
+        path, reason = plan_leg(self.map, start, goal, planner=self.planner, heading=heading, refused=refused,
+                                say=lambda text: self.on_event(self._now, text))
+        if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
-        return None
-
-    def _nearest_free(self, xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.3
-                      ) -> tuple[float, float] | None:
-        if grid.is_free(*xy):
-            return None   # the start itself is free: nothing nearer to try
-        step = grid.resolution_m
-        for ring in range(1, int(max_m / step) + 1):
-            r = ring * step
-            for k in range(max(8, ring * 8)):
-                a = 2 * math.pi * k / max(8, ring * 8)
-                p = (xy[0] + r * math.cos(a), xy[1] + r * math.sin(a))
-                if grid.contains(*p) and grid.is_free(*p):
-                    return p
-        return None
+        return path
 
     def remaining_path(self) -> list[tuple[float, float]]:
         """From where the rover is through the waypoints it has still to reach."""
@@ -955,7 +544,7 @@ class Mission:
         return done
 
     def save_map(self, path: str | Path) -> None:
-        """Write what the sonar found (see rovernav.mission.learned_map for the format)."""
+        """Write what the sonar found (see rovernav.mapping.learned_map for the format)."""
         self.map.save(path)
 
     def load_map(self, path: str | Path) -> int:

@@ -2,7 +2,8 @@
 
 A strategy decides a leg's path, how it is handed to the rover, what an arrival means, and
 what to do when the map changes. The mission (`rovernav.mission.Mission`) does the rest:
-phases, deadlines, requests, the map. Both run the same firmware.
+phases, deadlines, requests, the map. Both run the same firmware. A strategy sees the mission
+only through `MissionView` and is a `Strategy` to it (both in interface.py).
 
 - `RovernavStrategy`: A*'s path simplified to a few waypoints, sent whole; the rover follows it,
   sweeps every 0.3 m and detours on its own; the host replans when a sweep shows the rest of
@@ -16,39 +17,11 @@ phases, deadlines, requests, the map. Both run the same firmware.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Protocol
 
 from ..link import messages_gen as mg
 from ..planning import NoPathError, plan
 from ..planning.turns import body_clear
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .core import Mission
-
-Path = list[tuple[float, float]]
-
-
-class Strategy(Protocol):
-    name: str
-    note: str          # said when a leg starts
-
-    def rover_params(self) -> list[tuple[mg.Param, int]]:
-        """CONFIG parameters the strategy needs, sent before the mission's own."""
-
-    def leg_path(self, m: "Mission", start: tuple[float, float], goal: tuple[float, float]) -> Path | None:
-        """The path of a new leg (None: the mission has failed, with the reason)."""
-
-    def start_leg(self, m: "Mission", path: Path) -> None:
-        """Hand a new leg to the rover."""
-
-    def on_arrived(self, m: "Mission") -> bool:
-        """The rover arrived at the end of the path it was given: is the leg done?"""
-
-    def map_changed(self, m: "Mission") -> None:
-        """The map changed (after a sweep): replan if the rest of the leg is blocked."""
-
-    def backed_out(self, m: "Mission") -> None:
-        """The rover backed out to make room for a turn and heads for its next waypoint from there."""
+from .interface import MissionView, Path, Strategy
 
 
 class RovernavStrategy:
@@ -58,22 +31,22 @@ class RovernavStrategy:
     def rover_params(self) -> list[tuple[mg.Param, int]]:
         return []
 
-    def leg_path(self, m, start, goal):
+    def leg_path(self, m: MissionView, start, goal):
         return m.plan_from(start, goal)
 
-    def start_leg(self, m, path):
+    def start_leg(self, m: MissionView, path):
         m.load_path(path)
 
-    def on_arrived(self, m):
+    def on_arrived(self, m: MissionView):
         return True
 
-    def map_changed(self, m):
+    def map_changed(self, m: MissionView):
         remaining = m.remaining_path()
         if not remaining or not m.grid.path_blocked(remaining):
             return
         self._replan(m)
 
-    def backed_out(self, m):
+    def backed_out(self, m: MissionView):
         # The straight line from where it stopped backing out to its next waypoint cuts the
         # corner the path went round: replanned when the body's sides would not clear it (seed
         # 1's arena 189: a rover backed out from the end of a divider and drove on into it).
@@ -82,7 +55,7 @@ class RovernavStrategy:
         if len(remaining) >= 2 and not body_clear(m.grid, remaining[0], remaining[1]):
             self._replan(m, verdict=False, why="the line on from where the rover backed out scrapes")
 
-    def _replan(self, m, verdict=True, why="the sonar found the path blocked"):
+    def _replan(self, m: MissionView, verdict=True, why="the sonar found the path blocked"):
         new = m.plan_from(m.rover_xy(), m.current_leg.goal, verdict)
         if new is not None:
             m.replanned(new, f"{len(new)} waypoints", why)
@@ -103,28 +76,28 @@ class SeedStrategy:
         return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SONAR_REPORT_MM, 400), (mg.Param.SWEEP_AT_START, 0),
                 (mg.Param.SWEEP_BEFORE_TURN_DEG, 0), (mg.Param.REFLEX_PING_MS, 0)]
 
-    def _raw_path(self, m, start, goal):
+    def _raw_path(self, m: MissionView, start, goal):
         try:
             result = plan(m.grid, start, goal, planner=m.planner)
         except NoPathError:
             return m.plan_from(start, goal)   # its fallbacks (nearest free cell) and failure verdict
         return [m.grid.cell_to_world(int(ix), int(iy)) for ix, iy in result.cells] + [goal]
 
-    def leg_path(self, m, start, goal):
+    def leg_path(self, m: MissionView, start, goal):
         return self._raw_path(m, start, goal)
 
-    def start_leg(self, m, path):
+    def start_leg(self, m: MissionView, path):
         self.cells, self.next_cell = path, 0
         self._send_next(m)
 
-    def _send_next(self, m):
+    def _send_next(self, m: MissionView):
         here = m.rover_xy()
         radius_m = m.arrival_radius_m
         while self.next_cell < len(self.cells) - 1 and math.dist(here, self.cells[self.next_cell]) < radius_m:
             self.next_cell += 1
         m.load_path([here, self.cells[self.next_cell]])   # each cell is a path of its own: path, then START
 
-    def on_arrived(self, m):
+    def on_arrived(self, m: MissionView):
         if not self.cells or self.next_cell >= len(self.cells) - 1:
             self.cells = []
             return True
@@ -132,10 +105,10 @@ class SeedStrategy:
         self._send_next(m)
         return False
 
-    def backed_out(self, m):
+    def backed_out(self, m: MissionView):
         pass   # the seed's rover goes one cell at a time: its next cell is a few centimetres on
 
-    def map_changed(self, m):
+    def map_changed(self, m: MissionView):
         if not self.cells:
             return
         rest = [m.rover_xy()] + self.cells[self.next_cell:]

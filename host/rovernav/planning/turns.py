@@ -60,7 +60,7 @@ def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone
               depth_m: float = HALF_SEEN_DEPTH_M) -> np.ndarray:
     """Cells [ny, nx] within depth_m behind each occupied cell of an echo's arc, along the beam.
 
-    echoes: anything with x_m, y_m, heading_deg, bearing_deg and range_m (rovernav.mission.learned_map.Echo),
+    echoes: anything with x_m, y_m, heading_deg, bearing_deg and range_m (rovernav.mapping.learned_map.Echo),
     the rover's pose when it pinged; the arc is sampled across the cone, and only where the grid
     holds an obstacle (an arc the sonar has since seen clear casts nothing).
     """

@@ -241,7 +241,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from ..config import load_config
     from ..scenario import ScenarioError, load_scenario
     from ..files import remove_stale, write_json_atomic
-    from ..firmware import FirmwareBuildError
+    from ..cores import FirmwareBuildError
     from .report import VideoWriter, build_report, summary_picture, write_report
     from .runner import Faults, SimOptions, Simulation
     from ..runlog.cli import live_port_of

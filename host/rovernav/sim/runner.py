@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config, config_from_dict
-from ..firmware import RoverCore
+from ..cores import NativeCore, RoverCore
 from ..link import messages_gen as mg
 from ..link.link import Link
 from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
@@ -69,7 +69,7 @@ class SimOptions:
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
     config: Config | None = None
-    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (sim/uno.py)
+    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (cores/uno.py)
     signed: bool = True               # host and rover share a link key ([signing]); False: unsigned
     attacker: bool = False            # a second transmitter injects forged and replayed frames (attacker.py)
     log: Path | None = None           # the run's MCAP log (rovernav.runlog); None: none
@@ -129,7 +129,7 @@ class Simulation:
             from .attacker import Attacker
             self.attacker = Attacker(self.to_rover, seed=options.seed)
             self.to_rover.tap = self.attacker.observe
-        self.core = None
+        self.core: RoverCore | None = None
         self.core = self._new_core(boot_id=int(self.rng.integers(1, 2**31)), reset_cause=1)
         look = RoverLook.for_vision(self.cfg.vision)
         lighting = Lighting.random(self.rng)
@@ -186,20 +186,20 @@ class Simulation:
 
     # ---------------------------------------------------------------- set-up
 
-    def _new_core(self, boot_id: int, reset_cause: int):
+    def _new_core(self, boot_id: int, reset_cause: int) -> RoverCore:
         """The rover's firmware: the core through its C ABI, or the Uno image in simavr, which
         pings the plant's sonar itself. A reset of the Uno keeps its EEPROM (boot counter)."""
         if self.opt.rover == "native":
             if self.core is not None:
                 self.core.close()
-            return RoverCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
-                             counters=self._stored_counters)
+            return NativeCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
+                              counters=self._stored_counters)
         if self.opt.rover != "uno":
             raise ValueError(f"unknown rover {self.opt.rover!r}: native or uno")
         if self.core is not None:
             self.core.reset(reset_cause)
             return self.core
-        from .uno import UnoCore
+        from ..cores.uno import UnoCore
         return UnoCore(boot_id=boot_id, reset_cause=reset_cause, sonar=lambda: self.plant.sonar_mm(self.world),
                        start_ms=int(round(getattr(self, "t", 0.0) * 1000)), key=self.link_key)
 

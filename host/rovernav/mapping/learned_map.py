@@ -10,7 +10,7 @@ whose centre lies in the cone, so that a box's corner a later ping only grazes s
 (after a radio outage the rover once clipped such a corner of the Figure 4.8 box). The open one
 lets silence clear every cell the cone touches, as the map always did; it carves the arcs'
 edges out of narrow passages, and the mission plans on it only when the careful map finds no
-way (rovernav.mission.core.Mission.plan_from), so a target is 'unreachable' only when the open
+way (rovernav.mission.leg_plan.plan_leg), so a target is 'unreachable' only when the open
 map encloses it too (the README's "The host's map" has what each cost and bought, measured).
 
 Saved as JSON (version 2):
@@ -42,8 +42,8 @@ from pathlib import Path
 
 from ..errors import MapFileError
 from ..files import write_atomic
-from ..mapping import SensorModel, SonarMap, SonarReading, echo_point
 from ..planning import OccupancyGrid
+from .sonar_map import SensorModel, SonarMap, SonarReading, echo_point
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
 #: Readings a file may hold: a long mission sweeps a few thousand; replaying this many takes

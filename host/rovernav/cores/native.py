@@ -1,6 +1,7 @@
 """The rover's firmware core, loaded from its C ABI (firmware/abi/rover_abi.h) with ctypes.
 
-The simulator and the tests step the very code the Uno runs: `RoverCore.step()` passes one
+The simulator and the tests step the very code the Uno runs: `NativeCore.step()` (a
+`rovernav.cores.protocol.RoverCore`) passes one
 tick of sensor readings and received bytes in, and returns the motor commands, the servo
 angle, whether to ping, and the bytes the rover sends. `build_library()` compiles the shared
 library from the checkout's firmware sources with CMake when it is missing or stale.
@@ -8,26 +9,22 @@ library from the checkout's firmware sources with CMake when it is missing or st
 from __future__ import annotations
 
 import ctypes
-import dataclasses
 import logging
 import shutil
 import subprocess
 from pathlib import Path
 
-from .errors import SetupError
+from ..vehicle_gen import UART_BUFFER_BYTES
+from .protocol import FirmwareBuildError, Probe, StepOut
 
-log = logging.getLogger("rovernav.firmware")
+log = logging.getLogger("rovernav.cores.native")
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = ROOT / "firmware"
 BUILD_DIR = ROOT / "build" / "native"
 LIBRARY = BUILD_DIR / "librovernav_rover.so"
 ABI_VERSION = 2
-TX_PER_STEP = 64
-
-
-class FirmwareBuildError(SetupError):
-    """The firmware core could not be built or loaded."""
+TX_PER_STEP = UART_BUFFER_BYTES   # ROVER_TX_PER_STEP: a step hands the shell at most one UART buffer
 
 
 class _Inputs(ctypes.Structure):
@@ -98,38 +95,10 @@ def check_layout(lib, structs=STRUCTS) -> None:
         [f"{st.__name__}.{name}" for st in structs for name, _type in st._fields_]
     for i, (a, b) in enumerate(zip(theirs, ours)):
         if a != b:
-            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: "
+            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: "
                                      f"{names[i]} is {a} there, {b} here")
-    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/firmware.py disagree: {count} layout "
+    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: {count} layout "
                              f"words there, {len(ours)} here (a field added on one side only)")
-
-
-@dataclasses.dataclass(frozen=True)
-class StepOut:
-    """What the rover asked for in one step."""
-
-    left_pwm: int
-    right_pwm: int
-    servo_cdeg: int
-    fire_sonar: bool
-    tx: bytes
-
-
-@dataclasses.dataclass(frozen=True)
-class Probe:
-    """The core's internal state, for reports and pictures only: never fed back to the host."""
-
-    state: int
-    fault: int
-    flags: int
-    waypoint_index: int
-    waypoint_count: int
-    x_mm: float
-    y_mm: float
-    heading_rad: float
-    position_sd_mm: float
-    speed_scale: float
-    dr_distance_mm: float
 
 
 def _sources() -> list[Path]:
@@ -144,7 +113,7 @@ def build_library(force: bool = False) -> Path:
     One process builds at a time (the others wait, then find it built)."""
     if not FIRMWARE.is_dir():
         raise FirmwareBuildError(f"no firmware sources under {ROOT}: the core is built from a checkout")
-    from .files import build_lock
+    from ..files import build_lock
 
     with build_lock(BUILD_DIR):
         return _build_library(force)
@@ -201,7 +170,7 @@ def load_library() -> ctypes.CDLL:
     lib.rover_abi_layout.restype = ctypes.c_uint32
     lib.rover_abi_layout.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
     check_layout(lib)
-    from .link.messages_gen import SCHEMA_HASH
+    from ..link.messages_gen import SCHEMA_HASH
     if lib.rover_schema_hash() != SCHEMA_HASH:
         raise FirmwareBuildError(f"{LIBRARY} was built from another protocol definition "
                                  f"(0x{lib.rover_schema_hash():08X}, ours 0x{SCHEMA_HASH:08X}): rebuild it")
@@ -209,8 +178,9 @@ def load_library() -> ctypes.CDLL:
     return lib
 
 
-class RoverCore:
-    """One rover: the firmware core behind its C ABI. Not thread-safe; step it from one thread."""
+class NativeCore:
+    """One rover: the firmware core behind its C ABI (a `RoverCore`). Not thread-safe; step it
+    from one thread."""
 
     RX_HELD_MAX = 255   # bytes held for the core, like the Uno's buffers: more are dropped
 
