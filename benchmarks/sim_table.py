@@ -1,4 +1,4 @@
-"""The README's table: every shared scenario, both strategies, several seeds, in the simulator.
+"""The shared-scenario table of docs/results.md: every shared scenario, both strategies, several seeds, in the simulator.
 
     python benchmarks/sim_table.py [--seeds 1 2 3] [--jobs 2] [--json FILE]
 

@@ -1,4 +1,4 @@
-"""The README's Uno table: each shared scenario run by the native core and by the Uno image.
+"""The Uno table of docs/uno.md: each shared scenario run by the native core and by the Uno image.
 
     python benchmarks/uno_table.py [--seeds 1 2 3] [--jobs 2] [--json FILE]
     python benchmarks/uno_table.py --arenas DIR [--sample K] --seeds 1     # arenas nobody tuned for
@@ -20,7 +20,6 @@ rover (the runs are chaotic), hence the median over seeds.
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import statistics
 import sys
@@ -154,14 +153,13 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(sc, rover, seed) for sc in args.scenarios for seed in args.seeds for rover in ("uno", "native")]
     results: dict[tuple, dict] = {}
     t0 = time.monotonic()
-    with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = {pool.submit(run_one, *job): job for job in jobs}
-        for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
-            sc, rover, seed = futures[fut]
-            r = fut.result()
-            results[(sc, rover, seed)] = r
-            print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
-                  file=sys.stderr, flush=True)
+    from rovernav.evaluation.pool import map_runs
+
+    for n, (job, r) in enumerate(map_runs(run_one, jobs, args.jobs, ordered=False, star=True), 1):
+        sc, rover, seed = job
+        results[(sc, rover, seed)] = r
+        print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
+              file=sys.stderr, flush=True)
     text, failures = table(args.scenarios, args.seeds, results)
     print(text)
     print(f"\n({time.monotonic() - t0:.0f} s for {len(jobs)} runs, {args.jobs} at a time)")

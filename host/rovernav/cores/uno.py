@@ -43,6 +43,7 @@ from typing import Callable
 from ..link import messages_gen as mg
 from ..link.framing import FrameDecoder, Verifier, crc16
 from ..link.messages_gen import SIGN_ROVER_TO_HOST
+from ..vehicle_gen import LINK_BAUD
 from .elf import FunctionMap, static_ram_end
 from .profile import read_profile, start_profile
 from .protocol import Probe, StepOut
@@ -93,7 +94,7 @@ def board_constants(path: Path = BOARD_H) -> Board:
 
     return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
                  value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
-                 value("kSerialBaud"), value("kEepromLinkAddr"), value("kPinConsent"))
+                 LINK_BAUD, value("kEepromLinkAddr"), value("kPinConsent"))   # board.h's kSerialBaud is kLinkBaud
 
 
 def link_key_record(key: bytes) -> bytes:
