@@ -35,10 +35,6 @@ MAX_LINES = 600
 # no longer there (delete its entry) or when any other import closes a cycle. The merger deletes an
 # entry once the branch that removes the import has landed.
 KNOWN_BACK_EDGES: dict[tuple[str, str], str] = {
-    # config.py checks [radio] against the simulated channel's limits (sim.channel.radio_config,
-    # MAX_BURST_MEAN_S, MAX_JITTER_MS) while the simulator reads the configuration: config <-> sim.
-    # config.py belongs to the facts branch; the limits belong below both (config or link).
-    ("rovernav.config", "rovernav.sim.channel"): "config/facts branch",
     # The simulated set-up draws the corner tags and marker colours that `rovernav calibrate
     # camera` looks for (calibrate.camera's CORNER_TAG_IDS, CORNER_INSET_M, COLOUR_BANDS) while
     # calibrate/rover.py runs the simulator: calibrate <-> sim. Those set-up facts belong below
