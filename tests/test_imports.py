@@ -35,11 +35,6 @@ MAX_LINES = 600
 # no longer there (delete its entry) or when any other import closes a cycle. The merger deletes an
 # entry once the branch that removes the import has landed.
 KNOWN_BACK_EDGES: dict[tuple[str, str], str] = {
-    # The simulated set-up draws the corner tags and marker colours that `rovernav calibrate
-    # camera` looks for (calibrate.camera's CORNER_TAG_IDS, CORNER_INSET_M, COLOUR_BANDS) while
-    # calibrate/rover.py runs the simulator: calibrate <-> sim. Those set-up facts belong below
-    # both (vision); not moved here, calibrate/ being outside this branch.
-    ("rovernav.sim.setup", "rovernav.calibrate.camera"): "calibrate owner",
 }
 
 # Hand-written files over MAX_LINES that other branches of issue 27 split; the merger deletes an
