@@ -18,6 +18,9 @@ Two graphs are checked for cycles:
 
 A generated file (its first line a comment saying "GENERATED", as link/messages_gen.py's) may be
 longer than 600 lines.
+
+There is no allowlist: an import that closes a cycle, or a hand-written file over 600 lines,
+fails the test until it is moved below what it serves, or split.
 """
 from __future__ import annotations
 
@@ -29,28 +32,6 @@ import pytest
 HOST = Path(__file__).resolve().parents[1] / "host"
 ROOT = "rovernav"
 MAX_LINES = 600
-
-# Imports that close a cycle today and that other branches of issue 27 (or later work) remove:
-# (importer, imported) -> why. They are left out of both graphs; the test fails when one of them is
-# no longer there (delete its entry) or when any other import closes a cycle. The merger deletes an
-# entry once the branch that removes the import has landed.
-KNOWN_BACK_EDGES: dict[tuple[str, str], str] = {
-    # config.py checks [radio] against the simulated channel's limits (sim.channel.radio_config,
-    # MAX_BURST_MEAN_S, MAX_JITTER_MS) while the simulator reads the configuration: config <-> sim.
-    # config.py belongs to the facts branch; the limits belong below both (config or link).
-    ("rovernav.config", "rovernav.sim.channel"): "config/facts branch",
-    # The simulated set-up draws the corner tags and marker colours that `rovernav calibrate
-    # camera` looks for (calibrate.camera's CORNER_TAG_IDS, CORNER_INSET_M, COLOUR_BANDS) while
-    # calibrate/rover.py runs the simulator: calibrate <-> sim. Those set-up facts belong below
-    # both (vision); not moved here, calibrate/ being outside this branch.
-    ("rovernav.sim.setup", "rovernav.calibrate.camera"): "calibrate owner",
-}
-
-# Hand-written files over MAX_LINES that other branches of issue 27 split; the merger deletes an
-# entry once that branch has landed.
-KNOWN_LONG_FILES: dict[str, str] = {
-    "rovernav/calibrate/rover.py": "outside this branch: to be split by its owner",
-}
 
 
 def module_name(path: Path) -> str:
@@ -195,27 +176,17 @@ def explain(graph: dict[str, set[str]], components: list[frozenset[str]]) -> str
     return "\n".join(" -> ".join(a_loop(graph, c)) for c in components)
 
 
-def without(graph: dict[str, set[str]], edges) -> dict[str, set[str]]:
-    return {src: {t for t in targets if (src, t) not in edges} for src, targets in graph.items()}
-
-
 def check_cycles(graph: dict[str, set[str]]) -> None:
     found = cycles(graph)
     assert not found, "import cycle(s):\n" + explain(graph, found)
 
 
-def test_allowlisted_imports_are_still_there():
-    graph = module_graph()
-    gone = [edge for edge in KNOWN_BACK_EDGES if edge[1] not in graph.get(edge[0], ())]
-    assert not gone, f"allowlisted import(s) no longer made, remove them from KNOWN_BACK_EDGES: {gone}"
-
-
 def test_no_module_cycle():
-    check_cycles(without(module_graph(), KNOWN_BACK_EDGES))
+    check_cycles(module_graph())
 
 
 def test_no_cycle_between_packages():
-    check_cycles(unit_graph(without(module_graph(), KNOWN_BACK_EDGES)))
+    check_cycles(unit_graph(module_graph()))
 
 
 def generated(path: Path) -> bool:
@@ -238,10 +209,7 @@ def long_files() -> dict[str, int]:
 
 def test_no_long_file():
     found = long_files()
-    new = {p: n for p, n in found.items() if p not in KNOWN_LONG_FILES}
-    assert not new, f"files over {MAX_LINES} lines (split them): {new}"
-    gone = sorted(set(KNOWN_LONG_FILES) - set(found))
-    assert not gone, f"allowlisted long file(s) no longer over {MAX_LINES} lines, remove them from the allowlist: {gone}"
+    assert not found, f"files over {MAX_LINES} lines (split them): {found}"
 
 
 # ---------------------------------------------------------------- the checks can fail
@@ -252,7 +220,7 @@ def test_cycle_finder_sees_a_cycle():
     assert a_loop(graph, frozenset({"a", "b", "c"})) == ["a", "b", "c", "a"]
     with pytest.raises(AssertionError, match="a -> b -> c -> a"):
         check_cycles(graph)
-    check_cycles(without(graph, {("c", "a")}))       # the allowlist's way out
+    check_cycles({**graph, "c": {"d"}})              # the loop broken: no cycle left
 
 
 def test_units_fold_modules():

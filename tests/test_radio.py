@@ -16,7 +16,8 @@ from rovernav.config import ConfigError, config_from_dict
 from rovernav.errors import InputError
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import encode_frame
-from rovernav.sim.channel import (BurstProcess, Channel, ChannelConfig, channel_pair, frame_kind, radio_config)
+from rovernav.radio import ChannelConfig, radio_config
+from rovernav.sim.channel import BurstProcess, Channel, channel_pair, frame_kind
 
 FIG48 = "seed-fig4-8-unknown-obstacle"
 BYTE_S = 1 / 5760    # one byte's time on the air at 57,600 baud 8N1

@@ -222,7 +222,7 @@ def _pct(v: float | None) -> str:
 
 def sim_options_for(fault: str | None, setup, seed: int, config):
     """SimOptions for a probe with one fault injected (FAULTS) in a set-up (None: the usual)."""
-    from .sim.channel import ChannelConfig
+    from .radio import ChannelConfig
     from .sim.plant import PlantConfig
     from .sim.runner import Faults, SimOptions
 

@@ -61,7 +61,7 @@ class MissionConfig:
 
 @dataclasses.dataclass(frozen=True)
 class RadioConfig:
-    """The simulated radio (rovernav.sim.channel): `rovernav sim` only; hardware has its own."""
+    """The simulated radio (rovernav.radio's model): `rovernav sim` only; hardware has its own."""
     loss_pct: float = 0.0        # mean share of bytes lost [%]
     ber_pct: float = 0.0         # mean share of bytes arriving with one bit flipped [%]
     burst_mean_s: float = 0.0    # mean burst length [s]; 0: no bursts
@@ -176,9 +176,9 @@ def config_from_dict(data: dict, where: str = "") -> Config:
 
 
 def _radio(table: Any, where: str) -> RadioConfig:
-    """[radio]: each value in its range, then together as rovernav.sim.channel.radio_config
+    """[radio]: each value in its range, then together as rovernav.radio.radio_config
     checks them (bursts need both keys; the loss inside bursts cannot pass 100 %)."""
-    from .sim.channel import MAX_BURST_MEAN_S, MAX_JITTER_MS, radio_config
+    from .radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, radio_config
 
     radio = _section(RadioConfig, "radio", table, where,
                      {"loss_pct": (0.0, 100.0, False), "ber_pct": (0.0, 100.0, False),

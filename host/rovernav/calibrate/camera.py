@@ -35,10 +35,8 @@ import numpy as np
 from ..vision.calibration import Calibration
 from ..vision.colour_markers import hue_name
 from ..vision.config import VisionConfig
+from ..vision.marks import COLOUR_BANDS, CORNER_DICTIONARY, CORNER_INSET_M, CORNER_TAG_IDS
 
-CORNER_TAG_IDS = (10, 11, 12, 13)     # bottom-left, bottom-right, top-right, top-left
-CORNER_DICTIONARY = "DICT_4X4_50"
-CORNER_INSET_M = 0.07                 # each corner tag's centre this far in from both walls
 MARKER_SIZE_M = 0.05                  # the colour squares on the rover (RoverLook.marker_size_m)
 TARGET_SIZE_M = 0.06
 
@@ -55,9 +53,6 @@ SV_FLOOR = 40
 #: A blob counts as a marker when its area is within these factors of the marker's expected area.
 AREA_RANGE = (0.3, 2.5)
 
-#: Colour words and their hue bands (OpenCV H, 0-179), as `hue_name` names a hue.
-COLOUR_BANDS = {"orange": (7.5, 24.0), "yellow": (24.0, 35.0), "green": (35.0, 80.0), "cyan": (80.0, 100.0),
-                "blue": (100.0, 130.0), "purple": (130.0, 150.0), "magenta": (150.0, 170.0)}
 ROLES = ("rover_front", "rover_back", "target")
 
 

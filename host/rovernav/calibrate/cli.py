@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..link import messages_gen as mg
 from ..validate import number, output_file
 from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
+from ..vision import marks
 from . import camera as cc
 
 HELP = """\
@@ -85,7 +86,7 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     c.add_argument("--arena-size", nargs=2, type=number(0.0, 100.0, lo_open=True), metavar=("W", "H"),
                    help="arena width and height in metres (default: the configuration's [arena], else "
                         f"{DEFAULT_ARENA_WIDTH_MM / 1000:g} {DEFAULT_ARENA_HEIGHT_MM / 1000:g})")
-    words = sorted(cc.COLOUR_BANDS)
+    words = sorted(marks.COLOUR_BANDS)
     for flag, role in (("--front", "rover's front"), ("--back", "rover's back"), ("--target", "target")):
         c.add_argument(flag, choices=words, metavar="COLOUR",
                        help=f"the {role} marker's colour ({', '.join(words)}); default: as the configuration's "
@@ -141,13 +142,13 @@ def _cmd_tags(args) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     dpi, side_m = 300, 0.10
     side_px = round(side_m / 0.0254 * dpi)
-    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, cc.CORNER_DICTIONARY))
-    for tag, name in zip(cc.CORNER_TAG_IDS, ("bottom-left", "bottom-right", "top-right", "top-left")):
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, marks.CORNER_DICTIONARY))
+    for tag, name in zip(marks.CORNER_TAG_IDS, ("bottom-left", "bottom-right", "top-right", "top-left")):
         img = cv2.aruco.generateImageMarker(d, tag, side_px)
         margin = side_px // 6
         page = np.full((side_px + 2 * margin + 60, side_px + 2 * margin), 255, np.uint8)
         page[margin:margin + side_px, margin:margin + side_px] = img
-        cv2.putText(page, f"rovernav corner tag {tag}: {name}, centre {cc.CORNER_INSET_M * 100:.0f} cm in from "
+        cv2.putText(page, f"rovernav corner tag {tag}: {name}, centre {marks.CORNER_INSET_M * 100:.0f} cm in from "
                           "both walls", (margin, side_px + 2 * margin + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, 0, 2)
         path = args.out / f"corner-tag-{tag}-{name}.png"
         if not cv2.imwrite(str(path), page):
@@ -292,8 +293,8 @@ def _cmd_camera(args) -> int:
     cfg = load_config(args.config)   # ConfigError (exit 2) names the file and key
     w, h = tuple(args.arena_size) if args.arena_size else (cfg.arena.width_m, cfg.arena.height_m)
     corners = _corners(args.corners) if args.corners else None
-    if corners is None and min(w, h) < 2 * cc.CORNER_INSET_M + 0.1:
-        raise InputError(f"a {w:g} x {h:g} m arena has no room for the corner tags ({cc.CORNER_INSET_M * 100:.0f} cm in "
+    if corners is None and min(w, h) < 2 * marks.CORNER_INSET_M + 0.1:
+        raise InputError(f"a {w:g} x {h:g} m arena has no room for the corner tags ({marks.CORNER_INSET_M * 100:.0f} cm in "
                          "from each wall): give its corners with --corners")
     words = {role: getattr(args, flag) for role, flag in (("rover_front", "front"), ("rover_back", "back"),
                                                           ("target", "target")) if getattr(args, flag)}

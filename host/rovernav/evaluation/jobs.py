@@ -115,7 +115,7 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     """
     from ..scenario import load_scenario
-    from ..sim.channel import ChannelConfig, radio_config
+    from ..radio import ChannelConfig, radio_config
     from ..sim.report import build_report, summary_picture, write_report
     from ..sim.runner import SimOptions, Simulation
 

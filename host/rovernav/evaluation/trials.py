@@ -198,7 +198,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if args.max_time <= 0 or args.run_timeout <= 0:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)
-    from ..sim.channel import ChannelConfig, radio_config
+    from ..radio import ChannelConfig, radio_config
     from ..sim.cli import radio_values
 
     values, names = radio_values(args)

@@ -128,7 +128,7 @@ def _write_calibration_frames(args, scenario, setup) -> int:
 
 def burst_spec(text: str) -> tuple[float, float]:
     """An argparse type: MEAN_S:SHARE for --radio-burst (or "off": no bursts)."""
-    from .channel import MAX_BURST_MEAN_S, MIN_BURST_MEAN_S
+    from ..radio import MAX_BURST_MEAN_S, MIN_BURST_MEAN_S
 
     if text.strip().lower() in ("off", "none"):
         return 0.0, 0.0
@@ -151,7 +151,7 @@ def burst_spec(text: str) -> tuple[float, float]:
 def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
     """The simulated radio's flags (`rovernav sim`, `rovernav trials`); see sim/channel.py.
     `config`: the command takes --config, whose [radio] table the flags win over."""
-    from .channel import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
+    from ..radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
 
     import textwrap
 
@@ -194,7 +194,7 @@ def radio_values(args: argparse.Namespace, file=None, where: str = "") -> tuple[
     configuration's [radio] table (`file`, a RadioConfig; None: the defaults), and the name of each
     as the user gave it (its flag, else its key in the file `where` names)."""
     from ..config import RadioConfig
-    from .channel import FLAG_NAMES
+    from ..radio import FLAG_NAMES
 
     file = file or RadioConfig()
     burst = args.radio_burst or (None, None)
@@ -208,7 +208,7 @@ def radio_values(args: argparse.Namespace, file=None, where: str = "") -> tuple[
 def radio_from_args(args: argparse.Namespace, file=None, where: str = ""):
     """The ChannelConfig of the flags over the file (see radio_values), or InputError (one line)
     naming the flag or key at fault."""
-    from .channel import radio_config
+    from ..radio import radio_config
 
     values, names = radio_values(args, file, where)
     return radio_config(**values, names=names)

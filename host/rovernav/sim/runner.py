@@ -31,7 +31,8 @@ from ..planning import NoPathError, OccupancyGrid, plan
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
 from .setup import Setup
 from ..vision import Locator
-from .channel import ChannelConfig, SimTransport, channel_pair, radio_figures
+from ..radio import ChannelConfig
+from .channel import SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
 from .world import World
 from ..vehicle_gen import STEP_PERIOD_MS

@@ -10,7 +10,7 @@ default HSV ranges find no marker of another colour, and the default mapping (a 
 straight down whose frame spans the arena exactly) puts a tilted camera's rover in the wrong
 place. The simulator's usual set-up is no Setup at all (SimOptions.setup None).
 
-The arena has four ArUco corner tags (rovernav.calibrate.camera.CORNER_TAG_IDS), drawn in every
+The arena has four ArUco corner tags (rovernav.vision.marks.CORNER_TAG_IDS), drawn in every
 frame of a set-up's runs, as a real arena would keep them.
 """
 from __future__ import annotations
@@ -22,8 +22,8 @@ import math
 import cv2
 import numpy as np
 
-from ..calibrate.camera import COLOUR_BANDS, CORNER_INSET_M, CORNER_TAG_IDS
 from ..vision.calibration import Calibration
+from ..vision.marks import COLOUR_BANDS, CORNER_INSET_M, CORNER_TAG_IDS
 from .camera import Lighting, Scene
 from .plant import PlantConfig
 
