@@ -45,7 +45,7 @@ def run_one(job: tuple) -> dict:
     scenario, seed, radio = job
     sys.path.insert(0, str(ROOT / "host"))
     from rovernav.scenario import load_scenario
-    from rovernav.sim.channel import ChannelConfig
+    from rovernav.radio import ChannelConfig
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()

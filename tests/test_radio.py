@@ -1,4 +1,4 @@
-"""The simulated radio as users set it (sim/channel.py): loss and bit errors, independent or in
+"""The simulated radio as users set it (rovernav/radio.py, modelled by sim/channel.py): loss and bit errors, independent or in
 Gilbert-Elliott bursts shared by both directions, per-frame jitter that keeps order, a
 half-duplex medium where both ends' bytes collide, frames counted by message kind; the flags and
 the [radio] table that set it, and what a run says about it (report.json, the run log)."""

@@ -14,7 +14,7 @@ or the one whose scheduler is
 at --scheduler ADDRESS, whose workers must see ARENAS_DIR and --out at the same paths (a shared
 file system). `--serial` (or `--workers 0`) runs them one after another in this process.
 
-The --radio-* flags set every run's simulated radio as they do `rovernav sim`'s (sim/channel.py);
+The --radio-* flags set every run's simulated radio as they do `rovernav sim`'s (rovernav/radio.py, modelled by sim/channel.py);
 trials.json's settings.radio and trials.md say what it was.
 
 Written into --out:

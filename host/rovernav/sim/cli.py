@@ -149,7 +149,7 @@ def burst_spec(text: str) -> tuple[float, float]:
 
 
 def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
-    """The simulated radio's flags (`rovernav sim`, `rovernav trials`); see sim/channel.py.
+    """The simulated radio's flags (`rovernav sim`, `rovernav trials`); see rovernav/radio.py.
     `config`: the command takes --config, whose [radio] table the flags win over."""
     from ..radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
 
