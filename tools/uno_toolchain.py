@@ -74,6 +74,7 @@ def pypi_bin_dir() -> Path | None:
     bin_dir = Path(spec.origin).parent / "bin"
     return bin_dir if (bin_dir / "avr-gcc").is_file() else None
 
+
 def missing_packages(chain: Toolchain | None = None) -> dict[str, list[str]]:
     """Debian package -> what of it is missing."""
     chain = chain or Toolchain("path", None)
