@@ -191,12 +191,12 @@ def budget_of(config: PioConfig) -> Budget:
     for option in BUDGET_OPTIONS:
         raw = (config.raw(f"env:{ENV_NAME}", option) or "").strip()
         if not raw.isdigit():
-            raise SetupError(f"{PLATFORMIO_INI}: [env:{ENV_NAME}] {option} must be a number of bytes "
+            raise SetupError(f"{config._path}: [env:{ENV_NAME}] {option} must be a number of bytes "
                              f"(the image's budget), not {raw or 'missing'!r}")
         values.append(int(raw))
     flash, ram = values
     if not 0 < flash <= BOARD_FLASH_BYTES or not 0 < ram <= BOARD_RAM_BYTES:
-        raise SetupError(f"{PLATFORMIO_INI}: the budget ({flash} B flash, {ram} B RAM) must fit the board "
+        raise SetupError(f"{config._path}: the budget ({flash} B flash, {ram} B RAM) must fit the board "
                          f"({BOARD_FLASH_BYTES} B, {BOARD_RAM_BYTES} B)")
     return Budget(flash, ram)
 
