@@ -185,7 +185,8 @@ def test_the_budget_is_written_once_in_platformio_ini_where_pio_checks_it_too():
     assert budget.flash_bytes == int(uno["board_upload.maximum_size"]) == 28_672
     assert budget.ram_bytes == int(uno["board_upload.maximum_ram_size"]) == 1_300
     # and nowhere else: no other number of the budget in the tools, the scripts or the benchmarks
-    for path in [ROOT / "tools" / "build_uno.py", ROOT / "scripts" / "test", *sorted((ROOT / "benchmarks").glob("*.py"))]:
+    for path in [ROOT / "tools" / "build_uno.py", *sorted((ROOT / "tools").glob("uno_*.py")), ROOT / "scripts" / "test",
+                 *sorted((ROOT / "benchmarks").glob("*.py"))]:
         text = path.read_text()
         for figure in ("28672", "28_672", "28,672", "1_300", "1300"):
             assert figure not in text, f"{path.name} writes the budget ({figure}) again"
