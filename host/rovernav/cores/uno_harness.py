@@ -33,6 +33,7 @@ LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
 HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
 UART_LINE_H = ROOT / "tools" / "avrsim" / "uart_line.h"   # included by unocore.c
 BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
+VEHICLE_H = FIRMWARE / "lib" / "link" / "vehicle_gen.h"   # included by board.h
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 CLOCK_HZ = 16_000_000
