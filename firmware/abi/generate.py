@@ -63,6 +63,8 @@ def load(path: Path = DEFINITION) -> dict:
     headers: set[str] = set()
     for abi_name, abi in raw.items():
         where = f"[{abi_name}]"
+        if not isinstance(abi, dict) or not IDENT.match(abi_name):
+            raise DefinitionError(f"{where} is not a table named in lower_case")
         for key in ("what", "version", "version_macro", "header", "structs"):
             if key not in abi:
                 raise DefinitionError(f"{where} lacks {key!r}")
@@ -139,7 +141,7 @@ def c_field(fd: dict) -> str:
     return f"{decl:<34}/* {fd['doc']} */" if "doc" in fd else decl
 
 
-def c_header(abi_name: str, abi: dict) -> str:
+def c_header(abi: dict) -> str:
     guard = "ROVERNAV_" + Path(abi["header"]).name.replace(".", "_").upper()
     p = prefix(abi)
     out = [banner("/*", " */"),
@@ -168,7 +170,7 @@ def c_header(abi_name: str, abi: dict) -> str:
                f" * field in declaration order. */\n")
     out.append(f"#define {p}_STRUCT_SIZES {', '.join(sizes)}\n")
     out.append(f"#define {p}_LAYOUT_WORDS \\\n" + ", \\\n".join(f"  {w}" for w in words) + "\n")
-    out.append(f"\n#endif\n")
+    out.append("\n#endif\n")
     return "".join(out)
 
 
@@ -224,7 +226,7 @@ def python_module(d: dict) -> str:
 
 
 def outputs(d: dict) -> dict[Path, str]:
-    files = {ROOT / abi["header"]: c_header(name, abi) for name, abi in d.items()}
+    files = {ROOT / abi["header"]: c_header(abi) for abi in d.values()}
     files[OUT_PY] = python_module(d)
     return files
 
