@@ -119,17 +119,18 @@ def test_a_wrong_key_length_is_refused_clearly():
 def test_the_python_structs_are_checked_against_the_librarys_layout():
     import ctypes
 
-    from rovernav.cores.native import STRUCTS, FirmwareBuildError, _Probe, check_layout, load_library
+    from rovernav.cores.abi_gen import RoverProbe
+    from rovernav.cores.native import STRUCTS, FirmwareBuildError, check_layout, load_library
 
     lib = load_library()
-    check_layout(lib)   # the real copies agree (load_library checks this too)
+    check_layout(lib)   # the generated copies agree (load_library checks this too)
 
-    class Probe(ctypes.Structure):   # as if rover_abi.h had gained a field that cores/native.py lacks
+    class Probe(ctypes.Structure):   # as if the library had been built with a field that abi_gen.py lacks
+        _c_name_ = "rover_probe"
         _fields_ = [("state", ctypes.c_uint8), ("fault", ctypes.c_uint8), ("flags", ctypes.c_uint32)] + \
-            _Probe._fields_[3:]
+            RoverProbe._fields_[3:]
 
-    Probe.__name__ = "_Probe"
-    with pytest.raises(FirmwareBuildError, match=r"sizeof\(_Probe\) is 32 there, 36 here"):
+    with pytest.raises(FirmwareBuildError, match=r"sizeof\(rover_probe\) is 32 there, 36 here"):
         check_layout(lib, STRUCTS[:2] + (Probe,))
 
 

@@ -15,20 +15,7 @@ extern "C" {
 uint32_t rover_abi_version(void) { return ROVER_ABI_VERSION; }
 
 uint32_t rover_abi_layout(uint32_t* out, uint32_t n) {
-  const uint32_t words[] = {
-      sizeof(rover_inputs), sizeof(rover_outputs), sizeof(rover_probe), ROVER_TX_PER_STEP,
-      offsetof(rover_inputs, now_ms), offsetof(rover_inputs, gyro_valid), offsetof(rover_inputs, gyro_rate_mdps),
-      offsetof(rover_inputs, sonar_valid), offsetof(rover_inputs, sonar_range_mm), offsetof(rover_inputs, wheels_valid),
-      offsetof(rover_inputs, left_ticks), offsetof(rover_inputs, right_ticks), offsetof(rover_inputs, rx),
-      offsetof(rover_inputs, rx_len), offsetof(rover_inputs, tx_room),
-      offsetof(rover_outputs, left_pwm), offsetof(rover_outputs, right_pwm), offsetof(rover_outputs, servo_cdeg),
-      offsetof(rover_outputs, fire_sonar), offsetof(rover_outputs, rx_used), offsetof(rover_outputs, tx_len),
-      offsetof(rover_outputs, tx),
-      offsetof(rover_probe, state), offsetof(rover_probe, fault), offsetof(rover_probe, flags),
-      offsetof(rover_probe, waypoint_index), offsetof(rover_probe, waypoint_count), offsetof(rover_probe, x_mm),
-      offsetof(rover_probe, y_mm), offsetof(rover_probe, heading_rad), offsetof(rover_probe, position_sd_mm),
-      offsetof(rover_probe, speed_scale), offsetof(rover_probe, dr_distance_mm),
-  };
+  const uint32_t words[] = {ROVER_ABI_LAYOUT_WORDS};
   const uint32_t count = sizeof(words) / sizeof(words[0]);
   for (uint32_t i = 0; i < count && i < n; ++i) out[i] = words[i];
   return count;

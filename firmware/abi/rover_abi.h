@@ -5,54 +5,20 @@
 #define ROVERNAV_ROVER_ABI_H
 #include <stdint.h>
 
+/* ROVER_ABI_VERSION, ROVER_TX_PER_STEP and the structs rover_inputs, rover_outputs and rover_probe
+ * are generated from firmware/abi/abi.toml (firmware/abi/generate.py), like their ctypes copies in
+ * host/rovernav/cores/abi_gen.py. */
+#include "rover_abi_gen.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define ROVER_ABI_VERSION 2
-#define ROVER_TX_PER_STEP 64
-
-typedef struct rover_inputs {
-  uint32_t now_ms;
-  uint8_t gyro_valid;
-  int32_t gyro_rate_mdps;   /* clockwise positive */
-  uint8_t sonar_valid;
-  uint16_t sonar_range_mm;  /* 0 = no echo */
-  uint8_t wheels_valid;
-  int16_t left_ticks;
-  int16_t right_ticks;
-  const uint8_t* rx;
-  uint8_t rx_len;
-  uint8_t tx_room;
-} rover_inputs;
-
-typedef struct rover_outputs {
-  int16_t left_pwm;
-  int16_t right_pwm;
-  int16_t servo_cdeg;
-  uint8_t fire_sonar;
-  uint8_t rx_used;          /* bytes of rx taken; give the rest again, first, next step */
-  uint8_t tx_len;
-  uint8_t tx[ROVER_TX_PER_STEP];
-} rover_outputs;
-
-/* What the simulator may look at without going through the link (for reports, never for control). */
-typedef struct rover_probe {
-  uint8_t state;
-  uint8_t fault;
-  uint16_t flags;
-  uint8_t waypoint_index;
-  uint8_t waypoint_count;
-  float x_mm, y_mm, heading_rad;
-  float position_sd_mm;
-  float speed_scale;
-  float dr_distance_mm;
-} rover_probe;
-
 uint32_t rover_abi_version(void);
 /* The structs' layout as this library was compiled, for a host to check its own copy against:
- * writes at most `n` words (sizeof each struct, ROVER_TX_PER_STEP, then the offset of every field
- * of rover_inputs, rover_outputs and rover_probe, in declaration order); returns how many there are. */
+ * writes at most `n` words (ROVER_ABI_LAYOUT_WORDS: sizeof each struct, ROVER_TX_PER_STEP, then the
+ * offset of every field of rover_inputs, rover_outputs and rover_probe, in declaration order);
+ * returns how many there are. */
 uint32_t rover_abi_layout(uint32_t* out, uint32_t n);
 uint32_t rover_schema_hash(void);
 void* rover_new(uint32_t boot_id, uint16_t reset_cause);

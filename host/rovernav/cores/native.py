@@ -14,7 +14,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from ..vehicle_gen import UART_BUFFER_BYTES
+from .abi_gen import ROVER_ABI_CONSTANTS, ROVER_ABI_STRUCTS, ROVER_ABI_VERSION, ROVER_TX_PER_STEP, RoverInputs, \
+    RoverOutputs, RoverProbe
 from .protocol import FirmwareBuildError, Probe, StepOut
 
 log = logging.getLogger("rovernav.cores.native")
@@ -23,60 +24,18 @@ ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = ROOT / "firmware"
 BUILD_DIR = ROOT / "build" / "native"
 LIBRARY = BUILD_DIR / "librovernav_rover.so"
-ABI_VERSION = 2
-TX_PER_STEP = UART_BUFFER_BYTES   # ROVER_TX_PER_STEP: a step hands the shell at most one UART buffer
+ABI_VERSION = ROVER_ABI_VERSION
+TX_PER_STEP = ROVER_TX_PER_STEP   # a step hands the shell at most one UART buffer (rover_abi.cpp asserts it)
 
 
-class _Inputs(ctypes.Structure):
-    _fields_ = [
-        ("now_ms", ctypes.c_uint32),
-        ("gyro_valid", ctypes.c_uint8),
-        ("gyro_rate_mdps", ctypes.c_int32),
-        ("sonar_valid", ctypes.c_uint8),
-        ("sonar_range_mm", ctypes.c_uint16),
-        ("wheels_valid", ctypes.c_uint8),
-        ("left_ticks", ctypes.c_int16),
-        ("right_ticks", ctypes.c_int16),
-        ("rx", ctypes.POINTER(ctypes.c_uint8)),
-        ("rx_len", ctypes.c_uint8),
-        ("tx_room", ctypes.c_uint8),
-    ]
-
-
-class _Outputs(ctypes.Structure):
-    _fields_ = [
-        ("left_pwm", ctypes.c_int16),
-        ("right_pwm", ctypes.c_int16),
-        ("servo_cdeg", ctypes.c_int16),
-        ("fire_sonar", ctypes.c_uint8),
-        ("rx_used", ctypes.c_uint8),
-        ("tx_len", ctypes.c_uint8),
-        ("tx", ctypes.c_uint8 * TX_PER_STEP),
-    ]
-
-
-class _Probe(ctypes.Structure):
-    _fields_ = [
-        ("state", ctypes.c_uint8),
-        ("fault", ctypes.c_uint8),
-        ("flags", ctypes.c_uint16),
-        ("waypoint_index", ctypes.c_uint8),
-        ("waypoint_count", ctypes.c_uint8),
-        ("x_mm", ctypes.c_float),
-        ("y_mm", ctypes.c_float),
-        ("heading_rad", ctypes.c_float),
-        ("position_sd_mm", ctypes.c_float),
-        ("speed_scale", ctypes.c_float),
-        ("dr_distance_mm", ctypes.c_float),
-    ]
-
-
-STRUCTS = (_Inputs, _Outputs, _Probe)
+#: rover_abi.h's structs, generated with it from firmware/abi/abi.toml (firmware/abi/generate.py).
+STRUCTS = ROVER_ABI_STRUCTS
 
 
 def python_layout(structs=STRUCTS) -> list[int]:
-    """What rover_abi_layout() says, computed from this module's ctypes copies of the structs."""
-    words = [ctypes.sizeof(st) for st in structs] + [TX_PER_STEP]
+    """What rover_abi_layout() says (ROVER_ABI_LAYOUT_WORDS), computed by ctypes from the generated copies
+    of the structs."""
+    words = [ctypes.sizeof(st) for st in structs] + list(ROVER_ABI_CONSTANTS.values())
     for st in structs:
         words += [getattr(st, name).offset for name, _type in st._fields_]
     return words
@@ -84,20 +43,23 @@ def python_layout(structs=STRUCTS) -> list[int]:
 
 def check_layout(lib, structs=STRUCTS) -> None:
     """FirmwareBuildError, naming the first field that differs, when the library's structs are not
-    laid out as this module's copies (an edit to rover_abi.h not made here, or the reverse)."""
+    laid out as the generated ctypes copies (a library built from another firmware/abi/abi.toml, or
+    a compiler that lays them out otherwise than ctypes)."""
     n = 64
     buf = (ctypes.c_uint32 * n)()
     count = lib.rover_abi_layout(buf, n)
     theirs, ours = list(buf[:min(count, n)]), python_layout(structs)
     if theirs == ours:
         return
-    names = [f"sizeof({st.__name__})" for st in structs] + ["ROVER_TX_PER_STEP"] + \
-        [f"{st.__name__}.{name}" for st in structs for name, _type in st._fields_]
+    c_name = [getattr(st, "_c_name_", st.__name__) for st in structs]
+    names = [f"sizeof({n})" for n in c_name] + list(ROVER_ABI_CONSTANTS) + \
+        [f"{n}.{name}" for n, st in zip(c_name, structs) for name, _type in st._fields_]
     for i, (a, b) in enumerate(zip(theirs, ours)):
         if a != b:
-            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: "
-                                     f"{names[i]} is {a} there, {b} here")
-    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/native.py disagree: {count} layout "
+            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: "
+                                     f"{names[i]} is {a} there, {b} here (rebuild the library, or run "
+                                     "python3 firmware/abi/generate.py)")
+    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: {count} layout "
                              f"words there, {len(ours)} here (a field added on one side only)")
 
 
@@ -159,9 +121,9 @@ def load_library() -> ctypes.CDLL:
     lib.rover_take_key_change.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
     lib.rover_auth_counters.restype = None
     lib.rover_auth_counters.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint16)]
-    lib.rover_step.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Inputs), ctypes.POINTER(_Outputs)]
+    lib.rover_step.argtypes = [ctypes.c_void_p, ctypes.POINTER(RoverInputs), ctypes.POINTER(RoverOutputs)]
     lib.rover_step.restype = None
-    lib.rover_probe_state.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Probe)]
+    lib.rover_probe_state.argtypes = [ctypes.c_void_p, ctypes.POINTER(RoverProbe)]
     lib.rover_probe_state.restype = None
     lib.rover_free.argtypes = [ctypes.c_void_p]
     lib.rover_free.restype = None
@@ -196,8 +158,8 @@ class NativeCore:
                 raise ValueError(f"a link key is 16 bytes, got {len(key)}")
             self._handle = self._lib.rover_new_keyed(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key,
                                                      counters[0], counters[1])
-        self._in = _Inputs()
-        self._out = _Outputs()
+        self._in = RoverInputs()
+        self._out = RoverOutputs()
         self._rx = (ctypes.c_uint8 * 255)()
         self._held = b""          # bytes the core has not taken yet (one signed frame a step)
         self.rx_dropped = 0       # bytes that found the buffer full
@@ -250,7 +212,7 @@ class NativeCore:
         return StepOut(o.left_pwm, o.right_pwm, o.servo_cdeg, bool(o.fire_sonar), bytes(o.tx[:o.tx_len]))
 
     def probe(self) -> Probe:
-        p = _Probe()
+        p = RoverProbe()
         self._lib.rover_probe_state(self._handle, ctypes.byref(p))
         return Probe(p.state, p.fault, p.flags, p.waypoint_index, p.waypoint_count, p.x_mm, p.y_mm,
                      p.heading_rad, p.position_sd_mm, p.speed_scale, p.dr_distance_mm)

@@ -48,7 +48,7 @@ from .elf import FunctionMap, static_ram_end
 from .profile import read_profile, start_profile
 from .protocol import Probe, StepOut
 from .uno_harness import (BOARD_H, CLOCK_HZ, CYCLES_PER_MS, DESC_FLAGS, DESC_STATE_MASK, ELF, ROOT, STEP_US,
-                          UnoSetupError, _Regs, _SONAR_FN, _Stats, _Step, ensure_built, load_library)
+                          VEHICLE_H, UnoSetupError, _Regs, _SONAR_FN, _Stats, _Step, ensure_built, load_library)
 
 
 class UnoCrashError(RuntimeError):
@@ -84,12 +84,18 @@ def uno_pin_port(pin: int) -> tuple[str, int]:
 
 
 def board_constants(path: Path = BOARD_H) -> Board:
+    """board.h's numbers. A constant given as another's name (kSerialBaud = kLinkBaud) is looked up
+    in board.h, then in the vehicle's facts it includes (firmware/lib/link/vehicle_gen.h)."""
     text = path.read_text(encoding="utf-8")
+    if VEHICLE_H.is_file():
+        text += "\n" + VEHICLE_H.read_text(encoding="utf-8")
 
-    def value(name: str) -> int:
-        m = re.search(rf"\b{name}\s*=\s*(-?(?:0x[0-9A-Fa-f]+|\d+))", text)
-        if m is None:
+    def value(name: str, depth: int = 0) -> int:
+        m = re.search(rf"\b{name}\s*=\s*(-?(?:0x[0-9A-Fa-f]+|\d+)|k[A-Za-z0-9_]+)\s*[;,]", text)
+        if m is None or depth > 4:
             raise UnoSetupError(f"{path}: no constant {name}")
+        if m.group(1).startswith("k"):
+            return value(m.group(1), depth + 1)
         return int(m.group(1), 0)
 
     return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),

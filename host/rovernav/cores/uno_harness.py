@@ -4,8 +4,9 @@ build/avrsim/libunocore.so and loaded with ctypes, and the image it runs (build/
 - `ensure_built()` builds the image (tools/build_uno.py) and the harness (make -C tools/avrsim
   unocore) when they are missing or older than their sources, naming missing Debian packages;
 - `load_library()` loads the harness, declares its entry points and checks its ABI version and
-  its structs' sizes against this module's ctypes copies (the `_Step`, `_Regs`, `_Stats` the
-  core reads each step, and the profile's structs, read by rovernav.cores.profile).
+  its structs' sizes against their ctypes copies, generated from firmware/abi/abi.toml into
+  rovernav.cores.abi_gen (the `_Step`, `_Regs`, `_Stats` the core reads each step, and the
+  profile's structs, read by rovernav.cores.profile).
 
 Used by rovernav.cores.uno (`UnoCore`), rovernav.cores.elf and rovernav.cores.profile.
 """
@@ -19,6 +20,8 @@ import sys
 from pathlib import Path
 
 from ..vehicle_gen import STEP_PERIOD_MS
+from .abi_gen import (PROF_KINDS_NAMES, UNOCORE_ABI_STRUCTS, UNOCORE_ABI_VERSION, UnocoreProfEntry, UnocoreProfInfo,
+                      UnocoreProfStep, UnocoreRegs, UnocoreStats, UnocoreStep)
 from .protocol import FirmwareBuildError
 
 log = logging.getLogger("rovernav.cores.uno")
@@ -30,11 +33,12 @@ LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
 HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
 UART_LINE_H = ROOT / "tools" / "avrsim" / "uart_line.h"   # included by unocore.c
 BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
+VEHICLE_H = FIRMWARE / "lib" / "link" / "vehicle_gen.h"   # included by board.h
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 CLOCK_HZ = 16_000_000
 CYCLES_PER_MS = CLOCK_HZ // 1000
-ABI_VERSION = 3
+ABI_VERSION = UNOCORE_ABI_VERSION
 STEP_US = STEP_PERIOD_MS * 1000   # the image's step period (main.cpp's, from vehicle_gen.h)
 
 # Step descriptor (GPIOR0) bits, written by main.cpp at the end of each step.
@@ -47,63 +51,16 @@ class UnoSetupError(FirmwareBuildError):
 
 
 # ---------------------------------------------------------------------------- ctypes layout
+# unocore.c's structs, generated from firmware/abi/abi.toml (firmware/abi/generate.py), which also
+# writes them for C in firmware/abi/unocore_abi_gen.h.
 
-class _Step(ctypes.Structure):
-    _fields_ = [("rise", ctypes.c_uint64), ("fall", ctypes.c_uint64), ("desc", ctypes.c_uint8),
-                ("has_desc", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 2), ("boot", ctypes.c_uint32)]
-
-
-class _Regs(ctypes.Structure):
-    _fields_ = [("tccr0a", ctypes.c_uint8), ("ocr0a", ctypes.c_uint8), ("ocr0b", ctypes.c_uint8),
-                ("tccr2a", ctypes.c_uint8), ("ocr2a", ctypes.c_uint8), ("ocr2b", ctypes.c_uint8),
-                ("portb", ctypes.c_uint8), ("ddrb", ctypes.c_uint8), ("portd", ctypes.c_uint8),
-                ("ddrd", ctypes.c_uint8), ("tccr1a", ctypes.c_uint8), ("tccr1b", ctypes.c_uint8),
-                ("icr1", ctypes.c_uint16), ("ocr1a", ctypes.c_uint16),
-                ("last_desc", ctypes.c_uint8), ("has_desc", ctypes.c_uint8),
-                ("pings", ctypes.c_uint32), ("echoes", ctypes.c_uint32), ("steps", ctypes.c_uint32)]
-
-
-class _Stats(ctypes.Structure):
-    _fields_ = [("cycle", ctypes.c_uint64), ("skipped_cycles", ctypes.c_uint64), ("skips", ctypes.c_uint64),
-                ("resets", ctypes.c_uint32), ("cpu_state", ctypes.c_int32), ("crash_pc", ctypes.c_uint32),
-                ("uart_bytes_in", ctypes.c_uint32), ("uart_bytes_out", ctypes.c_uint32),
-                ("uart_xoffs", ctypes.c_uint32), ("uart_rx_queued", ctypes.c_uint32),
-                ("twi_addressed", ctypes.c_uint32), ("twi_nacked", ctypes.c_uint32),
-                ("twi_bytes_written", ctypes.c_uint32), ("twi_bytes_read", ctypes.c_uint32),
-                ("twi_whoami_reads", ctypes.c_uint32), ("twi_gyro_reads", ctypes.c_uint32),
-                ("twi_status_fixed", ctypes.c_uint32), ("twi_twint_cleared", ctypes.c_uint32),
-                ("twi_twsto_cleared", ctypes.c_uint32),
-                ("pings", ctypes.c_uint32), ("echoes", ctypes.c_uint32), ("pings_ignored", ctypes.c_uint32),
-                ("paint_start", ctypes.c_uint16), ("ramend", ctypes.c_uint16),
-                ("stack_lowest", ctypes.c_uint16), ("pad", ctypes.c_uint16),
-                ("sim_warnings", ctypes.c_uint32), ("timer_modes_filled", ctypes.c_uint32)]
-
-
-PROF_KINDS = ("all", "fix", "sonar", "replanning", "radio_rx", "no_flags")   # unocore.c's order
-PROF_CTX = 64
-
-
-class _ProfInfo(ctypes.Structure):
-    _fields_ = [("nfuncs", ctypes.c_uint32), ("nctx", ctypes.c_uint32), ("nkeys", ctypes.c_uint32),
-                ("nkinds", ctypes.c_uint32), ("nedges", ctypes.c_uint32), ("open_frames", ctypes.c_uint32),
-                ("steps", ctypes.c_uint64 * len(PROF_KINDS)), ("step_cycles", ctypes.c_uint64 * len(PROF_KINDS)),
-                ("attributed", ctypes.c_uint64 * len(PROF_KINDS)), ("instructions", ctypes.c_uint64),
-                ("worst_kept", ctypes.c_uint32), ("worst_cap", ctypes.c_uint32),
-                ("unfinished", ctypes.c_uint32), ("depth_lost", ctypes.c_uint32)]
-
-
-class _ProfEntry(ctypes.Structure):
-    _fields_ = [("key", ctypes.c_uint32), ("cycles", ctypes.c_uint32), ("calls", ctypes.c_uint32),
-                ("incl", ctypes.c_uint32)]
-
-
-class _ProfStep(ctypes.Structure):
-    _fields_ = [("rise", ctypes.c_uint64), ("fall", ctypes.c_uint64), ("desc", ctypes.c_uint8),
-                ("has_desc", ctypes.c_uint8), ("pad", ctypes.c_uint8 * 2), ("n", ctypes.c_uint32)]
-
+# (The short names are the ones uno.py, profile.py and the tests use.)
+_Step, _Regs, _Stats = UnocoreStep, UnocoreRegs, UnocoreStats
+_ProfInfo, _ProfEntry, _ProfStep = UnocoreProfInfo, UnocoreProfEntry, UnocoreProfStep
+PROF_KINDS = PROF_KINDS_NAMES   # unocore.c's order
 
 #: The harness's structs, in unocore_struct_sizes()'s order (checked when the library loads).
-HARNESS_STRUCTS = (_Step, _Regs, _Stats, _ProfInfo, _ProfEntry, _ProfStep)
+HARNESS_STRUCTS = UNOCORE_ABI_STRUCTS
 
 _SONAR_FN = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p)
 
@@ -236,13 +193,12 @@ def load_library() -> ctypes.CDLL:
     lib.unocore_struct_sizes.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
     sizes = (ctypes.c_uint32 * 16)()
     count = lib.unocore_struct_sizes(sizes, 16)
-    for name, st, size in zip(("step", "regs", "stats", "prof_info", "prof_entry", "prof_step"), HARNESS_STRUCTS,
-                              sizes[:count]):
+    for st, size in zip(HARNESS_STRUCTS, sizes[:count]):
         if ctypes.sizeof(st) != size:
-            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/cores/uno_harness.py disagree: "
-                                f"unocore_{name} is {size} bytes there, {ctypes.sizeof(st)} here")
+            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/cores/abi_gen.py disagree: "
+                                f"{st._c_name_} is {size} bytes there, {ctypes.sizeof(st)} here")
     if count != len(HARNESS_STRUCTS):
-        raise UnoSetupError(f"unocore.c names {count} structs, cores/uno_harness.py {len(HARNESS_STRUCTS)}")
+        raise UnoSetupError(f"unocore.c names {count} structs, cores/abi_gen.py {len(HARNESS_STRUCTS)}")
     _lib = lib
     return lib
 
