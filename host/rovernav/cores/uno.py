@@ -43,7 +43,6 @@ from typing import Callable
 from ..link import messages_gen as mg
 from ..link.framing import FrameDecoder, Verifier, crc16
 from ..link.messages_gen import SIGN_ROVER_TO_HOST
-from ..vehicle_gen import LINK_BAUD
 from .elf import FunctionMap, static_ram_end
 from .profile import read_profile, start_profile
 from .protocol import Probe, StepOut
@@ -100,7 +99,7 @@ def board_constants(path: Path = BOARD_H) -> Board:
 
     return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
                  value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
-                 LINK_BAUD, value("kEepromLinkAddr"), value("kPinConsent"))   # board.h's kSerialBaud is kLinkBaud
+                 value("kSerialBaud"), value("kEepromLinkAddr"), value("kPinConsent"))
 
 
 def link_key_record(key: bytes) -> bytes:
