@@ -1,0 +1,28 @@
+// The watchdogs' state: the gyro's, the radio's and the camera's, and the fault.
+#pragma once
+#include <stdint.h>
+
+#include "messages_gen.h"
+
+namespace rovernav {
+namespace core {
+
+/// Written by failsafe.cpp. What the watchdogs watch comes from elsewhere: link_in.cpp notes a
+/// frame taken (heard()) and a fix taken (took_fix()); rover.cpp's first step starts the clocks.
+struct FailsafeState {
+  FaultCode fault = FaultCode::None;
+  uint32_t gyro_last_ms = 0;
+  uint16_t gyro_good_since_ms = 0;       ///< modulo 65,536: a faulted gyro's good run (cleared at 500 ms)
+  bool gyro_good_run = false;
+  int32_t rate_mdps = 0;                 ///< the gyro's last good yaw rate, as it came
+  uint32_t last_rx_ms = 0;
+  uint32_t last_fix_ms = 0;
+  uint32_t radio_lost_since_ms = 0;
+  bool dead_reckoning = false;
+  bool had_fix = false;
+  bool radio_lost : 1;
+  bool look_after_outage : 1;            ///< the radio came back mid-mission: sweep before moving on
+};
+
+}  // namespace core
+}  // namespace rovernav

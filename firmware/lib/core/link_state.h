@@ -1,0 +1,46 @@
+// The link's state: frames out, the host's HELLO and HEARTBEAT, a path arriving in chunks, and
+// the signatures' key and counters.
+#pragma once
+#include <stdint.h>
+
+#include "frame_auth.h"
+#include "messages_gen.h"
+#include "mission_state.h"
+#include "tx_queue.h"
+
+namespace rovernav {
+namespace core {
+
+/// Written by link_in.cpp and link_out.cpp. rover.cpp writes the parts the step itself drives:
+/// begin() sets boot_id and reset_cause and the key; step() times STATUS (last_status_ms), takes
+/// the queue's frames out, notes the first step's time (boot_ms) and when the counters are due to
+/// be stored (persist_due, persisted_once); persist_due() and take_key_change() hand them over.
+/// detour.cpp borrows `stage` as the planner's scratch while no path is arriving (staging false).
+struct LinkState {
+  TxQueue tx;
+  uint32_t boot_id = 0;
+  uint16_t reset_cause = 0;
+  uint8_t camera = 0;                    ///< CameraState from HEARTBEAT
+  uint16_t last_status_ms = 0;           ///< modulo 65,536: STATUS goes every status_period_ms (<= 10 s)
+  // a path arriving in chunks (else the detour planner's scratch)
+  Waypoint stage[kMaxWaypoints] = {};
+  uint8_t stage_total = 0;
+  uint8_t stage_count = 0;
+  uint16_t stage_id = 0;
+  bool staging = false;
+  uint8_t last_chunk = 0;                ///< first_index + 1 of the last chunk taken (0: none)
+  // signatures: the key, the counters, what the shell must store
+  FrameAuth auth;
+  uint32_t boot_ms = 0;                  ///< the first step's time: PROVISION's window runs from it
+  uint8_t stored_tx_b2 = 0;              ///< byte 2 of the tx counter last handed to the shell to store
+  uint8_t stored_rx_hi[4] = {};          ///< bytes 2-5 of the rx counter last handed to the shell
+  uint16_t auth_reported = 0;            ///< refusals counted when LINK_AUTH last went out
+  bool schema_ok : 1;
+  bool persist_due : 1;                  ///< the counters are to be stored (Rover::persist_due())
+  bool persisted_once : 1;               ///< ... and have been since boot
+  bool fix_verified : 1;                 ///< the decoder holds a FIX whose tag passed: next step's job
+  uint8_t key_change : 2;                ///< a PROVISION for the shell to store: kKeyStore / kKeyErase
+};
+
+}  // namespace core
+}  // namespace rovernav
