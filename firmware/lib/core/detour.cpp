@@ -110,7 +110,7 @@ bool Rover::mode_blocked(uint32_t now) {
 // holds still and keeps serving the link, STATUS and STOP. Rejoin points 0.9, 0.8, 0.7 and
 // 0.6 m on along the path are tried in turn (the obstacle's depth is unknown).
 void Rover::plan_detour() {
-  step_.work = static_cast<uint8_t>(step_.work | kWorkPlanned);
+  step_.did(kWorkPlanned);
   // The path-staging buffer is the planner's scratch (unless a path is arriving: then the host's
   // new path will do, and the rover waits for it).
   static_assert(sizeof(link_.stage) >= LocalPlanner::kScratchBytes, "scratch fits the staging buffer");
@@ -140,13 +140,13 @@ void Rover::next_detour_goal() {
 // has done another heavy job (a FIX taken in, say) leaves it to the next.
 void Rover::continue_detour() {
   if (step_.work & kWorkHeavy) {
-    step_.put_off = true;
+    step_.defer();
     return;
   }
   // A frame to sign (a sweep's readings, STATUS) goes first: a plan runs for dozens of steps,
   // and frames held back all that while would fill the queue and be lost.
   if (link_.tx.wants_signing(link_.auth)) return;
-  step_.work = static_cast<uint8_t>(step_.work | kWorkPlanned);
+  step_.did(kWorkPlanned);
   if (link_.staging) {   // the host's path is arriving: it will do
     no_detour();
     return;

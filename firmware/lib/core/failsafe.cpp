@@ -50,7 +50,7 @@ void Rover::watch_link(uint32_t now) {
     // alone, knows only the last sweep, where the host's map knows the walls: back on the host's
     // path (the nearest leg's end), whose leg that sweep checks; the host, who hears it, replans
     // or gives its word.
-    failsafe_.look_after_outage = mission_.pick_target = mission_.active;
+    failsafe_.look_after_outage = mission_.pick_if_active();
     detour_.n = detour_.i = 0;
     send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - failsafe_.radio_lost_since_ms) / 100.0f));
   }
@@ -73,7 +73,7 @@ void Rover::watch_link(uint32_t now) {
   }
   if (step_.state == RoverState::Hold && !failsafe_.dead_reckoning &&
       uncertainty_2sd_mm() < 0.5f * params_.clearance_margin_mm()) {
-    mission_.pick_target = true;
+    mission_.pick_again();
     enter(RoverState::Rotate);
     send_event(EventKind::Resumed, mission_.wp);
   }

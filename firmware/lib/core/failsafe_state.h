@@ -7,8 +7,9 @@
 namespace rovernav {
 namespace core {
 
-/// Written by failsafe.cpp. What the watchdogs watch comes from elsewhere: link_in.cpp notes a
-/// frame taken (heard()) and a fix taken (took_fix()); rover.cpp's first step starts the clocks.
+/// Written by failsafe.cpp. What the watchdogs watch comes from elsewhere, through the functions
+/// below: link_in.cpp notes a frame taken (heard) and a fix taken (took_fix); rover.cpp's first
+/// step starts the clocks (start).
 struct FailsafeState {
   FaultCode fault = FaultCode::None;
   uint32_t gyro_last_ms = 0;
@@ -22,6 +23,17 @@ struct FailsafeState {
   bool had_fix = false;
   bool radio_lost : 1;
   bool look_after_outage : 1;            ///< the radio came back mid-mission: sweep before moving on
+
+  void start(uint32_t now_ms) { last_rx_ms = gyro_last_ms = now_ms; }
+  void heard(uint32_t now_ms) { last_rx_ms = now_ms; }
+  /// A fix taken into the estimate; returns true when it ends dead reckoning (CameraBack).
+  bool took_fix(uint32_t now_ms) {
+    last_fix_ms = now_ms;
+    had_fix = true;
+    if (!dead_reckoning) return false;
+    dead_reckoning = false;
+    return true;
+  }
 };
 
 }  // namespace core

@@ -20,7 +20,7 @@ ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
     // that, the estimator can wait a step more. The FIX is 10-20 ms older than its age says.
     if (step_.sonar_held || in.sonar_valid) return 0;
     link_.fix_verified = false;
-    step_.work = static_cast<uint8_t>(step_.work & ~kWorkReserved);
+    step_.spend_reserve();   // on the job it was kept for
     handle_frame(decoder_.frame(), now, static_cast<uint16_t>(now - failsafe_.last_rx_ms));
     return 0;
   }
@@ -32,15 +32,16 @@ ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
     if (!decoder_.push(in.rx[used++])) continue;
     const AuthResult r = link_.auth.check(decoder_.frame());
     if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
-      failsafe_.last_rx_ms = now;   // only frames we take keep the link alive (a forger's do not)
+      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not)
       if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {
-        link_.fix_verified = step_.put_off = true;   // a tag and an estimator update do not fit one step
+        link_.fix_verified = true;   // a tag and an estimator update do not fit one step
+        step_.defer();
       } else {
         handle_frame(decoder_.frame(), now, 0);
       }
     }
     if (r == AuthResult::AcceptedAfterTag || r == AuthResult::RefusedAfterTag) {
-      step_.work = static_cast<uint8_t>(step_.work | kWorkTag);
+      step_.did(kWorkTag);
       break;
     }
   }
@@ -101,7 +102,7 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
 // round every spill.
 ROVERNAV_NOINLINE void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   if (step_.work & (kWorkFix | kWorkReserved)) return;   // one FIX a step, none in a reserved one (see step())
-  step_.work = static_cast<uint8_t>(step_.work | kWorkFix);
+  step_.did(kWorkFix);
   PoseFix fix;
   fix.x_mm = m.x_mm;
   fix.y_mm = m.y_mm;
@@ -110,12 +111,7 @@ ROVERNAV_NOINLINE void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   fix.taken_ms = now - m.age_ms - kLinkDelayMs;
   const FixResult r = odometry_.est.update(fix, now);
   if (r == FixResult::Rejected) return;
-  failsafe_.last_fix_ms = now;
-  failsafe_.had_fix = true;
-  if (failsafe_.dead_reckoning) {
-    failsafe_.dead_reckoning = false;
-    send_event(EventKind::CameraBack, odometry_.est.last_innovation_mm());
-  }
+  if (failsafe_.took_fix(now)) send_event(EventKind::CameraBack, odometry_.est.last_innovation_mm());
   odometry_.dr_distance_mm = 0.0f;
   calibrate_speed(m, now, r);
 }
@@ -158,7 +154,7 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
 
   // Complete: it replaces the path held, and a running mission follows it at once (from the
   // nearest leg's end, chosen in a step with time for it).
-  step_.work = static_cast<uint8_t>(step_.work | kWorkOther);
+  step_.did(kWorkOther);
   link_.staging = false;
   for (uint8_t i = 0; i < link_.stage_total; ++i) mission_.path[i] = link_.stage[i];
   mission_.path_len = link_.stage_total;

@@ -12,10 +12,10 @@ namespace core {
 using Waypoint = Point;
 
 /// Written by link_in.cpp (PATH replaces the path, START and STOP begin and end the mission).
-/// The modes move along the path through their own writes of wp (rover.cpp chooses the nearest
-/// leg's end, mode_drive.cpp goes on to the next), and rover.cpp's enter() ends the mission in
-/// Idle, Arrived and Fault; pick_target is set by whoever makes the next target unknown (a new
-/// path, a detour's end, a resume) and cleared by rover.cpp when it chooses.
+/// The others move along it through the functions below: rover.cpp chooses the nearest leg's
+/// end (aim_at) and its enter() ends the mission in Idle, Arrived and Fault (end);
+/// mode_drive.cpp goes on to the next waypoint (advance) or, a detour done, back to the nearest
+/// leg (pick_again), as failsafe.cpp does on resuming (pick_again, pick_if_active).
 struct MissionState {
   Waypoint path[kMaxWaypoints] = {};
   uint8_t path_len = 0;
@@ -23,6 +23,16 @@ struct MissionState {
   uint8_t wp = 0;                        ///< the waypoint being approached
   bool active : 1;                   ///< a mission runs (START taken, not yet ended)
   bool pick_target : 1;                  ///< wp is to be chosen afresh (closest_target) when the step has time
+
+  void end() { active = false; }
+  void advance() { ++wp; }
+  void aim_at(uint8_t i) {
+    pick_target = false;
+    wp = i;
+  }
+  void pick_again() { pick_target = true; }
+  /// The nearest leg's end is chosen again if a mission runs (and not else); returns whether one runs.
+  bool pick_if_active() { return pick_target = active; }
 };
 
 }  // namespace core

@@ -56,7 +56,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
     // A point of the rover's own detour: on to the next, or back onto the host's path.
     if (++detour_.i >= detour_.n) {
       detour_.n = detour_.i = 0;
-      mission_.pick_target = true;
+      mission_.pick_again();
     }
     enter(RoverState::Rotate);
     if (mission_.pick_target) return false;
@@ -69,7 +69,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
     send_event(EventKind::Arrived, mission_.wp);
     return false;
   }
-  ++mission_.wp;
+  mission_.advance();
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
   l = aim(target(), &err);
   const float turn_deg = fabsf(err);

@@ -24,7 +24,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     // The check (a sine, a cosine and every echo) and a FIX's estimator update do not fit one
     // step: the turn begins a step later.
     if (step_.work & kWorkFix) {
-      step_.put_off = true;
+      step_.defer();
       return true;
     }
     motion_.rotate_checked = true;
@@ -118,7 +118,7 @@ void Rover::back_off(float dt_s, Outputs& out) {
   add_to(motion_.back_off_mm, drive_speed_mm_s() * dt_s);
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
   const bool fix_step = (step_.work & kWorkFix) != 0;
-  if (fix_step) step_.put_off = true;
+  if (fix_step) step_.defer();
   // Asked by the host, it backs out the whole way: its own check would find room at once.
   if ((!fix_step && motion_.back_out == 0 && room_to_turn()) || at_least(motion_.back_off_mm, static_cast<float>(kBackOffMaxMm))) {
     motion_.back_out = 0;

@@ -28,7 +28,7 @@ void Rover::stop_sweep() {
 void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
   const Params& p = params_;
   if (step_.work & kWorkFix) {   // the sweep goes on next step (a result that came is held)
-    step_.put_off = true;
+    step_.defer();
     return;
   }
   int16_t servo = sonar_.servo_cdeg;
@@ -37,7 +37,7 @@ void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
   sonar_.servo_cdeg = servo;
   out.fire_sonar = fire;
   if (echo.valid) {
-    step_.work = static_cast<uint8_t>(step_.work | kWorkOther);
+    step_.did(kWorkOther);
     if (static_cast<uint16_t>(echo.range_mm - 1u) < p.sonar_report_mm()) {   // 0 < range <= report: 0 wraps to 65,535
       report_echo(echo.bearing_cdeg, echo.range_mm);
     } else {
@@ -48,7 +48,7 @@ void Rover::mode_scan(const SonarIn& in, uint32_t now, Outputs& out) {
     // The last reading (its OBSTACLE, signed, and its disk) was this step's job: the sweep's end
     // (its EVENT, signed, and the check of the leg against the echoes) takes the next.
     if (echo.valid) {
-      step_.put_off = true;
+      step_.defer();
       return;
     }
     for (uint8_t i = 0; i < kSayTimes; ++i) send_event(EventKind::ScanDone, sonar_.scan_echoes);   // as the echoes (report_echo)

@@ -80,7 +80,8 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   step_.last_ms = now;
   if (!step_.booted) {
     step_.booted = step_.have_time = true;
-    failsafe_.last_rx_ms = failsafe_.gyro_last_ms = link_.boot_ms = now;
+    failsafe_.start(now);
+    link_.boot_ms = now;
     link_.last_status_ms = static_cast<uint16_t>(now);
     send_hello();
     send_event(EventKind::Boot, link_.reset_cause);
@@ -149,9 +150,8 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
       step_.put_off = true;
       return;
     }
-    step_.work = static_cast<uint8_t>(step_.work | kWorkOther);
-    mission_.pick_target = false;
-    mission_.wp = closest_target();
+    step_.did(kWorkOther);
+    mission_.aim_at(closest_target());
   }
   if (!mission_.active || mission_.wp >= mission_.path_len) return;
   switch (step_.state) {
@@ -195,7 +195,7 @@ ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
     motion_.min_distance_mm = mission_.wp < mission_.path_len ? aim(target()) : 0.0f;
   }
   step_.state = s;
-  if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.active = false;
+  if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.end();
 }
 
 // ---------------------------------------------------------------- helpers of every mode

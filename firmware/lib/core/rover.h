@@ -144,6 +144,7 @@ class Rover : private RoverFields {
   enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1, kWorkOther = 1u << 2, kWorkReserved = 1u << 3,
                    kWorkTag = 1u << 4 };
   enum : uint8_t { kWorkHeavy = kWorkFix | kWorkPlanned | kWorkOther | kWorkTag };
+  static_assert(static_cast<int>(kWorkReserved) == static_cast<int>(StepState::kReserved), "StepState::spend_reserve() clears kWorkReserved");
   uint8_t step_work() const { return step_.work; }
   uint16_t flags() const;
   FaultCode fault() const { return failsafe_.fault; }
