@@ -8,10 +8,12 @@
 namespace rovernav {
 namespace core {
 
-/// Written by detour.cpp. A new path (link_in.cpp), a waypoint's arrival (mode_drive.cpp) and
-/// the radio's return (failsafe.cpp) end a detour (n = i = 0); link_in.cpp takes HEARTBEAT's word
-/// (host_knows) and clears the memory at START; mode_scan.cpp keeps what lies beside the body at
-/// a sweep's start; reflex.cpp notes a stop on a trusted path; rover.cpp's enter() cancels a plan.
+/// Written by detour.cpp. The others through the functions below: the last detour point reached
+/// (mode_drive.cpp) and the radio's return (failsafe.cpp) end a detour (drop); link_in.cpp takes
+/// the host's path (take_host_path) and HEARTBEAT's word (hear_host), and forgets the echoes at
+/// START (forget); mode_scan.cpp starts a sweep (sweep_starts; the planner's keep_near, its own
+/// interface, keeps what lies beside the body); reflex.cpp notes a stop (reflex_stopped);
+/// rover.cpp's enter() cuts a plan short (cancel_plan).
 struct DetourState {
   LocalPlanner local;                    ///< the last sweep's echoes, as obstacle disks
   Waypoint points[LocalPlanner::kMaxDetour] = {};
@@ -23,6 +25,22 @@ struct DetourState {
   bool trusted_host : 1;                 ///< the host sent no new path once this leg: it holds it clear
   bool reflex_after_trust : 1;           ///< ... and the reflex stopped the rover on it all the same
   bool host_knows : 1;                   ///< HEARTBEAT says the host heard the last sweep whole and holds our path
+
+  void drop() { n = i = 0; }
+  void take_host_path() {
+    drop();
+    trusted_host = host_knows = false;
+  }
+  void hear_host(bool knows) { host_knows = knows; }
+  void forget() { local.clear(); }
+  void sweep_starts() { host_knows = false; }
+  void reflex_stopped() {
+    if (trusted_host) reflex_after_trust = true;
+  }
+  void cancel_plan() {
+    local.cancel();
+    plan_ahead_dm = 0;
+  }
 };
 
 }  // namespace core

@@ -51,12 +51,12 @@ void Rover::watch_link(uint32_t now) {
     // path (the nearest leg's end), whose leg that sweep checks; the host, who hears it, replans
     // or gives its word.
     failsafe_.look_after_outage = mission_.pick_if_active();
-    detour_.n = detour_.i = 0;
+    detour_.drop();
     send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - failsafe_.radio_lost_since_ms) / 100.0f));
   }
   if (failsafe_.had_fix && !failsafe_.dead_reckoning && now - failsafe_.last_fix_ms > params_.fix_timeout_ms()) {
     failsafe_.dead_reckoning = true;
-    odometry_.dr_distance_mm = 0.0f;
+    odometry_.restart_dr();
     if (!failsafe_.radio_lost) send_event(EventKind::CameraLost, link_.camera);
   }
   // Safe stop: never drive on past what the estimate can vouch for.

@@ -70,7 +70,7 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
       break;
     case msg::Heartbeat::kId:
       link_.camera = m.heartbeat.camera;
-      detour_.host_knows = m.heartbeat.scan_heard == sonar_.scan_id && m.heartbeat.path_id == mission_.path_id;
+      detour_.hear_host(m.heartbeat.scan_heard == sonar_.scan_id && m.heartbeat.path_id == mission_.path_id);
       break;
     case msg::Fix::kId:
       m.fix.age_ms = static_cast<uint16_t>(m.fix.age_ms + late_ms);
@@ -112,7 +112,7 @@ ROVERNAV_NOINLINE void Rover::on_fix(const msg::Fix& m, uint32_t now) {
   const FixResult r = odometry_.est.update(fix, now);
   if (r == FixResult::Rejected) return;
   if (failsafe_.took_fix(now)) send_event(EventKind::CameraBack, odometry_.est.last_innovation_mm());
-  odometry_.dr_distance_mm = 0.0f;
+  odometry_.restart_dr();
   calibrate_speed(m, now, r);
 }
 
@@ -159,13 +159,11 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   for (uint8_t i = 0; i < link_.stage_total; ++i) mission_.path[i] = link_.stage[i];
   mission_.path_len = link_.stage_total;
   mission_.path_id = link_.stage_id;
-  detour_.n = detour_.i = 0;  // the host's path replaces the rover's own detour
-  detour_.trusted_host = detour_.host_knows = false;
+  detour_.take_host_path();  // the host's path replaces the rover's own detour
   // The host's map holds something within reach of the corners where the rover stands, and no
   // room straight ahead: its next turn on the spot backs out first (a rotation under way is
   // checked again).
-  motion_.back_out = m.back_out;
-  if (motion_.back_out != 0) motion_.rotate_checked = false;
+  motion_.host_back_out(m.back_out);
   send_event(EventKind::PathAccepted, mission_.path_id);
   if (mission_.active && odometry_.est.initialised()) {
     mission_.pick_target = true;
@@ -193,7 +191,7 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   mission_.active = true;
   mission_.wp = 0;
   mission_.pick_target = true;
-  detour_.local.clear();   // the rover may have been carried since: what it remembers is of elsewhere
+  detour_.forget();   // the rover may have been carried since: what it remembers is of elsewhere
   // sonar_.sweep_distance_mm carries over: "every 0.3 m travelled" counts across missions too.
   // Look before the first turn: something beside the rover would be hit by its corners as it turns.
   if (params_.sweep_at_start()) {

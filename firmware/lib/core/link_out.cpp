@@ -123,7 +123,7 @@ ROVERNAV_NOINLINE void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_m
   // host's word only when it heard every echo of the sweep (HEARTBEAT's scan_heard). The host
   // drops the copies.
   for (uint8_t i = 0; i < kSayTimes; ++i) send_reading(bearing_cdeg, range_mm);
-  ++sonar_.scan_echoes;
+  sonar_.count_echo();
   remember_echo(bearing_cdeg, range_mm);
 }
 

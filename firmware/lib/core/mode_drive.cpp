@@ -55,7 +55,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
   if (detour_.i < detour_.n) {
     // A point of the rover's own detour: on to the next, or back onto the host's path.
     if (++detour_.i >= detour_.n) {
-      detour_.n = detour_.i = 0;
+      detour_.drop();
       mission_.pick_again();
     }
     enter(RoverState::Rotate);

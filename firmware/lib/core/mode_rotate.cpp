@@ -19,7 +19,7 @@ const int32_t kRotateSettledMdps = 10000;
 // faces it (then Drive, in this same step), true while it turns or has gone to back off first.
 bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   const Params& p = params_;
-  sonar_.servo_cdeg = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
+  sonar_.face_ahead();   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
   if (!motion_.rotate_checked) {
     // The check (a sine, a cosine and every echo) and a FIX's estimator update do not fit one
     // step: the turn begins a step later.
@@ -36,9 +36,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
       // Look before driving (after backing out too: no sweep looked from where the turn ends):
       // the reflex's pings right (or left) 15 and 30 degrees, then ahead, hold the wheels until
       // ahead is clear (Rover::reflex).
-      sonar_.reflex_look = true;
-      sonar_.reflex_waiting = false;   // a ping still out was aimed at another look
-      sonar_.reflex_look_i = sign_bit(err) ? 4 : 1;   // |err| > 20: its sign bit is its sign
+      sonar_.look_from(sign_bit(err) ? 4 : 1);   // |err| > 20: its sign bit is its sign
     }
     if (back) {
       send_event(EventKind::TurnRefused, saturate_u16(fabsf(err)));

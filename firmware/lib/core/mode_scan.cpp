@@ -8,7 +8,7 @@ void Rover::start_sweep() {
   sonar_.reflex_waiting = false;   // a ping still out belongs to the reflex, not to the sweep
   ++sonar_.scan_id;
   sonar_.scan_echoes = 0;
-  detour_.host_knows = false;   // until a HEARTBEAT says the host heard this sweep
+  detour_.sweep_starts();   // the host has not heard it: until a HEARTBEAT says the host heard this sweep
   enter(RoverState::Scan);   // ends a detour being planned
   // What was seen beside the front of the body, behind the sensor, stays (no ping of this sweep
   // reaches it); what the sweep looks at afresh, and what lies behind the centre, is forgotten.

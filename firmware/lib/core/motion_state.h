@@ -2,15 +2,19 @@
 #pragma once
 #include <stdint.h>
 
+
 #include "heading_pid.h"
 
 namespace rovernav {
 namespace core {
 
-/// Written by mode_rotate.cpp and mode_drive.cpp. rover.cpp's step() keeps the commands it gave
-/// (left_cmd, right_cmd) and enter() resets the PID and a rotation's or a drive's start;
-/// odometry.cpp records the track driven (track_rad, track_known, turned_mm); link_in.cpp takes
-/// the host's word to back out (back_out) from PATH.
+/// Written by mode_rotate.cpp and mode_drive.cpp. The others through the functions below:
+/// rover.cpp's step() keeps the commands it gave (commanded) and its enter() starts a rotation, a
+/// back-off or a drive (rotation_starts, back_off_starts, drive_starts; pid.reset(), the PID's
+/// own interface); odometry.cpp records the track (on_track) and adds to turned_mm itself (through
+/// float_ops.h's add_to(), shared by every such sum: no header of state includes float_ops.h, which
+/// cost the 7.3 image 6 bytes); link_in.cpp takes the host's word to back out from PATH
+/// (host_back_out).
 struct MotionState {
   HeadingPid pid;
   float min_distance_mm = 0.0f;
@@ -22,6 +26,23 @@ struct MotionState {
   uint8_t back_out = 0;                  ///< the host's PATH: back out the whole way before the next turn on the spot
   bool rotate_checked : 1;               ///< this rotation's start was checked for room to swing
   bool track_known : 1;                  ///< track_rad holds a heading it drove at
+
+  void commanded(int16_t left_pwm, int16_t right_pwm) {
+    left_cmd = left_pwm;
+    right_cmd = right_pwm;
+  }
+  void rotation_starts() { rotate_checked = false; }
+  void back_off_starts() { back_off_mm = 0.0f; }
+  void drive_starts(float distance_mm) { min_distance_mm = distance_mm; }
+  void on_track(float heading_rad) {
+    track_rad = heading_rad;
+    track_known = true;
+  }
+  /// PATH's back_out: a turn on the spot still to be checked is checked again.
+  void host_back_out(uint8_t back) {
+    back_out = back;
+    if (back_out != 0) rotate_checked = false;
+  }
 };
 
 }  // namespace core

@@ -52,14 +52,15 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   const float ad = fabsf(d_mm);
   if (failsafe_.dead_reckoning) add_to(odometry_.dr_distance_mm, ad);
   if (step_.state == RoverState::Drive) {
+    // The distance driven since the last sweep and since the last turn on the spot (SonarState,
+    // MotionState): written here, through the one add_to() every such sum shares.
     add_to(sonar_.sweep_distance_mm, ad);
     add_to(motion_.turned_mm, ad);
     add_to(odometry_.calib_model_mm, d_mm);
     // The way it drives, once it has driven a while (a step of Drive between a turn and a sweep
     // is no track): backing out goes along it.
     if (now - odometry_.drive_since_ms >= kTrackAfterMs) {
-      motion_.track_rad = odometry_.est.heading_rad();
-      motion_.track_known = true;
+      motion_.on_track(odometry_.est.heading_rad());
     }
   }
 }

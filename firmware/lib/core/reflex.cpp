@@ -39,7 +39,7 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
     // too): a look waiting on a silent sonar would hold the rover for good.
     const uint16_t r = in.valid ? in.range_mm : 0;
     if (r > 0 && reflex_on_path(look, r, l_mm)) {
-      if (detour_.trusted_host) detour_.reflex_after_trust = true;   // the host's path is blocked after all
+      detour_.reflex_stopped();   // on a trusted path: the host's path is blocked after all
       sonar_.reflex_look = true;
       start_sweep();
       report_echo(look, r);

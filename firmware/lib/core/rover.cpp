@@ -29,7 +29,7 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   // A Rover starts in its default state (it is a global on the Uno: no copy of ~800 bytes on
   // a 2 KB stack); begin() only sets what the default cannot know.
   params_.reset();
-  odometry_.speed_scale = 1.0f;
+  odometry_.begin();
   link_.boot_id = boot_id;
   link_.reset_cause = reset_cause;
   const bool keyed = secrets != nullptr && secrets->has_key;
@@ -122,8 +122,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   }
   out.fire_sonar = false;
   run_state(sonar, dt_s, now, out);
-  motion_.left_cmd = out.left_pwm;
-  motion_.right_cmd = out.right_pwm;
+  motion_.commanded(out.left_pwm, out.right_pwm);
   out.servo_cdeg = sonar_.servo_cdeg;
 
   if (static_cast<uint16_t>(static_cast<uint16_t>(now) - link_.last_status_ms) >= params_.status_period_ms()) {
@@ -184,15 +183,13 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
 ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s != step_.state) motion_.pid.reset();
   if (step_.state == RoverState::Planning && s != RoverState::Planning) {
-    detour_.local.cancel();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
-    detour_.plan_ahead_dm = 0;
+    detour_.cancel_plan();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
   }
-  if (s == RoverState::Rotate && step_.state != RoverState::Rotate) motion_.rotate_checked = false;
-  if (s == RoverState::BackOff) motion_.back_off_mm = 0.0f;
+  if (s == RoverState::Rotate && step_.state != RoverState::Rotate) motion_.rotation_starts();
+  if (s == RoverState::BackOff) motion_.back_off_starts();
   if (s == RoverState::Drive && step_.state != RoverState::Drive) {
-    odometry_.calib_anchor = false;
-    odometry_.drive_since_ms = step_.last_ms;
-    motion_.min_distance_mm = mission_.wp < mission_.path_len ? aim(target()) : 0.0f;
+    odometry_.drive_starts(step_.last_ms);
+    motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
   }
   step_.state = s;
   if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.end();

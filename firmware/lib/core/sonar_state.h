@@ -2,14 +2,17 @@
 #pragma once
 #include <stdint.h>
 
+
 #include "sweep.h"
 
 namespace rovernav {
 namespace core {
 
-/// Written by mode_scan.cpp (the sweep) and reflex.cpp (the reflex's pings). odometry.cpp adds
-/// the distance driven since the last sweep; mode_rotate.cpp points the servo ahead and sets the
-/// reflex's look after a turn; link_out.cpp counts the echoes it reported.
+/// Written by mode_scan.cpp (the sweep) and reflex.cpp (the reflex's pings). The others through
+/// the functions below: odometry.cpp adds the distance driven since the last sweep itself (as it
+/// does MotionState's turned_mm: through float_ops.h's add_to());
+/// mode_rotate.cpp points the servo ahead (face_ahead) and has the reflex look before the drive
+/// after a turn (look_from); link_out.cpp counts the echoes it reported (count_echo).
 struct SonarState {
   Sweep sweep;
   float sweep_distance_mm = 0.0f;
@@ -21,6 +24,16 @@ struct SonarState {
   uint8_t reflex_look_i = 0;             ///< which way the reflex's next ping looks
   bool reflex_look : 1;                  ///< it stopped the rover: look (a clear ping) before driving
   bool reflex_waiting : 1;               ///< a ping's result is still to come
+
+  void face_ahead() { servo_cdeg = 0; }
+  /// The reflex looks (from look i of its cycle) before the rover drives on; a ping still out
+  /// was aimed at another look.
+  void look_from(uint8_t i) {
+    reflex_look = true;
+    reflex_waiting = false;
+    reflex_look_i = i;
+  }
+  void count_echo() { ++scan_echoes; }
 };
 
 }  // namespace core
