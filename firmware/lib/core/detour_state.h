@@ -8,8 +8,9 @@
 namespace rovernav {
 namespace core {
 
-/// Written by detour.cpp. The others through the functions below: the last detour point reached
-/// (mode_drive.cpp) and the radio's return (failsafe.cpp) end a detour (drop); link_in.cpp takes
+/// Written by detour.cpp. The others through the functions below: mode_drive.cpp goes on to the
+/// next detour point (next_point) and, the last reached, ends the detour (drop), as the radio's
+/// return does (failsafe.cpp); link_in.cpp takes
 /// the host's path (take_host_path) and HEARTBEAT's word (hear_host), and forgets the echoes at
 /// START (forget); mode_scan.cpp starts a sweep (sweep_starts; the planner's keep_near, its own
 /// interface, keeps what lies beside the body); reflex.cpp notes a stop (reflex_stopped);
@@ -27,6 +28,8 @@ struct DetourState {
   bool host_knows : 1;                   ///< HEARTBEAT says the host heard the last sweep whole and holds our path
 
   void drop() { n = i = 0; }
+  /// On to the next detour point; returns true when that was the last.
+  bool next_point() { return ++i >= n; }
   void take_host_path() {
     drop();
     trusted_host = host_knows = false;

@@ -9,7 +9,8 @@ namespace core {
 
 /// Written by failsafe.cpp. What the watchdogs watch comes from elsewhere, through the functions
 /// below: link_in.cpp notes a frame taken (heard) and a fix taken (took_fix); rover.cpp's first
-/// step starts the clocks (start).
+/// step starts the clocks (start), and its run_state() starts the look an outage asked for
+/// (outage_looked).
 struct FailsafeState {
   FaultCode fault = FaultCode::None;
   uint32_t gyro_last_ms = 0;
@@ -26,6 +27,7 @@ struct FailsafeState {
 
   void start(uint32_t now_ms) { last_rx_ms = gyro_last_ms = now_ms; }
   void heard(uint32_t now_ms) { last_rx_ms = now_ms; }
+  void outage_looked() { look_after_outage = false; }
   /// A fix taken into the estimate; returns true when it ends dead reckoning (CameraBack).
   bool took_fix(uint32_t now_ms) {
     last_fix_ms = now_ms;

@@ -11,10 +11,13 @@
 namespace rovernav {
 namespace core {
 
-/// Written by link_in.cpp and link_out.cpp. rover.cpp writes the parts the step itself drives:
-/// begin() sets boot_id and reset_cause and the key; step() times STATUS (last_status_ms), takes
-/// the queue's frames out, notes the first step's time (boot_ms) and when the counters are due to
-/// be stored (persist_due, persisted_once); persist_due() and take_key_change() hand them over.
+/// Written by link_in.cpp and link_out.cpp. rover.cpp's begin() and step() through the functions
+/// below (begin, first_step, status_sent) and the queue's and the key's own interfaces (tx.take,
+/// auth.begin, auth.resume). rover.cpp writes the signatures' store bookkeeping itself: step()
+/// notes when the counters are due to be stored (persist_due, persisted_once), Rover::persist_due()
+/// and Rover::take_key_change() hand them to the shell (stored_tx_b2, stored_rx_hi, key_change).
+/// Moved to link_out.cpp (or link_in.cpp) the same code cost the 7.3 image 8 bytes (the calls
+/// between the functions, placed otherwise, relax less often to RCALL): it stays there.
 /// detour.cpp borrows `stage` as the planner's scratch while no path is arriving (staging false).
 struct LinkState {
   TxQueue tx;
@@ -40,6 +43,17 @@ struct LinkState {
   bool persisted_once : 1;               ///< ... and have been since boot
   bool fix_verified : 1;                 ///< the decoder holds a FIX whose tag passed: next step's job
   uint8_t key_change : 2;                ///< a PROVISION for the shell to store: kKeyStore / kKeyErase
+
+  void begin(uint32_t boot, uint16_t cause) {
+    boot_id = boot;
+    reset_cause = cause;
+  }
+  /// The first step: PROVISION's window and STATUS's period start.
+  void first_step(uint32_t now_ms) {
+    boot_ms = now_ms;
+    status_sent(now_ms);
+  }
+  void status_sent(uint32_t now_ms) { last_status_ms = static_cast<uint16_t>(now_ms); }
 };
 
 }  // namespace core

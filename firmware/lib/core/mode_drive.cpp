@@ -54,7 +54,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
 bool Rover::reached_waypoint(float& l, float& err) {
   if (detour_.i < detour_.n) {
     // A point of the rover's own detour: on to the next, or back onto the host's path.
-    if (++detour_.i >= detour_.n) {
+    if (detour_.next_point()) {
       detour_.drop();
       mission_.pick_again();
     }

@@ -30,8 +30,7 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   // a 2 KB stack); begin() only sets what the default cannot know.
   params_.reset();
   odometry_.begin();
-  link_.boot_id = boot_id;
-  link_.reset_cause = reset_cause;
+  link_.begin(boot_id, reset_cause);
   const bool keyed = secrets != nullptr && secrets->has_key;
   link_.auth.begin(keyed ? secrets->key : nullptr);
   if (secrets != nullptr) link_.auth.resume(secrets->tx_counter, secrets->rx_counter);
@@ -81,8 +80,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   if (!step_.booted) {
     step_.booted = step_.have_time = true;
     failsafe_.start(now);
-    link_.boot_ms = now;
-    link_.last_status_ms = static_cast<uint16_t>(now);
+    link_.first_step(now);
     send_hello();
     send_event(EventKind::Boot, link_.reset_cause);
   }
@@ -129,7 +127,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     if (step_.work & (kWorkFix | kWorkOther | kWorkTag)) {
       step_.put_off = true;
     } else {
-      link_.last_status_ms = static_cast<uint16_t>(now);
+      link_.status_sent(now);
       if (!send_link_auth()) send_status();
     }
   }
@@ -169,7 +167,7 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
   if (failsafe_.look_after_outage) {
     // The radio is back: the host's map missed the readings sent while it was down (and may
     // have sent a path that runs into them). A sweep, reported, before the rover moves on.
-    failsafe_.look_after_outage = false;
+    failsafe_.outage_looked();
     start_sweep();
     return;
   }
