@@ -10,6 +10,12 @@
 //   mode_drive.cpp Drive: the tolerance cone or the moving-to-a-pose law; waypoints reached
 //   reflex.cpp     the forward reflex while driving
 //   detour.cpp     Blocked and Planning: what a sweep found on the leg, the rover's own detour
+// Each concern's state is one aggregate of RoverFields (rover.h), in a header of its own, written
+// by the concern's file: step_ (StepState, this file), link_ (LinkState), mission_ (MissionState),
+// failsafe_ (FailsafeState), odometry_ (OdometryState), motion_ (MotionState), sonar_
+// (SonarState, mode_scan.cpp and reflex.cpp), detour_ (DetourState). Another file changes an
+// aggregate through the small inline functions its header gives for it; each header names the
+// writes left as they were, and why.
 #include "rover.h"
 
 #include <math.h>

@@ -44,7 +44,11 @@ float bearing_rad(Point a, Point b);
 /// the start, begin() sets), so that the Uno's global Rover is constant-initialised into .bss: no
 /// start-up code at all, where setting it field by field took four bytes of flash for every byte
 /// of state. Flags are one-bit fields without initialisers (value-initialisation clears them): a
-/// byte each would cost the Uno's static RAM.
+/// byte each would cost the Uno's static RAM. An aggregate's flags share a byte, and some of its
+/// bools joined them (StepState's booted and have_time, MissionState's active, LinkState's
+/// schema_ok, FailsafeState's radio_lost): with a byte of flags per aggregate, that keeps the
+/// static RAM no higher than the one shared block of flags there was; which bools, was chosen by
+/// what each cost in flash. (AVR has no alignment: the aggregates add no padding.)
 struct RoverFields {
   StepState step_;           // rover.cpp: the mode, the step's clock and its heavy jobs
   LinkState link_;           // link_in.cpp, link_out.cpp: frames, HELLO, a path arriving, signatures
