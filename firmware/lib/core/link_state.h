@@ -12,12 +12,11 @@ namespace rovernav {
 namespace core {
 
 /// Written by link_in.cpp and link_out.cpp. rover.cpp's begin() and step() through the functions
-/// below (begin, first_step, status_sent) and the queue's and the key's own interfaces (tx.take,
-/// auth.begin, auth.resume). rover.cpp writes the signatures' store bookkeeping itself: step()
-/// notes when the counters are due to be stored (persist_due, persisted_once), Rover::persist_due()
-/// and Rover::take_key_change() hand them to the shell (stored_tx_b2, stored_rx_hi, key_change).
-/// Moved to link_out.cpp (or link_in.cpp) the same code cost the 7.3 image 8 bytes (the calls
-/// between the functions, placed otherwise, relax less often to RCALL): it stays there.
+/// below (begin, first_step, status_sent, watch_counters; take_persist and take_key_change for
+/// Rover::persist_due() and Rover::take_key_change()) and the queue's and the key's own interfaces
+/// (tx.take, auth.begin, auth.resume). (The store's bookkeeping is here, inline, not moved to
+/// link_out.cpp: out of rover.cpp's unit, the same code cost the 7.3 image 8 bytes, its functions
+/// placed otherwise and fewer calls relaxed to RCALL.)
 /// detour.cpp borrows `stage` as the planner's scratch while no path is arriving (staging false).
 struct LinkState {
   TxQueue tx;
@@ -54,6 +53,35 @@ struct LinkState {
     status_sent(now_ms);
   }
   void status_sent(uint32_t now_ms) { last_status_ms = static_cast<uint16_t>(now_ms); }
+
+  // What the shell stores (Rover::persist_due(), Rover::take_key_change(); each step: watch_counters()).
+  /// With a key: whether the counters are due to be stored, at the first step (the counters
+  /// resumed past the stored ones must be stored at once: a second reset would resume from the
+  /// same place), and when one has passed a multiple of 65,536 since it was stored: the rover's
+  /// own counts its frames (byte 2 changes), the host's is its clock and may jump (any of bytes 2-5).
+  void watch_counters() {
+    if (!auth.keyed()) return;
+    bool moved = !persisted_once || auth.tx_last().b[2] != stored_tx_b2;
+    for (uint8_t i = 0; i < 4; ++i) moved = moved || auth.rx_last().b[2 + i] != stored_rx_hi[i];
+    if (moved) persisted_once = persist_due = true;
+  }
+  static_assert(kSignPersistStep == 65536UL, "watch_counters() compares the counters from byte 2 up");
+  /// The counters to store now, once per change (see watch_counters()).
+  bool take_persist(Counter48& tx_counter, Counter48& rx_counter) {
+    if (!persist_due) return false;
+    persist_due = false;
+    tx_counter = auth.tx_last();
+    rx_counter = auth.rx_last();
+    stored_tx_b2 = tx_counter.b[2];
+    for (uint8_t i = 0; i < 4; ++i) stored_rx_hi[i] = rx_counter.b[2 + i];
+    return true;
+  }
+  /// A PROVISION taken (kKeyStore, kKeyErase), once; 0 if none.
+  uint8_t take_key_change() {
+    const uint8_t change = key_change;
+    key_change = 0;
+    return change;
+  }
 };
 
 }  // namespace core

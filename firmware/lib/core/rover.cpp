@@ -28,7 +28,6 @@ namespace core {
 namespace {
 // Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
 const uint32_t kMaxStepMs = 250;
-static_assert(kSignPersistStep == 65536UL, "persist_due() compares the counters from byte 2 up");
 }  // namespace
 
 void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets) {
@@ -42,21 +41,9 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   if (secrets != nullptr) link_.auth.resume(secrets->tx_counter, secrets->rx_counter);
 }
 
-bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) {
-  if (!link_.persist_due) return false;
-  link_.persist_due = false;
-  tx_counter = link_.auth.tx_last();
-  rx_counter = link_.auth.rx_last();
-  link_.stored_tx_b2 = tx_counter.b[2];
-  for (uint8_t i = 0; i < 4; ++i) link_.stored_rx_hi[i] = rx_counter.b[2 + i];
-  return true;
-}
+bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) { return link_.take_persist(tx_counter, rx_counter); }
 
-uint8_t Rover::take_key_change() {
-  const uint8_t change = link_.key_change;
-  link_.key_change = 0;
-  return change;
-}
+uint8_t Rover::take_key_change() { return link_.take_key_change(); }
 
 uint16_t Rover::flags() const {
   uint16_t f = 0;
@@ -90,15 +77,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
     send_hello();
     send_event(EventKind::Boot, link_.reset_cause);
   }
-  if (link_.auth.keyed()) {
-    // At the first step (the counters resumed past the stored ones must be stored at once: a
-    // second reset would resume from the same place), and when one has passed a multiple of
-    // 65,536 since it was stored: the rover's own counts its frames (byte 2 changes), the
-    // host's is its clock and may jump (any of bytes 2-5).
-    bool moved = !link_.persisted_once || link_.auth.tx_last().b[2] != link_.stored_tx_b2;
-    for (uint8_t i = 0; i < 4; ++i) moved = moved || link_.auth.rx_last().b[2 + i] != link_.stored_rx_hi[i];
-    if (moved) link_.persisted_once = link_.persist_due = true;
-  }
+  link_.watch_counters();
 
   out.rx_used = take_frames(in, now);
   update_gyro(in, now);
