@@ -10,11 +10,10 @@ namespace core {
 
 /// Written by detour.cpp. The others through the functions below: mode_drive.cpp goes on to the
 /// next detour point (next_point) and, the last reached, ends the detour (drop), as the radio's
-/// return does (failsafe.cpp); link_in.cpp takes
-/// the host's path (take_host_path) and HEARTBEAT's word (hear_host), and forgets the echoes at
-/// START (forget); mode_scan.cpp starts a sweep (sweep_starts; the planner's keep_near, its own
-/// interface, keeps what lies beside the body); reflex.cpp notes a stop (reflex_stopped);
-/// rover.cpp's enter() cuts a plan short (cancel_plan).
+/// return does (failsafe.cpp); link_in.cpp takes the host's path (take_host_path) and HEARTBEAT's
+/// word (hear_host), and forgets the echoes at START (forget); mode_scan.cpp starts a sweep
+/// (sweep_starts; the planner's keep_near(), its own interface, keeps what lies beside the body);
+/// reflex.cpp notes a stop (reflex_stopped); rover.cpp's enter() cuts a plan short (cancel_plan).
 struct DetourState {
   LocalPlanner local;                    ///< the last sweep's echoes, as obstacle disks
   Waypoint points[LocalPlanner::kMaxDetour] = {};

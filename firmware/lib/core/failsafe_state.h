@@ -22,7 +22,7 @@ struct FailsafeState {
   uint32_t radio_lost_since_ms = 0;
   bool dead_reckoning = false;
   bool had_fix = false;
-  bool radio_lost : 1;
+  bool radio_lost : 1;                   ///< nothing taken from the radio for radio_timeout_ms
   bool look_after_outage : 1;            ///< the radio came back mid-mission: sweep before moving on
 
   void start(uint32_t now_ms) { last_rx_ms = gyro_last_ms = now_ms; }

@@ -16,8 +16,7 @@ namespace core {
 /// Rover::persist_due() and Rover::take_key_change()) and the queue's and the key's own interfaces
 /// (tx.take, auth.begin, auth.resume). (The store's bookkeeping is here, inline, not moved to
 /// link_out.cpp: out of rover.cpp's unit, the same code cost the 7.3 image 8 bytes, its functions
-/// placed otherwise and fewer calls relaxed to RCALL.)
-/// detour.cpp borrows `stage` as the planner's scratch while no path is arriving (staging false).
+/// placed otherwise and fewer calls relaxed to RCALL.) detour.cpp borrows `stage` as the planner's scratch while no path is arriving (staging false).
 struct LinkState {
   TxQueue tx;
   uint32_t boot_id = 0;
@@ -37,7 +36,7 @@ struct LinkState {
   uint8_t stored_tx_b2 = 0;              ///< byte 2 of the tx counter last handed to the shell to store
   uint8_t stored_rx_hi[4] = {};          ///< bytes 2-5 of the rx counter last handed to the shell
   uint16_t auth_reported = 0;            ///< refusals counted when LINK_AUTH last went out
-  bool schema_ok : 1;
+  bool schema_ok : 1;                    ///< the host's HELLO carried our schema hash
   bool persist_due : 1;                  ///< the counters are to be stored (Rover::persist_due())
   bool persisted_once : 1;               ///< ... and have been since boot
   bool fix_verified : 1;                 ///< the decoder holds a FIX whose tag passed: next step's job
@@ -55,7 +54,7 @@ struct LinkState {
   void status_sent(uint32_t now_ms) { last_status_ms = static_cast<uint16_t>(now_ms); }
 
   // What the shell stores (Rover::persist_due(), Rover::take_key_change(); each step: watch_counters()).
-  /// With a key: whether the counters are due to be stored, at the first step (the counters
+  /// With a key, notes when the counters are due to be stored: at the first step (the counters
   /// resumed past the stored ones must be stored at once: a second reset would resume from the
   /// same place), and when one has passed a multiple of 65,536 since it was stored: the rover's
   /// own counts its frames (byte 2 changes), the host's is its clock and may jump (any of bytes 2-5).

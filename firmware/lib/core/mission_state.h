@@ -21,7 +21,7 @@ struct MissionState {
   uint8_t path_len = 0;
   uint16_t path_id = 0;
   uint8_t wp = 0;                        ///< the waypoint being approached
-  bool active : 1;                   ///< a mission runs (START taken, not yet ended)
+  bool active : 1;                       ///< a mission runs (START taken, not yet ended)
   bool pick_target : 1;                  ///< wp is to be chosen afresh (closest_target) when the step has time
 
   void end() { active = false; }

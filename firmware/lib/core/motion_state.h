@@ -9,12 +9,13 @@ namespace rovernav {
 namespace core {
 
 /// Written by mode_rotate.cpp and mode_drive.cpp. The others through the functions below:
-/// rover.cpp's step() keeps the commands it gave (commanded) and its enter() starts a rotation, a
-/// back-off or a drive (rotation_starts, back_off_starts, drive_starts; pid.reset(), the PID's
-/// own interface), and its heading_command(), the modes' helper, runs the PID (pid.update); odometry.cpp records the track (on_track) and adds to turned_mm itself (through
-/// float_ops.h's add_to(), shared by every such sum: no header of state includes float_ops.h, which
-/// cost the 7.3 image 6 bytes); link_in.cpp takes the host's word to back out from PATH
-/// (host_back_out).
+/// rover.cpp's step() keeps the commands it gave (commanded), its enter() starts a rotation, a
+/// back-off or a drive (rotation_starts, back_off_starts, drive_starts, and pid.reset(), the
+/// PID's own interface), and its heading_command(), the modes' helper, runs the PID (pid.update);
+/// odometry.cpp records the track (on_track); link_in.cpp takes the host's word to back out from
+/// PATH (host_back_out). Left as it was: odometry.cpp adds the distance driven to turned_mm itself,
+/// with float_ops.h's add_to() (one call every such sum shares). An inline function here would
+/// need float_ops.h in this header, and that cost the 7.3 image 6 bytes.
 struct MotionState {
   HeadingPid pid;
   float min_distance_mm = 0.0f;

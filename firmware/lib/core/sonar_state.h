@@ -9,10 +9,10 @@ namespace rovernav {
 namespace core {
 
 /// Written by mode_scan.cpp (the sweep) and reflex.cpp (the reflex's pings). The others through
-/// the functions below: odometry.cpp adds the distance driven since the last sweep itself (as it
-/// does MotionState's turned_mm: through float_ops.h's add_to());
-/// mode_rotate.cpp points the servo ahead (face_ahead) and has the reflex look before the drive
-/// after a turn (look_from); link_out.cpp counts the echoes it reported (count_echo).
+/// the functions below: mode_rotate.cpp points the servo ahead (face_ahead) and has the reflex
+/// look before the drive after a turn (look_from); link_out.cpp counts the echoes it reported
+/// (count_echo). Left as it was: odometry.cpp adds the distance driven to sweep_distance_mm
+/// itself, with float_ops.h's add_to(), as it does MotionState's turned_mm (see there).
 struct SonarState {
   Sweep sweep;
   float sweep_distance_mm = 0.0f;
