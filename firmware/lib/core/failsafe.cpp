@@ -13,74 +13,74 @@ void Rover::update_gyro(const Inputs& in, uint32_t now) {
     const int32_t rate_cdeg_s = in.gyro_rate_mdps / 10;
     const int32_t mag = rate_cdeg_s < 0 ? -rate_cdeg_s : rate_cdeg_s;
     if (mag > params_.gyro_max_rate_cdeg_s()) {
-      gyro_good_run_ = false;
-      if (fault_ == FaultCode::None) raise_fault(FaultCode::GyroImplausible);
+      failsafe_.gyro_good_run = false;
+      if (failsafe_.fault == FaultCode::None) raise_fault(FaultCode::GyroImplausible);
       return;
     }
-    gyro_last_ms_ = now;
-    rate_mdps_ = in.gyro_rate_mdps;
-    if (!gyro_good_run_) {
-      gyro_good_run_ = true;
-      gyro_good_since_ms_ = static_cast<uint16_t>(now);
+    failsafe_.gyro_last_ms = now;
+    failsafe_.rate_mdps = in.gyro_rate_mdps;
+    if (!failsafe_.gyro_good_run) {
+      failsafe_.gyro_good_run = true;
+      failsafe_.gyro_good_since_ms = static_cast<uint16_t>(now);
     }
-    if (fault_ != FaultCode::None && static_cast<uint16_t>(static_cast<uint16_t>(now) - gyro_good_since_ms_) >= kGyroRecoverMs) {
-      const FaultCode cleared = fault_;
-      fault_ = FaultCode::None;
+    if (failsafe_.fault != FaultCode::None && static_cast<uint16_t>(static_cast<uint16_t>(now) - failsafe_.gyro_good_since_ms) >= kGyroRecoverMs) {
+      const FaultCode cleared = failsafe_.fault;
+      failsafe_.fault = FaultCode::None;
       send_event(EventKind::FaultCleared, static_cast<uint16_t>(cleared));
       enter(RoverState::Idle);
     }
     return;
   }
-  if (now - gyro_last_ms_ > params_.gyro_timeout_ms()) {
-    gyro_good_run_ = false;
-    rate_mdps_ = 0;
-    if (fault_ == FaultCode::None) raise_fault(FaultCode::GyroSilent);
+  if (now - failsafe_.gyro_last_ms > params_.gyro_timeout_ms()) {
+    failsafe_.gyro_good_run = false;
+    failsafe_.rate_mdps = 0;
+    if (failsafe_.fault == FaultCode::None) raise_fault(FaultCode::GyroSilent);
   }
 }
 
 void Rover::watch_link(uint32_t now) {
-  const bool radio_now_lost = now - last_rx_ms_ > params_.radio_timeout_ms();
-  if (radio_now_lost && !radio_lost_) {
-    radio_lost_ = true;
-    radio_lost_since_ms_ = now;
+  const bool radio_now_lost = now - failsafe_.last_rx_ms > params_.radio_timeout_ms();
+  if (radio_now_lost && !failsafe_.radio_lost) {
+    failsafe_.radio_lost = true;
+    failsafe_.radio_lost_since_ms = now;
     send_event(EventKind::LinkLost, 0);
-  } else if (!radio_now_lost && radio_lost_) {
-    radio_lost_ = false;
+  } else if (!radio_now_lost && failsafe_.radio_lost) {
+    failsafe_.radio_lost = false;
     // What the sonar reported meanwhile was lost: look again. And a detour of its own, begun
     // alone, knows only the last sweep, where the host's map knows the walls: back on the host's
     // path (the nearest leg's end), whose leg that sweep checks; the host, who hears it, replans
     // or gives its word.
-    look_after_outage_ = pick_target_ = mission_;
-    detour_n_ = detour_i_ = 0;
-    send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - radio_lost_since_ms_) / 100.0f));
+    failsafe_.look_after_outage = mission_.pick_if_active();
+    detour_.drop();
+    send_event(EventKind::LinkBack, saturate_u16(static_cast<float>(now - failsafe_.radio_lost_since_ms) / 100.0f));
   }
-  if (had_fix_ && !dead_reckoning_ && now - last_fix_ms_ > params_.fix_timeout_ms()) {
-    dead_reckoning_ = true;
-    dr_distance_mm_ = 0.0f;
-    if (!radio_lost_) send_event(EventKind::CameraLost, camera_);
+  if (failsafe_.had_fix && !failsafe_.dead_reckoning && now - failsafe_.last_fix_ms > params_.fix_timeout_ms()) {
+    failsafe_.dead_reckoning = true;
+    odometry_.restart_dr();
+    if (!failsafe_.radio_lost) send_event(EventKind::CameraLost, link_.camera);
   }
   // Safe stop: never drive on past what the estimate can vouch for.
-  const bool moving = state_ == RoverState::Rotate || state_ == RoverState::Drive || state_ == RoverState::Scan ||
-                      state_ == RoverState::BackOff;
-  if (mission_ && moving && dead_reckoning_) {
+  const bool moving = step_.state == RoverState::Rotate || step_.state == RoverState::Drive || step_.state == RoverState::Scan ||
+                      step_.state == RoverState::BackOff;
+  if (mission_.active && moving && failsafe_.dead_reckoning) {
     const float u = uncertainty_2sd_mm();
     if (u >= 0.9f * params_.clearance_margin_mm() ||
-        dr_distance_mm_ >= params_.dr_max_distance_mm()) {
+        odometry_.dr_distance_mm >= params_.dr_max_distance_mm()) {
       stop_sweep();
       enter(RoverState::Hold);
       send_event(EventKind::Hold, saturate_u16(u));
     }
   }
-  if (state_ == RoverState::Hold && !dead_reckoning_ &&
+  if (step_.state == RoverState::Hold && !failsafe_.dead_reckoning &&
       uncertainty_2sd_mm() < 0.5f * params_.clearance_margin_mm()) {
-    pick_target_ = true;
+    mission_.pick_again();
     enter(RoverState::Rotate);
-    send_event(EventKind::Resumed, wp_);
+    send_event(EventKind::Resumed, mission_.wp);
   }
 }
 
 void Rover::raise_fault(FaultCode code) {
-  fault_ = code;
+  failsafe_.fault = code;
   stop_sweep();
   enter(RoverState::Fault);
   send_event(EventKind::Fault, static_cast<uint16_t>(code));

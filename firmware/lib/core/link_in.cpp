@@ -14,33 +14,34 @@ namespace core {
 // sonar result, takes no signed frame at all. A rover with no key computes no tag and takes
 // everything at once.
 ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
-  if (fix_verified_) {
+  if (link_.fix_verified) {
     // The FIX whose tag the last step checked (still in the decoder: nothing is pushed until it
     // is taken) is this step's job, unless a sonar result was put off too: the sweep waits for
     // that, the estimator can wait a step more. The FIX is 10-20 ms older than its age says.
-    if (sonar_held_ || in.sonar_valid) return 0;
-    fix_verified_ = false;
-    step_work_ = static_cast<uint8_t>(step_work_ & ~kWorkReserved);
-    handle_frame(decoder_.frame(), now, static_cast<uint16_t>(now - last_rx_ms_));
+    if (step_.sonar_held || in.sonar_valid) return 0;
+    link_.fix_verified = false;
+    step_.spend_reserve();   // on the job it was kept for
+    handle_frame(decoder_.frame(), now, static_cast<uint16_t>(now - failsafe_.last_rx_ms));
     return 0;
   }
   // A step kept for a put-off job, or one with a sonar result to take in (the sweep's pace),
   // leaves the signed frames to the next.
-  if (auth_.keyed() && ((step_work_ & kWorkReserved) || in.sonar_valid)) return 0;
+  if (link_.auth.keyed() && ((step_.work & kWorkReserved) || in.sonar_valid)) return 0;
   uint8_t used = 0;
   while (used < in.rx_len) {
     if (!decoder_.push(in.rx[used++])) continue;
-    const AuthResult r = auth_.check(decoder_.frame());
+    const AuthResult r = link_.auth.check(decoder_.frame());
     if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
-      last_rx_ms_ = now;   // only frames we take keep the link alive (a forger's do not)
+      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not)
       if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {
-        fix_verified_ = put_off_ = true;   // a tag and an estimator update do not fit one step
+        link_.fix_verified = true;   // a tag and an estimator update do not fit one step
+        step_.defer();
       } else {
         handle_frame(decoder_.frame(), now, 0);
       }
     }
     if (r == AuthResult::AcceptedAfterTag || r == AuthResult::RefusedAfterTag) {
-      step_work_ = static_cast<uint8_t>(step_work_ | kWorkTag);
+      step_.did(kWorkTag);
       break;
     }
   }
@@ -63,13 +64,13 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
   switch (f.msg_id) {
     case msg::Hello::kId:
       if (m.hello.role == static_cast<uint8_t>(Role::Host)) {
-        schema_ok_ = m.hello.schema_hash == kSchemaHash;
+        link_.schema_ok = m.hello.schema_hash == kSchemaHash;
         send_hello();
       }
       break;
     case msg::Heartbeat::kId:
-      camera_ = m.heartbeat.camera;
-      host_knows_ = m.heartbeat.scan_heard == scan_id_ && m.heartbeat.path_id == path_id_;
+      link_.camera = m.heartbeat.camera;
+      detour_.hear_host(m.heartbeat.scan_heard == sonar_.scan_id && m.heartbeat.path_id == mission_.path_id);
       break;
     case msg::Fix::kId:
       m.fix.age_ms = static_cast<uint16_t>(m.fix.age_ms + late_ms);
@@ -100,34 +101,29 @@ ROVERNAV_NOINLINE void Rover::handle_frame(const Frame& f, uint32_t now, uint16_
 // message union on the stack, past the AVR's short (Y+63) offsets: a pair of pointer moves
 // round every spill.
 ROVERNAV_NOINLINE void Rover::on_fix(const msg::Fix& m, uint32_t now) {
-  if (step_work_ & (kWorkFix | kWorkReserved)) return;   // one FIX a step, none in a reserved one (see step())
-  step_work_ = static_cast<uint8_t>(step_work_ | kWorkFix);
+  if (step_.work & (kWorkFix | kWorkReserved)) return;   // one FIX a step, none in a reserved one (see step())
+  step_.did(kWorkFix);
   PoseFix fix;
   fix.x_mm = m.x_mm;
   fix.y_mm = m.y_mm;
   fix.heading_cdeg = m.heading_cdeg;
   fix.sd_mm = m.sd_mm;
   fix.taken_ms = now - m.age_ms - kLinkDelayMs;
-  const FixResult r = est_.update(fix, now);
+  const FixResult r = odometry_.est.update(fix, now);
   if (r == FixResult::Rejected) return;
-  last_fix_ms_ = now;
-  had_fix_ = true;
-  if (dead_reckoning_) {
-    dead_reckoning_ = false;
-    send_event(EventKind::CameraBack, est_.last_innovation_mm());
-  }
-  dr_distance_mm_ = 0.0f;
+  if (failsafe_.took_fix(now)) send_event(EventKind::CameraBack, odometry_.est.last_innovation_mm());
+  odometry_.restart_dr();
   calibrate_speed(m, now, r);
 }
 
 void Rover::on_path(const msg::Path& m, uint8_t seq) {
   const uint8_t id = msg::Path::kId;
-  if (state_ == RoverState::Planning) no_detour();   // the staging buffer is the planner's scratch; the host's path will do
+  if (step_.state == RoverState::Planning) no_detour();   // the staging buffer is the planner's scratch; the host's path will do
   // A repeat (its ACK was lost and the host sent it again): ACK again. While staging, of the
   // chunk just taken; once the path is held whole, of any of its chunks (staging it anew would
   // leave a part-staged copy that keeps the rover from planning its own detours).
-  if (m.path_id == stage_id_ &&
-      (staging_ ? m.first_index + 1 == last_chunk_ : (path_id_ == m.path_id && path_len_ == m.total))) {
+  if (m.path_id == link_.stage_id &&
+      (link_.staging ? m.first_index + 1 == link_.last_chunk : (mission_.path_id == m.path_id && mission_.path_len == m.total))) {
     ack(id, seq);
     return;
   }
@@ -138,48 +134,46 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
   for (uint8_t i = 0; i < m.count; ++i) {
     if (m.x_mm[i] < 0 || m.y_mm[i] < 0) return nack(id, seq, NackReason::BadValue, static_cast<uint16_t>(m.first_index + i));
   }
-  const bool continues = staging_ && m.path_id == stage_id_ && m.total == stage_total_;
+  const bool continues = link_.staging && m.path_id == link_.stage_id && m.total == link_.stage_total;
   if (m.first_index == 0 && !continues) {
-    staging_ = true;
-    stage_id_ = m.path_id;
-    stage_total_ = m.total;
-    stage_count_ = 0;
-  } else if (!continues || m.first_index != stage_count_) {
-    return nack(id, seq, NackReason::OutOfOrder, continues ? stage_count_ : 0);
+    link_.staging = true;
+    link_.stage_id = m.path_id;
+    link_.stage_total = m.total;
+    link_.stage_count = 0;
+  } else if (!continues || m.first_index != link_.stage_count) {
+    return nack(id, seq, NackReason::OutOfOrder, continues ? link_.stage_count : 0);
   }
   for (uint8_t i = 0; i < m.count; ++i) {
-    stage_[m.first_index + i].x_mm = m.x_mm[i];
-    stage_[m.first_index + i].y_mm = m.y_mm[i];
+    link_.stage[m.first_index + i].x_mm = m.x_mm[i];
+    link_.stage[m.first_index + i].y_mm = m.y_mm[i];
   }
-  stage_count_ = static_cast<uint8_t>(stage_count_ + m.count);
-  last_chunk_ = static_cast<uint8_t>(m.first_index + 1);
+  link_.stage_count = static_cast<uint8_t>(link_.stage_count + m.count);
+  link_.last_chunk = static_cast<uint8_t>(m.first_index + 1);
   ack(id, seq);
-  if (stage_count_ < stage_total_) return;
+  if (link_.stage_count < link_.stage_total) return;
 
   // Complete: it replaces the path held, and a running mission follows it at once (from the
   // nearest leg's end, chosen in a step with time for it).
-  step_work_ = static_cast<uint8_t>(step_work_ | kWorkOther);
-  staging_ = false;
-  for (uint8_t i = 0; i < stage_total_; ++i) path_[i] = stage_[i];
-  path_len_ = stage_total_;
-  path_id_ = stage_id_;
-  detour_n_ = detour_i_ = 0;  // the host's path replaces the rover's own detour
-  trusted_host_ = host_knows_ = false;
+  step_.did(kWorkOther);
+  link_.staging = false;
+  for (uint8_t i = 0; i < link_.stage_total; ++i) mission_.path[i] = link_.stage[i];
+  mission_.path_len = link_.stage_total;
+  mission_.path_id = link_.stage_id;
+  detour_.take_host_path();  // the host's path replaces the rover's own detour
   // The host's map holds something within reach of the corners where the rover stands, and no
   // room straight ahead: its next turn on the spot backs out first (a rotation under way is
   // checked again).
-  back_out_ = m.back_out;
-  if (back_out_ != 0) rotate_checked_ = false;
-  send_event(EventKind::PathAccepted, path_id_);
-  if (mission_ && est_.initialised()) {
-    pick_target_ = true;
+  motion_.host_back_out(m.back_out);
+  send_event(EventKind::PathAccepted, mission_.path_id);
+  if (mission_.active && odometry_.est.initialised()) {
+    mission_.pick_target = true;
     // A rover its reflex stopped on the host's last path looks before it takes a new one: a host
     // that never heard the sweep (its reports lost on a lossy radio) sends the same way again.
     // The sweep's check (replan_locally) then finds its own way round, or holds it Blocked.
     // A rover Blocked stays so until the new leg is seen to clear what the sweep saw (mode_blocked).
-    if (reflex_after_trust_) {
+    if (detour_.reflex_after_trust) {
       start_sweep();
-    } else if (state_ == RoverState::Drive || state_ == RoverState::Rotate) {
+    } else if (step_.state == RoverState::Drive || step_.state == RoverState::Rotate) {
       enter(RoverState::Rotate);
     }
   }
@@ -187,18 +181,18 @@ void Rover::on_path(const msg::Path& m, uint8_t seq) {
 
 void Rover::on_start(const msg::Start& m, uint8_t seq) {
   const uint8_t id = msg::Start::kId;
-  if (!schema_ok_) return nack(id, seq, NackReason::SchemaMismatch, 0);
-  if (fault_ != FaultCode::None) return nack(id, seq, NackReason::Faulted, static_cast<uint16_t>(fault_));
-  if (path_len_ == 0) return nack(id, seq, NackReason::NoPath, 0);
-  if (m.path_id != path_id_) return nack(id, seq, NackReason::PathIdMismatch, path_id_);
-  if (!est_.initialised()) return nack(id, seq, NackReason::NoFix, 0);
+  if (!link_.schema_ok) return nack(id, seq, NackReason::SchemaMismatch, 0);
+  if (failsafe_.fault != FaultCode::None) return nack(id, seq, NackReason::Faulted, static_cast<uint16_t>(failsafe_.fault));
+  if (mission_.path_len == 0) return nack(id, seq, NackReason::NoPath, 0);
+  if (m.path_id != mission_.path_id) return nack(id, seq, NackReason::PathIdMismatch, mission_.path_id);
+  if (!odometry_.est.initialised()) return nack(id, seq, NackReason::NoFix, 0);
   ack(id, seq);
-  if (mission_) return;  // already running this path
-  mission_ = true;
-  wp_ = 0;
-  pick_target_ = true;
-  local_.clear();   // the rover may have been carried since: what it remembers is of elsewhere
-  // sweep_distance_mm_ carries over: "every 0.3 m travelled" counts across missions too.
+  if (mission_.active) return;  // already running this path
+  mission_.active = true;
+  mission_.wp = 0;
+  mission_.pick_target = true;
+  detour_.forget();   // the rover may have been carried since: what it remembers is of elsewhere
+  // sonar_.sweep_distance_mm carries over: "every 0.3 m travelled" counts across missions too.
   // Look before the first turn: something beside the rover would be hit by its corners as it turns.
   if (params_.sweep_at_start()) {
     start_sweep();
@@ -210,8 +204,8 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
 void Rover::on_stop(const msg::Stop& m, uint8_t seq) {
   ack(msg::Stop::kId, seq);
   stop_sweep();
-  if (state_ != RoverState::Fault) enter(RoverState::Idle);
-  mission_ = false;
+  if (step_.state != RoverState::Fault) enter(RoverState::Idle);
+  mission_.active = false;
   send_event(EventKind::Stopped, m.reason);
 }
 
@@ -234,19 +228,19 @@ void Rover::on_config(const msg::Config& m, uint8_t seq) {
 void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now, bool verified) {
   const uint8_t id = msg::Provision::kId;
   if (!verified) {
-    if (auth_.keyed() && !(reset_cause_ & kSignConsentResetBit)) return nack(id, seq, NackReason::NeedsConsent, kSignConsentPin);
-    const uint32_t since_ms = now - boot_ms_;
+    if (link_.auth.keyed() && !(link_.reset_cause & kSignConsentResetBit)) return nack(id, seq, NackReason::NeedsConsent, kSignConsentPin);
+    const uint32_t since_ms = now - link_.boot_ms;
     if (since_ms > kSignProvisionWindowMs) {
       const uint32_t s = since_ms / 1000;
       return nack(id, seq, NackReason::NotNow, s > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(s));
     }
   }
   if (m.erase > 1) return nack(id, seq, NackReason::BadValue, 2);
-  const Counter48 tx = auth_.tx_last(), rx = auth_.rx_last();
-  auth_.begin(m.erase ? nullptr : m.key);
-  auth_.resume(tx, rx);   // past every counter of the old key too
-  key_change_ = m.erase ? kKeyErase & 3u : kKeyStore & 3u;
-  persisted_once_ = false;  // the counters are stored again with the key
+  const Counter48 tx = link_.auth.tx_last(), rx = link_.auth.rx_last();
+  link_.auth.begin(m.erase ? nullptr : m.key);
+  link_.auth.resume(tx, rx);   // past every counter of the old key too
+  link_.key_change = m.erase ? kKeyErase & 3u : kKeyStore & 3u;
+  link_.persisted_once = false;  // the counters are stored again with the key
   ack(id, seq);
   send_event(EventKind::KeyStored, m.erase ? 0 : 1);
 }

@@ -17,7 +17,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
   if (reflex(in, now, l, out)) return;
 
   const float sweep_mm = p.sweep_interval_mm();
-  const bool sweep_due = positive(sweep_mm) && sweep_distance_mm_ >= sweep_mm;   // 0 disables sweeps
+  const bool sweep_due = positive(sweep_mm) && sonar_.sweep_distance_mm >= sweep_mm;   // 0 disables sweeps
   if (p.pose_law()) {
     if (sweep_due) {
       start_sweep();
@@ -33,7 +33,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
   }
 
   // Drive: stop and re-rotate outside the cone, or once we are moving away from the waypoint.
-  if (fabsf(err) > cone_deg(l) || l > min_distance_mm_ + static_cast<float>(kGrowMarginMm)) {
+  if (fabsf(err) > cone_deg(l) || l > motion_.min_distance_mm + static_cast<float>(kGrowMarginMm)) {
     enter(RoverState::Rotate);
     return;
   }
@@ -41,7 +41,7 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
     start_sweep();
     return;
   }
-  if (l < min_distance_mm_) min_distance_mm_ = l;
+  if (l < motion_.min_distance_mm) motion_.min_distance_mm = l;
   const float u = heading_command(err, dt_s);
   const float base = p.drive_pwm();
   set_wheels(base, u, true, out);
@@ -52,29 +52,29 @@ void Rover::mode_drive(const SonarIn& in, float err, float l, float dt_s, uint32
 // are the new target's distance and heading error (computed once: each is a square root or an
 // arctangent, 100-150 us on the Uno).
 bool Rover::reached_waypoint(float& l, float& err) {
-  if (detour_i_ < detour_n_) {
+  if (detour_.i < detour_.n) {
     // A point of the rover's own detour: on to the next, or back onto the host's path.
-    if (++detour_i_ >= detour_n_) {
-      detour_n_ = detour_i_ = 0;
-      pick_target_ = true;
+    if (detour_.next_point()) {
+      detour_.drop();
+      mission_.pick_again();
     }
     enter(RoverState::Rotate);
-    if (pick_target_) return false;
+    if (mission_.pick_target) return false;
     l = aim(target(), &err);
     return true;
   }
-  send_event(EventKind::WaypointReached, wp_);
-  if (wp_ + 1 >= path_len_) {
+  send_event(EventKind::WaypointReached, mission_.wp);
+  if (mission_.wp + 1 >= mission_.path_len) {
     enter(RoverState::Arrived);
-    send_event(EventKind::Arrived, wp_);
+    send_event(EventKind::Arrived, mission_.wp);
     return false;
   }
-  ++wp_;
+  mission_.advance();
   // Do not stop at a waypoint the next leg runs straight on from (the seed stopped at every one).
   l = aim(target(), &err);
   const float turn_deg = fabsf(err);
-  if (state_ == RoverState::Drive && (params_.pose_law() || turn_deg <= cone_deg(l))) {
-    min_distance_mm_ = l;
+  if (step_.state == RoverState::Drive && (params_.pose_law() || turn_deg <= cone_deg(l))) {
+    motion_.min_distance_mm = l;
     return true;
   }
   // A sharp turn on the spot swings the rover's corners wider than its sides: look round first,
@@ -83,16 +83,16 @@ bool Rover::reached_waypoint(float& l, float& err) {
   // that turned about after a sweep and met its next waypoint within 100 mm turned again into
   // a wall's end no beam had covered (arena 157).
   const float look_deg = params_.sweep_before_turn_deg();
-  // sweep_distance_mm_ is a sum of magnitudes, never negative: < 100 on its bits (false for a NaN,
+  // sonar_.sweep_distance_mm is a sum of magnitudes, never negative: < 100 on its bits (false for a NaN,
   // as the comparison).
-  const bool looked = magnitude_below(sweep_distance_mm_, static_cast<float>(kTurnLookAfterMm)) &&
-                      magnitude_at_most(wrap_rad(est_.heading_rad() - sweep_heading_rad_), static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg);
+  const bool looked = magnitude_below(sonar_.sweep_distance_mm, static_cast<float>(kTurnLookAfterMm)) &&
+                      magnitude_at_most(wrap_rad(odometry_.est.heading_rad() - sonar_.sweep_heading_rad), static_cast<float>(kTurnLookCoverDeg) * kRadPerDeg);
   if (positive(look_deg) && turn_deg > look_deg && !looked) {
     start_sweep();
     return false;
   }
   enter(RoverState::Rotate);
-  pid_.reset();
+  motion_.pid.reset();
   return true;
 }
 
@@ -103,7 +103,7 @@ bool Rover::reached_waypoint(float& l, float& err) {
 void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   const Params& p = params_;
   const Waypoint w = target();
-  const bool in_detour = detour_i_ < detour_n_;
+  const bool in_detour = detour_.i < detour_.n;
   // In the counter-clockwise frame (theta = pi/2 - our clockwise heading): alpha, the goal's
   // bearing from the rover less theta, is minus the heading error; beta = -alpha - theta +
   // theta_goal = err + heading - goal heading. A detour's point, or a one-waypoint path, asks for
@@ -111,14 +111,14 @@ void Rover::pose_command(float rho_mm, float err_deg, Outputs& out) {
   const float err_rad = err_deg * kRadPerDeg;
   const float alpha = -err_rad;
   float beta = 0.0f;
-  if (!in_detour && path_len_ > 1) {
-    const bool next = wp_ + 1 < path_len_;
-    const float goal_cw = bearing_rad(next ? w : path_[wp_ - 1], next ? path_[wp_ + 1] : w);
-    beta = wrap_rad(err_rad + est_.heading_rad() - goal_cw);
+  if (!in_detour && mission_.path_len > 1) {
+    const bool next = mission_.wp + 1 < mission_.path_len;
+    const float goal_cw = bearing_rad(next ? w : mission_.path[mission_.wp - 1], next ? mission_.path[mission_.wp + 1] : w);
+    beta = wrap_rad(err_rad + odometry_.est.heading_rad() - goal_cw);
   }
   const float v_max = drive_speed_mm_s();
   // Slow down for the last waypoint only: the others are passed through at speed.
-  const bool last = !in_detour && wp_ + 1 >= path_len_;
+  const bool last = !in_detour && mission_.wp + 1 >= mission_.path_len;
   float v = last ? p.pose_k_rho() * rho_mm : v_max;
   if (v > v_max) v = v_max;
   const float omega_ccw = p.pose_k_alpha() * alpha + p.pose_k_beta() * beta;   // rad/s

@@ -19,26 +19,24 @@ const int32_t kRotateSettledMdps = 10000;
 // faces it (then Drive, in this same step), true while it turns or has gone to back off first.
 bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
   const Params& p = params_;
-  servo_cdeg_ = 0;   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
-  if (!rotate_checked_) {
+  sonar_.face_ahead();   // the reflex's looks end: the sonar faces ahead for the next sweep or drive
+  if (!motion_.rotate_checked) {
     // The check (a sine, a cosine and every echo) and a FIX's estimator update do not fit one
     // step: the turn begins a step later.
-    if (step_work_ & kWorkFix) {
-      put_off_ = true;
+    if (step_.work & kWorkFix) {
+      step_.defer();
       return true;
     }
-    rotate_checked_ = true;
-    // The host's word (back_out_, from its PATH) counts as no room: its map keeps what the
+    motion_.rotate_checked = true;
+    // The host's word (motion_.back_out, from its PATH) counts as no room: its map keeps what the
     // rover's memory has let go.
-    const bool back = fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && (back_out_ != 0 || !room_to_turn());
-    if (!back) back_out_ = 0;   // a turn too small to swing the corners: the word is spent
+    const bool back = fabsf(err) > static_cast<float>(kBackOffMinTurnDeg) && (motion_.back_out != 0 || !room_to_turn());
+    if (!back) motion_.back_out = 0;   // a turn too small to swing the corners: the word is spent
     if (back || fabsf(err) > static_cast<float>(kTurnLookDeg)) {
       // Look before driving (after backing out too: no sweep looked from where the turn ends):
       // the reflex's pings right (or left) 15 and 30 degrees, then ahead, hold the wheels until
       // ahead is clear (Rover::reflex).
-      reflex_look_ = true;
-      reflex_waiting_ = false;   // a ping still out was aimed at another look
-      reflex_look_i_ = sign_bit(err) ? 4 : 1;   // |err| > 20: its sign bit is its sign
+      sonar_.look_from(sign_bit(err) ? 4 : 1);   // |err| > 20: its sign bit is its sign
     }
     if (back) {
       send_event(EventKind::TurnRefused, saturate_u16(fabsf(err)));
@@ -57,7 +55,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
     if (half_cone < done_deg) done_deg = half_cone;
   }
   // done_deg is neither negative nor NaN (a NaN half cone is not taken): |err| <= done_deg on the bits.
-  if (magnitude_at_most(err, done_deg) && rate_mdps_ < kRotateSettledMdps && rate_mdps_ > -kRotateSettledMdps) {
+  if (magnitude_at_most(err, done_deg) && failsafe_.rate_mdps < kRotateSettledMdps && failsafe_.rate_mdps > -kRotateSettledMdps) {
     enter(RoverState::Drive);
     return false;
   }
@@ -67,7 +65,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
 
 // The gyro PID's turn on the spot towards an error of err degrees.
 void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
-  turned_mm_ = 0.0f;   // where it last turned: backing out retraces the drive since
+  motion_.turned_mm = 0.0f;   // where it last turned: backing out retraces the drive since
   const float out_max = params_.pid_out_max_pwm();
   float u = heading_command(err, dt_s);
   // Lift the command over the motors' dead band, or small errors never close.
@@ -86,15 +84,15 @@ void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
 bool Rover::room_to_turn() const {
   const Point c = here_mm();
   const uint16_t clear = saturate_u16(params_.clearance_mm());
-  if (local_.within(c, clear, kSwingMm, kCornerReachMm)) return false;
+  if (detour_.local.within(c, clear, kSwingMm, kCornerReachMm)) return false;
   int16_t fx = 0, fy = 0;
   heading_q8(fx, fy);
-  return !local_.beside(c, fx, fy, clear);
+  return !detour_.local.beside(c, fx, fy, clear);
 }
 
 // The heading's unit vector times 256 (x, y), for the planner's integer geometry.
 ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
-  const float h = est_.heading_rad();
+  const float h = odometry_.est.heading_rad();
   fx_q8 = static_cast<int16_t>(256.0f * sinf(h));
   fy_q8 = static_cast<int16_t>(256.0f * cosf(h));
 }
@@ -108,22 +106,22 @@ ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
 // where it stands, off that spot, turned a corner into a box: seed 1's arena 119.)
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  if (track_known_ && back_off_mm_ >= turned_mm_) {
-    const float off = rad_to_deg(wrap_rad(track_rad_ - est_.heading_rad()));
+  if (motion_.track_known && motion_.back_off_mm >= motion_.turned_mm) {
+    const float off = rad_to_deg(wrap_rad(motion_.track_rad - odometry_.est.heading_rad()));
     if (fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
       turn_on_spot(off, dt_s, out);
       return;
     }
   }
-  add_to(back_off_mm_, drive_speed_mm_s() * dt_s);
+  add_to(motion_.back_off_mm, drive_speed_mm_s() * dt_s);
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
-  const bool fix_step = (step_work_ & kWorkFix) != 0;
-  if (fix_step) put_off_ = true;
+  const bool fix_step = (step_.work & kWorkFix) != 0;
+  if (fix_step) step_.defer();
   // Asked by the host, it backs out the whole way: its own check would find room at once.
-  if ((!fix_step && back_out_ == 0 && room_to_turn()) || at_least(back_off_mm_, static_cast<float>(kBackOffMaxMm))) {
-    back_out_ = 0;
+  if ((!fix_step && motion_.back_out == 0 && room_to_turn()) || at_least(motion_.back_off_mm, static_cast<float>(kBackOffMaxMm))) {
+    motion_.back_out = 0;
     enter(RoverState::Rotate);
-    rotate_checked_ = true;
+    motion_.rotate_checked = true;
     return;
   }
   const float u = heading_command(0.0f, dt_s);   // hold the heading: damp any turn

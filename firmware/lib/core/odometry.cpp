@@ -42,24 +42,25 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
     var_d = kEncoderVarPerMm * fabsf(d_mm);
   } else {
     const int16_t deadband = params_.motor_deadband_pwm();
-    const float pwm = 0.5f * (effective_pwm(left_cmd_, deadband) + effective_pwm(right_cmd_, deadband));
+    const float pwm = 0.5f * (effective_pwm(motion_.left_cmd, deadband) + effective_pwm(motion_.right_cmd, deadband));
     d_mm = mm_s_per_pwm() * pwm * dt_s;
     var_d = kModelVarPerMm * fabsf(d_mm);
   }
-  const float dth = fault_ == FaultCode::None ? static_cast<float>(rate_mdps_) * (kRadPerDeg / 1000.0f) * dt_s : 0.0f;
+  const float dth = failsafe_.fault == FaultCode::None ? static_cast<float>(failsafe_.rate_mdps) * (kRadPerDeg / 1000.0f) * dt_s : 0.0f;
   const float var_th = kGyroVarPerS * dt_s + (kGyroScaleSd * dth) * (kGyroScaleSd * dth);
-  est_.predict(d_mm, dth, var_d, var_th, now);
+  odometry_.est.predict(d_mm, dth, var_d, var_th, now);
   const float ad = fabsf(d_mm);
-  if (dead_reckoning_) add_to(dr_distance_mm_, ad);
-  if (state_ == RoverState::Drive) {
-    add_to(sweep_distance_mm_, ad);
-    add_to(turned_mm_, ad);
-    add_to(calib_model_mm_, d_mm);
+  if (failsafe_.dead_reckoning) add_to(odometry_.dr_distance_mm, ad);
+  if (step_.state == RoverState::Drive) {
+    // The distance driven since the last sweep and since the last turn on the spot (SonarState,
+    // MotionState): written here, through the one add_to() every such sum shares.
+    add_to(sonar_.sweep_distance_mm, ad);
+    add_to(motion_.turned_mm, ad);
+    add_to(odometry_.calib_model_mm, d_mm);
     // The way it drives, once it has driven a while (a step of Drive between a turn and a sweep
     // is no track): backing out goes along it.
-    if (now - drive_since_ms_ >= kTrackAfterMs) {
-      track_rad_ = est_.heading_rad();
-      track_known_ = true;
+    if (now - odometry_.drive_since_ms >= kTrackAfterMs) {
+      motion_.on_track(odometry_.est.heading_rad());
     }
   }
 }
@@ -68,28 +69,28 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
 // model's distance over the same time, once the drive has settled (kCalibrateAfterMs) and the
 // model has covered kCalibrateMinMm; the scale moves 30 % of the way to the ratio each time.
 void Rover::calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r) {
-  if (state_ != RoverState::Drive || now - drive_since_ms_ < kCalibrateAfterMs || r != FixResult::Accepted) {
-    calib_anchor_ = false;
+  if (step_.state != RoverState::Drive || now - odometry_.drive_since_ms < kCalibrateAfterMs || r != FixResult::Accepted) {
+    odometry_.calib_anchor = false;
     return;
   }
-  if (!calib_anchor_) {
-    calib_anchor_ = true;
-    calib_x_mm_ = m.x_mm;
-    calib_y_mm_ = m.y_mm;
-    calib_model_mm_ = 0.0f;
+  if (!odometry_.calib_anchor) {
+    odometry_.calib_anchor = true;
+    odometry_.calib_x_mm = m.x_mm;
+    odometry_.calib_y_mm = m.y_mm;
+    odometry_.calib_model_mm = 0.0f;
     return;
   }
-  if (at_least(calib_model_mm_, static_cast<float>(kCalibrateMinMm))) {
-    const float fix_mm = length(to_float(m.x_mm - calib_x_mm_), to_float(m.y_mm - calib_y_mm_));
-    const float ratio = fix_mm / calib_model_mm_;
-    speed_scale_ = clamp(speed_scale_ * (0.7f + 0.3f * ratio), 0.3f, 3.0f);   // 30 % of the way to the ratio
-    calib_x_mm_ = m.x_mm;
-    calib_y_mm_ = m.y_mm;
-    calib_model_mm_ = 0.0f;
+  if (at_least(odometry_.calib_model_mm, static_cast<float>(kCalibrateMinMm))) {
+    const float fix_mm = length(to_float(m.x_mm - odometry_.calib_x_mm), to_float(m.y_mm - odometry_.calib_y_mm));
+    const float ratio = fix_mm / odometry_.calib_model_mm;
+    odometry_.speed_scale = clamp(odometry_.speed_scale * (0.7f + 0.3f * ratio), 0.3f, 3.0f);   // 30 % of the way to the ratio
+    odometry_.calib_x_mm = m.x_mm;
+    odometry_.calib_y_mm = m.y_mm;
+    odometry_.calib_model_mm = 0.0f;
   }
 }
 
-ROVERNAV_NOINLINE float Rover::mm_s_per_pwm() const { return params_.speed_mm_s_per_pwm() * speed_scale_; }
+ROVERNAV_NOINLINE float Rover::mm_s_per_pwm() const { return params_.speed_mm_s_per_pwm() * odometry_.speed_scale; }
 
 float Rover::drive_speed_mm_s() const {
   const Params& p = params_;

@@ -30,36 +30,36 @@ bool Rover::reflex(const SonarIn& in, uint32_t now, float l_mm, Outputs& out) {
   // far narrower than the rover, and a corner beside the path would pass unseen straight ahead.
   static const int16_t kLookCdeg[kReflexLooks] ROVERNAV_PROGMEM = {0, 1500, 3000, 0, -1500, -3000};
   // A ping's result, or none in time (then it pings again): on to the next look either way.
-  if (reflex_waiting_ && (in.valid || static_cast<uint16_t>(now - reflex_fired_ms_) >= Sweep::kPingTimeoutMs)) {
-    reflex_waiting_ = false;
-    const int16_t look = flash_read_i16(&kLookCdeg[reflex_look_i_]);
+  if (sonar_.reflex_waiting && (in.valid || static_cast<uint16_t>(now - sonar_.reflex_fired_ms) >= Sweep::kPingTimeoutMs)) {
+    sonar_.reflex_waiting = false;
+    const int16_t look = flash_read_i16(&kLookCdeg[sonar_.reflex_look_i]);
     // The index is always below kReflexLooks: a wrap, not a division (a library call on the Uno).
-    reflex_look_i_ = reflex_look_i_ + 1u < kReflexLooks ? static_cast<uint8_t>(reflex_look_i_ + 1) : 0;
+    sonar_.reflex_look_i = sonar_.reflex_look_i + 1u < kReflexLooks ? static_cast<uint8_t>(sonar_.reflex_look_i + 1) : 0;
     // None in time counts as no echo (the shell says "no echo" for a sensor that never answers
     // too): a look waiting on a silent sonar would hold the rover for good.
     const uint16_t r = in.valid ? in.range_mm : 0;
     if (r > 0 && reflex_on_path(look, r, l_mm)) {
-      if (trusted_host_) reflex_after_trust_ = true;   // the host's path is blocked after all
-      reflex_look_ = true;
+      detour_.reflex_stopped();   // on a trusted path: the host's path is blocked after all
+      sonar_.reflex_look = true;
       start_sweep();
       report_echo(look, r);
       send_event(EventKind::Reflex, r);
       out.left_pwm = out.right_pwm = 0;
       return true;
     }
-    if (look == 0) reflex_look_ = false;   // clear straight ahead
+    if (look == 0) sonar_.reflex_look = false;   // clear straight ahead
     // Off the way but near: remembered, for the turns to come (it will be beside the body).
     if (r > 0 && r <= kRememberPingMm) remember_echo(look, r);
   }
-  servo_cdeg_ = flash_read_i16(&kLookCdeg[reflex_look_i_]);
-  if (!reflex_waiting_ && static_cast<uint16_t>(static_cast<uint16_t>(now) - reflex_fired_ms_) >= period_ms) {
+  sonar_.servo_cdeg = flash_read_i16(&kLookCdeg[sonar_.reflex_look_i]);
+  if (!sonar_.reflex_waiting && static_cast<uint16_t>(static_cast<uint16_t>(now) - sonar_.reflex_fired_ms) >= period_ms) {
     out.fire_sonar = true;
-    reflex_waiting_ = true;
-    reflex_fired_ms_ = static_cast<uint16_t>(now);
+    sonar_.reflex_waiting = true;
+    sonar_.reflex_fired_ms = static_cast<uint16_t>(now);
   }
   // After a reflex stop the rover looks before it goes: no creeping up on what stopped it, a few
   // millimetres a ping.
-  if (reflex_look_) {
+  if (sonar_.reflex_look) {
     out.left_pwm = out.right_pwm = 0;
     return true;
   }

@@ -1,4 +1,4 @@
-// The rover's step and its one mode (state_): what each step does, in which order, and the
+// The rover's step and its one mode (step_.state): what each step does, in which order, and the
 // helpers every mode uses. The concerns live in their own files, as methods of the one class
 // (the way ArduPilot's Rover keeps a file per concern; no virtual calls, no heap):
 //   link_in.cpp    frames from the host: FIX, PATH assembly, START, STOP, CONFIG
@@ -10,6 +10,12 @@
 //   mode_drive.cpp Drive: the tolerance cone or the moving-to-a-pose law; waypoints reached
 //   reflex.cpp     the forward reflex while driving
 //   detour.cpp     Blocked and Planning: what a sweep found on the leg, the rover's own detour
+// Each concern's state is one aggregate of RoverFields (rover.h), in a header of its own, written
+// by the concern's file: step_ (StepState, this file), link_ (LinkState), mission_ (MissionState),
+// failsafe_ (FailsafeState), odometry_ (OdometryState), motion_ (MotionState), sonar_
+// (SonarState, mode_scan.cpp and reflex.cpp), detour_ (DetourState). Another file changes an
+// aggregate through the small inline functions its header gives for it; each header names the
+// writes left as they were, and why.
 #include "rover.h"
 
 #include <math.h>
@@ -22,47 +28,33 @@ namespace core {
 namespace {
 // Largest step we integrate; a longer gap (a stalled shell) is clamped, not trusted.
 const uint32_t kMaxStepMs = 250;
-static_assert(kSignPersistStep == 65536UL, "persist_due() compares the counters from byte 2 up");
 }  // namespace
 
 void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets) {
   // A Rover starts in its default state (it is a global on the Uno: no copy of ~800 bytes on
   // a 2 KB stack); begin() only sets what the default cannot know.
   params_.reset();
-  speed_scale_ = 1.0f;
-  boot_id_ = boot_id;
-  reset_cause_ = reset_cause;
+  odometry_.begin();
+  link_.begin(boot_id, reset_cause);
   const bool keyed = secrets != nullptr && secrets->has_key;
-  auth_.begin(keyed ? secrets->key : nullptr);
-  if (secrets != nullptr) auth_.resume(secrets->tx_counter, secrets->rx_counter);
+  link_.auth.begin(keyed ? secrets->key : nullptr);
+  if (secrets != nullptr) link_.auth.resume(secrets->tx_counter, secrets->rx_counter);
 }
 
-bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) {
-  if (!persist_due_) return false;
-  persist_due_ = false;
-  tx_counter = auth_.tx_last();
-  rx_counter = auth_.rx_last();
-  stored_tx_b2_ = tx_counter.b[2];
-  for (uint8_t i = 0; i < 4; ++i) stored_rx_hi_[i] = rx_counter.b[2 + i];
-  return true;
-}
+bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) { return link_.take_persist(tx_counter, rx_counter); }
 
-uint8_t Rover::take_key_change() {
-  const uint8_t change = key_change_;
-  key_change_ = 0;
-  return change;
-}
+uint8_t Rover::take_key_change() { return link_.take_key_change(); }
 
 uint16_t Rover::flags() const {
   uint16_t f = 0;
-  if (path_len_ > 0) f |= StatusFlag::PathLoaded;
-  if (mission_) f |= StatusFlag::MissionActive;
-  if (dead_reckoning_ || !had_fix_) f |= StatusFlag::DeadReckoning;
-  if (radio_lost_) f |= StatusFlag::RadioLost;
-  if (!radio_lost_ && (dead_reckoning_ || camera_ != static_cast<uint8_t>(CameraState::Ok))) f |= StatusFlag::CameraLost;
-  if (fault_ == FaultCode::GyroSilent || fault_ == FaultCode::GyroImplausible) f |= StatusFlag::GyroFault;
-  if (schema_ok_) f |= StatusFlag::SchemaOk;
-  if (detour_i_ < detour_n_ || state_ == RoverState::Blocked || state_ == RoverState::Planning) f |= StatusFlag::LocalReplan;
+  if (mission_.path_len > 0) f |= StatusFlag::PathLoaded;
+  if (mission_.active) f |= StatusFlag::MissionActive;
+  if (failsafe_.dead_reckoning || !failsafe_.had_fix) f |= StatusFlag::DeadReckoning;
+  if (failsafe_.radio_lost) f |= StatusFlag::RadioLost;
+  if (!failsafe_.radio_lost && (failsafe_.dead_reckoning || link_.camera != static_cast<uint8_t>(CameraState::Ok))) f |= StatusFlag::CameraLost;
+  if (failsafe_.fault == FaultCode::GyroSilent || failsafe_.fault == FaultCode::GyroImplausible) f |= StatusFlag::GyroFault;
+  if (link_.schema_ok) f |= StatusFlag::SchemaOk;
+  if (detour_.i < detour_.n || step_.state == RoverState::Blocked || step_.state == RoverState::Planning) f |= StatusFlag::LocalReplan;
   return f;
 }
 
@@ -70,30 +62,22 @@ uint16_t Rover::flags() const {
 
 ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   const uint32_t now = in.now_ms;
-  step_work_ = put_off_ ? static_cast<uint8_t>(kWorkReserved) : static_cast<uint8_t>(0);
-  put_off_ = false;
+  step_.work = step_.put_off ? static_cast<uint8_t>(kWorkReserved) : static_cast<uint8_t>(0);
+  step_.put_off = false;
   float dt_s = 0.0f;
-  if (have_time_) {
-    const uint32_t gap_ms = now - last_ms_;
+  if (step_.have_time) {
+    const uint32_t gap_ms = now - step_.last_ms;
     dt_s = static_cast<float>(gap_ms < kMaxStepMs ? gap_ms : kMaxStepMs) / 1000.0f;
   }
-  last_ms_ = now;
-  if (!booted_) {
-    booted_ = have_time_ = true;
-    last_rx_ms_ = gyro_last_ms_ = boot_ms_ = now;
-    last_status_ms_ = static_cast<uint16_t>(now);
+  step_.last_ms = now;
+  if (!step_.booted) {
+    step_.booted = step_.have_time = true;
+    failsafe_.start(now);
+    link_.first_step(now);
     send_hello();
-    send_event(EventKind::Boot, reset_cause_);
+    send_event(EventKind::Boot, link_.reset_cause);
   }
-  if (auth_.keyed()) {
-    // At the first step (the counters resumed past the stored ones must be stored at once: a
-    // second reset would resume from the same place), and when one has passed a multiple of
-    // 65,536 since it was stored: the rover's own counts its frames (byte 2 changes), the
-    // host's is its clock and may jump (any of bytes 2-5).
-    bool moved = !persisted_once_ || auth_.tx_last().b[2] != stored_tx_b2_;
-    for (uint8_t i = 0; i < 4; ++i) moved = moved || auth_.rx_last().b[2 + i] != stored_rx_hi_[i];
-    if (moved) persisted_once_ = persist_due_ = true;
-  }
+  link_.watch_counters();
 
   out.rx_used = take_frames(in, now);
   update_gyro(in, now);
@@ -109,52 +93,50 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   // job off keeps the next for it: a FIX that comes then is dropped, so that fixes arriving every
   // step cannot starve the sweep, the planner or STATUS.
   SonarIn sonar = {in.sonar_valid, in.sonar_range_mm};
-  if (sonar_held_) {
+  if (step_.sonar_held) {
     sonar.valid = true;
-    sonar.range_mm = held_sonar_mm_;
-    sonar_held_ = false;
+    sonar.range_mm = step_.held_sonar_mm;
+    step_.sonar_held = false;
   }
-  if (sonar.valid && (step_work_ & (kWorkFix | kWorkTag))) {
-    sonar_held_ = put_off_ = true;
-    held_sonar_mm_ = sonar.range_mm;
+  if (sonar.valid && (step_.work & (kWorkFix | kWorkTag))) {
+    step_.sonar_held = step_.put_off = true;
+    step_.held_sonar_mm = sonar.range_mm;
     sonar.valid = false;
   }
   out.fire_sonar = false;
   run_state(sonar, dt_s, now, out);
-  left_cmd_ = out.left_pwm;
-  right_cmd_ = out.right_pwm;
-  out.servo_cdeg = servo_cdeg_;
+  motion_.commanded(out.left_pwm, out.right_pwm);
+  out.servo_cdeg = sonar_.servo_cdeg;
 
-  if (static_cast<uint16_t>(static_cast<uint16_t>(now) - last_status_ms_) >= params_.status_period_ms()) {
-    if (step_work_ & (kWorkFix | kWorkOther | kWorkTag)) {
-      put_off_ = true;
+  if (static_cast<uint16_t>(static_cast<uint16_t>(now) - link_.last_status_ms) >= params_.status_period_ms()) {
+    if (step_.work & (kWorkFix | kWorkOther | kWorkTag)) {
+      step_.put_off = true;
     } else {
-      last_status_ms_ = static_cast<uint16_t>(now);
+      link_.status_sent(now);
       if (!send_link_auth()) send_status();
     }
   }
   const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
   // Frames are framed (signed) on their way out, and not in a step that took a FIX, a sonar
   // result or a planner slice: what that step said leaves a step later (TxQueue).
-  out.tx = tx_.take(auth_, room, !(step_work_ & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
+  out.tx = link_.tx.take(link_.auth, room, !(step_.work & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.
 void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out) {
   out.left_pwm = out.right_pwm = 0;
-  if (pick_target_) {
+  if (mission_.pick_target) {
     // A new path, a detour's end, a start or a resume: the nearest leg's end, when this step has
     // time for it (the search is a dozen float operations a segment); until then, hold still.
-    if (step_work_ & kWorkHeavy) {
-      put_off_ = true;
+    if (step_.work & kWorkHeavy) {
+      step_.put_off = true;
       return;
     }
-    step_work_ = static_cast<uint8_t>(step_work_ | kWorkOther);
-    pick_target_ = false;
-    wp_ = closest_target();
+    step_.did(kWorkOther);
+    mission_.aim_at(closest_target());
   }
-  if (!mission_ || wp_ >= path_len_) return;
-  switch (state_) {
+  if (!mission_.active || mission_.wp >= mission_.path_len) return;
+  switch (step_.state) {
     case RoverState::Scan: return mode_scan(in, now, out);
     case RoverState::Planning: return continue_detour();
     case RoverState::BackOff: return back_off(dt_s, out);
@@ -167,47 +149,45 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
     default:
       return;
   }
-  if (look_after_outage_) {
+  if (failsafe_.look_after_outage) {
     // The radio is back: the host's map missed the readings sent while it was down (and may
     // have sent a path that runs into them). A sweep, reported, before the rover moves on.
-    look_after_outage_ = false;
+    failsafe_.outage_looked();
     start_sweep();
     return;
   }
   float err = 0.0f;
   float l = aim(target(), &err);
   if (l <= params_.arrival_radius_mm() && !reached_waypoint(l, err)) return;
-  if (state_ == RoverState::Rotate && mode_rotate(err, l, dt_s, out)) return;
+  if (step_.state == RoverState::Rotate && mode_rotate(err, l, dt_s, out)) return;
   mode_drive(in, err, l, dt_s, now, out);
 }
 
 ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
-  if (s != state_) pid_.reset();
-  if (state_ == RoverState::Planning && s != RoverState::Planning) {
-    local_.cancel();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
-    plan_ahead_dm_ = 0;
+  if (s != step_.state) motion_.pid.reset();
+  if (step_.state == RoverState::Planning && s != RoverState::Planning) {
+    detour_.cancel_plan();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
   }
-  if (s == RoverState::Rotate && state_ != RoverState::Rotate) rotate_checked_ = false;
-  if (s == RoverState::BackOff) back_off_mm_ = 0.0f;
-  if (s == RoverState::Drive && state_ != RoverState::Drive) {
-    calib_anchor_ = false;
-    drive_since_ms_ = last_ms_;
-    min_distance_mm_ = wp_ < path_len_ ? aim(target()) : 0.0f;
+  if (s == RoverState::Rotate && step_.state != RoverState::Rotate) motion_.rotation_starts();
+  if (s == RoverState::BackOff) motion_.back_off_starts();
+  if (s == RoverState::Drive && step_.state != RoverState::Drive) {
+    odometry_.drive_starts(step_.last_ms);
+    motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
   }
-  state_ = s;
-  if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_ = false;
+  step_.state = s;
+  if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.end();
 }
 
 // ---------------------------------------------------------------- helpers of every mode
 
 /// The estimate's position, rounded to whole mm (one copy of the two conversions).
-ROVERNAV_NOINLINE Point Rover::here_mm() const { return {saturate_i16(est_.x_mm()), saturate_i16(est_.y_mm())}; }
+ROVERNAV_NOINLINE Point Rover::here_mm() const { return {saturate_i16(odometry_.est.x_mm()), saturate_i16(odometry_.est.y_mm())}; }
 
-Waypoint Rover::target() const { return detour_i_ < detour_n_ ? detour_[detour_i_] : path_[wp_]; }
+Waypoint Rover::target() const { return detour_.i < detour_.n ? detour_.points[detour_.i] : mission_.path[mission_.wp]; }
 
 ROVERNAV_NOINLINE float Rover::aim(Waypoint w, float* err_deg) const {
-  const float dx = to_float(w.x_mm) - est_.x_mm(), dy = to_float(w.y_mm) - est_.y_mm();
-  if (err_deg != nullptr) *err_deg = rad_to_deg(wrap_rad(fast_atan2(dx, dy) - est_.heading_rad()));
+  const float dx = to_float(w.x_mm) - odometry_.est.x_mm(), dy = to_float(w.y_mm) - odometry_.est.y_mm();
+  if (err_deg != nullptr) *err_deg = rad_to_deg(wrap_rad(fast_atan2(dx, dy) - odometry_.est.heading_rad()));
   return length(dx, dy);
 }
 
@@ -223,12 +203,12 @@ float Rover::cone_deg(float distance_mm) const {
 uint8_t Rover::closest_target() const {
   // The end of the path segment nearest the rover, so that a path planned from where the
   // rover was a moment ago does not send it back; the start if the rover is before it.
-  if (path_len_ <= 1) return 0;
-  const float px = est_.x_mm(), py = est_.y_mm();
+  if (mission_.path_len <= 1) return 0;
+  const float px = odometry_.est.x_mm(), py = odometry_.est.y_mm();
   float best = 1e30f;
   uint8_t target = 0;
-  for (uint8_t i = 0; i + 1 < path_len_; ++i) {
-    const Waypoint a = path_[i], b = path_[i + 1];
+  for (uint8_t i = 0; i + 1 < mission_.path_len; ++i) {
+    const Waypoint a = mission_.path[i], b = mission_.path[i + 1];
     // Differences of int16 are exact as floats: one conversion each instead of two and a subtraction.
     float t;
     const float d2 = segment_distance2(px - to_float(a.x_mm), py - to_float(a.y_mm),
@@ -250,7 +230,7 @@ ROVERNAV_NOINLINE void Rover::set_wheels(float base, float u, bool biased, Outpu
 }
 
 float Rover::heading_command(float error_deg, float dt_s) {
-  return pid_.update(error_deg, static_cast<float>(rate_mdps_) * 0.001f, dt_s, params_.pid_gains());
+  return motion_.pid.update(error_deg, static_cast<float>(failsafe_.rate_mdps) * 0.001f, dt_s, params_.pid_gains());
 }
 
 }  // namespace core

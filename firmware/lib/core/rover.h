@@ -12,22 +12,21 @@
 
 #include "body.h"
 
-#include "estimator.h"
+#include "detour_state.h"
+#include "failsafe_state.h"
 #include "frame.h"
-#include "frame_auth.h"
-#include "heading_pid.h"
 #include "io.h"
-#include "local_planner.h"
+#include "link_state.h"
 #include "messages_gen.h"
+#include "mission_state.h"
+#include "motion_state.h"
+#include "odometry_state.h"
 #include "params.h"
-#include "sweep.h"
-#include "tx_queue.h"
+#include "sonar_state.h"
+#include "step_state.h"
 
 namespace rovernav {
 namespace core {
-
-// A waypoint is a point of the plane in mm: the host's, or one of the rover's own detour.
-using Waypoint = Point;
 
 /// The sonar's result as a step's modes see it (one put off from the step before, or none).
 struct SonarIn {
@@ -38,114 +37,27 @@ struct SonarIn {
 /// Bearing from a to b (radians, clockwise from +y).
 float bearing_rad(Point a, Point b);
 
-/// The Rover's working state: all of it but its parameters and its frame decoder. An aggregate,
-/// and a base of the Rover's, set as one block (`RoverFields{}`). Every field starts at zero (what
-/// is not zero at the start, begin() sets), so that the Uno's global Rover is constant-initialised
-/// into .bss: no start-up code at all, where setting it field by field took four bytes of flash
-/// for every byte of state. Flags are one-bit fields without initialisers (value-initialisation
-/// clears them): a byte each would cost the Uno's static RAM.
+/// The Rover's working state: all of it but its parameters and its frame decoder, one aggregate
+/// per concern, each written by its own file (see each header; where another file writes a
+/// member, the header says which and why). RoverFields is an aggregate, and a base of the
+/// Rover's, set as one block (`RoverFields{}`). Every field starts at zero (what is not zero at
+/// the start, begin() sets), so that the Uno's global Rover is constant-initialised into .bss: no
+/// start-up code at all, where setting it field by field took four bytes of flash for every byte
+/// of state. Flags are one-bit fields without initialisers (value-initialisation clears them): a
+/// byte each would cost the Uno's static RAM. An aggregate's flags share a byte, and some of its
+/// bools joined them (StepState's booted and have_time, MissionState's active, LinkState's
+/// schema_ok, FailsafeState's radio_lost): with a byte of flags per aggregate, that keeps the
+/// static RAM no higher than the one shared block of flags there was; which bools, was chosen by
+/// what each cost in flash. (AVR has no alignment: the aggregates add no padding.)
 struct RoverFields {
-  // the mode (rover.cpp): one RoverState; the mission; the step's heavy jobs
-  RoverState state_ = RoverState::Idle;
-  bool mission_ = false;
-  uint8_t step_work_ = 0;                     // the heavy jobs this step did (Rover::kWork* bits)
-  uint16_t held_sonar_mm_ = 0;                // a sonar result put off to the next step (see step())
-  uint32_t last_ms_ = 0;
-  bool booted_ = false;
-  bool have_time_ = false;
-
-  // link (link_in.cpp, link_out.cpp): frames out, the host's HELLO, the path and its assembly
-  TxQueue tx_;
-  uint32_t boot_id_ = 0;
-  uint16_t reset_cause_ = 0;
-  bool schema_ok_ = false;
-  uint8_t camera_ = 0;                        // CameraState from HEARTBEAT
-  uint16_t last_status_ms_ = 0;               // modulo 65,536: STATUS goes every status_period_ms (<= 10 s)
-  Waypoint path_[kMaxWaypoints] = {};
-  uint8_t path_len_ = 0;
-  uint16_t path_id_ = 0;
-  uint8_t wp_ = 0;                            // the waypoint being approached
-  Waypoint stage_[kMaxWaypoints] = {};        // a path arriving in chunks (else the detour planner's scratch)
-  uint8_t stage_total_ = 0;
-  uint8_t stage_count_ = 0;
-  uint16_t stage_id_ = 0;
-  bool staging_ = false;
-  uint8_t last_chunk_ = 0;                   // first_index + 1 of the last chunk taken (0: none)
-
-  // signatures (link_in.cpp, link_out.cpp): the key, the counters, what the shell must store
-  FrameAuth auth_;
-  uint32_t boot_ms_ = 0;                      // the first step's time: PROVISION's window runs from it
-  uint8_t stored_tx_b2_ = 0;                  // byte 2 of the tx counter last handed to the shell to store
-  uint8_t stored_rx_hi_[4] = {};              // bytes 2-5 of the rx counter last handed to the shell
-  uint16_t auth_reported_ = 0;                // refusals counted when LINK_AUTH last went out
-
-  // failsafe (failsafe.cpp): the gyro's and the radio's watchdogs, faults
-  FaultCode fault_ = FaultCode::None;
-  uint32_t gyro_last_ms_ = 0;
-  uint16_t gyro_good_since_ms_ = 0;           // modulo 65,536: a faulted gyro's good run (cleared at 500 ms)
-  bool gyro_good_run_ = false;
-  int32_t rate_mdps_ = 0;                    // the gyro's last good yaw rate, as it came
-  uint32_t last_rx_ms_ = 0;
-  uint32_t last_fix_ms_ = 0;
-  uint32_t radio_lost_since_ms_ = 0;
-  bool radio_lost_ = false;
-  bool dead_reckoning_ = false;
-  bool had_fix_ = false;
-
-  // odometry (odometry.cpp): the estimate, dead reckoning, the speed model's calibration
-  Estimator est_;
-  float dr_distance_mm_ = 0.0f;
-  float speed_scale_ = 0.0f;                 // the speed model's calibration (1 from begin())
-  bool calib_anchor_ = false;
-  uint32_t drive_since_ms_ = 0;
-  int16_t calib_x_mm_ = 0, calib_y_mm_ = 0;  // the fix calibration measures from
-  float calib_model_mm_ = 0.0f;              // the model's distance since that fix
-
-  // motion (mode_rotate.cpp, mode_drive.cpp): the heading PID, the commands, backing out
-  HeadingPid pid_;
-  float min_distance_mm_ = 0.0f;
-  int16_t left_cmd_ = 0;
-  int16_t right_cmd_ = 0;
-  float back_off_mm_ = 0.0f;                  // distance backed out so far
-  float track_rad_ = 0.0f;                    // the heading it last drove at (track_known_): backing out goes along it
-  float turned_mm_ = 0.0f;                    // driven since it last turned on the spot: backing out retraces it first
-  uint8_t back_out_ = 0;                      // the host's PATH: back out the whole way before the next turn on the spot
-
-  // the sonar (mode_scan.cpp, reflex.cpp): the sweep, the servo, the forward reflex
-  Sweep sweep_;
-  float sweep_distance_mm_ = 0.0f;
-  float sweep_heading_rad_ = 0.0f;            // the heading the last sweep looked from
-  int16_t servo_cdeg_ = 0;
-  uint16_t scan_id_ = 0;
-  uint8_t scan_echoes_ = 0;
-  uint16_t reflex_fired_ms_ = 0;              // the forward reflex's last ping (ms, modulo 65,536)
-  uint8_t reflex_look_i_ = 0;                 // which way the reflex's next ping looks
-
-  // the detour (detour.cpp): Blocked, Planning, and the rover's own way round
-  LocalPlanner local_;                        // the last sweep's echoes, as obstacle disks
-  Waypoint detour_[LocalPlanner::kMaxDetour] = {};
-  uint8_t detour_n_ = 0;
-  uint8_t detour_i_ = 0;                      // detour point being approached (== n: none)
-  uint8_t plan_ahead_dm_ = 0;                 // Planning: the detour rejoins the path this far on (100 mm)
-  uint32_t blocked_since_ms_ = 0;
-
-  // Flags, one bit each, by concern.
-  bool sonar_held_ : 1;                       // mode: held_sonar_mm_ is waiting for this step
-  bool pick_target_ : 1;                      // mode: wp_ is to be chosen afresh (closest_target) when the step has time
-  bool put_off_ : 1;                          // mode: this step put a job off: the next takes no FIX (kWorkReserved)
-  bool look_after_outage_ : 1;                // failsafe: the radio came back mid-mission: sweep before moving on
-  bool rotate_checked_ : 1;                   // motion: this rotation's start was checked for room to swing
-  bool track_known_ : 1;                      // motion: track_rad_ holds a heading it drove at
-  bool reflex_look_ : 1;                      // reflex: it stopped the rover: look (a clear ping) before driving
-  bool reflex_waiting_ : 1;                   // reflex: a ping's result is still to come
-  bool awaiting_host_ : 1;                    // detour: Blocked after a sweep found the leg blocked (not: no detour found)
-  bool trusted_host_ : 1;                     // detour: the host sent no new path once this leg: it holds it clear
-  bool reflex_after_trust_ : 1;               // detour: ... and the reflex stopped the rover on it all the same
-  bool persist_due_ : 1;                      // signatures: the counters are to be stored (persist_due())
-  bool persisted_once_ : 1;                   // signatures: ... and have been since boot
-  bool fix_verified_ : 1;                     // signatures: the decoder holds a FIX whose tag passed: next step's job
-  uint8_t key_change_ : 2;                    // signatures: a PROVISION for the shell to store: kKeyStore / kKeyErase
-  bool host_knows_ : 1;                       // detour: HEARTBEAT says the host heard the last sweep whole and holds our path
+  StepState step_;           // rover.cpp: the mode, the step's clock and its heavy jobs
+  LinkState link_;           // link_in.cpp, link_out.cpp: frames, HELLO, a path arriving, signatures
+  MissionState mission_;     // link_in.cpp: the host's path; the modes move along it
+  FailsafeState failsafe_;   // failsafe.cpp: the gyro's, the radio's and the camera's watchdogs, faults
+  OdometryState odometry_;   // odometry.cpp: the estimate, dead reckoning, the speed model
+  MotionState motion_;       // mode_rotate.cpp, mode_drive.cpp: the heading PID, the commands, backing out
+  SonarState sonar_;         // mode_scan.cpp, reflex.cpp: the sweep, the servo, the reflex
+  DetourState detour_;       // detour.cpp: Blocked, Planning, the rover's own way round
 };
 
 /// What the shell keeps for the link in EEPROM and gives the rover at begin() (Uno: lib/hal/link_store).
@@ -222,12 +134,12 @@ class Rover : private RoverFields {
   enum : uint8_t { kKeyStore = 1, kKeyErase = 2 };
   /// A PROVISION was taken: kKeyStore (store link_key()) or kKeyErase; 0 if none.
   uint8_t take_key_change();
-  const uint8_t* link_key() const { return auth_.key(); }
-  bool signing() const { return auth_.keyed(); }
-  const AuthCounters& auth_counters() const { return auth_.counters(); }
+  const uint8_t* link_key() const { return link_.auth.key(); }
+  bool signing() const { return link_.auth.keyed(); }
+  const AuthCounters& auth_counters() const { return link_.auth.counters(); }
 
   // Read-only views for tests, the simulator and the shell.
-  RoverState state() const { return state_; }
+  RoverState state() const { return step_.state; }
   /// The heavy jobs the last step did: kWorkFix (a FIX taken in), kWorkPlanned (the detour
   /// planner ran), kWorkOther (a sonar result taken in, a sweep ended, a waypoint chosen afresh);
   /// kWorkReserved: the step was kept for a job the one before put off (it took no FIX). A step
@@ -236,21 +148,22 @@ class Rover : private RoverFields {
   enum : uint8_t { kWorkFix = 1u << 0, kWorkPlanned = 1u << 1, kWorkOther = 1u << 2, kWorkReserved = 1u << 3,
                    kWorkTag = 1u << 4 };
   enum : uint8_t { kWorkHeavy = kWorkFix | kWorkPlanned | kWorkOther | kWorkTag };
-  uint8_t step_work() const { return step_work_; }
+  static_assert(static_cast<int>(kWorkReserved) == static_cast<int>(StepState::kReserved), "StepState::spend_reserve() clears kWorkReserved");
+  uint8_t step_work() const { return step_.work; }
   uint16_t flags() const;
-  FaultCode fault() const { return fault_; }
-  const Estimator& estimator() const { return est_; }
+  FaultCode fault() const { return failsafe_.fault; }
+  const Estimator& estimator() const { return odometry_.est; }
   const Params& params() const { return params_; }
-  uint8_t waypoint_index() const { return wp_; }
-  uint8_t waypoint_count() const { return path_len_; }
-  Waypoint waypoint(uint8_t i) const { return path_[i]; }
+  uint8_t waypoint_index() const { return mission_.wp; }
+  uint8_t waypoint_count() const { return mission_.path_len; }
+  Waypoint waypoint(uint8_t i) const { return mission_.path[i]; }
   const FrameCounters& rx_counters() const { return decoder_.counters(); }
-  uint16_t tx_dropped() const { return tx_.dropped(); }
-  float speed_scale() const { return speed_scale_; }
-  uint8_t detour_left() const { return static_cast<uint8_t>(detour_n_ - detour_i_); }
-  bool blocked() const { return state_ == RoverState::Blocked; }
-  bool planning_detour() const { return state_ == RoverState::Planning; }
-  float dr_distance_mm() const { return dr_distance_mm_; }
+  uint16_t tx_dropped() const { return link_.tx.dropped(); }
+  float speed_scale() const { return odometry_.speed_scale; }
+  uint8_t detour_left() const { return static_cast<uint8_t>(detour_.n - detour_.i); }
+  bool blocked() const { return step_.state == RoverState::Blocked; }
+  bool planning_detour() const { return step_.state == RoverState::Planning; }
+  float dr_distance_mm() const { return odometry_.dr_distance_mm; }
   /// The speed the rover cruises at (mm/s), from its drive command and speed model.
   float drive_speed_mm_s() const;
   /// The speed model: mm/s per PWM above the dead band, as calibrated.
@@ -263,14 +176,14 @@ class Rover : private RoverFields {
   void run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out);
   void enter(RoverState s);
   Point here_mm() const;
-  Waypoint target() const;  ///< the detour point being approached, else path_[wp_]
+  Waypoint target() const;  ///< the detour point being approached, else mission_.path[mission_.wp]
   /// The distance to w (mm) and, when err_deg is given, the heading error towards it (degrees).
   float aim(Waypoint w, float* err_deg = nullptr) const;
   float cone_deg(float distance_mm) const;
   uint8_t closest_target() const;
   float heading_command(float error_deg, float dt_s);  // the heading PID's output (PWM)
   void set_wheels(float base, float u, bool biased, Outputs& out) const;
-  ROVERNAV_NOINLINE float uncertainty_2sd_mm() const { return 2.0f * est_.position_sd_mm(); }
+  ROVERNAV_NOINLINE float uncertainty_2sd_mm() const { return 2.0f * odometry_.est.position_sd_mm(); }
   // link_in.cpp
   void handle_frame(const Frame& f, uint32_t now, uint16_t late_ms);
   void on_fix(const msg::Fix& m, uint32_t now);
@@ -298,7 +211,7 @@ class Rover : private RoverFields {
   void dead_reckon(const Inputs& in, float dt_s, uint32_t now);
   void calibrate_speed(const msg::Fix& m, uint32_t now, FixResult r);
   // mode_scan.cpp
-  void start_sweep();  // at the step's time (last_ms_: every caller is within a step)
+  void start_sweep();  // at the step's time (step_.last_ms: every caller is within a step)
   void stop_sweep();  // ends a sweep and points the sonar ahead
   void mode_scan(const SonarIn& in, uint32_t now, Outputs& out);
   // mode_rotate.cpp
