@@ -25,7 +25,7 @@
  *     WHO_AM_I 0x68, DEVICE_RESET, SLEEP, FS_SEL) whose GYRO_ZOUT is the host's yaw rate.
  *   - UART0: bytes from the host enter at the line rate (10 bits at 57,600 baud), and only
  *     while the UART has room (XON/XOFF); bytes the firmware sends are collected for the host
- *     (the line is uart_line.h's, shared with rovernav_avrsim.c).
+ *     (the line is uart_line.c's, shared with rovernav_avrsim.c).
  *   - Measurement hooks of the image, when present: PB0 (D8) high while a 10 ms step works,
  *     and GPIOR0 written with a step descriptor at its end. Every edge of PB0 is time-stamped
  *     in CPU cycles; each step record keeps its rise, its fall and its descriptor.
@@ -33,24 +33,7 @@
  *     loading (and after every reset); the lowest byte no longer holding it is the stack's
  *     high-water mark.
  *
- * libsimavr 1.6 (Debian) and the TWI master: two bugs, worked round from here
- *   1. After SLA+W the master reports TWSR 0x28/0x30 (data byte sent, ACK/NACK) instead of
- *      0x18/0x20 (SLA+W sent, ACK/NACK): 1.6 uses the data-byte codes for the address byte of
- *      a write. The firmware's driver checks for 0x18 and would give up with a bus error. The
- *      harness listens to the TWI status IRQ, which simavr raises right after it has written
- *      TWSR and before it sets TWINT; when the status that follows an SLA+W is 0x28 or 0x30,
- *      it rewrites TWSR's status bits to 0x18 or 0x20. The firmware polls TWINT, so it only
- *      ever reads the corrected value.
- *   2. Writing 1 to TWINT does not clear it: 1.6's TWCR handler clears the TWI interrupt's
- *      pending state but leaves the TWINT bit as written (1). A driver that starts a bus step
- *      by writing TWINT=1 and then waits for TWINT to be set again would see it set at once
- *      and read a stale status. The harness registers a second write hook on TWCR, which
- *      simavr chains after the TWI module's own: when the value written has TWINT set, it
- *      clears the bit, as the hardware does. The TWI module sets it again when the bus step
- *      completes (its status timer raises the interrupt flag). The same hook would clear TWSTO
- *      if a library left it set after sending the STOP (the hardware clears it; the driver
- *      waits for that before the next START): Debian's 1.6 clears it itself, and
- *      twi_twsto_cleared stays 0.
+ * libsimavr 1.6 (Debian) and the TWI master: two bugs, worked round in unocore_mpu.c (1, 2)
  *
  * libsimavr 1.6 and speed: two more things the harness sets right before the image runs
  *   3. Level-triggered INT0/INT1 polling. simavr's external-interrupt module, in its default
@@ -117,7 +100,6 @@
 #include "avr_extint.h"
 #include "avr_ioport.h"
 #include "avr_timer.h"
-#include "avr_twi.h"
 #include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
@@ -126,115 +108,13 @@
 #include "sim_irq.h"
 
 #include "uart_line.h"
-#include "unocore_abi.h"
+#include "unocore.h"
+#include "unocore_mpu.h"
 #include "unocore_prof.h"
 
-
-/* ATmega328P data-space addresses (datasheet register summary) */
-enum {
-	A_PINB = 0x23, A_DDRB = 0x24, A_PORTB = 0x25,
-	A_PINC = 0x26, A_DDRC = 0x27, A_PORTC = 0x28,
-	A_PIND = 0x29, A_DDRD = 0x2A, A_PORTD = 0x2B,
-	A_GPIOR0 = 0x3E,
-	A_EIMSK = 0x3D,
-	A_TCCR0A = 0x44, A_TCCR0B = 0x45, A_OCR0A = 0x47, A_OCR0B = 0x48,
-	A_MCUSR = 0x54,
-	A_TCCR1A = 0x80, A_TCCR1B = 0x81, A_ICR1L = 0x86, A_ICR1H = 0x87,
-	A_OCR1AL = 0x88, A_OCR1AH = 0x89,
-	A_TCCR2A = 0xB0, A_TCCR2B = 0xB1, A_OCR2A = 0xB3, A_OCR2B = 0xB4,
-	A_TWSR = 0xB9, A_TWDR = 0xBB, A_TWCR = 0xBC,
-};
-enum { TWINT_BIT = 0x80, TWSTO_BIT = 0x10 };
-enum {
-	TW_START_ = 0x08, TW_MT_SLA_ACK_ = 0x18, TW_MT_SLA_NACK_ = 0x20,
-	TW_MT_DATA_ACK_ = 0x28, TW_MT_DATA_NACK_ = 0x30,
-};
-
-#define RING_BYTES 4096u
-#define MAX_IO 256              /* I/O addresses 0x20..0xFF: io index 0..0xDF */
 #define PAINT 0xA5              /* stack paint pattern */
 #define SONAR_ECHO_DELAY_US 450u
 #define SONAR_NO_ECHO_US 38000u
-#define MPU_REGS 128
-
-
-typedef struct ring {
-	uint8_t buf[RING_BYTES];
-	uint32_t head, len;
-} ring_t;
-
-typedef struct io_hook {
-	void *param;
-	void *c;
-} io_hook_t;
-
-typedef struct unocore {
-	avr_t *avr;
-	elf_firmware_t fw;
-	char error[256];
-
-	uint64_t base;                 /* cycles run before the last reset */
-	uint64_t last_avr_cycle;
-
-	/* UART0 (uart_line.h): bytes for the firmware wait in rx, what it sends waits in tx */
-	uart_line_t uart;
-	ring_t rx, tx;
-
-	/* TWI: the MPU-6050 */
-	avr_irq_t *twi_in;
-	uint8_t mpu_addr;
-	int gyro_alive;
-	int32_t gyro_chip_mdps;        /* the chip's frame: counter-clockwise positive */
-	uint8_t regs[MPU_REGS];
-	uint8_t reg_ptr;
-	int selected;                  /* addressed since the last START/STOP */
-	int first_write;               /* the next byte written is the register pointer */
-	int addr_w_status_pending;     /* the next status is the answer to an SLA+W */
-	uint8_t latch[14];             /* sensor registers 0x3B..0x48, latched at SLA+R */
-
-	/* sonar */
-	unocore_sonar_fn sonar_fn;
-	void *sonar_user;
-	avr_irq_t *echo_irq;
-	int trig_level;
-	int echo_busy;                 /* from TRIG until the echo has fallen */
-	uint32_t echo_us;
-
-	/* probe and descriptor */
-	int pb0_level;
-	unocore_step *steps;
-	uint32_t nsteps, capsteps;
-	uint32_t drained;              /* records [0, drained) went to the host */
-	uint8_t last_desc;
-	int has_desc;
-
-	uint8_t eimsk;
-
-	/* stack */
-	uint16_t paint_start;
-	uint16_t stack_lowest;
-
-	/* fast-forward */
-	int ff_enabled;
-	int dirty;
-	uint8_t *snap;
-	uint32_t snap_len;
-	uint8_t snap_sreg[8];
-	int snap_valid;
-	uint32_t snap_pc;
-	int8_t snap_interrupt_state;
-	uint64_t snap_cycle;
-	avr_cycle_timer_slot_p snap_head;
-	avr_cycle_count_t snap_head_when;
-	uint64_t target;               /* never skip past the cycle being run to */
-	io_hook_t orig_r[MAX_IO], orig_w[MAX_IO];
-
-	unocore_stats st;
-	uint32_t pings_total, echoes_total;
-
-	prof_t prof;
-	uint8_t held_low[3];           /* pins held to GND by the host, ports B, C, D (unocore_hold_pin_low) */
-} unocore;
 
 /* ------------------------------------------------------------------------------ logging */
 
@@ -258,8 +138,6 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
 	(void)avr;
 	(void)how_long;
 }
-
-static inline uint64_t now_cycle(const unocore *u) { return u->base + u->avr->cycle; }
 
 /* ------------------------------------------------------------------------------ rings */
 
@@ -289,166 +167,6 @@ static uint32_t uart_waiting(void *param) { return ((unocore *)param)->rx.len; }
 static uint8_t uart_take(void *param) { return ring_pop(&((unocore *)param)->rx); }
 
 static void uart_sent(void *param, uint8_t byte) { ring_push(&((unocore *)param)->tx, byte); }
-
-/* ------------------------------------------------------------------------------ MPU-6050 */
-
-enum {
-	MPU_SMPLRT_DIV = 0x19, MPU_CONFIG = 0x1A, MPU_GYRO_CONFIG = 0x1B, MPU_ACCEL_CONFIG = 0x1C,
-	MPU_SENSOR_FIRST = 0x3B, MPU_SENSOR_LAST = 0x48,
-	MPU_PWR_MGMT_1 = 0x6B, MPU_WHO_AM_I = 0x75,
-};
-
-static void mpu_reset_regs(unocore *u)
-{
-	memset(u->regs, 0, sizeof u->regs);
-	u->regs[MPU_PWR_MGMT_1] = 0x40; /* SLEEP after power-up and after DEVICE_RESET */
-	u->regs[MPU_WHO_AM_I] = 0x68;
-	u->reg_ptr = 0;
-}
-
-static int16_t clamp16(int64_t v)
-{
-	return (int16_t)(v > 32767 ? 32767 : v < -32768 ? -32768 : v);
-}
-
-/* The sensor registers, latched when a read transaction addresses the chip (the real chip
- * reads a burst from one sample). Asleep, the chip does not sample: zeros. */
-static void mpu_latch(unocore *u)
-{
-	memset(u->latch, 0, sizeof u->latch);
-	if (u->regs[MPU_PWR_MGMT_1] & 0x40)
-		return;
-	/* FS_SEL (GYRO_CONFIG bits 4:3): 131, 65.5, 32.8, 16.4 LSB per deg/s = 1310 / 2^fs per 10 */
-	unsigned fs = (u->regs[MPU_GYRO_CONFIG] >> 3) & 3;
-	int64_t num = (int64_t)u->gyro_chip_mdps * 131;
-	int64_t den = 1000LL << fs;    /* counts = mdps * 131 / (1000 * 2^fs) */
-	int64_t counts = (num >= 0 ? num + den / 2 : num - den / 2) / den;
-	int16_t z = clamp16(counts);
-	/* AFS_SEL (ACCEL_CONFIG bits 4:3): 16384 / 2^afs LSB per g; the rover stands level */
-	int16_t one_g = (int16_t)(16384 >> ((u->regs[MPU_ACCEL_CONFIG] >> 3) & 3));
-	u->latch[0x3F - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)one_g >> 8);   /* ACCEL_ZOUT */
-	u->latch[0x40 - MPU_SENSOR_FIRST] = (uint8_t)one_g;
-	int16_t temp = (int16_t)((25.0 - 36.53) * 340.0);                     /* 25 C */
-	u->latch[0x41 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)temp >> 8);
-	u->latch[0x42 - MPU_SENSOR_FIRST] = (uint8_t)temp;
-	u->latch[0x47 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)z >> 8);       /* GYRO_ZOUT */
-	u->latch[0x48 - MPU_SENSOR_FIRST] = (uint8_t)z;
-}
-
-static uint8_t mpu_read(unocore *u)
-{
-	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
-	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
-	if (reg == MPU_WHO_AM_I)
-		u->st.twi_whoami_reads++;
-	if (reg == 0x47)
-		u->st.twi_gyro_reads++;
-	if (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST)
-		return u->latch[reg - MPU_SENSOR_FIRST];
-	return u->regs[reg];
-}
-
-static void mpu_write(unocore *u, uint8_t value)
-{
-	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
-	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
-	if (reg == MPU_WHO_AM_I || (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST))
-		return; /* read-only */
-	if (reg == MPU_PWR_MGMT_1 && (value & 0x80)) {
-		mpu_reset_regs(u); /* DEVICE_RESET: every register to its default, the bit clears */
-		return;
-	}
-	u->regs[reg] = value;
-}
-
-static void twi_answer(unocore *u, uint8_t msg, uint8_t addr, uint8_t data)
-{
-	avr_raise_irq(u->twi_in, avr_twi_irq_msg(msg, addr, data));
-}
-
-/* Everything the TWI master puts on the bus. simavr expects a slave to answer at once, by
- * raising the TWI input IRQ: an ACK for an address or a written byte, the byte for a read. */
-static void twi_output_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	avr_twi_msg_irq_t v;
-	v.u.v = value;
-	uint8_t msg = v.u.twi.msg, addr = v.u.twi.addr, data = v.u.twi.data;
-	u->dirty = 1;
-
-	if (msg & TWI_COND_STOP) {
-		u->selected = 0;
-		u->addr_w_status_pending = 0;
-	}
-	if (msg & TWI_COND_START) {
-		/* START with an address byte: SLA+R or SLA+W */
-		u->selected = 0;
-		int is_write = (addr & 1) == 0;
-		u->addr_w_status_pending = is_write;
-		if ((addr >> 1) == u->mpu_addr && u->gyro_alive) {
-			u->selected = 1;
-			u->st.twi_addressed++;
-			if (is_write)
-				u->first_write = 1;
-			else
-				mpu_latch(u);
-			twi_answer(u, TWI_COND_ACK, addr, 1);
-		} else {
-			u->st.twi_nacked++; /* nobody answers: the master sees a NACK */
-		}
-		return;
-	}
-	if (!u->selected)
-		return;
-	if (msg & TWI_COND_WRITE) {
-		u->st.twi_bytes_written++;
-		if (u->first_write) {
-			u->reg_ptr = data & (MPU_REGS - 1);
-			u->first_write = 0;
-		} else {
-			mpu_write(u, data);
-		}
-		twi_answer(u, TWI_COND_ACK, addr, 1);
-	} else if (msg & TWI_COND_READ) {
-		u->st.twi_bytes_read++;
-		twi_answer(u, TWI_COND_READ, addr, mpu_read(u));
-	}
-}
-
-/* Workaround 1 (see the top of the file): the status that answers an SLA+W. */
-static void twi_status_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	u->dirty = 1;
-	if (value == TW_START_)
-		return; /* the START's own status comes before the address */
-	if (u->addr_w_status_pending) {
-		u->addr_w_status_pending = 0;
-		uint8_t fixed = value == TW_MT_DATA_ACK_ ? TW_MT_SLA_ACK_
-		              : value == TW_MT_DATA_NACK_ ? TW_MT_SLA_NACK_ : 0;
-		if (fixed) {
-			u->avr->data[A_TWSR] = (uint8_t)((u->avr->data[A_TWSR] & 0x07) | fixed);
-			u->st.twi_status_fixed++;
-		}
-	}
-}
-
-/* Workaround 2 (see the top of the file): chained after the TWI module's TWCR write. */
-static void twcr_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	u->dirty = 1;
-	if ((v & TWINT_BIT) && (avr->data[addr] & TWINT_BIT)) {
-		avr->data[addr] &= (uint8_t)~TWINT_BIT;
-		u->st.twi_twint_cleared++;
-	}
-	if ((v & TWSTO_BIT) && (avr->data[addr] & TWSTO_BIT)) {
-		avr->data[addr] &= (uint8_t)~TWSTO_BIT;
-		u->st.twi_twsto_cleared++;
-	}
-}
 
 /* ------------------------------------------------------------------------------ sonar */
 
@@ -715,8 +433,7 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 		u->echo_busy = 0;
 		avr_raise_irq(u->echo_irq, 0);
 	}
-	u->selected = 0;
-	u->addr_w_status_pending = 0;
+	mpu_after_reset(u);
 	u->snap_valid = 0;
 	u->dirty = 1;
 	if (u->pb0_level) { /* a step cut short by the reset: end it here */
@@ -812,24 +529,15 @@ UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uin
 		return NULL;
 	}
 
-	/* TWI */
-	u->twi_in = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT);
-	avr_irq_t *twi_out = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_OUTPUT);
-	avr_irq_t *twi_status = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_STATUS);
-	if (!u->twi_in || !twi_out || !twi_status) {
+	/* TWI: the MPU-6050 (unocore_mpu.c) */
+	if (mpu_attach(u, mpu_addr) != 0) {
 		snprintf(err, errlen, "MCU %s has no TWI", u->fw.mmcu);
 		unocore_free(u);
 		return NULL;
 	}
-	avr_irq_register_notify(twi_out, twi_output_hook, u);
-	avr_irq_register_notify(twi_status, twi_status_hook, u);
-	avr_register_io_write(avr, A_TWCR, twcr_write_hook, u);
 	avr_register_io_write(avr, A_EIMSK, eimsk_write_hook, u);
 	extint_polling_off(u);
 	timer_modes_fill_in(u);
-	u->mpu_addr = mpu_addr;
-	u->gyro_alive = 1;
-	mpu_reset_regs(u);
 
 	/* pins */
 	u->echo_irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN0);
