@@ -3,6 +3,7 @@
  * registers they touch. unocore.c has the overview; the modules:
  *   unocore.c        the entry points the host calls and the rest of the board
  *   unocore_mpu.c    the MPU-6050 on the TWI bus, with libsimavr 1.6's TWI workarounds (1, 2)
+ *   unocore_ff.c     the idle fast-forward
  *   unocore_prof.c   the cycle profile (its own state, prof_t; it does not see this struct)
  *   uart_line.c      the serial line into UART0, shared with rovernav_avrsim.c
  * unocore_abi.h has what the host's ctypes code shares.
@@ -95,7 +96,7 @@ typedef struct unocore {
 	uint16_t paint_start;
 	uint16_t stack_lowest;
 
-	/* fast-forward */
+	/* fast-forward (unocore_ff.c); every hook of the harness sets dirty */
 	int ff_enabled;
 	int dirty;
 	uint8_t *snap;
