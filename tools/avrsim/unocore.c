@@ -33,44 +33,19 @@
  *     loading (and after every reset); the lowest byte no longer holding it is the stack's
  *     high-water mark.
  *
- * libsimavr 1.6 (Debian) and the TWI master: two bugs, worked round in unocore_mpu.c (1, 2)
- *
- * libsimavr 1.6 and speed: two more things the harness sets right before the image runs
- *   3. Level-triggered INT0/INT1 polling. simavr's external-interrupt module, in its default
- *      "strict level triggering", starts a one-cycle timer that reads the port through an
- *      ioctl every cycle while INT0's or INT1's pin is low, whether or not the interrupt is
- *      enabled. INT1's pin is PD3, a motor input that is low whenever that motor is not
- *      reversing: the poll cost half of simavr's time. The image enables neither INT0 nor
- *      INT1, so the harness turns strict level triggering off for both (after every reset
- *      too, which turns it back on); a write to EIMSK that enables one of them turns it back
- *      on for that one.
- *   4. Phase-correct PWM modes. 1.6's timers lack them (Timer2's WGM 1, which the Arduino
- *      core's init() selects for pins 3 and 11, and Timer1's 1-3): the timer then runs with a
- *      TOP of 0 and its overflow timer fires every prescaled tick (every 64 cycles), which is
- *      harmless to the image (nothing uses Timer2's interrupts) but costs time and defeats the
- *      fast-forward below. The harness fills those modes in as the phase-and-frequency
- *      correct mode of the same resolution (TOP 0xFF, 0x1FF, 0x3FF), which simavr models
- *      with a period of TOP+1 ticks instead of the hardware's 2*TOP: the compare values, which
- *      are what the harness reads for the motors, are the same.
- *   5. Pull-ups across a reset. A port's pin IRQs are filtered (a raise that repeats the IRQ's
- *      last value notifies nobody), and a reset clears PINx but leaves the IRQs' last values. An
- *      input whose pull-up had made it high stays low after the reset: the firmware sets the
- *      pull-up again, the port raises 1, the IRQ already holds 1, and PINx is never set. The
- *      image would read the consent pin (board.h kPinConsent, D7) as held to GND after every
- *      reset. After each reset the harness sets every port pin IRQ's value to its PINx bit
- *      (without notifying), so the next raise of a different level reaches PINx.
- *
- * A pin held to GND: unocore_hold_pin_low sets the port's "external" state (simavr's model of
- * something driving an input), which wins over the pull-up while the DDR bit is clear and
- * outlives resets, as a jumper to GND does.
- *
- * Speed: idle fast-forward (exact): unocore_ff.c
+ * Where the parts are (unocore.h lists the files)
+ *   - unocore_mpu.c: the MPU-6050, and libsimavr 1.6 (Debian) and the TWI master: two bugs,
+ *     worked round there (1, 2).
+ *   - unocore_pins.c: the HC-SR04, the step probe, a pin held to GND, and libsimavr 1.6's
+ *     external-interrupt polling, phase-correct PWM modes and pull-ups across a reset (3, 4, 5).
+ *   - unocore_ff.c: Speed: idle fast-forward (exact).
+ *   - unocore_prof.c: Profile: where a step's cycles go (unocore_profile_*,
+ *     `rovernav sim --rover uno --profile`).
+ *   - here: the entry points the host calls (unocore_abi.h has the structs they fill), the
+ *     run loop, resets, the UART's queues and the stack's paint.
  *
  * Time: unocore_run_to(cycle) runs the AVR until its cycle counter (continued across resets)
  * reaches the cycle the host asks for: t_s * 16e6.
- *
- * Profile: where a step's cycles go (unocore_profile_*, `rovernav sim --rover uno --profile`):
- *   unocore_prof.c.
  */
 #define _GNU_SOURCE
 
@@ -82,13 +57,8 @@
 #include <string.h>
 
 #include "avr_eeprom.h"
-#include "avr_extint.h"
-#include "avr_ioport.h"
-#include "avr_timer.h"
-#include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
-#include "sim_interrupts.h"
 #include "sim_io.h"
 #include "sim_irq.h"
 
@@ -96,11 +66,10 @@
 #include "unocore.h"
 #include "unocore_ff.h"
 #include "unocore_mpu.h"
+#include "unocore_pins.h"
 #include "unocore_prof.h"
 
 #define PAINT 0xA5              /* stack paint pattern */
-#define SONAR_ECHO_DELAY_US 450u
-#define SONAR_NO_ECHO_US 38000u
 
 /* ------------------------------------------------------------------------------ logging */
 
@@ -154,108 +123,6 @@ static uint8_t uart_take(void *param) { return ring_pop(&((unocore *)param)->rx)
 
 static void uart_sent(void *param, uint8_t byte) { ring_push(&((unocore *)param)->tx, byte); }
 
-/* ------------------------------------------------------------------------------ sonar */
-
-static avr_cycle_count_t echo_fall_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)avr;
-	(void)when;
-	unocore *u = param;
-	avr_raise_irq(u->echo_irq, 0);
-	u->echo_busy = 0;
-	u->echoes_total++;
-	u->dirty = 1;
-	return 0;
-}
-
-static avr_cycle_count_t echo_rise_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)when;
-	unocore *u = param;
-	avr_raise_irq(u->echo_irq, 1);
-	avr_cycle_timer_register_usec(avr, u->echo_us, echo_fall_timer, u);
-	u->dirty = 1;
-	return 0;
-}
-
-static void trig_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	int level = (value & 1) != 0; /* simavr may flag output changes with AVR_IOPORT_OUTPUT */
-	int rising = level && !u->trig_level;
-	u->trig_level = level;
-	u->dirty = 1;
-	if (!rising)
-		return;
-	u->pings_total++;
-	if (u->echo_busy) { /* the sensor ignores a trigger until its echo has ended */
-		u->st.pings_ignored++;
-		return;
-	}
-	uint32_t range_mm = u->sonar_fn ? u->sonar_fn(u->sonar_user) : 0;
-	/* width_us = 2 * range / 0.343 mm/us; nothing in range: the HC-SR04's ~38 ms time-out */
-	u->echo_us = range_mm ? (uint32_t)(((uint64_t)range_mm * 2000u + 171u) / 343u)
-	                      : SONAR_NO_ECHO_US;
-	if (u->echo_us > SONAR_NO_ECHO_US)
-		u->echo_us = SONAR_NO_ECHO_US;
-	u->echo_busy = 1;
-	avr_cycle_timer_register_usec(u->avr, SONAR_ECHO_DELAY_US, echo_rise_timer, u);
-}
-
-
-/* ------------------------------------------------------------------------------ step probe */
-
-static void pb0_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	int level = (value & 1) != 0;
-	if (level == u->pb0_level)
-		return;
-	u->pb0_level = level;
-	u->dirty = 1;
-	uint64_t now = now_cycle(u);
-	if (u->prof.on) {
-		if (level)
-			prof_step_rise(&u->prof, now, u->st.resets);
-		else
-			prof_step_fall(&u->prof, now);
-	}
-	if (level) {
-		if (u->nsteps == u->capsteps) {
-			uint32_t cap = u->capsteps ? u->capsteps * 2 : 4096;
-			unocore_step *s = realloc(u->steps, cap * sizeof *s);
-			if (!s)
-				return;
-			u->steps = s;
-			u->capsteps = cap;
-		}
-		unocore_step *s = &u->steps[u->nsteps++];
-		memset(s, 0, sizeof *s);
-		s->rise = now;
-		s->boot = u->st.resets;
-	} else if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0) {
-		u->steps[u->nsteps - 1].fall = now;
-	}
-}
-
-static void gpior0_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	avr->data[addr] = v;
-	u->dirty = 1;
-	u->last_desc = v;
-	u->has_desc = 1;
-	/* the descriptor belongs to the step that rose last (written before or after its fall),
-	 * if that step was in this boot */
-	if (u->nsteps > 0 && u->steps[u->nsteps - 1].boot == u->st.resets) {
-		u->steps[u->nsteps - 1].desc = v;
-		u->steps[u->nsteps - 1].has_desc = 1;
-	}
-	prof_step_desc(&u->prof, v, u->st.resets);
-}
-
 /* ------------------------------------------------------------------------------ stack */
 
 static void stack_paint(unocore *u)
@@ -279,46 +146,6 @@ static void stack_measure(unocore *u)
 		u->stack_lowest = (uint16_t)a;
 }
 
-/* ------------------------------------------------------------------------------ simavr 1.6 */
-
-/* Workaround 3 (see the top of the file). */
-static void extint_polling_off(unocore *u)
-{
-	for (uint8_t i = 0; i < 2; i++)
-		avr_extint_set_strict_lvl_trig(u->avr, i, (u->eimsk >> i) & 1);
-}
-
-static void eimsk_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	avr->data[addr] = v;
-	u->dirty = 1;
-	if ((v & 3) != (u->eimsk & 3)) {
-		u->eimsk = v;
-		extint_polling_off(u);
-	}
-	u->eimsk = v;
-}
-
-/* Workaround 4 (see the top of the file). */
-static void timer_modes_fill_in(unocore *u)
-{
-	for (avr_io_t *io = u->avr->io_port; io; io = io->next) {
-		if (!io->kind || strcmp(io->kind, "timer") != 0)
-			continue;
-		avr_timer_t *t = (avr_timer_t *)io;
-		int wide = t->r_tcnth != 0;
-		for (int mode = 1; mode <= (wide ? 3 : 1); mode++) {
-			if (t->wgm_op[mode].kind != avr_timer_wgm_none)
-				continue;
-			t->wgm_op[mode].kind = avr_timer_wgm_fc_pwm;
-			t->wgm_op[mode].size = (uint8_t)(7 + mode); /* 8, 9, 10 bits */
-			t->wgm_op[mode].top = avr_timer_wgm_reg_constant;
-			u->st.timer_modes_filled++;
-		}
-	}
-}
-
 /* ------------------------------------------------------------------------------ resets */
 
 /* After a reset of either kind: simavr cleared the cycle timers (the UART feed, the echo),
@@ -329,33 +156,16 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 	u->base = cycle_before - avr->cycle;
 	u->last_avr_cycle = avr->cycle;
 	uart_line_after_reset(&u->uart);
-	if (u->echo_busy) {
-		u->echo_busy = 0;
-		avr_raise_irq(u->echo_irq, 0);
-	}
+	sonar_after_reset(u);
 	mpu_after_reset(u);
 	u->snap_valid = 0;
 	u->dirty = 1;
-	if (u->pb0_level) { /* a step cut short by the reset: end it here */
-		u->pb0_level = 0;
-		if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0)
-			u->steps[u->nsteps - 1].fall = cycle_before;
-		prof_step_cut(&u->prof, cycle_before);
-	}
+	probe_after_reset(u, cycle_before);
 	u->st.resets++;
-	u->eimsk = 0;
-	extint_polling_off(u);
+	extint_after_reset(u);
 	stack_paint(u);
 	uart_line_kick(&u->uart);
-	/* 5: the pin IRQs' values as PINx now has them (see the head of this file) */
-	for (int i = 0; i < 3; i++) {
-		const uint8_t pin = avr->data[A_PINB + 3 * i];
-		for (int b = 0; b < 8; b++) {
-			avr_irq_t *irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ((char)('B' + i)), b);
-			if (irq)
-				irq->value = (pin >> b) & 1u;
-		}
-	}
+	pin_irqs_after_reset(u);   /* 5: see unocore_pins.c */
 }
 
 /* ------------------------------------------------------------------------------ API */
@@ -435,17 +245,9 @@ UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uin
 		unocore_free(u);
 		return NULL;
 	}
-	avr_register_io_write(avr, A_EIMSK, eimsk_write_hook, u);
-	extint_polling_off(u);
-	timer_modes_fill_in(u);
 
-	/* pins */
-	u->echo_irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN0);
-	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN1),
-	                        trig_hook, u);
-	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_PIN0),
-	                        pb0_hook, u);
-	avr_register_io_write(avr, A_GPIOR0, gpior0_write_hook, u);
+	/* pins, external interrupts, timers (unocore_pins.c) */
+	pins_attach(u);
 
 	/* EEPROM boot counter, little-endian at address 0 */
 	uint8_t ee[2] = { (uint8_t)boot_counter, (uint8_t)(boot_counter >> 8) };
@@ -495,22 +297,7 @@ UNOCORE_API void unocore_set_gyro(unocore *u, int alive, int32_t chip_mdps)
  * outlives resets (avr_reset leaves it), as a jumper does. Returns 0, or -1 for an unknown port. */
 UNOCORE_API int unocore_hold_pin_low(unocore *u, char port, uint8_t bit, int held)
 {
-	int i = port - 'B';
-	if (i < 0 || i > 2 || bit > 7)
-		return -1;
-	if (held)
-		u->held_low[i] |= (uint8_t)(1u << bit);
-	else
-		u->held_low[i] &= (uint8_t)~(1u << bit);
-	avr_ioport_external_t ext = { .name = (unsigned long)port, .mask = u->held_low[i], .value = 0 };
-	if (avr_ioctl(u->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL(port), &ext) != 0)
-		return -1;
-	/* Now, too, if the firmware already reads it as an input */
-	const uint8_t ddr = u->avr->data[A_DDRB + 3 * i], prt = u->avr->data[A_PORTB + 3 * i];
-	if (!(ddr & (1u << bit)))
-		avr_raise_irq(avr_io_getirq(u->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit),
-		              held ? 0 : (prt >> bit) & 1u);
-	return 0;
+	return pins_hold_low(u, port, bit, held);
 }
 
 UNOCORE_API uint32_t unocore_rx(unocore *u, const uint8_t *data, uint32_t len)

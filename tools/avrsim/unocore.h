@@ -1,8 +1,10 @@
 /*
  * unocore.h: the harness's state (struct unocore), which its modules share, and the ATmega328P
  * registers they touch. unocore.c has the overview; the modules:
- *   unocore.c        the entry points the host calls and the rest of the board
+ *   unocore.c        the entry points the host calls (lifecycle, run loop, resets, UART, reads)
  *   unocore_mpu.c    the MPU-6050 on the TWI bus, with libsimavr 1.6's TWI workarounds (1, 2)
+ *   unocore_pins.c   the HC-SR04, the step probe (PB0, GPIOR0), pins held low, and the pin,
+ *                    external-interrupt and timer workarounds (3, 4, 5)
  *   unocore_ff.c     the idle fast-forward
  *   unocore_prof.c   the cycle profile (its own state, prof_t; it does not see this struct)
  *   uart_line.c      the serial line into UART0, shared with rovernav_avrsim.c
@@ -74,7 +76,7 @@ typedef struct unocore {
 	int addr_w_status_pending;     /* the next status is the answer to an SLA+W */
 	uint8_t latch[14];             /* sensor registers 0x3B..0x48, latched at SLA+R */
 
-	/* sonar */
+	/* sonar (unocore_pins.c) */
 	unocore_sonar_fn sonar_fn;
 	void *sonar_user;
 	avr_irq_t *echo_irq;
@@ -82,7 +84,7 @@ typedef struct unocore {
 	int echo_busy;                 /* from TRIG until the echo has fallen */
 	uint32_t echo_us;
 
-	/* probe and descriptor */
+	/* probe and descriptor (unocore_pins.c) */
 	int pb0_level;
 	unocore_step *steps;
 	uint32_t nsteps, capsteps;
@@ -90,9 +92,9 @@ typedef struct unocore {
 	uint8_t last_desc;
 	int has_desc;
 
-	uint8_t eimsk;
+	uint8_t eimsk;                 /* the last EIMSK written (unocore_pins.c, workaround 3) */
 
-	/* stack */
+	/* stack (unocore.c) */
 	uint16_t paint_start;
 	uint16_t stack_lowest;
 
