@@ -13,13 +13,16 @@
  *   Bytes from the outside enter the simulated UART from a cycle timer, at most one byte per
  *   byte-time of the line (10 bits at --baud, default 57,600: ~174 us, 2,778 cycles at 16 MHz)
  *   and only while the UART says it has room (its XON/XOFF IRQs), so no byte is lost inside
- *   the simulated UART (uart_line.h, the line model unocore.c uses too). When the input ring is
+ *   the simulated UART (uart_line.c, the line model unocore.c uses too). When the input ring is
  *   full the bridge stops reading its input, and the kernel's pty/pipe buffer holds the rest.
  *
  *   Bytes the AVR sends go out as they are written to UDR0 (simavr already paces them at the
  *   configured baud rate). With --pty, if nobody reads the pty and the output ring fills up,
  *   further bytes are dropped and counted, as on a serial line nobody listens to. With --stdio,
  *   the simulation waits for the reader instead.
+ *
+ * The outside end (the pty or stdin/stdout, the rings, their service between slices) is in
+ * avrsim_io.c.
  *
  * Exit status: 0 after a clean stop (--seconds reached, SIGINT/SIGTERM/SIGHUP, the AVR went to
  * sleep with interrupts off, stdout closed); 1 if the simulated core crashed; 2 on a usage or
@@ -28,7 +31,6 @@
 #define _GNU_SOURCE
 
 #include <errno.h>
-#include <fcntl.h>
 #include <getopt.h>
 #include <inttypes.h>
 #include <math.h>
@@ -39,7 +41,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -50,67 +51,22 @@
 #include "sim_irq.h"
 #include "sim_vcd_file.h"
 
+#include "avrsim_io.h"
 #include "uart_line.h"
 
-#define PROG "rovernav_avrsim"
 #define DEFAULT_MCU "atmega328p"
 #define DEFAULT_FREQ_HZ 16000000u
 #define DEFAULT_BAUD 57600u
 #define UART_NAME '0'
-#define RING_BYTES (64u * 1024u)
-#define IO_CHUNK 512u
 #define SLICE_PER_SECOND 1000u       /* simulate in 1 ms slices */
 #define MAX_LAG_SECONDS 0.1          /* further behind than this: stop catching up */
 
-/* ------------------------------------------------------------------------------ byte rings */
-
-typedef struct ring {
-	uint8_t buf[RING_BYTES];
-	size_t head; /* index of the oldest byte */
-	size_t len;
-} ring_t;
-
-static size_t ring_space(const ring_t *r) { return RING_BYTES - r->len; }
-
-static void ring_push(ring_t *r, uint8_t b)
-{
-	r->buf[(r->head + r->len) % RING_BYTES] = b;
-	r->len++;
-}
-
-static uint8_t ring_pop(ring_t *r)
-{
-	uint8_t b = r->buf[r->head];
-	r->head = (r->head + 1) % RING_BYTES;
-	r->len--;
-	return b;
-}
-
-/* The longest run of queued bytes that is contiguous in memory, at most max. */
-static size_t ring_peek(const ring_t *r, const uint8_t **data, size_t max)
-{
-	size_t n = RING_BYTES - r->head;
-	if (n > r->len)
-		n = r->len;
-	if (n > max)
-		n = max;
-	*data = r->buf + r->head;
-	return n;
-}
-
-static void ring_drop(ring_t *r, size_t n)
-{
-	r->head = (r->head + n) % RING_BYTES;
-	r->len -= n;
-}
-
 /* ------------------------------------------------------------------------------ state */
 
-enum mode { MODE_PTY, MODE_STDIO };
+static volatile sig_atomic_t g_stop_signal = 0;
 
 static struct {
-	/* options */
-	enum mode mode;
+	/* options (and --pty/--stdio, -v: io.mode, io.verbose) */
 	double speed;
 	double seconds;          /* <= 0: no limit */
 	const char *vcd_path;
@@ -118,48 +74,30 @@ static struct {
 	const char *mcu_default;
 	uint32_t freq_default;
 	uint32_t baud;
-	int verbose;
 
 	/* simulation */
 	avr_t *avr;
-	uart_line_t uart;        /* UART0 (uart_line.h): input paced at the line's rate */
+	uart_line_t uart;        /* UART0 (uart_line.c): input paced at the line's rate */
 	avr_vcd_t vcd;
 	int vcd_open;
 
-	/* the outside world */
-	int in_fd;
-	int out_fd;
-	int pty_slave_fd;        /* held open so the pty never hangs up between clients */
-	int in_eof;
-	ring_t in;
-	ring_t out;
-
-	/* counters (bytes to and from the AVR, XOFFs: the line's) */
-	uint64_t bytes_dropped_out;
+	/* the outside world (avrsim_io.c) */
+	bridge_io_t io;
 } g = {
-	.mode = MODE_PTY,
 	.speed = 1.0,
 	.seconds = 0.0,
 	.mcu_default = DEFAULT_MCU,
 	.freq_default = DEFAULT_FREQ_HZ,
 	.baud = DEFAULT_BAUD,
-	.in_fd = -1,
-	.out_fd = -1,
-	.pty_slave_fd = -1,
+	.io = {
+		.mode = MODE_PTY,
+		.uart = &g.uart,
+		.stop = &g_stop_signal,
+		.in_fd = -1,
+		.out_fd = -1,
+		.pty_slave_fd = -1,
+	},
 };
-
-static volatile sig_atomic_t g_stop_signal = 0;
-
-static void logmsg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-static void logmsg(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fputs(PROG ": ", stderr);
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-}
 
 /* simavr logs to stdout by default, which is our data stream with --stdio: send it to stderr. */
 static void sim_logger(avr_t *avr, const int level, const char *fmt, va_list ap)
@@ -195,205 +133,6 @@ static const char *state_name(int state)
 	}
 }
 
-/* ------------------------------------------------------------------------------ UART hooks */
-
-static int flush_output(int block);
-
-/* Every byte the firmware writes to UDR0 (the line's `sent`). */
-static void uart_sent(void *param, uint8_t byte)
-{
-	(void)param;
-	if (ring_space(&g.out) == 0 && g.mode == MODE_STDIO)
-		flush_output(1); /* a pipe reader is slow: wait for it rather than lose bytes */
-	if (ring_space(&g.out) == 0) {
-		g.bytes_dropped_out++;
-		return;
-	}
-	ring_push(&g.out, byte);
-}
-
-/* The bytes from the outside waiting for the UART, and the oldest of them (the line's). */
-static uint32_t uart_waiting(void *param)
-{
-	(void)param;
-	return (uint32_t)g.in.len;
-}
-
-static uint8_t uart_take(void *param)
-{
-	(void)param;
-	return ring_pop(&g.in);
-}
-
-/* ------------------------------------------------------------------------------ outside I/O */
-
-/* Writes what it can of the output ring; block != 0 waits until the ring is empty.
- * Returns -1 when the reader is gone (EPIPE), 0 otherwise. */
-static int flush_output(int block)
-{
-	while (g.out.len > 0) {
-		if (block) {
-			struct pollfd p = { .fd = g.out_fd, .events = POLLOUT };
-			if (poll(&p, 1, -1) < 0 && errno != EINTR)
-				return -1;
-			if (g_stop_signal)
-				return 0;
-		}
-		const uint8_t *data;
-		size_t n = ring_peek(&g.out, &data, IO_CHUNK);
-		ssize_t w = write(g.out_fd, data, n);
-		if (w > 0) {
-			ring_drop(&g.out, (size_t)w);
-			continue;
-		}
-		if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {
-			if (!block)
-				return 0;
-			continue;
-		}
-		if (w < 0 && errno == EPIPE)
-			return -1;
-		if (w < 0) {
-			logmsg("write: %s", strerror(errno));
-			return -1;
-		}
-	}
-	return 0;
-}
-
-/* Reads what is waiting on the input into the input ring. Returns -1 on a fatal error. */
-static int read_input(void)
-{
-	uint8_t buf[IO_CHUNK];
-	size_t room = ring_space(&g.in);
-	if (room == 0 || g.in_eof)
-		return 0;
-	if (room > sizeof buf)
-		room = sizeof buf;
-	ssize_t r = read(g.in_fd, buf, room);
-	if (r > 0) {
-		for (ssize_t i = 0; i < r; i++)
-			ring_push(&g.in, buf[i]);
-		uart_line_kick(&g.uart);
-		return 0;
-	}
-	if (r == 0) {
-		/* stdin closed: keep running, the firmware may still talk */
-		if (g.mode == MODE_STDIO) {
-			if (g.verbose)
-				logmsg("stdin closed; running on");
-			g.in_eof = 1;
-		}
-		return 0;
-	}
-	if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)
-		return 0;
-	if (errno == EIO && g.mode == MODE_PTY)
-		return 0; /* no client on the pty right now */
-	logmsg("read: %s", strerror(errno));
-	return -1;
-}
-
-/* Services the outside world, waiting at most timeout seconds for something to do
- * (timeout <= 0: just poll). Returns -1 when the bridge should stop. */
-static int service_io(double timeout)
-{
-	struct pollfd p[2];
-	int n = 0;
-	int in_ix = -1, out_ix = -1;
-
-	if (!g.in_eof && ring_space(&g.in) > 0) {
-		in_ix = n;
-		p[n++] = (struct pollfd){ .fd = g.in_fd, .events = POLLIN };
-	}
-	if (g.out.len > 0) {
-		if (g.out_fd == g.in_fd && in_ix >= 0) {
-			p[in_ix].events |= POLLOUT;
-			out_ix = in_ix;
-		} else {
-			out_ix = n;
-			p[n++] = (struct pollfd){ .fd = g.out_fd, .events = POLLOUT };
-		}
-	}
-	struct timespec ts = { 0, 0 };
-	if (timeout > 0) {
-		ts.tv_sec = (time_t)timeout;
-		ts.tv_nsec = (long)((timeout - (double)ts.tv_sec) * 1e9);
-	}
-	int rc = ppoll(p, (nfds_t)n, &ts, NULL);
-	if (rc < 0)
-		return errno == EINTR ? 0 : -1;
-	if (rc == 0)
-		return 0;
-	if (in_ix >= 0 && (p[in_ix].revents & (POLLIN | POLLHUP | POLLERR))) {
-		if (read_input() < 0)
-			return -1;
-	}
-	if (out_ix >= 0 && (p[out_ix].revents & (POLLOUT | POLLERR))) {
-		if (flush_output(0) < 0) {
-			logmsg("output closed by the reader");
-			return -1;
-		}
-	}
-	return 0;
-}
-
-/* ------------------------------------------------------------------------------ setup */
-
-static int open_pty(void)
-{
-	int master = posix_openpt(O_RDWR | O_NOCTTY);
-	if (master < 0) {
-		logmsg("posix_openpt: %s", strerror(errno));
-		return -1;
-	}
-	if (grantpt(master) < 0 || unlockpt(master) < 0) {
-		logmsg("grantpt/unlockpt: %s", strerror(errno));
-		close(master);
-		return -1;
-	}
-	const char *name = ptsname(master);
-	if (!name) {
-		logmsg("ptsname: %s", strerror(errno));
-		close(master);
-		return -1;
-	}
-	int slave = open(name, O_RDWR | O_NOCTTY);
-	if (slave < 0) {
-		logmsg("open %s: %s", name, strerror(errno));
-		close(master);
-		return -1;
-	}
-	struct termios t;
-	if (tcgetattr(slave, &t) == 0) {
-		cfmakeraw(&t);
-		cfsetispeed(&t, B57600);
-		cfsetospeed(&t, B57600);
-		tcsetattr(slave, TCSANOW, &t);
-	}
-	fcntl(master, F_SETFL, fcntl(master, F_GETFL) | O_NONBLOCK);
-	g.in_fd = g.out_fd = master;
-	g.pty_slave_fd = slave;
-
-	printf("pty: %s\n", name);
-	fflush(stdout);
-	/* anything the library might print from now on goes to stderr */
-	dup2(STDERR_FILENO, STDOUT_FILENO);
-	return 0;
-}
-
-static int open_stdio(void)
-{
-	g.in_fd = STDIN_FILENO;
-	g.out_fd = dup(STDOUT_FILENO); /* the data stream */
-	if (g.out_fd < 0) {
-		logmsg("dup: %s", strerror(errno));
-		return -1;
-	}
-	/* stray library output must not corrupt the byte stream */
-	dup2(STDERR_FILENO, STDOUT_FILENO);
-	return 0;
-}
 
 static void add_vcd_signal(avr_irq_t *irq, int bits, const char *name)
 {
@@ -452,12 +191,12 @@ static int load_avr(void)
 		return -1;
 	}
 	avr_init(g.avr);
-	g.avr->log = g.verbose ? LOG_TRACE : LOG_WARNING;
+	g.avr->log = g.io.verbose ? LOG_TRACE : LOG_WARNING;
 	avr_load_firmware(g.avr, &fw);
 	g.avr->sleep = no_sleep;
 
 	/* no console echo of UART output, no usleep() when the firmware polls UCSR0A */
-	g.uart = (uart_line_t){.waiting = uart_waiting, .take = uart_take, .sent = uart_sent};
+	g.uart = (uart_line_t){.user = &g.io, .waiting = io_uart_waiting, .take = io_uart_take, .sent = io_uart_sent};
 	if (uart_line_attach(&g.uart, g.avr, UART_NAME, g.baud) != 0) {
 		logmsg("MCU %s has no UART%c", fw.mmcu, UART_NAME);
 		return -1;
@@ -518,8 +257,8 @@ static int parse_args(int argc, char **argv)
 	double v;
 	while ((c = getopt_long(argc, argv, "vh", opts, NULL)) != -1) {
 		switch (c) {
-		case 'p': g.mode = MODE_PTY; break;
-		case 's': g.mode = MODE_STDIO; break;
+		case 'p': g.io.mode = MODE_PTY; break;
+		case 's': g.io.mode = MODE_STDIO; break;
 		case 'x':
 			if (parse_double(optarg, &g.speed) != 0) {
 				logmsg("--speed wants a number >= 0, not '%s'", optarg);
@@ -548,7 +287,7 @@ static int parse_args(int argc, char **argv)
 			}
 			g.freq_default = (uint32_t)v;
 			break;
-		case 'v': g.verbose = 1; break;
+		case 'v': g.io.verbose = 1; break;
 		case 'h': usage(stdout); exit(0);
 		default: usage(stderr); return -1;
 		}
@@ -582,7 +321,7 @@ int main(int argc, char **argv)
 		return 2;
 	if (g.vcd_path && setup_vcd() != 0)
 		return 2;
-	if ((g.mode == MODE_PTY ? open_pty() : open_stdio()) != 0)
+	if ((g.io.mode == MODE_PTY ? io_open_pty(&g.io) : io_open_stdio(&g.io)) != 0)
 		return 2;
 
 	avr_t *avr = g.avr;
@@ -622,7 +361,7 @@ int main(int argc, char **argv)
 		}
 
 		/* move bytes; with --speed X, wait for the wall clock while doing so */
-		if (service_io(0) < 0 && !reason)
+		if (io_service(&g.io, 0) < 0 && !reason)
 			reason = "I/O closed";
 		if (g.speed > 0 && !reason) {
 			for (;;) {
@@ -635,7 +374,7 @@ int main(int argc, char **argv)
 				}
 				if (wait <= 0 || g_stop_signal)
 					break;
-				if (service_io(wait) < 0) {
+				if (io_service(&g.io, wait) < 0) {
 					reason = "I/O closed";
 					break;
 				}
@@ -644,10 +383,10 @@ int main(int argc, char **argv)
 	}
 
 	/* last words from the firmware */
-	if (g.out.len > 0) {
-		for (int i = 0; i < 50 && g.out.len > 0; i++) {
-			struct pollfd p = { .fd = g.out_fd, .events = POLLOUT };
-			if (poll(&p, 1, 20) <= 0 || flush_output(0) < 0)
+	if (g.io.out.len > 0) {
+		for (int i = 0; i < 50 && g.io.out.len > 0; i++) {
+			struct pollfd p = { .fd = g.io.out_fd, .events = POLLOUT };
+			if (poll(&p, 1, 20) <= 0 || io_flush_output(&g.io, 0) < 0)
 				break;
 		}
 	}
@@ -662,7 +401,7 @@ int main(int argc, char **argv)
 	       (uint32_t)avr->pc, (uint32_t)avr->pc / 2);
 	logmsg("UART0: %" PRIu64 " bytes out, %" PRIu64 " bytes in, %" PRIu64
 	       " output bytes dropped (nobody reading), %zu input bytes not delivered, %" PRIu64
-	       " XOFF", g.uart.bytes_out, g.uart.bytes_in, g.bytes_dropped_out, g.in.len,
+	       " XOFF", g.uart.bytes_out, g.uart.bytes_in, g.io.bytes_dropped_out, g.io.in.len,
 	       g.uart.xoffs);
 	if (state == cpu_Crashed)
 		logmsg("CRASH: the simulated core crashed at pc 0x%04" PRIx32
@@ -672,7 +411,8 @@ int main(int argc, char **argv)
 	if (g.vcd_open)
 		avr_vcd_close(&g.vcd);
 	avr_terminate(avr);
-	if (g.pty_slave_fd >= 0)
-		close(g.pty_slave_fd);
+	if (g.io.pty_slave_fd >= 0)
+		close(g.io.pty_slave_fd);
 	return exit_code;
 }
+

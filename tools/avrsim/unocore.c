@@ -25,7 +25,7 @@
  *     WHO_AM_I 0x68, DEVICE_RESET, SLEEP, FS_SEL) whose GYRO_ZOUT is the host's yaw rate.
  *   - UART0: bytes from the host enter at the line rate (10 bits at 57,600 baud), and only
  *     while the UART has room (XON/XOFF); bytes the firmware sends are collected for the host
- *     (the line is uart_line.h's, shared with rovernav_avrsim.c).
+ *     (the line is uart_line.c's, shared with rovernav_avrsim.c).
  *   - Measurement hooks of the image, when present: PB0 (D8) high while a 10 ms step works,
  *     and GPIOR0 written with a step descriptor at its end. Every edge of PB0 is time-stamped
  *     in CPU cycles; each step record keeps its rise, its fall and its descriptor.
@@ -33,100 +33,19 @@
  *     loading (and after every reset); the lowest byte no longer holding it is the stack's
  *     high-water mark.
  *
- * libsimavr 1.6 (Debian) and the TWI master: two bugs, worked round from here
- *   1. After SLA+W the master reports TWSR 0x28/0x30 (data byte sent, ACK/NACK) instead of
- *      0x18/0x20 (SLA+W sent, ACK/NACK): 1.6 uses the data-byte codes for the address byte of
- *      a write. The firmware's driver checks for 0x18 and would give up with a bus error. The
- *      harness listens to the TWI status IRQ, which simavr raises right after it has written
- *      TWSR and before it sets TWINT; when the status that follows an SLA+W is 0x28 or 0x30,
- *      it rewrites TWSR's status bits to 0x18 or 0x20. The firmware polls TWINT, so it only
- *      ever reads the corrected value.
- *   2. Writing 1 to TWINT does not clear it: 1.6's TWCR handler clears the TWI interrupt's
- *      pending state but leaves the TWINT bit as written (1). A driver that starts a bus step
- *      by writing TWINT=1 and then waits for TWINT to be set again would see it set at once
- *      and read a stale status. The harness registers a second write hook on TWCR, which
- *      simavr chains after the TWI module's own: when the value written has TWINT set, it
- *      clears the bit, as the hardware does. The TWI module sets it again when the bus step
- *      completes (its status timer raises the interrupt flag). The same hook would clear TWSTO
- *      if a library left it set after sending the STOP (the hardware clears it; the driver
- *      waits for that before the next START): Debian's 1.6 clears it itself, and
- *      twi_twsto_cleared stays 0.
- *
- * libsimavr 1.6 and speed: two more things the harness sets right before the image runs
- *   3. Level-triggered INT0/INT1 polling. simavr's external-interrupt module, in its default
- *      "strict level triggering", starts a one-cycle timer that reads the port through an
- *      ioctl every cycle while INT0's or INT1's pin is low, whether or not the interrupt is
- *      enabled. INT1's pin is PD3, a motor input that is low whenever that motor is not
- *      reversing: the poll cost half of simavr's time. The image enables neither INT0 nor
- *      INT1, so the harness turns strict level triggering off for both (after every reset
- *      too, which turns it back on); a write to EIMSK that enables one of them turns it back
- *      on for that one.
- *   4. Phase-correct PWM modes. 1.6's timers lack them (Timer2's WGM 1, which the Arduino
- *      core's init() selects for pins 3 and 11, and Timer1's 1-3): the timer then runs with a
- *      TOP of 0 and its overflow timer fires every prescaled tick (every 64 cycles), which is
- *      harmless to the image (nothing uses Timer2's interrupts) but costs time and defeats the
- *      fast-forward below. The harness fills those modes in as the phase-and-frequency
- *      correct mode of the same resolution (TOP 0xFF, 0x1FF, 0x3FF), which simavr models
- *      with a period of TOP+1 ticks instead of the hardware's 2*TOP: the compare values, which
- *      are what the harness reads for the motors, are the same.
- *   5. Pull-ups across a reset. A port's pin IRQs are filtered (a raise that repeats the IRQ's
- *      last value notifies nobody), and a reset clears PINx but leaves the IRQs' last values. An
- *      input whose pull-up had made it high stays low after the reset: the firmware sets the
- *      pull-up again, the port raises 1, the IRQ already holds 1, and PINx is never set. The
- *      image would read the consent pin (board.h kPinConsent, D7) as held to GND after every
- *      reset. After each reset the harness sets every port pin IRQ's value to its PINx bit
- *      (without notifying), so the next raise of a different level reaches PINx.
- *
- * A pin held to GND: unocore_hold_pin_low sets the port's "external" state (simavr's model of
- * something driving an input), which wins over the pull-up while the DDR bit is clear and
- * outlives resets, as a jumper to GND does.
- *
- * Speed: idle fast-forward (exact)
- *   The firmware spends most of each 10 ms busy-waiting for millis() to move: loop() kicks the
- *   watchdog, reads millis(), returns; so does the calibration loop. simavr executes every one
- *   of those instructions, and its WDR costs an ioctl walk plus a cycle-timer re-registration.
- *   At each WDR the harness compares the complete CPU state (registers, I/O space, SRAM, SREG)
- *   with its state at the previous WDR. When they are identical, the same WDR was reached on
- *   the same stack, no cycle timer fired in between, no interrupt is pending, and no I/O
- *   register with a read or write side effect (TCNTx, UDR0, PINx, TWDR, ...) was touched, the
- *   iteration in between changed nothing and reads nothing that time changes: every following
- *   iteration is the same, cycle for cycle, until the next cycle timer (Timer0's overflow for
- *   millis(), a UART byte, a TWI step, an echo edge, the watchdog) fires. The harness then
- *   advances the cycle counter by a whole number of iterations, stopping short of that timer
- *   and of the time the host asked for. Nothing the firmware can observe changes: the timer
- *   fires at the same cycle, in the same instruction of the same iteration, as without the
- *   skip, and the WDR that follows re-arms the watchdog. unocore_set_fast_forward(0) turns
- *   it off (to check that claim, or to profile simavr itself).
+ * Where the parts are (unocore.h lists the files)
+ *   - unocore_mpu.c: the MPU-6050, and libsimavr 1.6 (Debian) and the TWI master: two bugs,
+ *     worked round there (1, 2).
+ *   - unocore_pins.c: the HC-SR04, the step probe, a pin held to GND, and libsimavr 1.6's
+ *     external-interrupt polling, phase-correct PWM modes and pull-ups across a reset (3, 4, 5).
+ *   - unocore_ff.c: Speed: idle fast-forward (exact).
+ *   - unocore_prof.c: Profile: where a step's cycles go (unocore_profile_*,
+ *     `rovernav sim --rover uno --profile`).
+ *   - here: the entry points the host calls (unocore_abi.h has the structs they fill), the
+ *     run loop, resets, the UART's queues and the stack's paint.
  *
  * Time: unocore_run_to(cycle) runs the AVR until its cycle counter (continued across resets)
  * reaches the cycle the host asks for: t_s * 16e6.
- *
- * Profile: where a step's cycles go (unocore_profile_*, `rovernav sim --rover uno --profile`)
- *   Off unless the host calls unocore_profile_start with a map from flash word to function
- *   (from the ELF's symbol table; uno.py builds it). Then, while PB0 is high, every executed
- *   instruction's cycles go to the function whose symbol holds the PC it executed at: counted
- *   per instruction, not sampled. The run loop already calls simavr once per instruction (the
- *   fast-forward needs that), so the count is exact: the cycle counter's difference across one
- *   avr_run. Each instruction also carries its interrupt context: the vector of the innermost
- *   interrupt simavr is running (its running stack, pushed at the entry, popped by RETI), 0 in
- *   the main line; the key is context * functions + function, so a handler and what it calls
- *   are counted apart from the same functions called from the main line. An interrupt's entry
- *   costs the interrupted instruction's avr_run too: that call's cycles (the instruction's and
- *   the entry's) go to the handler's context, at the vector table.
- *   Inclusive time comes from a shadow call stack (prof_calls): a CALL/RCALL/ICALL opens a frame,
- *   its RET closes it; tail calls and jumps into another function open tail frames. A frame's
- *   time is the cycles its context counted between the two, so interrupts are left out of a
- *   main-line function's inclusive time. Main-line frames also count per caller -> callee
- *   edge, which tells who calls the float routines that LTO cannot inline.
- *   Per step, the counts gather in a sparse table (the keys touched); when the next step
- *   rises (its descriptor, written at the end of the step, is then known), the step goes into
- *   the aggregates of the kinds it belongs to: all steps, one per descriptor flag (FIX, sonar,
- *   detour planner, radio bytes), and the steps with none of the flags. The longest steps keep
- *   their own sparse tables (a min-heap of `worst_cap` steps), from which the host takes the
- *   worst 1 %. The idle fast-forward is unaffected: it skips only at WDR, with PB0 low.
- *   Cost: a dozen loads and stores per instruction inside a step; a mission's AVR simulation
- *   runs about a third slower with the profile on, and exactly as before without it (one
- *   predictable branch per instruction).
  */
 #define _GNU_SOURCE
 
@@ -138,249 +57,19 @@
 #include <string.h>
 
 #include "avr_eeprom.h"
-#include "avr_extint.h"
-#include "avr_ioport.h"
-#include "avr_timer.h"
-#include "avr_twi.h"
-#include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
-#include "sim_interrupts.h"
 #include "sim_io.h"
 #include "sim_irq.h"
 
 #include "uart_line.h"
+#include "unocore.h"
+#include "unocore_ff.h"
+#include "unocore_mpu.h"
+#include "unocore_pins.h"
+#include "unocore_prof.h"
 
-#define UNOCORE_API __attribute__((visibility("default")))
-#define UNOCORE_ABI_VERSION 3
-
-/* ATmega328P data-space addresses (datasheet register summary) */
-enum {
-	A_PINB = 0x23, A_DDRB = 0x24, A_PORTB = 0x25,
-	A_PINC = 0x26, A_DDRC = 0x27, A_PORTC = 0x28,
-	A_PIND = 0x29, A_DDRD = 0x2A, A_PORTD = 0x2B,
-	A_GPIOR0 = 0x3E,
-	A_EIMSK = 0x3D,
-	A_TCCR0A = 0x44, A_TCCR0B = 0x45, A_OCR0A = 0x47, A_OCR0B = 0x48,
-	A_MCUSR = 0x54,
-	A_TCCR1A = 0x80, A_TCCR1B = 0x81, A_ICR1L = 0x86, A_ICR1H = 0x87,
-	A_OCR1AL = 0x88, A_OCR1AH = 0x89,
-	A_TCCR2A = 0xB0, A_TCCR2B = 0xB1, A_OCR2A = 0xB3, A_OCR2B = 0xB4,
-	A_TWSR = 0xB9, A_TWDR = 0xBB, A_TWCR = 0xBC,
-};
-enum { TWINT_BIT = 0x80, TWSTO_BIT = 0x10 };
-enum {
-	TW_START_ = 0x08, TW_MT_SLA_ACK_ = 0x18, TW_MT_SLA_NACK_ = 0x20,
-	TW_MT_DATA_ACK_ = 0x28, TW_MT_DATA_NACK_ = 0x30,
-};
-
-#define RING_BYTES 4096u
-#define MAX_IO 256              /* I/O addresses 0x20..0xFF: io index 0..0xDF */
 #define PAINT 0xA5              /* stack paint pattern */
-#define SONAR_ECHO_DELAY_US 450u
-#define SONAR_NO_ECHO_US 38000u
-#define MPU_REGS 128
-
-typedef uint32_t (*unocore_sonar_fn)(void *user);
-
-/* ------------------------------------------------------------------------------ structures
- * Shared with host/rovernav/cores/uno_harness.py (ctypes); keep the layouts in step. */
-
-typedef struct unocore_step {
-	uint64_t rise;           /* cycle PB0 went high */
-	uint64_t fall;           /* cycle PB0 went low (0: not yet) */
-	uint8_t desc;            /* GPIOR0 written during the step */
-	uint8_t has_desc;
-	uint8_t pad[2];
-	uint32_t boot;           /* resets before this step: periods across a reset are gaps */
-} unocore_step;
-
-typedef struct unocore_regs {
-	uint8_t tccr0a, ocr0a, ocr0b;
-	uint8_t tccr2a, ocr2a, ocr2b;
-	uint8_t portb, ddrb, portd, ddrd;
-	uint8_t tccr1a, tccr1b;
-	uint16_t icr1, ocr1a;
-	uint8_t last_desc, has_desc;   /* the last step descriptor, if any */
-	uint32_t pings;                /* TRIG rising edges so far */
-	uint32_t echoes;               /* echo pulses completed so far */
-	uint32_t steps;                /* PB0 rising edges so far */
-} unocore_regs;
-
-typedef struct unocore_stats {
-	uint64_t cycle;                /* continued across resets */
-	uint64_t skipped_cycles;       /* advanced by the idle fast-forward */
-	uint64_t skips;
-	uint32_t resets;               /* resets after the first boot (watchdog or unocore_reset) */
-	int32_t cpu_state;             /* simavr's cpu_* of the last run */
-	uint32_t crash_pc;
-	uint32_t uart_bytes_in, uart_bytes_out, uart_xoffs, uart_rx_queued;
-	uint32_t twi_addressed, twi_nacked, twi_bytes_written, twi_bytes_read;
-	uint32_t twi_whoami_reads, twi_gyro_reads;
-	uint32_t twi_status_fixed, twi_twint_cleared, twi_twsto_cleared;
-	uint32_t pings, echoes, pings_ignored;
-	uint16_t paint_start, ramend;
-	uint16_t stack_lowest;         /* lowest painted address ever overwritten; ramend+1: none */
-	uint16_t pad;
-	uint32_t sim_warnings;
-	uint32_t timer_modes_filled;
-} unocore_stats;
-
-/* The profile: the aggregates of one kind of step, and one of the longest steps. */
-#define PROF_CTX 64              /* interrupt contexts: 0 the main line, 1.. the vectors */
-#define PROF_KINDS 6             /* all, fix, sonar, replanning, radio_rx, none of the flags */
-
-typedef struct unocore_prof_info {
-	uint32_t nfuncs, nctx, nkeys, nkinds;   /* nkeys: nctx * nfuncs, then nedges */
-	uint32_t nedges;                    /* nfuncs * nfuncs call edges of the main line, or 0 */
-	uint32_t open_frames;               /* shadow frames still open when steps ended (0) */
-	uint64_t steps[PROF_KINDS];
-	uint64_t step_cycles[PROF_KINDS];   /* sum of fall - rise */
-	uint64_t attributed[PROF_KINDS];    /* sum of the cycles counted inside those steps */
-	uint64_t instructions;              /* instructions counted (in steps) */
-	uint32_t worst_kept, worst_cap;
-	uint32_t unfinished;                /* a step still open when the host asked */
-	uint32_t depth_lost;                /* calls nested deeper than the shadow stack */
-} unocore_prof_info;
-
-typedef struct unocore_prof_entry {
-	uint32_t key;                       /* context * nfuncs + function, or an edge (see info) */
-	uint32_t cycles;                    /* self: at PCs inside the function */
-	uint32_t calls;                     /* arrivals at one of its entry points from elsewhere */
-	uint32_t incl;                      /* inclusive: from a CALL to it until its RET */
-} unocore_prof_entry;
-
-typedef struct unocore_prof_step {
-	uint64_t rise, fall;
-	uint8_t desc, has_desc;
-	uint8_t pad[2];
-	uint32_t n;                         /* entries */
-} unocore_prof_step;
-
-typedef struct prof_worst {
-	unocore_prof_step hdr;
-	unocore_prof_entry *e;
-} prof_worst;
-
-#define PROF_DEPTH 64
-
-typedef struct prof_frame {
-	uint32_t key;
-	uint32_t edge;                      /* the key of caller -> callee (UINT32_MAX: none) */
-	uint8_t ctx;
-	uint8_t tail;                       /* entered by a jump or by falling through, not a call */
-	uint16_t nested;                    /* its function is already on the stack: no time of its own */
-	uint32_t from;                      /* a tail frame: the function it was entered from */
-	uint64_t clock;                     /* the context's clock at the call */
-} prof_frame;
-
-typedef struct prof {
-	int on;
-	const uint16_t *func_of_word;       /* copies, owned */
-	uint32_t nwords;
-	uint8_t *entry;                     /* by flash word: 1 where a function symbol starts */
-	uint32_t nfuncs, nkeys, nkeys_fn;   /* nkeys_fn = PROF_CTX * nfuncs; edges after them */
-	int edges;
-	uint32_t *cur_cycles, *cur_calls, *cur_incl;   /* this step, by key */
-	uint32_t *touched;                  /* the keys this step touched, each once */
-	uint8_t *mark;                      /* by key: in touched */
-	uint32_t ntouched;
-	uint32_t last_key;
-	uint64_t *agg_cycles, *agg_calls, *agg_incl;   /* [kind][key] */
-	/* the shadow call stack (inclusive time); clocks count the cycles counted, the main
-	 * line's alone and all of them (a frame in an interrupt handler uses the second) */
-	prof_frame stack[PROF_DEPTH];
-	uint32_t depth;
-	uint32_t depth_lost;                /* calls deeper than PROF_DEPTH: not timed */
-	uint64_t clock_main, clock_all;
-	unocore_prof_info info;
-	/* the step being counted */
-	int active;
-	uint64_t rise, fall, attributed;
-	uint8_t desc, has_desc;
-	uint32_t boot;
-	/* the longest steps: a min-heap by duration */
-	prof_worst *heap;
-	uint32_t nheap, cap;
-} prof_t;
-
-typedef struct ring {
-	uint8_t buf[RING_BYTES];
-	uint32_t head, len;
-} ring_t;
-
-typedef struct io_hook {
-	void *param;
-	void *c;
-} io_hook_t;
-
-typedef struct unocore {
-	avr_t *avr;
-	elf_firmware_t fw;
-	char error[256];
-
-	uint64_t base;                 /* cycles run before the last reset */
-	uint64_t last_avr_cycle;
-
-	/* UART0 (uart_line.h): bytes for the firmware wait in rx, what it sends waits in tx */
-	uart_line_t uart;
-	ring_t rx, tx;
-
-	/* TWI: the MPU-6050 */
-	avr_irq_t *twi_in;
-	uint8_t mpu_addr;
-	int gyro_alive;
-	int32_t gyro_chip_mdps;        /* the chip's frame: counter-clockwise positive */
-	uint8_t regs[MPU_REGS];
-	uint8_t reg_ptr;
-	int selected;                  /* addressed since the last START/STOP */
-	int first_write;               /* the next byte written is the register pointer */
-	int addr_w_status_pending;     /* the next status is the answer to an SLA+W */
-	uint8_t latch[14];             /* sensor registers 0x3B..0x48, latched at SLA+R */
-
-	/* sonar */
-	unocore_sonar_fn sonar_fn;
-	void *sonar_user;
-	avr_irq_t *echo_irq;
-	int trig_level;
-	int echo_busy;                 /* from TRIG until the echo has fallen */
-	uint32_t echo_us;
-
-	/* probe and descriptor */
-	int pb0_level;
-	unocore_step *steps;
-	uint32_t nsteps, capsteps;
-	uint32_t drained;              /* records [0, drained) went to the host */
-	uint8_t last_desc;
-	int has_desc;
-
-	uint8_t eimsk;
-
-	/* stack */
-	uint16_t paint_start;
-	uint16_t stack_lowest;
-
-	/* fast-forward */
-	int ff_enabled;
-	int dirty;
-	uint8_t *snap;
-	uint32_t snap_len;
-	uint8_t snap_sreg[8];
-	int snap_valid;
-	uint32_t snap_pc;
-	int8_t snap_interrupt_state;
-	uint64_t snap_cycle;
-	avr_cycle_timer_slot_p snap_head;
-	avr_cycle_count_t snap_head_when;
-	uint64_t target;               /* never skip past the cycle being run to */
-	io_hook_t orig_r[MAX_IO], orig_w[MAX_IO];
-
-	unocore_stats st;
-	uint32_t pings_total, echoes_total;
-
-	prof_t prof;
-	uint8_t held_low[3];           /* pins held to GND by the host, ports B, C, D (unocore_hold_pin_low) */
-} unocore;
 
 /* ------------------------------------------------------------------------------ logging */
 
@@ -404,8 +93,6 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
 	(void)avr;
 	(void)how_long;
 }
-
-static inline uint64_t now_cycle(const unocore *u) { return u->base + u->avr->cycle; }
 
 /* ------------------------------------------------------------------------------ rings */
 
@@ -436,555 +123,6 @@ static uint8_t uart_take(void *param) { return ring_pop(&((unocore *)param)->rx)
 
 static void uart_sent(void *param, uint8_t byte) { ring_push(&((unocore *)param)->tx, byte); }
 
-/* ------------------------------------------------------------------------------ MPU-6050 */
-
-enum {
-	MPU_SMPLRT_DIV = 0x19, MPU_CONFIG = 0x1A, MPU_GYRO_CONFIG = 0x1B, MPU_ACCEL_CONFIG = 0x1C,
-	MPU_SENSOR_FIRST = 0x3B, MPU_SENSOR_LAST = 0x48,
-	MPU_PWR_MGMT_1 = 0x6B, MPU_WHO_AM_I = 0x75,
-};
-
-static void mpu_reset_regs(unocore *u)
-{
-	memset(u->regs, 0, sizeof u->regs);
-	u->regs[MPU_PWR_MGMT_1] = 0x40; /* SLEEP after power-up and after DEVICE_RESET */
-	u->regs[MPU_WHO_AM_I] = 0x68;
-	u->reg_ptr = 0;
-}
-
-static int16_t clamp16(int64_t v)
-{
-	return (int16_t)(v > 32767 ? 32767 : v < -32768 ? -32768 : v);
-}
-
-/* The sensor registers, latched when a read transaction addresses the chip (the real chip
- * reads a burst from one sample). Asleep, the chip does not sample: zeros. */
-static void mpu_latch(unocore *u)
-{
-	memset(u->latch, 0, sizeof u->latch);
-	if (u->regs[MPU_PWR_MGMT_1] & 0x40)
-		return;
-	/* FS_SEL (GYRO_CONFIG bits 4:3): 131, 65.5, 32.8, 16.4 LSB per deg/s = 1310 / 2^fs per 10 */
-	unsigned fs = (u->regs[MPU_GYRO_CONFIG] >> 3) & 3;
-	int64_t num = (int64_t)u->gyro_chip_mdps * 131;
-	int64_t den = 1000LL << fs;    /* counts = mdps * 131 / (1000 * 2^fs) */
-	int64_t counts = (num >= 0 ? num + den / 2 : num - den / 2) / den;
-	int16_t z = clamp16(counts);
-	/* AFS_SEL (ACCEL_CONFIG bits 4:3): 16384 / 2^afs LSB per g; the rover stands level */
-	int16_t one_g = (int16_t)(16384 >> ((u->regs[MPU_ACCEL_CONFIG] >> 3) & 3));
-	u->latch[0x3F - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)one_g >> 8);   /* ACCEL_ZOUT */
-	u->latch[0x40 - MPU_SENSOR_FIRST] = (uint8_t)one_g;
-	int16_t temp = (int16_t)((25.0 - 36.53) * 340.0);                     /* 25 C */
-	u->latch[0x41 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)temp >> 8);
-	u->latch[0x42 - MPU_SENSOR_FIRST] = (uint8_t)temp;
-	u->latch[0x47 - MPU_SENSOR_FIRST] = (uint8_t)((uint16_t)z >> 8);       /* GYRO_ZOUT */
-	u->latch[0x48 - MPU_SENSOR_FIRST] = (uint8_t)z;
-}
-
-static uint8_t mpu_read(unocore *u)
-{
-	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
-	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
-	if (reg == MPU_WHO_AM_I)
-		u->st.twi_whoami_reads++;
-	if (reg == 0x47)
-		u->st.twi_gyro_reads++;
-	if (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST)
-		return u->latch[reg - MPU_SENSOR_FIRST];
-	return u->regs[reg];
-}
-
-static void mpu_write(unocore *u, uint8_t value)
-{
-	uint8_t reg = u->reg_ptr & (MPU_REGS - 1);
-	u->reg_ptr = (uint8_t)((reg + 1) & (MPU_REGS - 1));
-	if (reg == MPU_WHO_AM_I || (reg >= MPU_SENSOR_FIRST && reg <= MPU_SENSOR_LAST))
-		return; /* read-only */
-	if (reg == MPU_PWR_MGMT_1 && (value & 0x80)) {
-		mpu_reset_regs(u); /* DEVICE_RESET: every register to its default, the bit clears */
-		return;
-	}
-	u->regs[reg] = value;
-}
-
-static void twi_answer(unocore *u, uint8_t msg, uint8_t addr, uint8_t data)
-{
-	avr_raise_irq(u->twi_in, avr_twi_irq_msg(msg, addr, data));
-}
-
-/* Everything the TWI master puts on the bus. simavr expects a slave to answer at once, by
- * raising the TWI input IRQ: an ACK for an address or a written byte, the byte for a read. */
-static void twi_output_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	avr_twi_msg_irq_t v;
-	v.u.v = value;
-	uint8_t msg = v.u.twi.msg, addr = v.u.twi.addr, data = v.u.twi.data;
-	u->dirty = 1;
-
-	if (msg & TWI_COND_STOP) {
-		u->selected = 0;
-		u->addr_w_status_pending = 0;
-	}
-	if (msg & TWI_COND_START) {
-		/* START with an address byte: SLA+R or SLA+W */
-		u->selected = 0;
-		int is_write = (addr & 1) == 0;
-		u->addr_w_status_pending = is_write;
-		if ((addr >> 1) == u->mpu_addr && u->gyro_alive) {
-			u->selected = 1;
-			u->st.twi_addressed++;
-			if (is_write)
-				u->first_write = 1;
-			else
-				mpu_latch(u);
-			twi_answer(u, TWI_COND_ACK, addr, 1);
-		} else {
-			u->st.twi_nacked++; /* nobody answers: the master sees a NACK */
-		}
-		return;
-	}
-	if (!u->selected)
-		return;
-	if (msg & TWI_COND_WRITE) {
-		u->st.twi_bytes_written++;
-		if (u->first_write) {
-			u->reg_ptr = data & (MPU_REGS - 1);
-			u->first_write = 0;
-		} else {
-			mpu_write(u, data);
-		}
-		twi_answer(u, TWI_COND_ACK, addr, 1);
-	} else if (msg & TWI_COND_READ) {
-		u->st.twi_bytes_read++;
-		twi_answer(u, TWI_COND_READ, addr, mpu_read(u));
-	}
-}
-
-/* Workaround 1 (see the top of the file): the status that answers an SLA+W. */
-static void twi_status_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	u->dirty = 1;
-	if (value == TW_START_)
-		return; /* the START's own status comes before the address */
-	if (u->addr_w_status_pending) {
-		u->addr_w_status_pending = 0;
-		uint8_t fixed = value == TW_MT_DATA_ACK_ ? TW_MT_SLA_ACK_
-		              : value == TW_MT_DATA_NACK_ ? TW_MT_SLA_NACK_ : 0;
-		if (fixed) {
-			u->avr->data[A_TWSR] = (uint8_t)((u->avr->data[A_TWSR] & 0x07) | fixed);
-			u->st.twi_status_fixed++;
-		}
-	}
-}
-
-/* Workaround 2 (see the top of the file): chained after the TWI module's TWCR write. */
-static void twcr_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	u->dirty = 1;
-	if ((v & TWINT_BIT) && (avr->data[addr] & TWINT_BIT)) {
-		avr->data[addr] &= (uint8_t)~TWINT_BIT;
-		u->st.twi_twint_cleared++;
-	}
-	if ((v & TWSTO_BIT) && (avr->data[addr] & TWSTO_BIT)) {
-		avr->data[addr] &= (uint8_t)~TWSTO_BIT;
-		u->st.twi_twsto_cleared++;
-	}
-}
-
-/* ------------------------------------------------------------------------------ sonar */
-
-static avr_cycle_count_t echo_fall_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)avr;
-	(void)when;
-	unocore *u = param;
-	avr_raise_irq(u->echo_irq, 0);
-	u->echo_busy = 0;
-	u->echoes_total++;
-	u->dirty = 1;
-	return 0;
-}
-
-static avr_cycle_count_t echo_rise_timer(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-	(void)when;
-	unocore *u = param;
-	avr_raise_irq(u->echo_irq, 1);
-	avr_cycle_timer_register_usec(avr, u->echo_us, echo_fall_timer, u);
-	u->dirty = 1;
-	return 0;
-}
-
-static void trig_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	int level = (value & 1) != 0; /* simavr may flag output changes with AVR_IOPORT_OUTPUT */
-	int rising = level && !u->trig_level;
-	u->trig_level = level;
-	u->dirty = 1;
-	if (!rising)
-		return;
-	u->pings_total++;
-	if (u->echo_busy) { /* the sensor ignores a trigger until its echo has ended */
-		u->st.pings_ignored++;
-		return;
-	}
-	uint32_t range_mm = u->sonar_fn ? u->sonar_fn(u->sonar_user) : 0;
-	/* width_us = 2 * range / 0.343 mm/us; nothing in range: the HC-SR04's ~38 ms time-out */
-	u->echo_us = range_mm ? (uint32_t)(((uint64_t)range_mm * 2000u + 171u) / 343u)
-	                      : SONAR_NO_ECHO_US;
-	if (u->echo_us > SONAR_NO_ECHO_US)
-		u->echo_us = SONAR_NO_ECHO_US;
-	u->echo_busy = 1;
-	avr_cycle_timer_register_usec(u->avr, SONAR_ECHO_DELAY_US, echo_rise_timer, u);
-}
-
-/* ------------------------------------------------------------------------------ profile */
-
-static void prof_free(prof_t *pr)
-{
-	free((void *)pr->func_of_word);
-	free(pr->entry);
-	free(pr->cur_cycles);
-	free(pr->cur_calls);
-	free(pr->cur_incl);
-	free(pr->touched);
-	free(pr->mark);
-	free(pr->agg_cycles);
-	free(pr->agg_calls);
-	free(pr->agg_incl);
-	for (uint32_t i = 0; i < pr->nheap; i++)
-		free(pr->heap[i].e);
-	free(pr->heap);
-	memset(pr, 0, sizeof *pr);
-}
-
-static inline uint64_t worst_dur(const prof_worst *w) { return w->hdr.fall - w->hdr.rise; }
-
-static void heap_sift_down(prof_worst *h, uint32_t n, uint32_t i)
-{
-	for (;;) {
-		uint32_t l = 2 * i + 1, r = l + 1, m = i;
-		if (l < n && worst_dur(&h[l]) < worst_dur(&h[m]))
-			m = l;
-		if (r < n && worst_dur(&h[r]) < worst_dur(&h[m]))
-			m = r;
-		if (m == i)
-			return;
-		prof_worst t = h[i];
-		h[i] = h[m];
-		h[m] = t;
-		i = m;
-	}
-}
-
-static void heap_sift_up(prof_worst *h, uint32_t i)
-{
-	while (i > 0) {
-		uint32_t parent = (i - 1) / 2;
-		if (worst_dur(&h[parent]) <= worst_dur(&h[i]))
-			return;
-		prof_worst t = h[i];
-		h[i] = h[parent];
-		h[parent] = t;
-		i = parent;
-	}
-}
-
-/* Keeps the step's table when it is among the `cap` longest so far. */
-static void prof_offer_worst(prof_t *pr, const unocore_prof_step *hdr)
-{
-	if (pr->cap == 0)
-		return;
-	uint64_t dur = hdr->fall - hdr->rise;
-	prof_worst *slot;
-	if (pr->nheap < pr->cap) {
-		slot = &pr->heap[pr->nheap];
-		slot->e = NULL;
-	} else if (dur > worst_dur(&pr->heap[0])) {
-		slot = &pr->heap[0];
-	} else {
-		return;
-	}
-	unocore_prof_entry *e = realloc(slot->e, (pr->ntouched ? pr->ntouched : 1) * sizeof *e);
-	if (!e)
-		return;
-	for (uint32_t i = 0; i < pr->ntouched; i++) {
-		uint32_t k = pr->touched[i];
-		e[i].key = k;
-		e[i].cycles = pr->cur_cycles[k];
-		e[i].calls = pr->cur_calls[k];
-		e[i].incl = pr->cur_incl[k];
-	}
-	slot->e = e;
-	slot->hdr = *hdr;
-	slot->hdr.n = pr->ntouched;
-	if (slot == &pr->heap[pr->nheap]) {
-		pr->nheap++;
-		heap_sift_up(pr->heap, pr->nheap - 1);
-	} else {
-		heap_sift_down(pr->heap, pr->nheap, 0);
-	}
-}
-
-/* The step being counted has ended and its descriptor is known (the next step rose, or the
- * host asks for the figures): into the aggregates of its kinds, and maybe the worst steps. */
-static void prof_finalize(unocore *u)
-{
-	prof_t *pr = &u->prof;
-	if (!pr->active || pr->fall == 0)
-		return;
-	int kinds[PROF_KINDS], nk = 0;
-	kinds[nk++] = 0;
-	if (pr->has_desc) {
-		for (int b = 0; b < 4; b++)
-			if (pr->desc & (0x10 << b))
-				kinds[nk++] = 1 + b;
-		if ((pr->desc & 0xF0) == 0)
-			kinds[nk++] = 5;
-	}
-	uint64_t dur = pr->fall - pr->rise;
-	for (int j = 0; j < nk; j++) {
-		int kind = kinds[j];
-		uint64_t *cyc = pr->agg_cycles + (size_t)kind * pr->nkeys;
-		uint64_t *cal = pr->agg_calls + (size_t)kind * pr->nkeys;
-		uint64_t *inc = pr->agg_incl + (size_t)kind * pr->nkeys;
-		for (uint32_t i = 0; i < pr->ntouched; i++) {
-			uint32_t k = pr->touched[i];
-			cyc[k] += pr->cur_cycles[k];
-			cal[k] += pr->cur_calls[k];
-			inc[k] += pr->cur_incl[k];
-		}
-		pr->info.steps[kind]++;
-		pr->info.step_cycles[kind] += dur;
-		pr->info.attributed[kind] += pr->attributed;
-	}
-	unocore_prof_step hdr = { .rise = pr->rise, .fall = pr->fall, .desc = pr->desc,
-	                          .has_desc = pr->has_desc, .n = pr->ntouched };
-	prof_offer_worst(pr, &hdr);
-	for (uint32_t i = 0; i < pr->ntouched; i++) {
-		uint32_t k = pr->touched[i];
-		pr->cur_cycles[k] = 0;
-		pr->cur_calls[k] = 0;
-		pr->cur_incl[k] = 0;
-		pr->mark[k] = 0;
-	}
-	pr->ntouched = 0;
-	pr->active = 0;
-	pr->attributed = 0;
-}
-
-/* One executed instruction (or an interrupt's entry) inside a step: `cycles` at `pc` (a byte
- * address) in interrupt context `ctx`. */
-static inline void prof_count(prof_t *pr, uint32_t pc, uint32_t ctx, uint32_t cycles)
-{
-	uint32_t w = pc >> 1;
-	uint32_t f = w < pr->nwords ? pr->func_of_word[w] : pr->nfuncs - 1;
-	uint32_t key = ctx * pr->nfuncs + f;
-	if (!pr->mark[key]) {
-		pr->mark[key] = 1;
-		pr->touched[pr->ntouched++] = key;
-	}
-	pr->cur_cycles[key] += cycles;
-	pr->clock_all += cycles;
-	if (ctx == 0)
-		pr->clock_main += cycles;
-	if (w < pr->nwords && pr->entry[w] && key != pr->last_key)
-		pr->cur_calls[key]++;
-	pr->last_key = key;
-	pr->attributed += cycles;
-	pr->info.instructions++;
-}
-
-static inline uint32_t prof_func(const prof_t *pr, uint32_t pc)
-{
-	uint32_t w = pc >> 1;
-	return w < pr->nwords ? pr->func_of_word[w] : pr->nfuncs - 1;
-}
-
-static inline void prof_touch(prof_t *pr, uint32_t key)
-{
-	if (!pr->mark[key]) {
-		pr->mark[key] = 1;
-		pr->touched[pr->ntouched++] = key;
-	}
-}
-
-/* A frame for function f (a CALL's target, or a tail frame's), called from function `from`. */
-static inline void prof_push(prof_t *pr, uint32_t f, uint32_t ctx, int tail, uint32_t from)
-{
-	if (pr->depth == PROF_DEPTH) {
-		pr->depth_lost++;
-		return;
-	}
-	uint32_t key = ctx * pr->nfuncs + f;
-	int nested = from == f;             /* a subroutine inside the function (avr-libc's) */
-	for (uint32_t d = 0; d < pr->depth && !nested; d++)
-		nested = pr->stack[d].key == key;   /* recursion: counted once, by the outer frame */
-	prof_frame *fr = &pr->stack[pr->depth++];
-	fr->key = key;
-	fr->edge = UINT32_MAX;
-	if (pr->edges && ctx == 0 && !nested) {
-		fr->edge = pr->nkeys_fn + from * pr->nfuncs + f;
-		prof_touch(pr, fr->edge);
-		pr->cur_calls[fr->edge]++;
-	}
-	fr->ctx = (uint8_t)ctx;
-	fr->tail = (uint8_t)tail;
-	fr->nested = (uint16_t)nested;
-	fr->from = from;
-	fr->clock = ctx ? pr->clock_all : pr->clock_main;
-}
-
-static inline void prof_pop(prof_t *pr)
-{
-	prof_frame *fr = &pr->stack[--pr->depth];
-	if (fr->nested)
-		return;
-	uint64_t now = fr->ctx ? pr->clock_all : pr->clock_main;
-	uint32_t incl = (uint32_t)(now - fr->clock);
-	prof_touch(pr, fr->key);
-	pr->cur_incl[fr->key] += incl;
-	if (fr->edge != UINT32_MAX)
-		pr->cur_incl[fr->edge] += incl;   /* touched at the push */
-}
-
-/* The shadow call stack, after the instruction `op` (its second word op2) ran at pc in
- * context ctx and the PC went on to new_pc. A CALL, RCALL or ICALL opens a frame for its
- * target (decoded from the instruction, so an interrupt taken right after it changes
- * nothing); a RET closes the top frame and adds the cycles its context counted in between to
- * the callee's inclusive time, which leaves out the interrupts taken meanwhile (for a frame in
- * the main line). A RET with no frame (a call made before the step rose) is ignored. RCALL .+0
- * is not a call: GCC makes room on the stack with it, and frees the room with POP, not RET. A
- * frame whose function is already on the stack (avr-libc's routines call subroutines inside
- * themselves) adds no time: the outer frame has it.
- * Any other way into another function (a tail call, JMP/RJMP; falling through into the next
- * one, as avr-libc's float routines do; a jump into __prologue_saves__ or
- * __epilogue_restores__) opens a tail frame, closed by the next RET together with the frame
- * below it, or when the PC comes back into the function it was entered from (the prologue's
- * IJMP back into its function). RETI closes the handler's own frames. In the main line, each
- * frame also counts, and times, its edge: caller -> callee (who calls the float routines). */
-static inline void prof_calls(prof_t *pr, const avr_t *avr, uint16_t op, uint16_t op2, uint32_t pc,
-                              uint32_t ctx, uint32_t new_pc, int entered_isr)
-{
-	uint32_t target;
-	if ((op & 0xF000) == 0xD000 && op != 0xD000) {         /* RCALL k (not RCALL .+0) */
-		int32_t k = op & 0x0FFF;
-		if (k & 0x0800)
-			k -= 0x1000;
-		target = (uint32_t)((int32_t)pc + 2 + 2 * k);
-	} else if ((op & 0xFE0E) == 0x940E) {                  /* CALL k (two words) */
-		target = ((((uint32_t)(op & 0x01F0) >> 3) | (op & 1)) << 16 | op2) * 2;
-	} else if (op == 0x9509 || op == 0x9519) {             /* ICALL, EICALL: Z */
-		target = (uint32_t)(avr->data[30] | avr->data[31] << 8) * 2;
-	} else if (op == 0x9508) {                             /* RET */
-		while (pr->depth > 0 && pr->stack[pr->depth - 1].tail)
-			prof_pop(pr);
-		if (pr->depth > 0)
-			prof_pop(pr);
-		return;
-	} else if (op == 0x9518) {                             /* RETI */
-		while (pr->depth > 0 && pr->stack[pr->depth - 1].ctx == ctx && ctx != 0)
-			prof_pop(pr);
-		return;
-	} else {
-		if (entered_isr)
-			return;
-		uint32_t f = prof_func(pr, new_pc), from = prof_func(pr, pc);
-		if (f == from)
-			return;
-		for (uint32_t d = pr->depth; d > 0 && pr->stack[d - 1].tail; d--) {
-			if (pr->stack[d - 1].from == f) {              /* back where it came from */
-				while (pr->depth >= d)
-					prof_pop(pr);
-				return;
-			}
-		}
-		prof_push(pr, f, ctx, 1, from);
-		return;
-	}
-	prof_push(pr, prof_func(pr, target), ctx, 0, prof_func(pr, pc));
-}
-
-static inline uint32_t prof_ctx(const avr_t *avr)
-{
-	uint8_t n = avr->interrupts.running_ptr;
-	if (n == 0 || !avr->interrupts.running[n - 1])
-		return 0;
-	return avr->interrupts.running[n - 1]->vector & (PROF_CTX - 1);
-}
-
-/* ------------------------------------------------------------------------------ step probe */
-
-static void pb0_hook(avr_irq_t *irq, uint32_t value, void *param)
-{
-	(void)irq;
-	unocore *u = param;
-	int level = (value & 1) != 0;
-	if (level == u->pb0_level)
-		return;
-	u->pb0_level = level;
-	u->dirty = 1;
-	uint64_t now = now_cycle(u);
-	if (u->prof.on) {
-		if (level) {
-			prof_finalize(u);   /* the previous step's descriptor came before this edge */
-			u->prof.active = 1;
-			u->prof.rise = now;
-			u->prof.fall = 0;
-			u->prof.desc = 0;
-			u->prof.has_desc = 0;
-			u->prof.boot = u->st.resets;
-			u->prof.attributed = 0;
-			u->prof.depth = 0;
-		} else if (u->prof.active && u->prof.fall == 0) {
-			u->prof.fall = now;
-			u->prof.info.open_frames += u->prof.depth;
-		}
-	}
-	if (level) {
-		if (u->nsteps == u->capsteps) {
-			uint32_t cap = u->capsteps ? u->capsteps * 2 : 4096;
-			unocore_step *s = realloc(u->steps, cap * sizeof *s);
-			if (!s)
-				return;
-			u->steps = s;
-			u->capsteps = cap;
-		}
-		unocore_step *s = &u->steps[u->nsteps++];
-		memset(s, 0, sizeof *s);
-		s->rise = now;
-		s->boot = u->st.resets;
-	} else if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0) {
-		u->steps[u->nsteps - 1].fall = now;
-	}
-}
-
-static void gpior0_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	avr->data[addr] = v;
-	u->dirty = 1;
-	u->last_desc = v;
-	u->has_desc = 1;
-	/* the descriptor belongs to the step that rose last (written before or after its fall),
-	 * if that step was in this boot */
-	if (u->nsteps > 0 && u->steps[u->nsteps - 1].boot == u->st.resets) {
-		u->steps[u->nsteps - 1].desc = v;
-		u->steps[u->nsteps - 1].has_desc = 1;
-	}
-	if (u->prof.active && u->prof.boot == u->st.resets) {
-		u->prof.desc = v;
-		u->prof.has_desc = 1;
-	}
-}
-
 /* ------------------------------------------------------------------------------ stack */
 
 static void stack_paint(unocore *u)
@@ -1008,132 +146,6 @@ static void stack_measure(unocore *u)
 		u->stack_lowest = (uint16_t)a;
 }
 
-/* ------------------------------------------------------------------------------ fast-forward */
-
-static uint8_t read_wrap(avr_t *avr, avr_io_addr_t addr, void *param)
-{
-	unocore *u = param;
-	u->dirty = 1;
-	io_hook_t *h = &u->orig_r[AVR_DATA_TO_IO(addr)];
-	return ((avr_io_read_t)h->c)(avr, addr, h->param);
-}
-
-static void write_wrap(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	u->dirty = 1;
-	io_hook_t *h = &u->orig_w[AVR_DATA_TO_IO(addr)];
-	((avr_io_write_t)h->c)(avr, addr, v, h->param);
-}
-
-/* Every I/O register with a read or write handler gets a wrapper that marks the iteration as
- * one that touched the outside: such an iteration is never taken as a template to repeat. */
-static void wrap_io_handlers(unocore *u)
-{
-	avr_t *avr = u->avr;
-	for (int i = 0; i < MAX_IO && i < MAX_IOs; i++) {
-		if (avr->io[i].r.c && avr->io[i].r.c != read_wrap) {
-			u->orig_r[i].c = (void *)avr->io[i].r.c;
-			u->orig_r[i].param = avr->io[i].r.param;
-			avr->io[i].r.c = read_wrap;
-			avr->io[i].r.param = u;
-		}
-		if (avr->io[i].w.c && avr->io[i].w.c != write_wrap) {
-			u->orig_w[i].c = (void *)avr->io[i].w.c;
-			u->orig_w[i].param = avr->io[i].w.param;
-			avr->io[i].w.c = write_wrap;
-			avr->io[i].w.param = u;
-		}
-	}
-}
-
-static inline int at_wdr(const avr_t *avr)
-{
-	uint32_t pc = avr->pc;
-	return pc + 1 <= avr->flashend && avr->flash[pc] == 0xA8 && avr->flash[pc + 1] == 0x95;
-}
-
-/* Called with the PC on a WDR, before it executes. */
-static void fast_forward(unocore *u)
-{
-	avr_t *avr = u->avr;
-	avr_cycle_timer_slot_p head = avr->cycle_timers.timer;
-	int same = u->snap_valid && !u->dirty && u->snap_pc == avr->pc && avr->state == cpu_Running &&
-	           u->snap_head == head && head && u->snap_head_when == head->when &&
-	           u->snap_interrupt_state == avr->interrupt_state &&
-	           memcmp(u->snap_sreg, avr->sreg, sizeof u->snap_sreg) == 0 &&
-	           memcmp(u->snap, avr->data, u->snap_len) == 0 &&
-	           !avr_has_pending_interrupts(avr);
-	if (same) {
-		uint64_t period = avr->cycle - u->snap_cycle;
-		avr_cycle_count_t next = head->when;
-		/* whole iterations that end strictly before the next timer and the run target */
-		uint64_t limit_avr = u->target - u->base; /* target in avr->cycle units */
-		if (next > limit_avr)
-			next = limit_avr;
-		if (period > 0 && next > avr->cycle + period) {
-			uint64_t n = (next - avr->cycle - 1) / period;
-			if (n > 0) {
-				avr->cycle += n * period;
-				u->st.skipped_cycles += n * period;
-				u->st.skips++;
-			}
-		}
-		u->snap_cycle = avr->cycle;
-		u->dirty = 0;
-		return;
-	}
-	memcpy(u->snap, avr->data, u->snap_len);
-	memcpy(u->snap_sreg, avr->sreg, sizeof u->snap_sreg);
-	u->snap_pc = avr->pc;
-	u->snap_interrupt_state = avr->interrupt_state;
-	u->snap_cycle = avr->cycle;
-	u->snap_head = head;
-	u->snap_head_when = head ? head->when : 0;
-	u->snap_valid = 1;
-	u->dirty = 0;
-}
-
-/* ------------------------------------------------------------------------------ simavr 1.6 */
-
-/* Workaround 3 (see the top of the file). */
-static void extint_polling_off(unocore *u)
-{
-	for (uint8_t i = 0; i < 2; i++)
-		avr_extint_set_strict_lvl_trig(u->avr, i, (u->eimsk >> i) & 1);
-}
-
-static void eimsk_write_hook(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
-{
-	unocore *u = param;
-	avr->data[addr] = v;
-	u->dirty = 1;
-	if ((v & 3) != (u->eimsk & 3)) {
-		u->eimsk = v;
-		extint_polling_off(u);
-	}
-	u->eimsk = v;
-}
-
-/* Workaround 4 (see the top of the file). */
-static void timer_modes_fill_in(unocore *u)
-{
-	for (avr_io_t *io = u->avr->io_port; io; io = io->next) {
-		if (!io->kind || strcmp(io->kind, "timer") != 0)
-			continue;
-		avr_timer_t *t = (avr_timer_t *)io;
-		int wide = t->r_tcnth != 0;
-		for (int mode = 1; mode <= (wide ? 3 : 1); mode++) {
-			if (t->wgm_op[mode].kind != avr_timer_wgm_none)
-				continue;
-			t->wgm_op[mode].kind = avr_timer_wgm_fc_pwm;
-			t->wgm_op[mode].size = (uint8_t)(7 + mode); /* 8, 9, 10 bits */
-			t->wgm_op[mode].top = avr_timer_wgm_reg_constant;
-			u->st.timer_modes_filled++;
-		}
-	}
-}
-
 /* ------------------------------------------------------------------------------ resets */
 
 /* After a reset of either kind: simavr cleared the cycle timers (the UART feed, the echo),
@@ -1144,35 +156,16 @@ static void after_reset(unocore *u, uint64_t cycle_before)
 	u->base = cycle_before - avr->cycle;
 	u->last_avr_cycle = avr->cycle;
 	uart_line_after_reset(&u->uart);
-	if (u->echo_busy) {
-		u->echo_busy = 0;
-		avr_raise_irq(u->echo_irq, 0);
-	}
-	u->selected = 0;
-	u->addr_w_status_pending = 0;
+	sonar_after_reset(u);
+	mpu_after_reset(u);
 	u->snap_valid = 0;
 	u->dirty = 1;
-	if (u->pb0_level) { /* a step cut short by the reset: end it here */
-		u->pb0_level = 0;
-		if (u->nsteps > 0 && u->steps[u->nsteps - 1].fall == 0)
-			u->steps[u->nsteps - 1].fall = cycle_before;
-		if (u->prof.active && u->prof.fall == 0)
-			u->prof.fall = cycle_before;
-	}
+	probe_after_reset(u, cycle_before);
 	u->st.resets++;
-	u->eimsk = 0;
-	extint_polling_off(u);
+	extint_after_reset(u);
 	stack_paint(u);
 	uart_line_kick(&u->uart);
-	/* 5: the pin IRQs' values as PINx now has them (see the head of this file) */
-	for (int i = 0; i < 3; i++) {
-		const uint8_t pin = avr->data[A_PINB + 3 * i];
-		for (int b = 0; b < 8; b++) {
-			avr_irq_t *irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ((char)('B' + i)), b);
-			if (irq)
-				irq->value = (pin >> b) & 1u;
-		}
-	}
+	pin_irqs_after_reset(u);   /* 5: see unocore_pins.c */
 }
 
 /* ------------------------------------------------------------------------------ API */
@@ -1246,32 +239,15 @@ UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uin
 		return NULL;
 	}
 
-	/* TWI */
-	u->twi_in = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT);
-	avr_irq_t *twi_out = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_OUTPUT);
-	avr_irq_t *twi_status = avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_STATUS);
-	if (!u->twi_in || !twi_out || !twi_status) {
+	/* TWI: the MPU-6050 (unocore_mpu.c) */
+	if (mpu_attach(u, mpu_addr) != 0) {
 		snprintf(err, errlen, "MCU %s has no TWI", u->fw.mmcu);
 		unocore_free(u);
 		return NULL;
 	}
-	avr_irq_register_notify(twi_out, twi_output_hook, u);
-	avr_irq_register_notify(twi_status, twi_status_hook, u);
-	avr_register_io_write(avr, A_TWCR, twcr_write_hook, u);
-	avr_register_io_write(avr, A_EIMSK, eimsk_write_hook, u);
-	extint_polling_off(u);
-	timer_modes_fill_in(u);
-	u->mpu_addr = mpu_addr;
-	u->gyro_alive = 1;
-	mpu_reset_regs(u);
 
-	/* pins */
-	u->echo_irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN0);
-	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('C'), IOPORT_IRQ_PIN1),
-	                        trig_hook, u);
-	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_PIN0),
-	                        pb0_hook, u);
-	avr_register_io_write(avr, A_GPIOR0, gpior0_write_hook, u);
+	/* pins, external interrupts, timers (unocore_pins.c) */
+	pins_attach(u);
 
 	/* EEPROM boot counter, little-endian at address 0 */
 	uint8_t ee[2] = { (uint8_t)boot_counter, (uint8_t)(boot_counter >> 8) };
@@ -1291,7 +267,7 @@ UNOCORE_API unocore *unocore_new(const char *elf_path, uint16_t paint_start, uin
 		unocore_free(u);
 		return NULL;
 	}
-	wrap_io_handlers(u);
+	ff_wrap_io_handlers(u);
 	u->ff_enabled = 1;
 	u->last_avr_cycle = avr->cycle;
 	u->base = 0 - (uint64_t)avr->cycle; /* the host's cycle 0 is now */
@@ -1321,22 +297,7 @@ UNOCORE_API void unocore_set_gyro(unocore *u, int alive, int32_t chip_mdps)
  * outlives resets (avr_reset leaves it), as a jumper does. Returns 0, or -1 for an unknown port. */
 UNOCORE_API int unocore_hold_pin_low(unocore *u, char port, uint8_t bit, int held)
 {
-	int i = port - 'B';
-	if (i < 0 || i > 2 || bit > 7)
-		return -1;
-	if (held)
-		u->held_low[i] |= (uint8_t)(1u << bit);
-	else
-		u->held_low[i] &= (uint8_t)~(1u << bit);
-	avr_ioport_external_t ext = { .name = (unsigned long)port, .mask = u->held_low[i], .value = 0 };
-	if (avr_ioctl(u->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL(port), &ext) != 0)
-		return -1;
-	/* Now, too, if the firmware already reads it as an input */
-	const uint8_t ddr = u->avr->data[A_DDRB + 3 * i], prt = u->avr->data[A_PORTB + 3 * i];
-	if (!(ddr & (1u << bit)))
-		avr_raise_irq(avr_io_getirq(u->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit),
-		              held ? 0 : (prt >> bit) & 1u);
-	return 0;
+	return pins_hold_low(u, port, bit, held);
 }
 
 UNOCORE_API uint32_t unocore_rx(unocore *u, const uint8_t *data, uint32_t len)
@@ -1365,32 +326,13 @@ UNOCORE_API int unocore_run_to(unocore *u, uint64_t cycle)
 	int state = avr->state;
 	const int profiling = u->prof.on;
 	while (u->base + avr->cycle < cycle) {
-		if (u->ff_enabled && at_wdr(avr))
-			fast_forward(u);
+		if (u->ff_enabled && ff_at_wdr(avr))
+			ff_at_wdr_skip(u);
 		uint64_t before = u->base + avr->cycle;
-		if (profiling && u->pb0_level && u->prof.active) {
-			/* inside a step: count this instruction's cycles where it ran (see the top) */
-			avr_cycle_count_t c0 = avr->cycle;
-			uint32_t pc0 = avr->pc;
-			uint8_t depth0 = avr->interrupts.running_ptr;
-			uint32_t ctx0 = prof_ctx(avr);
-			uint16_t op = 0, op2 = 0;
-			if (pc0 + 3 <= avr->flashend) {
-				op = (uint16_t)(avr->flash[pc0] | avr->flash[pc0 + 1] << 8);
-				op2 = (uint16_t)(avr->flash[pc0 + 2] | avr->flash[pc0 + 3] << 8);
-			}
+		if (profiling && u->pb0_level && u->prof.active)
+			state = prof_run(&u->prof, avr);   /* inside a step: counted (unocore_prof.c) */
+		else
 			state = avr_run(avr);
-			if (avr->cycle > c0 && u->prof.active) {
-				uint32_t dc = (uint32_t)(avr->cycle - c0);
-				if (avr->interrupts.running_ptr > depth0) /* an interrupt's entry */
-					prof_count(&u->prof, avr->pc, prof_ctx(avr), dc);
-				else
-					prof_count(&u->prof, pc0, ctx0, dc);
-				prof_calls(&u->prof, avr, op, op2, pc0, ctx0, avr->pc, avr->interrupts.running_ptr > depth0);
-			}
-		} else {
-			state = avr_run(avr);
-		}
 		if (state == cpu_Crashed || state == cpu_Done || state == cpu_Stopped) {
 			u->st.crash_pc = avr->pc;
 			break;
@@ -1500,7 +442,7 @@ UNOCORE_API int unocore_eeprom(unocore *u, uint16_t offset, uint8_t *data, uint1
 }
 
 /*
- * Starts the profile (see the top of the file), forgetting any earlier one. func_of_word: the
+ * Starts the profile (see unocore_prof.c), forgetting any earlier one. func_of_word: the
  * function index of each flash word (nwords of them; words beyond are function nfuncs - 1, the
  * host's "no symbol"); entry: 1 for each flash word where a function's symbol starts (an
  * arrival there from another function is a call);
@@ -1509,57 +451,13 @@ UNOCORE_API int unocore_eeprom(unocore *u, uint16_t offset, uint8_t *data, uint1
 UNOCORE_API int unocore_profile_start(unocore *u, const uint16_t *func_of_word, uint32_t nwords,
                                       const uint8_t *entry, uint32_t nfuncs, uint32_t worst_cap)
 {
-	prof_t *pr = &u->prof;
-	prof_free(pr);
-	if (nfuncs == 0 || (uint64_t)nfuncs * PROF_CTX > UINT32_MAX / 2)
-		return -1;
-	for (uint32_t i = 0; i < nwords; i++)
-		if (func_of_word[i] >= nfuncs)
-			return -1;
-	pr->nwords = nwords;
-	pr->nfuncs = nfuncs;
-	pr->nkeys_fn = nfuncs * PROF_CTX;
-	pr->edges = nfuncs <= 512;          /* nfuncs^2 edges: up to 256K keys (the image: ~140) */
-	pr->nkeys = pr->nkeys_fn + (pr->edges ? nfuncs * nfuncs : 0);
-	uint16_t *map = malloc((nwords ? nwords : 1) * sizeof *map);
-	pr->entry = calloc(nwords ? nwords : 1, 1);
-	pr->cur_cycles = calloc(pr->nkeys, sizeof *pr->cur_cycles);
-	pr->cur_calls = calloc(pr->nkeys, sizeof *pr->cur_calls);
-	pr->cur_incl = calloc(pr->nkeys, sizeof *pr->cur_incl);
-	pr->touched = malloc(pr->nkeys * sizeof *pr->touched);
-	pr->mark = calloc(pr->nkeys, 1);
-	pr->agg_cycles = calloc((size_t)PROF_KINDS * pr->nkeys, sizeof *pr->agg_cycles);
-	pr->agg_calls = calloc((size_t)PROF_KINDS * pr->nkeys, sizeof *pr->agg_calls);
-	pr->agg_incl = calloc((size_t)PROF_KINDS * pr->nkeys, sizeof *pr->agg_incl);
-	pr->cap = worst_cap;
-	pr->heap = calloc(worst_cap ? worst_cap : 1, sizeof *pr->heap);
-	pr->func_of_word = map;
-	if (!map || !pr->entry || !pr->cur_cycles || !pr->cur_calls || !pr->cur_incl ||
-	    !pr->touched || !pr->mark || !pr->agg_cycles || !pr->agg_calls || !pr->agg_incl || !pr->heap) {
-		prof_free(pr);
-		return -1;
-	}
-	memcpy(map, func_of_word, nwords * sizeof *map);
-	memcpy(pr->entry, entry, nwords);
-	pr->last_key = UINT32_MAX;
-	pr->info.nfuncs = nfuncs;
-	pr->info.nctx = PROF_CTX;
-	pr->info.nkeys = pr->nkeys;
-	pr->info.nedges = pr->nkeys - pr->nkeys_fn;
-	pr->info.nkinds = PROF_KINDS;
-	pr->info.worst_cap = worst_cap;
-	pr->on = 1;
-	return 0;
+	return prof_start(&u->prof, func_of_word, nwords, entry, nfuncs, worst_cap);
 }
 
 /* The profile's counters, after folding in the last step if it has ended. */
 UNOCORE_API void unocore_profile_info(unocore *u, unocore_prof_info *out)
 {
-	prof_finalize(u);
-	u->prof.info.worst_kept = u->prof.nheap;
-	u->prof.info.unfinished = (uint32_t)u->prof.active;
-	u->prof.info.depth_lost = u->prof.depth_lost;
-	*out = u->prof.info;
+	prof_info_read(&u->prof, out);
 }
 
 /* The aggregates of one kind of step: self cycles, calls and inclusive cycles by key (nkeys
@@ -1567,14 +465,7 @@ UNOCORE_API void unocore_profile_info(unocore *u, unocore_prof_info *out)
 UNOCORE_API uint32_t unocore_profile_read(unocore *u, uint32_t kind, uint64_t *cycles, uint64_t *calls,
                                           uint64_t *incl, uint32_t max)
 {
-	prof_t *pr = &u->prof;
-	if (!pr->on || kind >= PROF_KINDS || max < pr->nkeys)
-		return 0;
-	prof_finalize(u);
-	memcpy(cycles, pr->agg_cycles + (size_t)kind * pr->nkeys, pr->nkeys * sizeof *cycles);
-	memcpy(calls, pr->agg_calls + (size_t)kind * pr->nkeys, pr->nkeys * sizeof *calls);
-	memcpy(incl, pr->agg_incl + (size_t)kind * pr->nkeys, pr->nkeys * sizeof *incl);
-	return pr->nkeys;
+	return prof_read(&u->prof, kind, cycles, calls, incl, max);
 }
 
 /* One of the longest steps kept (i < info.worst_kept, in no order): its header, and up to max
@@ -1582,11 +473,6 @@ UNOCORE_API uint32_t unocore_profile_read(unocore *u, uint32_t kind, uint64_t *c
 UNOCORE_API uint32_t unocore_profile_worst(unocore *u, uint32_t i, unocore_prof_step *hdr,
                                            unocore_prof_entry *out, uint32_t max)
 {
-	prof_t *pr = &u->prof;
-	if (i >= pr->nheap)
-		return 0;
-	*hdr = pr->heap[i].hdr;
-	uint32_t n = hdr->n < max ? hdr->n : max;
-	memcpy(out, pr->heap[i].e, n * sizeof *out);
-	return n;
+	return prof_worst_read(&u->prof, i, hdr, out, max);
 }
+

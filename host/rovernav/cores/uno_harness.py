@@ -123,7 +123,8 @@ def _ensure_built(elf: Path) -> tuple[Path, Path]:
                 raise
             log.warning("the Uno image is older than the firmware sources and does not rebuild; "
                         "running the old %s", elf)
-    if need_lib or _newest_mtime((HARNESS_SRC, UART_LINE_H)) > LIBRARY.stat().st_mtime:
+    harness = [*HARNESS_SRC.parent.glob("*.[ch]"), HARNESS_SRC.parent / "Makefile"]   # tools/avrsim
+    if need_lib or _newest_mtime(harness) > LIBRARY.stat().st_mtime:
         _run(["make", "-s", "-C", str(ROOT / "tools" / "avrsim"), "unocore"], "building the simavr harness")
     return elf, LIBRARY
 
