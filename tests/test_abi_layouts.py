@@ -16,7 +16,7 @@ from rovernav.cores import abi_gen
 
 ROOT = Path(__file__).resolve().parents[1]
 GENERATOR = ROOT / "firmware" / "abi" / "generate.py"
-GENERATED = ("firmware/abi/rover_abi_gen.h", "firmware/abi/unocore_abi_gen.h", "host/rovernav/cores/abi_gen.py")
+GENERATED = ("firmware/abi/rover_abi_gen.h", "tools/avrsim/unocore_abi_gen.h", "host/rovernav/cores/abi_gen.py")
 
 
 def _load_generator():
@@ -110,7 +110,7 @@ def test_the_c_compiler_lays_the_headers_out_as_ctypes_lays_out_the_classes(tmp_
                    "  put(unocore, sizeof unocore / sizeof *unocore);\n"
                    "  put(unocore_sizes, sizeof unocore_sizes / sizeof *unocore_sizes);\n  return 0;\n}\n")
     exe = tmp_path / "layout"
-    subprocess.run([compiler, "-std=gnu11", "-Wall", "-Wextra", "-Werror", f"-I{ROOT / 'firmware' / 'abi'}",
+    subprocess.run([compiler, "-std=gnu11", "-Wall", "-Wextra", "-Werror", f"-I{ROOT / 'firmware' / 'abi'}", f"-I{ROOT / 'tools' / 'avrsim'}",
                     str(src), "-o", str(exe)], check=True, capture_output=True)
     rover, unocore, unocore_sizes = ([int(w) for w in line.split()] for line in
                                      subprocess.run([str(exe)], check=True, capture_output=True,

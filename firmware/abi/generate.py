@@ -3,7 +3,7 @@
 
 Writes, with a first line saying they are generated and from what:
   firmware/abi/rover_abi_gen.h        rover_abi.h's structs and constants (rover_abi.h includes it)
-  firmware/abi/unocore_abi_gen.h      the simavr harness's structs (tools/avrsim/unocore.c)
+  tools/avrsim/unocore_abi_gen.h      the simavr harness's structs (tools/avrsim/unocore.c)
   host/rovernav/cores/abi_gen.py      both as ctypes.Structure classes
 
 Each C header also gets <ABI>_STRUCT_SIZES and <ABI>_LAYOUT_WORDS, the initializers a library

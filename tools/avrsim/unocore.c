@@ -175,8 +175,7 @@ UNOCORE_API uint32_t unocore_abi_version(void) { return UNOCORE_ABI_VERSION; }
 /* sizeof the structs the host reads (cores/uno_harness.py checks its ctypes copies against these), in
  * this order: step, regs, stats, prof_info, prof_entry, prof_step. Returns how many there are. */
 UNOCORE_API uint32_t unocore_struct_sizes(uint32_t* out, uint32_t n) {
-  const uint32_t sizes[] = {sizeof(unocore_step), sizeof(unocore_regs), sizeof(unocore_stats),
-                            sizeof(unocore_prof_info), sizeof(unocore_prof_entry), sizeof(unocore_prof_step)};
+  const uint32_t sizes[] = {UNOCORE_ABI_STRUCT_SIZES};
   const uint32_t count = sizeof(sizes) / sizeof(sizes[0]);
   for (uint32_t i = 0; i < count && i < n; ++i) out[i] = sizes[i];
   return count;

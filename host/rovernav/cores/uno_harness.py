@@ -31,7 +31,6 @@ FIRMWARE = ROOT / "firmware"
 ELF = ROOT / "build" / "uno" / "firmware.elf"
 LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
 HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
-UART_LINE_H = ROOT / "tools" / "avrsim" / "uart_line.h"   # included by unocore.c
 BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
 VEHICLE_H = FIRMWARE / "lib" / "link" / "vehicle_gen.h"   # included by board.h
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
@@ -52,7 +51,7 @@ class UnoSetupError(FirmwareBuildError):
 
 # ---------------------------------------------------------------------------- ctypes layout
 # unocore.c's structs, generated from firmware/abi/abi.toml (firmware/abi/generate.py), which also
-# writes them for C in firmware/abi/unocore_abi_gen.h.
+# writes them for C in tools/avrsim/unocore_abi_gen.h.
 
 # (The short names are the ones uno.py, profile.py and the tests use.)
 _Step, _Regs, _Stats = UnocoreStep, UnocoreRegs, UnocoreStats
