@@ -4,7 +4,7 @@ The host is the real Mission (or the PathUpload it uses); the rover is the firmw
 its C ABI. Between them a pipe drops or duplicates the frames a test names (by kind, and which
 occurrence), so every case is exact and repeatable: a lost HELLO, a lost chunk, a lost ACK, a
 duplicated frame, a lost START, a lost STOP. A whole mission on a randomly lossy radio is in
-test_sim.py (`test_a_mission_at_one_percent_byte_loss_reaches_its_target`).
+test_sim_faults.py (`test_a_mission_at_one_percent_byte_loss_reaches_its_target`).
 """
 from __future__ import annotations
 

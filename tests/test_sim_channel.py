@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rovernav.sim.channel import Channel, ChannelConfig
+from rovernav.radio import ChannelConfig
+from rovernav.sim.channel import Channel
 
 
 # ---------------------------------------------------------------- radio

@@ -133,7 +133,7 @@ def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
 def test_a_mission_at_one_percent_byte_loss_reaches_its_target():
     # 1 % of bytes lost and 0.1 % with a flipped bit, both ways: about two in five signed PATH
     # chunks, and one FIX in four, do not arrive. Every exchange is retried (protocol/README.md).
-    from rovernav.sim.channel import ChannelConfig
+    from rovernav.radio import ChannelConfig
 
     clean, _ = _simulate("seed-fig4-8-unknown-obstacle", seed=2)
     r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=2, channel=ChannelConfig(byte_loss=0.01, bit_error=0.001))

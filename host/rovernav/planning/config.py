@@ -30,7 +30,7 @@ class PlannerConfig:
     # The potential field (see planning.potential): U = k_att·d + k_rep·((c0 − c)/c0)² within c0.
     # With k_att = 1, Table 4.2 holds (trapped by the large obstacles, through the small ones)
     # for k_rep from 0.04 to 0.11 and c0 from 0.02 to 0.25 m, from starts moved by up to
-    # 6 cm; the defaults sit in the middle (tests/test_planning.py checks a spread of them).
+    # 6 cm; the defaults sit in the middle (tests/test_planning_paths.py checks a spread of them).
     potential_attractive_gain: float = 1.0   # k_att [1/m]: U grows by this per metre from the target
     potential_repulsive_gain: float = 0.07   # k_rep: the repulsion at the rover body's edge
     potential_influence_m: float = 0.1       # c0: clearance beyond the robot radius where repulsion starts
