@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rovernav.sim import camera as this_render
 from rovernav.scenario import load_scenario
+from rovernav.sim import camera as this_render
 
 ROOT = Path(__file__).resolve().parents[1]
 

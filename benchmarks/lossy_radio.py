@@ -44,8 +44,8 @@ MOVING = {1, 2, 3, 7, 9}   # rotate, drive, scan, back_off, planning (mg.RoverSt
 def run_one(job: tuple) -> dict:
     scenario, seed, radio = job
     sys.path.insert(0, str(ROOT / "host"))
-    from rovernav.scenario import load_scenario
     from rovernav.radio import ChannelConfig
+    from rovernav.scenario import load_scenario
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()

@@ -94,3 +94,12 @@ def simulate():
     def make(scenario, **options):
         return Simulation(scenario, SimOptions(**options), progress=lambda t_s, text: None)
     return make
+
+
+@pytest.fixture(scope="module")
+def built():
+    """(the simavr UART bridge, the Uno image's ELF), both built (test_avrsim.build_bridge_and_image);
+    the test is skipped when the AVR tools are missing."""
+    from test_avrsim import build_bridge_and_image
+
+    return build_bridge_and_image()

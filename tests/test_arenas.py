@@ -10,12 +10,19 @@ import numpy as np
 import pytest
 
 from rovernav.cli import main
+from rovernav.evaluation.arenas import (
+    ALL_FAMILY_NAMES,
+    CELLULAR_CELL_M,
+    FAMILIES,
+    FAMILY_NAMES,
+    NARROW_EXTRA_M,
+    ArenaError,
+    generate_arenas,
+    measure_scenario,
+    write_arenas,
+)
 from rovernav.planning import OccupancyGrid, PlannerConfig, Unreachable, plan
 from rovernav.scenario import Arena, Mission, Obstacle, Pose, Scenario, Target, load_scenario, parse_scenario
-from rovernav.evaluation.arenas import (
-    ALL_FAMILY_NAMES, CELLULAR_CELL_M, FAMILIES, FAMILY_NAMES, NARROW_EXTRA_M, ArenaError, generate_arenas,
-    measure_scenario, write_arenas,
-)
 
 INFLATION_M = PlannerConfig().inflation_m
 
@@ -130,7 +137,7 @@ def _gaps(scenario):
     gaps = []
     for x0, x1, y0, y1 in edges:
         gaps += [x0, W - x1, y0, H - y1]
-        for u0, u1, v0, v1 in edges:
+        for u0, _u1, v0, _v1 in edges:
             gaps += [u0 - x1, v0 - y1]
     return [g for g in gaps if g > 0]
 

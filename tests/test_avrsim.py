@@ -50,9 +50,9 @@ def _run(cmd: list[str]) -> subprocess.CompletedProcess[str]:
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
 
 
-@pytest.fixture(scope="module")
-def built() -> tuple[Path, Path]:
-    """(bridge, firmware ELF), both freshly built."""
+def build_bridge_and_image() -> tuple[Path, Path]:
+    """(bridge, firmware ELF), both freshly built (conftest.py's `built` fixture); skips the test
+    when the AVR tools are missing."""
     missing = _missing_tools()
     if missing:
         pytest.skip("AVR simulation needs: " + ", ".join(missing))

@@ -101,7 +101,7 @@ def test_a_c_only_program_is_linked_by_avr_gcc():
     assert build_uno.linker_for([unit, cxx]) == "avr-g++"
 
 
-def _library(root: Path, name: str, files: dict[str, str]) -> "build_uno.Library":
+def _library(root: Path, name: str, files: dict[str, str]) -> build_uno.Library:
     folder = root / "lib" / name
     folder.mkdir(parents=True)
     for file, text in files.items():

@@ -180,7 +180,8 @@ def _cand(hues, s=200, v=200) -> cc.Candidate:
 
 def test_proposed_ranges_keep_apart_stay_valid_and_refuse_only_what_one_range_cannot_hold():
     rng = np.random.default_rng(3)
-    noisy = lambda centre, n=400, sd=2.0: list(np.clip(np.round(rng.normal(centre, sd, n)), 0, 179).astype(int))
+    def noisy(centre, n=400, sd=2.0):
+        return list(np.clip(np.round(rng.normal(centre, sd, n)), 0, 179).astype(int))
     # An orange near the bottom of the hue scale keeps its range (the margin stops at 0).
     r = cc.propose_ranges({"rover_front": [_cand(noisy(4))], "rover_back": [_cand(noisy(60))],
                            "target": [_cand(noisy(110))]})
@@ -188,7 +189,7 @@ def test_proposed_ranges_keep_apart_stay_valid_and_refuse_only_what_one_range_ca
     # A long tail of one marker's hues towards another's: cut strictly between their own hues.
     tail = noisy(30) + [80] * 30
     r = cc.propose_ranges({"rover_front": [_cand(tail)], "rover_back": [_cand(noisy(42))], "target": [_cand(noisy(120))]})
-    for role, ((lo, _, _), (hi, _, _)) in r.items():
+    for _role, ((lo, _, _), (hi, _, _)) in r.items():
         assert lo <= hi
     assert r["rover_front"][1][0] < 42 <= r["rover_back"][1][0] and r["rover_back"][0][0] > 30
     VisionConfig.from_dict({"hsv": {k: [list(a), list(b)] for k, (a, b) in r.items()}})   # a valid [vision]

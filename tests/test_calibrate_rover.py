@@ -12,8 +12,6 @@ from rovernav.config import config_from_dict, load_config
 from rovernav.link import messages_gen as mg
 from rovernav.sim.setup import Setup, true_vision
 
-from test_avrsim import built  # noqa: E402,F401 - the module fixture: the Uno image and the simavr bridge
-
 DRIVE = int(mg.RoverState.DRIVE)
 
 

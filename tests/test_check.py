@@ -12,7 +12,6 @@ from rovernav.config import config_from_dict
 
 pytestmark = pytest.mark.mission   # each test runs the simulated rover for a few seconds
 
-from test_avrsim import built  # noqa: E402,F401 - the module fixture: the Uno image and the simavr bridge
 
 # The line that must fail for each fault, and words it must say.
 FAULT_LINES = {

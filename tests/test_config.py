@@ -9,7 +9,6 @@ import threading
 import cv2
 import numpy as np
 import pytest
-
 from tests.core_transport import firmware_hello
 
 from rovernav import vehicle_gen as vehicle

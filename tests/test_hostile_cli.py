@@ -10,6 +10,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from tests.hostile_maps import BAD_MAPS, grid, map_text, reading
 
 from rovernav import cli, files
 from rovernav.errors import MapFileError
@@ -19,8 +20,6 @@ from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
 from rovernav.mapping import SonarReading
 from rovernav.mapping.learned_map import LearnedMap, read_map_file
-
-from tests.hostile_maps import BAD_MAPS, grid, map_text, reading
 
 # ------------------------------------------------------------------ cases 1 and 4: `rovernav run`
 
@@ -294,14 +293,14 @@ def test_the_hosts_exceptions_are_one_small_tree():
     # A caller catches what it can handle: input, link, camera, planning, setup, a failed mission.
     from rovernav import errors
     from rovernav.config import ConfigError
-    from rovernav.demo import DemoError
     from rovernav.cores import FirmwareBuildError
+    from rovernav.cores.uno_harness import UnoSetupError
+    from rovernav.demo import DemoError
+    from rovernav.evaluation.arenas import GenerationFailed
     from rovernav.link.provision import ProvisionError
     from rovernav.planning import NoPathError, Unreachable
     from rovernav.runlog.replay import LogFileError
     from rovernav.scenario import ScenarioError
-    from rovernav.evaluation.arenas import GenerationFailed
-    from rovernav.cores.uno_harness import UnoSetupError
 
     branches = (errors.InputError, LinkError, errors.CameraError, errors.PlanningError, errors.SetupError,
                 errors.MissionFailed)

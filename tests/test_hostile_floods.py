@@ -16,6 +16,7 @@ from types import SimpleNamespace
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.core_transport import firmware_hello
 
 from rovernav.errors import InputError
 from rovernav.link import link as link_mod
@@ -26,8 +27,6 @@ from rovernav.link.framing import MAX_ENCODED_BODY, FrameDecoder, encode_frame
 from rovernav.link.link import MAX_PENDING_FRAMES, Link
 from rovernav.link.requests import RequestTracker
 from rovernav.link.transport import MAX_READ_BYTES, LoopbackTransport, PipeTransport
-
-from tests.core_transport import firmware_hello
 
 needs_pty = pytest.mark.skipif(os.name != "posix", reason="pseudo-terminals are POSIX only")
 
@@ -81,7 +80,7 @@ class Flooder:
             except LinkError:
                 return
 
-    def __enter__(self) -> "Flooder":
+    def __enter__(self) -> Flooder:
         self.thread.start()
         return self
 

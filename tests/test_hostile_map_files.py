@@ -12,14 +12,17 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tests.hostile_maps import BAD_MAPS, grid, map_text, reading
 
 from rovernav.errors import MapFileError
 from rovernav.mapping import SonarReading
 from rovernav.mapping.learned_map import (
-    MAX_MAP_BYTES, MAX_MAP_READINGS, LearnedMap, check_map_path, read_map_file,
+    MAX_MAP_BYTES,
+    MAX_MAP_READINGS,
+    LearnedMap,
+    check_map_path,
+    read_map_file,
 )
-
-from tests.hostile_maps import BAD_MAPS, grid, map_text, reading
 
 # ------------------------------------------------------------------ case 1: learned-map files
 

@@ -23,8 +23,8 @@ from hypothesis import strategies as st
 
 from rovernav import cli as rovernav_cli
 from rovernav.errors import InputError
-from rovernav.study import pose as pose_mod
 from rovernav.files import strict_json_value
+from rovernav.study import pose as pose_mod
 from rovernav.study.cli import MAX_RUNS, MAX_SEED, dumps
 from rovernav.study.ekf import nees_monte_carlo
 from rovernav.validate import MAX_ARENA_M, MAX_SIM_STEPS

@@ -12,8 +12,29 @@ from rovernav.link.errors import LinkClosed, LinkTimeout, Nacked, SchemaMismatch
 from rovernav.link.framing import cobs_encode, crc16, encode_frame
 from rovernav.link.link import Link, host_hello, version_word
 from rovernav.link.messages_gen import (
-    MESSAGES, PROTOCOL_VERSION, SCHEMA_HASH, Ack, Config, EventKind, Event, Fix, Heartbeat, Hello, Nack,
-    LinkAuth, NackReason, Obstacle, Param, Path, Provision, Role, RoverState, Start, Status, Stop, StopReason,
+    MESSAGES,
+    PROTOCOL_VERSION,
+    SCHEMA_HASH,
+    Ack,
+    Config,
+    Event,
+    EventKind,
+    Fix,
+    Heartbeat,
+    Hello,
+    LinkAuth,
+    Nack,
+    NackReason,
+    Obstacle,
+    Param,
+    Path,
+    Provision,
+    Role,
+    RoverState,
+    Start,
+    Status,
+    Stop,
+    StopReason,
 )
 from rovernav.link.schema import Message
 from rovernav.link.transport import LoopbackTransport, PipeTransport, Transport

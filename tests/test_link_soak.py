@@ -11,6 +11,7 @@ import threading
 import time
 
 import pytest
+from tests.core_transport import CoreTransport
 
 from rovernav.cli import main
 from rovernav.cores import NativeCore
@@ -19,8 +20,6 @@ from rovernav.link import soak as sk
 from rovernav.link.errors import LinkClosed
 from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
-
-from tests.core_transport import CoreTransport
 
 KEY = bytes(range(7, 23))
 BYTES_PER_STEP = 58          # 57,600 baud 8N1 is 5,760 bytes a second: 58 in the core's 10 ms step
@@ -310,7 +309,7 @@ class _RealTimeRover:
 def test_link_check_soak_on_the_command_line(tmp_path, monkeypatch, capsys, signed):
     key_file = tmp_path / "link.key"
     if signed:
-        from rovernav.link.keys import write_key_file, load_key_file
+        from rovernav.link.keys import load_key_file, write_key_file
 
         write_key_file(key_file)
     with _RealTimeRover(load_key_file(key_file) if signed else None) as rover:

@@ -8,6 +8,8 @@ test_sim_faults.py (`test_a_mission_at_one_percent_byte_loss_reaches_its_target`
 """
 from __future__ import annotations
 
+from tests.core_transport import CoreRover
+
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
@@ -15,8 +17,6 @@ from rovernav.link.path_upload import Answer, PathUpload, path_chunks
 from rovernav.link.transport import PipeTransport, Transport
 from rovernav.mission import Detection, Mission, Phase
 from rovernav.planning import OccupancyGrid, PlannerConfig
-
-from tests.core_transport import CoreRover
 
 
 def _frames(data: bytes) -> list[tuple[bytes, object]]:

@@ -206,7 +206,6 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
 def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_claims():
     # An old map file (or a rover told to report out to 4 m) says "no echo within 4 m"; the
     # HC-SR04's driver measures nothing past the sensor's range (protocol/vehicle.toml), 1 m.
-    from rovernav.link import messages_gen as mg
     from rovernav.mapping.sonar_map import SonarMap, SonarReading
 
     m = SonarMap(3.0, 1.0, 0.03, 0.1)

@@ -7,18 +7,16 @@ from __future__ import annotations
 import math
 
 import pytest
+from tests.core_transport import CoreRover, firmware_hello
 
 from rovernav.errors import MapFileError
 from rovernav.link import framing
 from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
-from rovernav.mission import Detection, Failure, Mission, Outcome, Phase
-from rovernav.mission import phases
+from rovernav.mission import Detection, Failure, Mission, Outcome, Phase, phases
 from rovernav.planning import OccupancyGrid, PlannerConfig
 from rovernav.planning.turns import body_clear
-
-from tests.core_transport import CoreRover, firmware_hello
 
 
 class ScriptedRover:

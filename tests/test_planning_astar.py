@@ -17,12 +17,11 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tests.planning_checks import sampled_cells_free
 
 from rovernav.planning.astar import astar_cells, path_cost
 from rovernav.planning.moves import MOVE_DX, MOVE_DY, N_MOVES, free_space_distance, move_allowed
 from rovernav.planning.segment import segment_clear
-
-from tests.planning_checks import sampled_cells_free
 
 # --- an independent model of the 16 moves -----------------------------------------------------
 

@@ -11,7 +11,6 @@ import cv2
 from rovernav.planning.cli import add_plan_parser
 from rovernav.validate import ArgParser
 
-
 # --- the command ------------------------------------------------------------------------------------
 
 def run_cli(argv, capsys):

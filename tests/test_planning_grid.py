@@ -8,11 +8,9 @@ import math
 
 import numpy as np
 import pytest
-
-from rovernav.planning import OccupancyGrid, PlannerConfig, plan
-
 from tests.planning_checks import sampled_cells_free, scenario_grid
 
+from rovernav.planning import OccupancyGrid, PlannerConfig, plan
 
 # --- the occupancy grid -------------------------------------------------------------------------
 

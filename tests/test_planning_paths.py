@@ -8,16 +8,21 @@ import math
 
 import numpy as np
 import pytest
+from tests.planning_checks import SEED_SCENARIOS, sampled_cells_free, scenario_grid
 
 from rovernav.planning import (
-    GoalBlocked, LocalMinimum, NoPathError, OccupancyGrid, OutsideArena, PlannerConfig, StartBlocked, Unreachable,
+    GoalBlocked,
+    LocalMinimum,
+    NoPathError,
+    OccupancyGrid,
+    OutsideArena,
+    PlannerConfig,
+    StartBlocked,
+    Unreachable,
     plan,
 )
 from rovernav.planning.potential import body_layer
 from rovernav.planning.simplify import simplify_points
-
-from tests.planning_checks import SEED_SCENARIOS, sampled_cells_free, scenario_grid
-
 
 # --- plans on the shared scenarios ----------------------------------------------------------------
 

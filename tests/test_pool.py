@@ -40,7 +40,7 @@ def test_unordered_pairs_come_as_runs_end_with_star_arguments():
 def test_a_run_that_raises_raises_when_its_pair_is_due():
     got = []
     with pytest.raises(ValueError, match="three"):
-        for item, result in map_runs(fail_on_three, [1, 2, 3, 4], 1):
+        for _item, result in map_runs(fail_on_three, [1, 2, 3, 4], 1):
             got.append(result)
     assert got == [1, 2]
 

@@ -294,9 +294,8 @@ def test_traffic_budget_of_the_readme_holds():
 
 def test_every_fault_code_is_raised_by_the_firmware():
     # A fault code on the wire that no code path raises is a promise the rover does not keep.
-    from pathlib import Path
-
     import re
+    from pathlib import Path
 
     sources = "".join(p.read_text() for p in (Path(__file__).resolve().parents[1] / "firmware" / "lib").rglob("*.cpp"))
     raised = set(re.findall(r"raise_fault\(FaultCode::(\w+)", sources))

@@ -5,13 +5,12 @@ its current key, or the consent pin held to GND at its reset)."""
 from __future__ import annotations
 
 import pytest
+from tests.core_transport import CoreTransport
 
 from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
 from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
 from rovernav.link.provision import NeedsConsent, ProvisionError, WrongCurrentKey, provision
-
-from tests.core_transport import CoreTransport
 
 KEY = bytes(range(50, 66))
 NEW_KEY = bytes(range(90, 106))

@@ -16,17 +16,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
+from tests.core_transport import CoreTransport
 
-from rovernav.angles import wrap_deg
 from rovernav import hardware
+from rovernav.angles import wrap_deg
 from rovernav.cli import main
 from rovernav.link import messages_gen as mg
 from rovernav.mission.spec import MissionSpec
 from rovernav.runlog import CHANNELS
 from rovernav.runlog.channels import META_RUN
 from rovernav.runlog.replay import paths_sent, read_log, replay
-
-from tests.core_transport import CoreTransport
 
 FIG48 = "seed-fig4-8-unknown-obstacle"
 

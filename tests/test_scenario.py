@@ -8,7 +8,13 @@ from pathlib import Path
 import pytest
 
 from rovernav.scenario import (
-    ScenarioError, default_scenario, load_scenario, parse_scenario, resolve_scenario, scenario_dir, scenario_names,
+    ScenarioError,
+    default_scenario,
+    load_scenario,
+    parse_scenario,
+    resolve_scenario,
+    scenario_dir,
+    scenario_names,
 )
 
 SHARED = ("out-and-back", "seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles")
@@ -352,8 +358,8 @@ def test_a_scenario_written_by_scenario_toml_reads_back_the_same():
     # The run log keeps a scenario as this text; replay builds the host's grid from it.
     import dataclasses
 
-    from rovernav.scenario import parse_scenario, scenario_names, scenario_toml
     from rovernav.evaluation.arenas import generate_arenas
+    from rovernav.scenario import parse_scenario, scenario_names, scenario_toml
 
     scenarios = [load_scenario(n) for n in scenario_names()] + [a.scenario for a in generate_arenas(70, seed=3)]
     assert any(s.walls for s in scenarios) and any(s.posts for s in scenarios)

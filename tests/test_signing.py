@@ -11,14 +11,22 @@ import time
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.core_transport import firmware_hello
 
 from rovernav.link import messages_gen as mg
-from rovernav.link.framing import (MAX_FRAME, FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16,
-                                   encode_frame, frame_tag)
+from rovernav.link.framing import (
+    MAX_FRAME,
+    FrameDecoder,
+    Signer,
+    Verifier,
+    cobs_decode,
+    cobs_encode,
+    crc16,
+    encode_frame,
+    frame_tag,
+)
 from rovernav.link.keys import KeyFileError, load_key_file, write_key_file
 from rovernav.link.link import host_hello
-
-from tests.core_transport import firmware_hello
 
 KEY = bytes(range(16))
 OTHER = bytes(range(1, 17))

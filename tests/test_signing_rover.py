@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
-from rovernav.link.framing import (FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16,
-                                   encode_frame)
+from rovernav.link.framing import FrameDecoder, Signer, Verifier, cobs_decode, cobs_encode, crc16, encode_frame
 
 KEY = bytes(range(100, 116))
 

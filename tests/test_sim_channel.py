@@ -7,7 +7,6 @@ import numpy as np
 from rovernav.radio import ChannelConfig
 from rovernav.sim.channel import Channel
 
-
 # ---------------------------------------------------------------- radio
 
 def test_channel_carries_bytes_at_the_line_rate_after_the_delay():

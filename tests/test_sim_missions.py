@@ -13,16 +13,14 @@ import subprocess
 import sys
 
 import pytest
+from tests.sim_runs import rover_events as _rover_events
+from tests.sim_runs import run_report as _run
+from tests.sim_runs import simulate_named as _simulate
 
 from rovernav.link import messages_gen as mg
 from rovernav.scenario import load_scenario
 from rovernav.sim.report import build_report
 from rovernav.sim.runner import SimOptions, Simulation
-
-from tests.sim_runs import rover_events as _rover_events
-from tests.sim_runs import run_report as _run
-from tests.sim_runs import simulate_named as _simulate
-
 
 # ---------------------------------------------------------------- whole missions
 
@@ -182,8 +180,8 @@ known = false
 
 @pytest.mark.mission
 def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(tmp_path):
-    from rovernav.scenario import parse_scenario
     from rovernav.arena_picture import Canvas, draw_arena
+    from rovernav.scenario import parse_scenario
 
     sim = Simulation(parse_scenario(WALL_AND_POST), SimOptions(seed=1, max_time_s=300))
     assert len(sim.world.walls) == 2 and len(sim.world.posts) == 1

@@ -10,7 +10,6 @@ import pytest
 
 from rovernav.sim.world import Box, Post, Wall, World, footprint
 
-
 # ---------------------------------------------------------------- footprint, clearance and contact
 
 def test_footprint_contact_and_clearance():

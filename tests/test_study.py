@@ -10,8 +10,19 @@ import pytest
 
 from rovernav.planning import NoPathError, OccupancyGrid, plan
 from rovernav.study import (
-    REPORT_P0, REPORT_P1, REPORT_P2, LocalisationScenario, PoseGains, crater_map, from_polar, nees_monte_carlo,
-    path_is_clear, plan_on_map, run_localisation, simulate_pose, to_polar,
+    REPORT_P0,
+    REPORT_P1,
+    REPORT_P2,
+    LocalisationScenario,
+    PoseGains,
+    crater_map,
+    from_polar,
+    nees_monte_carlo,
+    path_is_clear,
+    plan_on_map,
+    run_localisation,
+    simulate_pose,
+    to_polar,
 )
 from rovernav.study.cli import add_pose_parser, add_study_parser
 from rovernav.study.ekf import jacobian_fq, jacobian_fv, jacobian_hq, motion, observe, update

@@ -13,8 +13,14 @@ from rovernav.link.framing import encode_frame
 from rovernav.link.link import Link
 from rovernav.link.messages_gen import Ack, Fix, Hello, Obstacle, Path, Role, Status
 from rovernav.link.transport import (
-    DEFAULT_BAUD, LoopbackTransport, PipeTransport, PtyTransport, SerialTransport, Transport,
-    open_transport, parse_serial_spec,
+    DEFAULT_BAUD,
+    LoopbackTransport,
+    PipeTransport,
+    PtyTransport,
+    SerialTransport,
+    Transport,
+    open_transport,
+    parse_serial_spec,
 )
 
 needs_pty = pytest.mark.skipif(os.name != "posix", reason="pseudo-terminals are POSIX only")

@@ -11,8 +11,18 @@ from pathlib import Path
 import pytest
 
 from rovernav.cli import main
-from rovernav.evaluation.trials import (TrialJob, barn_score, gate_violations, headline, headlines_by, row_from_report,
-                                        run_jobs, run_trial, sample_arenas, time_score)
+from rovernav.evaluation.trials import (
+    TrialJob,
+    barn_score,
+    gate_violations,
+    headline,
+    headlines_by,
+    row_from_report,
+    run_jobs,
+    run_trial,
+    sample_arenas,
+    time_score,
+)
 
 EASY = """\
 version = 1

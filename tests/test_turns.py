@@ -6,10 +6,21 @@ import math
 
 import numpy as np
 
-from rovernav.planning import OccupancyGrid, PlannerConfig, plan
 from rovernav.mapping.learned_map import Echo
-from rovernav.planning.turns import (HALF_SEEN_DEPTH_M, MIN_TURN_DEG, REFUSED_NEAR_M, SWING_M, SWING_MARGIN_M,
-                                     ahead_first, body_clear, clearance_map, half_seen, turn_deg, turnable)
+from rovernav.planning import OccupancyGrid, PlannerConfig, plan
+from rovernav.planning.turns import (
+    HALF_SEEN_DEPTH_M,
+    MIN_TURN_DEG,
+    REFUSED_NEAR_M,
+    SWING_M,
+    SWING_MARGIN_M,
+    ahead_first,
+    body_clear,
+    clearance_map,
+    half_seen,
+    turn_deg,
+    turnable,
+)
 
 # A divider up from the bottom edge, its end 0.48 m below the top: the way from one side to the
 # other bends round its end.

@@ -203,7 +203,6 @@ def test_idle_fast_forward_changes_nothing_the_firmware_or_the_host_can_see(buil
     """The same 3 s, with the harness skipping idle loop iterations and without: the same
     bytes on the UART, the same step edges to the cycle."""
     from rovernav.link.framing import encode_frame
-
     from rovernav.link.link import host_hello
 
     hello = encode_frame(host_hello(9), 0)
@@ -450,9 +449,10 @@ def test_short_names_drop_parameters_clones_and_the_namespace():
 # ---------------------------------------------------------------- signed frames on the image
 
 def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_after_a_reset(built):
+    from tests.core_transport import CoreTransport
+
     from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
     from rovernav.link.provision import provision
-    from tests.core_transport import CoreTransport
 
     key = bytes(range(200, 216))
     core = uno.UnoCore(boot_id=3, reset_cause=2)   # the USB port opened: an external reset
@@ -581,9 +581,10 @@ def test_a_keyed_image_refuses_a_strangers_provision_after_power_on_brown_out_an
 
 
 def test_a_keyed_image_takes_a_new_key_signed_with_its_current_one_and_signs_with_it_after_a_reset(built):
+    from tests.core_transport import CoreTransport
+
     from rovernav.link.framing import Signer, Verifier, encode_frame
     from rovernav.link.provision import provision
-    from tests.core_transport import CoreTransport
 
     core = uno.UnoCore(boot_id=5, reset_cause=0x01, key=OWNER_KEY)
     board = uno.board_constants()

@@ -13,8 +13,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from uno_libraries import SOURCE_SUFFIXES, Library, archive_order, find_libraries
-from uno_platformio import (CORE_ARCHIVE, DEPFLAGS, ENV_NAME, PIO_LIBS, PLATFORMIO_INI, ROOT, VARIANT_ARCHIVE, Budget,
-                            Flags, PioConfig, SetupError, Sizes, budget_of, uno_flags)
+from uno_platformio import (
+    CORE_ARCHIVE,
+    DEPFLAGS,
+    ENV_NAME,
+    PIO_LIBS,
+    PLATFORMIO_INI,
+    ROOT,
+    VARIANT_ARCHIVE,
+    Budget,
+    Flags,
+    PioConfig,
+    SetupError,
+    Sizes,
+    budget_of,
+    uno_flags,
+)
 from uno_toolchain import ARDUINO_AVR, Toolchain, require_tools
 
 

@@ -165,9 +165,9 @@ def c_header(abi: dict) -> str:
     sizes = [f"sizeof({st['name']})" for st in abi["structs"]]
     words = sizes + [c["name"] for c in abi.get("constants", [])] + \
         [f"offsetof({st['name']}, {fd['name']})" for st in abi["structs"] for fd in st["fields"]]
-    out.append(f"\n/* Initializers for a library to report its layout with, for a host to check its copy against:\n"
-               f" * sizeof each struct above, in order; and those, then the constants, then the offset of every\n"
-               f" * field in declaration order. */\n")
+    out.append("\n/* Initializers for a library to report its layout with, for a host to check its copy against:\n"
+               " * sizeof each struct above, in order; and those, then the constants, then the offset of every\n"
+               " * field in declaration order. */\n")
     out.append(f"#define {p}_STRUCT_SIZES {', '.join(sizes)}\n")
     out.append(f"#define {p}_LAYOUT_WORDS \\\n" + ", \\\n".join(f"  {w}" for w in words) + "\n")
     out.append("\n#endif\n")

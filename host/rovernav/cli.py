@@ -217,11 +217,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_protocol)
 
     from .calibrate.cli import add_calibrate_parser
+    from .evaluation.arenas import add_arenas_parser
+    from .evaluation.trials import add_trials_parser
     from .planning.cli import add_plan_parser
     from .runlog.cli import add_replay_parser
-    from .evaluation.arenas import add_arenas_parser
     from .sim.cli import add_sim_parser
-    from .evaluation.trials import add_trials_parser
     from .study.cli import add_pose_parser, add_study_parser
     from .vision.cli import add_locate_parser
 

@@ -75,7 +75,7 @@ class build_lock:
         self.path = Path(folder) / ".build.lock"
         self._fd: int | None = None
 
-    def __enter__(self) -> "build_lock":
+    def __enter__(self) -> build_lock:
         import fcntl
 
         self.path.parent.mkdir(parents=True, exist_ok=True)

@@ -26,8 +26,8 @@ from .errors import CameraError, InputError, MapFileError
 from .link.errors import LinkError, PortSpecError
 from .link.link import Link
 from .link.transport import SerialTransport, parse_serial_spec
-from .mission import Detection, Mission, MissionFailed, Phase
 from .mapping.learned_map import check_map_path, read_map_file
+from .mission import Detection, Mission, MissionFailed, Phase
 from .planning import OccupancyGrid
 from .validate import MAX_SIM_TIME_S, check_number
 

@@ -48,7 +48,7 @@ import math
 import os
 import tomllib
 from pathlib import Path
-from typing import Any, ClassVar, Union
+from typing import Any, ClassVar
 
 from .errors import InputError
 from .validate import MAX_ARENA_M, MAX_TRIPS, read_text_file, show
@@ -186,7 +186,7 @@ class Post:
         return f"at ({self.x_m:.2f}, {self.y_m:.2f}) m, radius {self.radius_m:.3f} m"
 
 
-Shape = Union[Obstacle, Wall, Post]
+Shape = Obstacle | Wall | Post
 
 
 @dataclasses.dataclass(frozen=True)

@@ -3,9 +3,17 @@ the parameters' packed table, a struct per message) and firmware/test/test_link/
 (render_vectors_h: the golden vectors of vectors.json as tables and test cases)."""
 from __future__ import annotations
 
-from .definition import (CRC_BYTES, HEADER_BYTES, TYPES, WIRE_TYPES, DefinitionError, banner, camel, param_scale,
-                         payload_size)
-
+from .definition import (
+    CRC_BYTES,
+    HEADER_BYTES,
+    TYPES,
+    WIRE_TYPES,
+    DefinitionError,
+    banner,
+    camel,
+    param_scale,
+    payload_size,
+)
 
 # A parameter's storage on the rover: the least width its limits allow, in this order (the widest
 # first, so that a value's width and sign follow from where it lies in the store).
@@ -207,7 +215,7 @@ def render_vectors_h(d: dict, vectors: dict) -> str:
            "#pragma once\n#include <stdint.h>\n\n"]
     tables_at = len(out)
     out.append("#ifdef ROVERNAV_GOLDEN_TEST_CASES\n")
-    for i, v in enumerate(vectors["frames"]):
+    for v in vectors["frames"]:
         m = by_name[v["message"]]
         cls = f"rovernav::msg::{camel(m['name'])}"
         frame = bytes.fromhex(v["frame_hex"])

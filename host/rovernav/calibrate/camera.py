@@ -312,7 +312,7 @@ def propose_ranges(markers: dict[str, list[Candidate]]) -> dict[str, tuple[tuple
                 cut = min(max((spans[a][1] + spans[b][0]) / 2, ca + 1.0), cb - 1.0)
                 spans[a][1] = min(spans[a][1], cut - 0.5)
                 spans[b][0] = max(spans[b][0], cut + 0.5)
-    for role, (lo_h, hi_h, centre) in spans.items():
+    for role, (lo_h, hi_h, _centre) in spans.items():
         out[role][0][0], out[role][1][0] = int(math.ceil(lo_h)), int(math.floor(hi_h))
         others = [spans[r][2] for r in spans if r != role]
         if out[role][0][0] > out[role][1][0] or any(out[role][0][0] <= c <= out[role][1][0] for c in others):
@@ -347,7 +347,7 @@ def calibrate_camera(frames: list[np.ndarray], arena_w_m: float, arena_h_m: floa
         how = "points given"
     else:
         found, last = None, None
-        for i, f in enumerate(frames):
+        for f in frames:
             try:
                 found = arena_from_tags(f, arena_w_m, arena_h_m, tag_ids=tag_ids, dictionary=dictionary, inset_m=inset_m)
                 break

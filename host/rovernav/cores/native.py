@@ -14,8 +14,15 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .abi_gen import ROVER_ABI_CONSTANTS, ROVER_ABI_STRUCTS, ROVER_ABI_VERSION, ROVER_TX_PER_STEP, RoverInputs, \
-    RoverOutputs, RoverProbe
+from .abi_gen import (
+    ROVER_ABI_CONSTANTS,
+    ROVER_ABI_STRUCTS,
+    ROVER_ABI_VERSION,
+    ROVER_TX_PER_STEP,
+    RoverInputs,
+    RoverOutputs,
+    RoverProbe,
+)
 from .protocol import FirmwareBuildError, Probe, StepOut
 
 log = logging.getLogger("rovernav.cores.native")

@@ -37,8 +37,8 @@ import math
 import os
 import re
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from ..link import messages_gen as mg
 from ..link.framing import FrameDecoder, Verifier, crc16
@@ -46,8 +46,24 @@ from ..link.messages_gen import SIGN_ROVER_TO_HOST
 from .elf import FunctionMap, static_ram_end
 from .profile import read_profile, start_profile
 from .protocol import Probe, StepOut
-from .uno_harness import (BOARD_H, CLOCK_HZ, CYCLES_PER_MS, DESC_FLAGS, DESC_STATE_MASK, ELF, ROOT, STEP_US,
-                          VEHICLE_H, UnoSetupError, _Regs, _SONAR_FN, _Stats, _Step, ensure_built, load_library)
+from .uno_harness import (
+    _SONAR_FN,
+    BOARD_H,
+    CLOCK_HZ,
+    CYCLES_PER_MS,
+    DESC_FLAGS,
+    DESC_STATE_MASK,
+    ELF,
+    ROOT,
+    STEP_US,
+    VEHICLE_H,
+    UnoSetupError,
+    _Regs,
+    _Stats,
+    _Step,
+    ensure_built,
+    load_library,
+)
 
 
 class UnoCrashError(RuntimeError):

@@ -20,8 +20,17 @@ import sys
 from pathlib import Path
 
 from ..vehicle_gen import STEP_PERIOD_MS
-from .abi_gen import (PROF_KINDS_NAMES, UNOCORE_ABI_STRUCTS, UNOCORE_ABI_VERSION, UnocoreProfEntry, UnocoreProfInfo,
-                      UnocoreProfStep, UnocoreRegs, UnocoreStats, UnocoreStep)
+from .abi_gen import (
+    PROF_KINDS_NAMES,
+    UNOCORE_ABI_STRUCTS,
+    UNOCORE_ABI_VERSION,
+    UnocoreProfEntry,
+    UnocoreProfInfo,
+    UnocoreProfStep,
+    UnocoreRegs,
+    UnocoreStats,
+    UnocoreStep,
+)
 from .protocol import FirmwareBuildError
 
 log = logging.getLogger("rovernav.cores.uno")

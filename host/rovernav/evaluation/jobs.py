@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from ..errors import InputError
 from ..files import strict_json_value
@@ -114,8 +114,8 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
     and keeps no state. Exceptions from the simulator propagate (the caller records an error).
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     """
-    from ..scenario import load_scenario
     from ..radio import ChannelConfig, radio_config
+    from ..scenario import load_scenario
     from ..sim.report import build_report, summary_picture, write_report
     from ..sim.runner import SimOptions, Simulation
 

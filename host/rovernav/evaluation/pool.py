@@ -9,7 +9,8 @@ import logging
 import time
 import traceback
 import uuid
-from typing import Any, Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 from ..files import write_atomic
 from .jobs import TrialJob, TrialsError, failure_row, run_trial

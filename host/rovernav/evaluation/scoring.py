@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import collections
 import statistics
-from typing import Iterable
+from collections.abc import Iterable
 
 STRATEGIES = ("rovernav", "seed")
 GATED_STRATEGY = "rovernav"

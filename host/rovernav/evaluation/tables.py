@@ -9,13 +9,12 @@ import json
 import platform
 import shutil
 import subprocess
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable, Iterable
 
 from .. import __version__
 from ..files import strict_json_value, write_atomic
 from .scoring import GATED_STRATEGY, ROW_FIELDS, _row_order, gate_violations, headline, headlines_by, strategies_of
-
 
 # ---------------------------------------------------------------- outputs
 

@@ -66,11 +66,33 @@ from pathlib import Path
 from ..validate import MAX_SIM_TIME_S, number, out_dir, seconds
 from .jobs import TrialJob, TrialsError, failure_row, find_arenas, make_jobs, run_trial, sample_arenas
 from .pool import HANG_GRACE_S, POLL_S, run_jobs
-from .scoring import (BARN_CLIP_HIGH, BARN_CLIP_LOW, GATED_STRATEGY, ROW_FIELDS, STRATEGIES,
-                      UNLABELLED, barn_score, derive, failure_reason, gate_violations, headline,
-                      headlines_by, row_from_report, strategies_of, time_score)
-from .tables import (DEFINITIONS, TABLE_COLUMNS, markdown_table, radio_text, render_markdown,
-                     versions, write_gallery, write_outputs)
+from .scoring import (
+    BARN_CLIP_HIGH,
+    BARN_CLIP_LOW,
+    GATED_STRATEGY,
+    ROW_FIELDS,
+    STRATEGIES,
+    UNLABELLED,
+    barn_score,
+    derive,
+    failure_reason,
+    gate_violations,
+    headline,
+    headlines_by,
+    row_from_report,
+    strategies_of,
+    time_score,
+)
+from .tables import (
+    DEFINITIONS,
+    TABLE_COLUMNS,
+    markdown_table,
+    radio_text,
+    render_markdown,
+    versions,
+    write_gallery,
+    write_outputs,
+)
 
 # The public names of the command's parts (jobs, scoring, pool, tables) are importable from here too,
 # as they were from rovernav.sim.trials.
@@ -232,7 +254,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         print(f"[{done}/{total}] {row['arena']} {row['strategy']} s{row['seed']}: {_describe(row)}   ({so_far})",
               flush=True)
 
-    started_utc = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    started_utc = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     started = time.monotonic()
     rows = run_jobs(jobs, workers, args.scheduler, start, progress)
     wall_time_s = time.monotonic() - started

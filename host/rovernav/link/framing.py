@@ -33,8 +33,17 @@ import dataclasses
 import hmac
 import time
 
-from .messages_gen import (MAX_SIGNED_RAW_FRAME, MESSAGES, PROTOCOL_VERSION, SIGN_COUNTER_BYTES, SIGN_EPOCH_UNIX_S,
-                           SIGN_FLAG, SIGN_TAG_BYTES, SIGN_UNSIGNED_IDS, UART_BUFFER_BYTES)
+from .messages_gen import (
+    MAX_SIGNED_RAW_FRAME,
+    MESSAGES,
+    PROTOCOL_VERSION,
+    SIGN_COUNTER_BYTES,
+    SIGN_EPOCH_UNIX_S,
+    SIGN_FLAG,
+    SIGN_TAG_BYTES,
+    SIGN_UNSIGNED_IDS,
+    UART_BUFFER_BYTES,
+)
 from .schema import Message
 from .siphash import KEY_BYTES, siphash24
 

@@ -261,7 +261,7 @@ class Link:
         """Close the transport."""
         self.transport.close()
 
-    def __enter__(self) -> "Link":
+    def __enter__(self) -> Link:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

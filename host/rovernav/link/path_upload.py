@@ -29,7 +29,6 @@ import enum
 
 from . import messages_gen as mg
 
-
 #: Chunks go out one at a time, this far apart [s] at least: the rover checks one signed frame a
 #: 10 ms step, so four 56-byte chunks at once, with the FIXes among them, would overrun its
 #: 128-byte serial buffer (`rovernav link-check --soak` saw 0.3 % of frames lost so on a clean line).

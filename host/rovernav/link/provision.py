@@ -20,9 +20,31 @@ import time
 
 from ..errors import InputError
 from .errors import LinkError
-from .framing import CRC_BYTES, HEADER_BYTES, SIGNATURE_BYTES, FrameDecoder, Signer, Verifier, cobs_decode, crc16, encode_frame
-from .messages_gen import (PROTOCOL_VERSION, SIGN_CONSENT_PIN, SIGN_FLAG, SIGN_HOST_TO_ROVER, SIGN_PROVISION_WINDOW_MS,
-                           SIGN_ROVER_TO_HOST, Ack, Hello, Nack, NackReason, Provision, Role)
+from .framing import (
+    CRC_BYTES,
+    HEADER_BYTES,
+    SIGNATURE_BYTES,
+    FrameDecoder,
+    Signer,
+    Verifier,
+    cobs_decode,
+    crc16,
+    encode_frame,
+)
+from .messages_gen import (
+    PROTOCOL_VERSION,
+    SIGN_CONSENT_PIN,
+    SIGN_FLAG,
+    SIGN_HOST_TO_ROVER,
+    SIGN_PROVISION_WINDOW_MS,
+    SIGN_ROVER_TO_HOST,
+    Ack,
+    Hello,
+    Nack,
+    NackReason,
+    Provision,
+    Role,
+)
 from .transport import Transport
 
 

@@ -93,7 +93,7 @@ class Message:
         return self.STRUCT.pack(*self.values())
 
     @classmethod
-    def unpack(cls, payload: bytes) -> "Message":
+    def unpack(cls, payload: bytes) -> Message:
         """Decode a payload; ValueError if its length is not this message's size."""
         if len(payload) != cls.STRUCT.size:
             raise ValueError(f"{cls.NAME}: payload of {len(payload)} bytes, expected {cls.STRUCT.size}")

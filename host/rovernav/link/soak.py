@@ -312,7 +312,7 @@ class Soak:
 
     # ---------------------------------------------------------------- the loop
 
-    def run(self, seconds: float) -> "Soak":
+    def run(self, seconds: float) -> Soak:
         """Exchange frames for `seconds` (Ctrl-C or a link that fails ends it early: `ended_by`)."""
         clock = self.clock
         self.seconds = seconds

@@ -117,7 +117,7 @@ class Transport(abc.ABC):
             self._close()
             log.debug("closed %s", self._name)
 
-    def __enter__(self) -> "Transport":
+    def __enter__(self) -> Transport:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
@@ -261,7 +261,7 @@ class PipeTransport(_QueueTransport):
 
     @classmethod
     def pair(cls, name: str = "pipe", capacity_bytes: int = QUEUE_CAPACITY_BYTES,
-             write_timeout_s: float = 1.0) -> tuple["PipeTransport", "PipeTransport"]:
+             write_timeout_s: float = 1.0) -> tuple[PipeTransport, PipeTransport]:
         """Two connected ends: bytes written to a are read from b, and the other way round."""
         capacity_bytes = _check_capacity(capacity_bytes)
         a_to_b, b_to_a = _ByteQueue(capacity_bytes), _ByteQueue(capacity_bytes)

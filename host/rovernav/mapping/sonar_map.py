@@ -44,8 +44,8 @@ import numpy as np
 
 from ..angles import wrap_rad
 from ..link.messages_gen import PARAMS, Param
-from ..vehicle_gen import BODY_WIDTH_MM, SONAR_MAX_RANGE_MM
 from ..validate import check_grid
+from ..vehicle_gen import BODY_WIDTH_MM, SONAR_MAX_RANGE_MM
 
 #: The sensor's range [m] (protocol/vehicle.toml): silence says nothing of what lies past it,
 #: whatever range a reading (or an old map file) claims.

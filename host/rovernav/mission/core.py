@@ -21,24 +21,38 @@ from __future__ import annotations
 import logging
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
-from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
 from ..angles import heading_cdeg
+from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
 from ..link import messages_gen as mg
 from ..link.errors import LinkError
 from ..link.link import host_hello
 from ..link.path_upload import CHUNK_SPACING_S, PathUpload
 from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
-from ..planning import OccupancyGrid
 from ..mapping import Echo, LearnedMap
+from ..planning import OccupancyGrid
 from .interface import Strategy
 from .leg_plan import START_NEAR_M, plan_leg
 from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
-from .phases import (CLOSE_S, HEARD_RECENTLY_S, HELLO_ALIVE_FACTOR, HELLO_EVERY_S, LINK_LOG_S, MAP_CHECK_S,
-                     MAX_FRAMES_PER_TICK, MAX_TRIES, RESEND_S, SILENT_S, Detection, Failure, Outcome, Phase)
+from .phases import (
+    CLOSE_S,
+    HEARD_RECENTLY_S,
+    HELLO_ALIVE_FACTOR,
+    HELLO_EVERY_S,
+    LINK_LOG_S,
+    MAP_CHECK_S,
+    MAX_FRAMES_PER_TICK,
+    MAX_TRIES,
+    RESEND_S,
+    SILENT_S,
+    Detection,
+    Failure,
+    Outcome,
+    Phase,
+)
 from .recorder import Recorder
 from .rover_frames import RoverFrames
 from .strategies import RovernavStrategy

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from ..link import messages_gen as mg
 from ..planning import OccupancyGrid, PlannerConfig
@@ -48,7 +49,7 @@ class MissionSpec:
     @classmethod
     def for_run(cls, scenario, cfg, *, strategy: str = "rovernav", host_replan: bool = True,
                 rover_params: list | None = None, start_xy: tuple[float, float] | None = None,
-                target_xy: tuple[float, float] | None = None, host_boot_id: int = 0) -> "MissionSpec":
+                target_xy: tuple[float, float] | None = None, host_boot_id: int = 0) -> MissionSpec:
         """The spec of a run over `scenario` (None: an empty arena of the configuration's size,
         with `start_xy` and `target_xy` given, e.g. from the camera) under configuration `cfg`.
         Legs: the scenario's trips (or [mission] trips), two a trip out and back."""
@@ -74,12 +75,12 @@ class MissionSpec:
                    fix_sd_mm=cfg.mission.fix_sd_mm, heartbeat_hz=cfg.mission.heartbeat_hz,
                    host_replan=host_replan, strategy=strategy, host_boot_id=host_boot_id & 0xFFFFFFFF)
 
-    def with_planner(self, **changes: float) -> "MissionSpec":
+    def with_planner(self, **changes: float) -> MissionSpec:
         """The same mission with planner settings changed (ValueError names a bad one)."""
         planner = PlannerConfig.from_dict({**self.planner, **changes})
         return dataclasses.replace(self, planner=planner.to_dict())
 
-    def with_boot_id(self, host_boot_id: int) -> "MissionSpec":
+    def with_boot_id(self, host_boot_id: int) -> MissionSpec:
         return dataclasses.replace(self, host_boot_id=host_boot_id & 0xFFFFFFFF)
 
     # ------------------------------------------------------------ using one
@@ -111,7 +112,7 @@ class MissionSpec:
         return json.dumps(data, allow_nan=False)
 
     @classmethod
-    def from_json(cls, text: str) -> "MissionSpec":
+    def from_json(cls, text: str) -> MissionSpec:
         """A spec from to_json()'s text; ValueError when it is not one."""
         try:
             data = json.loads(text)

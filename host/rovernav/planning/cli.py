@@ -17,7 +17,7 @@ import time
 from ..validate import MAX_GRID_CELLS, number, output_file
 
 
-def add_plan_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+def add_plan_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> argparse.ArgumentParser:
     """Register the `plan` command on a parser's subparsers; its handler returns the exit status."""
     p = subparsers.add_parser(
         "plan", help="plan a path from a scenario's start to its target",

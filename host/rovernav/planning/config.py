@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from ..link.messages_gen import PARAMS, Param
 
@@ -62,7 +63,7 @@ class PlannerConfig:
         return self.robot_radius_m + self.sonar_margin_m
 
     @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> "PlannerConfig":
+    def from_dict(cls, values: Mapping[str, Any]) -> PlannerConfig:
         """A config from a mapping of field names; unknown names and bad values raise ValueError."""
         names = {f.name for f in dataclasses.fields(cls)}
         for key in values:
@@ -81,5 +82,5 @@ class PlannerConfig:
                 (Param.SONAR_OFFSET_MM, round(self.sonar_offset_m * 1000)),
                 (Param.SONAR_CONE_CDEG, round(self.sonar_cone_deg * 100))]
 
-    def replace(self, **changes: Any) -> "PlannerConfig":
+    def replace(self, **changes: Any) -> PlannerConfig:
         return self.from_dict({**self.to_dict(), **changes})

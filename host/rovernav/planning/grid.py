@@ -25,12 +25,12 @@ Obstacles and layers
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..validate import check_grid
-
 from .config import PlannerConfig
 from .segment import polyline_clear, segment_clear
 
@@ -67,8 +67,8 @@ class OccupancyGrid:
     # --- construction --------------------------------------------------------------------
 
     @classmethod
-    def from_scenario(cls, scenario: "Scenario", config: PlannerConfig | None = None,
-                      all_obstacles: bool = False) -> "OccupancyGrid":
+    def from_scenario(cls, scenario: Scenario, config: PlannerConfig | None = None,
+                      all_obstacles: bool = False) -> OccupancyGrid:
         """The scenario's arena with its known obstacles (all of them when `all_obstacles`)."""
         grid = cls(scenario.arena.width_m, scenario.arena.height_m, config)
         for o in scenario.obstacles:
@@ -84,7 +84,7 @@ class OccupancyGrid:
 
     @classmethod
     def from_layers(cls, inflated: np.ndarray, resolution_m: float = 1.0,
-                    raw: np.ndarray | None = None) -> "OccupancyGrid":
+                    raw: np.ndarray | None = None) -> OccupancyGrid:
         """A grid whose inflated layer is given as is (no geometry, no wall band): for tests and tools."""
         inflated = np.ascontiguousarray(inflated, dtype=np.bool_)
         ny, nx = inflated.shape
@@ -95,7 +95,7 @@ class OccupancyGrid:
         grid.raw = inflated.copy() if raw is None else np.ascontiguousarray(raw, dtype=np.bool_).copy()
         return grid
 
-    def copy(self) -> "OccupancyGrid":
+    def copy(self) -> OccupancyGrid:
         other = object.__new__(OccupancyGrid)
         other.__dict__.update(self.__dict__)
         other.raw = self.raw.copy()

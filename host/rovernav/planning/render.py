@@ -1,8 +1,8 @@
 """Draw a grid, its obstacles and a path into a PNG (OpenCV), for `rovernav plan --plot`."""
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Iterable, Sequence
 
 import cv2
 import numpy as np

@@ -30,7 +30,7 @@ on from where a rover stopped backing out (rovernav.mission.strategies).
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import cv2
 import numpy as np

@@ -22,8 +22,8 @@ import dataclasses
 import json
 import math
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from ..errors import InputError
 from ..link import messages_gen as mg
@@ -390,15 +390,16 @@ def replay_picture(result: ReplayResult, path: Path) -> None:
     import cv2
     import numpy as np
 
+    from ..arena_picture import Canvas, draw_arena
     from ..files import write_atomic
     from ..scenario import parse_scenario
-    from ..arena_picture import Canvas, draw_arena
 
     spec = result.spec
     if spec.scenario_toml is not None:
         sc = parse_scenario(spec.scenario_toml, "<run log scenario>")
     else:
-        from ..scenario import Arena, Mission as ScMission, Pose, Scenario, Target
+        from ..scenario import Arena, Pose, Scenario, Target
+        from ..scenario import Mission as ScMission
 
         sc = Scenario("run", Arena(spec.arena_w_m, spec.arena_h_m), Pose(*spec.start_xy), Target(*spec.target_xy),
                       ScMission(), ())

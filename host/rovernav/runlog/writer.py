@@ -39,8 +39,17 @@ from ..link import messages_gen as mg
 from ..link.framing import CRC_BYTES, HEADER_BYTES, cobs_decode
 from ..link.transport import Transport
 from ..mission.core import Recorder
-from .channels import (ARENA_FRAME, CHANNELS, DEFAULT_IMAGE_HZ, DEFAULT_LIVE_PORT, LOG_FORMAT, LOG_VERSION,  # noqa: F401
-                       META_RUN, json_schema, partial_path)
+from .channels import (  # noqa: F401
+    ARENA_FRAME,
+    CHANNELS,
+    DEFAULT_IMAGE_HZ,
+    DEFAULT_LIVE_PORT,
+    LOG_FORMAT,
+    LOG_VERSION,
+    META_RUN,
+    json_schema,
+    partial_path,
+)
 
 log = logging.getLogger("rovernav.runlog")
 
@@ -130,8 +139,14 @@ class RunLog(Recorder):
     def __init__(self, path: str | Path | None, spec, *, source: str, scenario=None, truth: bool = False,
                  live_port: int | None = None, image_hz: float = DEFAULT_IMAGE_HZ, meta: dict | None = None):
         import foxglove
-        from foxglove.channels import (CompressedImageChannel, GridChannel, LogChannel, PoseInFrameChannel,
-                                       PosesInFrameChannel, SceneUpdateChannel)
+        from foxglove.channels import (
+            CompressedImageChannel,
+            GridChannel,
+            LogChannel,
+            PoseInFrameChannel,
+            PosesInFrameChannel,
+            SceneUpdateChannel,
+        )
 
         self.path = Path(path) if path is not None else None
         self.partial = None if self.path is None else partial_path(self.path)
@@ -269,7 +284,7 @@ class RunLog(Recorder):
     def host_sonar(self, t_s: float, reading, changed: bool) -> None:
         if reading.range_m is None:
             return
-        from foxglove.messages import (LinePrimitive, Point3, SceneEntity, SceneUpdate, SpherePrimitive, Vector3)
+        from foxglove.messages import LinePrimitive, Point3, SceneEntity, SceneUpdate, SpherePrimitive, Vector3
 
         from ..mapping import echo_point, sonar_origin
 
@@ -407,8 +422,14 @@ class RunLog(Recorder):
                                                           poses=_poses_along(self._driven)))
 
     def _arena(self, t_s: float) -> None:
-        from foxglove.messages import (CubePrimitive, CylinderPrimitive, SceneEntity, SceneUpdate, SpherePrimitive,
-                                       Vector3)
+        from foxglove.messages import (
+            CubePrimitive,
+            CylinderPrimitive,
+            SceneEntity,
+            SceneUpdate,
+            SpherePrimitive,
+            Vector3,
+        )
 
         self._next_arena_s = t_s + LIVE_ARENA_EVERY_S
         sc = self.scenario

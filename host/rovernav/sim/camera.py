@@ -102,7 +102,7 @@ class RoverLook:
     outside_bgr: BGR = (64, 64, 64)      # beyond the arena, when an oblique camera sees past it
 
     @classmethod
-    def for_vision(cls, config: VisionConfig, **overrides) -> "RoverLook":
+    def for_vision(cls, config: VisionConfig, **overrides) -> RoverLook:
         """A look that matches a VisionConfig's geometry and ArUco settings."""
         kw = dict(marker_distance_m=config.marker_distance_m, centre_fraction=config.rover_centre_fraction,
                   aruco_size_m=config.aruco.size_m, aruco_dictionary=config.aruco.dictionary,
@@ -126,11 +126,11 @@ class Lighting:
     vignette: float = 0.3
 
     @classmethod
-    def uniform(cls) -> "Lighting":
+    def uniform(cls) -> Lighting:
         return cls(level=1.0, gradient=0.0, vignette=0.0)
 
     @classmethod
-    def random(cls, rng: np.random.Generator) -> "Lighting":
+    def random(cls, rng: np.random.Generator) -> Lighting:
         """A plausible uneven light: between about 0.5 and 1.2 across the frame."""
         return cls(level=float(rng.uniform(0.9, 1.05)), gradient=float(rng.uniform(0.05, 0.25)),
                    gradient_angle_deg=float(rng.uniform(0.0, 360.0)), vignette=float(rng.uniform(0.1, 0.35)))

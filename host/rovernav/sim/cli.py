@@ -151,9 +151,9 @@ def burst_spec(text: str) -> tuple[float, float]:
 def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
     """The simulated radio's flags (`rovernav sim`, `rovernav trials`); see rovernav/radio.py.
     `config`: the command takes --config, whose [radio] table the flags win over."""
-    from ..radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
-
     import textwrap
+
+    from ..radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
 
     g = p.add_argument_group(
         "the simulated radio", textwrap.fill(width=100, text=f"{LINK_BAUD:,} baud 8N1 ({LINK_BAUD // 10:,} bytes/s each way), 15 ms modem latency. By default it "
@@ -239,13 +239,13 @@ def radio_line(report: dict) -> str | None:
 
 def cmd_sim(args: argparse.Namespace) -> int:
     from ..config import load_config
-    from ..scenario import ScenarioError, load_scenario
-    from ..files import remove_stale, write_json_atomic
     from ..cores import FirmwareBuildError
-    from .report import VideoWriter, build_report, summary_picture, write_report
-    from .runner import Faults, SimOptions, Simulation
+    from ..files import remove_stale, write_json_atomic
     from ..runlog.cli import live_port_of
     from ..runlog.writer import RunLogError
+    from ..scenario import ScenarioError, load_scenario
+    from .report import VideoWriter, build_report, summary_picture, write_report
+    from .runner import Faults, SimOptions, Simulation
 
     if args.profile and args.rover != "uno":
         print("rovernav sim: --profile profiles the Uno image: it needs --rover uno", file=sys.stderr)

@@ -26,10 +26,10 @@ import math
 import numpy as np
 
 from ..angles import wrap_deg
-from ..mapping.sonar_map import sonar_origin
 from ..link.messages_gen import PARAMS, Param
-from ..vehicle_gen import SONAR_MAX_RANGE_MM, WHEEL_TRACK_MM
+from ..mapping.sonar_map import sonar_origin
 from ..planning.config import geometry_m
+from ..vehicle_gen import SONAR_MAX_RANGE_MM, WHEEL_TRACK_MM
 from .world import World
 
 

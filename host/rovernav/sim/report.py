@@ -8,10 +8,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..link import messages_gen as mg
-from ..files import write_atomic, write_json_atomic
-from ..mission.legs import legs_per_trip
 from ..arena_picture import Canvas, draw_arena
+from ..files import write_atomic, write_json_atomic
+from ..link import messages_gen as mg
+from ..mission.legs import legs_per_trip
 from .channel import radio_figures
 from .world import footprint
 
@@ -396,8 +396,9 @@ class VideoWriter:
                 "x264-params": "deadzone-inter=32"}
 
     def _open(self, w: int, h: int) -> None:
-        import av
         from fractions import Fraction
+
+        import av
 
         rate = Fraction(self.fps).limit_denominator(1001)
         tried = []

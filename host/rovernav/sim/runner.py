@@ -16,8 +16,8 @@ import dataclasses
 import math
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -28,15 +28,14 @@ from ..link.link import Link
 from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
 from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
-from .camera import Camera, Lighting, Renderer, RoverLook, Scene
-from .setup import Setup
-from ..vision import Locator
 from ..radio import ChannelConfig
+from ..vehicle_gen import STEP_PERIOD_MS
+from ..vision import Locator
+from .camera import Camera, Lighting, Renderer, RoverLook, Scene
 from .channel import SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
+from .setup import Setup
 from .world import World
-from ..vehicle_gen import STEP_PERIOD_MS
-
 
 STEP_S = STEP_PERIOD_MS / 1000.0   # the rover's step (protocol/vehicle.toml)
 HOST_PERIOD_S = 0.030
@@ -77,7 +76,7 @@ class SimOptions:
     live_port: int | None = None      # serve the log's channels live on 127.0.0.1 at this port (0: any free one)
     log_image_hz: float = 2.0         # camera images kept in the log (and shown live) per second
     pace: float = 0.0                 # > 0: run at this many times real time (for a live view); 0: flat out
-    setup: "Setup | None" = None      # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
+    setup: Setup | None = None      # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
 
 
 @dataclasses.dataclass
@@ -111,7 +110,7 @@ class Simulation:
         self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, setup.plant if setup is not None else options.plant,
                                 self.rng)
         if self.world.collides(self.plant.x, self.plant.y, self.plant.heading):
-            from ..scenario import ScenarioError   # `rovernav plan` refuses such a start too
+            from ..scenario import ScenarioError  # `rovernav plan` refuses such a start too
             raise ScenarioError(f"{scenario.path or scenario.name}: start ({s.x_m:g}, {s.y_m:g}) m, heading "
                                 f"{s.heading_deg:g} deg: the rover would stand on "
                                 f"{self.world.touching(self.plant.x, self.plant.y, self.plant.heading)}")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -26,6 +27,9 @@ from ..vision.calibration import Calibration
 from ..vision.marks import COLOUR_BANDS, CORNER_INSET_M, CORNER_TAG_IDS
 from .camera import Lighting, Scene
 from .plant import PlantConfig
+
+if TYPE_CHECKING:
+    from ..vision import VisionConfig
 
 BGR = tuple[int, int, int]
 FRAME_W_PX, FRAME_H_PX = 640, 480
@@ -57,7 +61,7 @@ class Setup:
     seed: int | None = None
 
     @classmethod
-    def random(cls, seed: int) -> "Setup":
+    def random(cls, seed: int) -> Setup:
         """A set-up drawn from `seed`: three marker colours of distinct colour words, a light from
         0.55 to 1.15 of the usual with its gradient and vignette, a camera tilted up to about 20
         degrees and turned up to 8 (the arena filling 70-90 % of the frame), and motors and gyro
@@ -147,7 +151,7 @@ def _tilted_corners(rng: np.random.Generator) -> tuple[tuple[float, float], ...]
         fill *= 0.97
 
 
-def true_vision(setup: Setup, arena_w_m: float, arena_h_m: float) -> "VisionConfig":
+def true_vision(setup: Setup, arena_w_m: float, arena_h_m: float) -> VisionConfig:
     """The settings a user who knew the set-up's truth would write: the true corners, and ranges
     round the markers' true hues (+-8), S and V down to 40. What calibration is measured against."""
     from ..vision import VisionConfig

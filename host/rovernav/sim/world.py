@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
+from ..scenario import Post, Wall  # the same in the scenario and the world: one definition each
 from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
-from ..scenario import Post, Wall   # the same in the scenario and the world: one definition each
 
 ROVER_WIDTH_M = BODY_WIDTH_MM / 1000.0    # protocol/vehicle.toml
 ROVER_LENGTH_M = BODY_LENGTH_MM / 1000.0
@@ -182,7 +182,7 @@ class World:
         self._corners = np.array(corners, dtype=np.float64).reshape(-1, 2)
 
     @classmethod
-    def from_scenario(cls, scenario) -> "World":
+    def from_scenario(cls, scenario) -> World:
         walls = getattr(scenario, "walls", ())
         posts = getattr(scenario, "posts", ())
         return cls(scenario.arena.width_m, scenario.arena.height_m,

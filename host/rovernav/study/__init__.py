@@ -8,8 +8,17 @@ Lengths in metres, angles in radians from the x axis (counter-clockwise), times 
 """
 from .crater import REPORT_P2, CraterMap, crater_map, path_is_clear, plan_on_map, plot_crater_plan
 from .ekf import LocalisationRun, LocalisationScenario, NeesCheck, nees_monte_carlo, plot_localisation, run_localisation
-from .pose import (CURIOSITY_VMAX_M_S, REPORT_P0, REPORT_P1, PoseGains, PoseRun, from_polar, plot_pose,
-                   simulate_pose, to_polar)
+from .pose import (
+                   CURIOSITY_VMAX_M_S,
+                   REPORT_P0,
+                   REPORT_P1,
+                   PoseGains,
+                   PoseRun,
+                   from_polar,
+                   plot_pose,
+                   simulate_pose,
+                   to_polar,
+)
 
 __all__ = [
     "CURIOSITY_VMAX_M_S", "REPORT_P0", "REPORT_P1", "REPORT_P2", "CraterMap", "LocalisationRun",

@@ -54,10 +54,21 @@ def _round_up(x: float, digits: int = 3) -> float:
     return math.ceil(x / scale) * scale
 
 
-def add_pose_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+def add_pose_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> argparse.ArgumentParser:
     """Register the `pose` command; its handler returns the exit status."""
-    from .pose import (CURIOSITY_VMAX_M_S, MAX_DT_S, MAX_GAIN, MAX_POSE_COORD_M, MAX_THETA_RAD, MAX_TIME_S,
-                       MAX_VMAX_M_S, MIN_DT_S, REPORT_P0, REPORT_P1, PoseGains)
+    from .pose import (
+        CURIOSITY_VMAX_M_S,
+        MAX_DT_S,
+        MAX_GAIN,
+        MAX_POSE_COORD_M,
+        MAX_THETA_RAD,
+        MAX_TIME_S,
+        MAX_VMAX_M_S,
+        MIN_DT_S,
+        REPORT_P0,
+        REPORT_P1,
+        PoseGains,
+    )
 
     g = PoseGains()
     coord = number(-MAX_POSE_COORD_M, MAX_POSE_COORD_M)
@@ -175,7 +186,7 @@ def _integer(lo: int, hi: int):
     return _guarded(number(lo, hi, integer=True), f"an integer >= {lo:,} and <= {hi:,}")
 
 
-def add_study_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+def add_study_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> argparse.ArgumentParser:
     """Register the `study` command; its handler returns the exit status."""
     p = subparsers.add_parser(
         "study", help="run the seed study end to end: navigation, path planning, localisation",

@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from .pose import save_figure, wrap_angle
-
 
 # --- the models ------------------------------------------------------------------------------
 

@@ -18,7 +18,6 @@ import numpy as np
 
 from .config import ArucoConfig
 
-
 # Tags with a shorter outline than this (8 px a side) cannot be decoded at any rate.
 _MIN_PERIMETER_PX = 32.0
 

@@ -39,18 +39,18 @@ class Calibration:
         self.arena_h_m = float(arena_h_m)
 
     @classmethod
-    def from_corners(cls, corners_px, width_m: float, height_m: float) -> "Calibration":
+    def from_corners(cls, corners_px, width_m: float, height_m: float) -> Calibration:
         """corners_px: pixel positions of the arena's bottom-left, bottom-right, top-right, top-left corners."""
         src = np.array([[0.0, 0.0], [width_m, 0.0], [width_m, height_m], [0.0, height_m]], dtype=np.float32)
         dst = np.asarray(corners_px, dtype=np.float32).reshape(4, 2)
         return cls(cv2.getPerspectiveTransform(src, dst).astype(np.float64), width_m, height_m)
 
     @classmethod
-    def from_config(cls, cal: CalibrationConfig) -> "Calibration":
+    def from_config(cls, cal: CalibrationConfig) -> Calibration:
         return cls.from_corners(cal.corners_px, cal.width_m, cal.height_m)
 
     @classmethod
-    def straight_down(cls, width_px: int, height_px: int, arena_w_m: float, arena_h_m: float) -> "Calibration":
+    def straight_down(cls, width_px: int, height_px: int, arena_w_m: float, arena_h_m: float) -> Calibration:
         """The frame spans the arena exactly, seen from straight above (the seed's set-up)."""
         sx = width_px / arena_w_m
         sy = height_px / arena_h_m

@@ -36,8 +36,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any, Mapping
+from typing import Any
 
 MARKER_KINDS = ("colour", "aruco")
 
@@ -101,7 +102,7 @@ class VisionConfig:
         VisionConfig.from_dict(self.to_dict())
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any], prefix: str = "vision") -> "VisionConfig":
+    def from_dict(cls, d: Mapping[str, Any], prefix: str = "vision") -> VisionConfig:
         """Build from a `[vision]` table; missing keys take their defaults.
 
         Raises ValueError("vision.KEY: what is wrong") for an unknown key or a bad value.

@@ -26,11 +26,11 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 from .aruco_markers import ArucoMarkers
 from .calibration import Calibration, heading_deg
 from .colour_markers import ColourMarkers
 from .config import VisionConfig
-from ..vehicle_gen import DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 
 
 class RoverPose(NamedTuple):

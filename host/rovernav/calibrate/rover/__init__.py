@@ -41,12 +41,39 @@ The modules, by concern:
     drive     the runs driven: their plan, the rover's place checked, runs_sim and runs_hardware
 Their names are all here, as `rovernav calibrate rover` (calibrate/cli.py) uses them.
 """
-from .drive import (LEVELS_PWM, RUN_M, RUN_PARAMS, SIM_WALL_M, WALL_RANGE_M, check_room, check_wall, plan_runs,
-                    run_error, runs_hardware, runs_sim, sim_bench)
+from .drive import (
+                    LEVELS_PWM,
+                    RUN_M,
+                    RUN_PARAMS,
+                    SIM_WALL_M,
+                    WALL_RANGE_M,
+                    check_room,
+                    check_wall,
+                    plan_runs,
+                    run_error,
+                    runs_hardware,
+                    runs_sim,
+                    sim_bench,
+)
 from .fitting import WRITES, Fit, fit, sonar_offset, write_params
-from .runs import (BIAS_SKIP_S, BIAS_WARN_DPS, CONE_DEG, MIN_POSES, MIN_STEADY_S, RUN_TIME_S, SQUARE_DEG, STILL_LEAD_S,
-                   STILL_S, STILL_TURN_DEG, TRIM_END_S, TRIM_START_S, WALL_FACING_DEG, CalibrationFailed, Run,
-                   wall_geometry)
+from .runs import (
+                    BIAS_SKIP_S,
+                    BIAS_WARN_DPS,
+                    CONE_DEG,
+                    MIN_POSES,
+                    MIN_STEADY_S,
+                    RUN_TIME_S,
+                    SQUARE_DEG,
+                    STILL_LEAD_S,
+                    STILL_S,
+                    STILL_TURN_DEG,
+                    TRIM_END_S,
+                    TRIM_START_S,
+                    WALL_FACING_DEG,
+                    CalibrationFailed,
+                    Run,
+                    wall_geometry,
+)
 
 __all__ = [
     "BIAS_SKIP_S", "BIAS_WARN_DPS", "CONE_DEG", "LEVELS_PWM", "MIN_POSES", "MIN_STEADY_S", "RUN_M", "RUN_PARAMS",

@@ -87,24 +87,58 @@ The package
 """
 from __future__ import annotations
 
-from .draw import (
-    ARENA_HEIGHT_RANGE_M, ARENA_WIDTH_RANGE_M, ArenaError, END_MARGIN_M, GenerationFailed, KEEP_CLEAR_M,
-    NARROW_EXTRA_M, POST_DIAMETERS_M, SEED_BOX_SIZES_M, START_AT_TARGET_RANGE_M, WALL_THICKNESS_RANGE_M,
-)
-from .families import ALL_FAMILY_NAMES, FAMILIES, FAMILY_NAMES
 from .cellular import (
-    CELLULAR_BOXES, CELLULAR_CELL_M, CELLULAR_FIELDS, CELLULAR_FILL_RANGE, CELLULAR_HEIGHT_RANGE_M,
-    CELLULAR_SMOOTHING, CELLULAR_WIDTH_RANGE_M,
-)
-from .difficulty import (
-    ArenaMeasure, BAND_HARD, BAND_MEDIUM, CD_OPEN_M, CLEARANCE_OPEN_M, DETOUR_LONG, DISPERSION_DENSE, PINCH_OPEN_M,
-    RAY_COUNT, RAY_LENGTH_M, RAY_STEP_M, SCORE_WEIGHTS, band_of, measure_scenario,
-)
-from .generate import (
-    GALLERY_COUNT, GeneratedArena, INDEX_FIELDS, MAX_COUNT, MAX_TRIES, generate_arena, generate_arenas, index_row,
-    write_arenas, write_gallery,
+    CELLULAR_BOXES,
+    CELLULAR_CELL_M,
+    CELLULAR_FIELDS,
+    CELLULAR_FILL_RANGE,
+    CELLULAR_HEIGHT_RANGE_M,
+    CELLULAR_SMOOTHING,
+    CELLULAR_WIDTH_RANGE_M,
 )
 from .cli import add_arenas_parser, cmd_arenas
+from .difficulty import (
+    BAND_HARD,
+    BAND_MEDIUM,
+    CD_OPEN_M,
+    CLEARANCE_OPEN_M,
+    DETOUR_LONG,
+    DISPERSION_DENSE,
+    PINCH_OPEN_M,
+    RAY_COUNT,
+    RAY_LENGTH_M,
+    RAY_STEP_M,
+    SCORE_WEIGHTS,
+    ArenaMeasure,
+    band_of,
+    measure_scenario,
+)
+from .draw import (
+    ARENA_HEIGHT_RANGE_M,
+    ARENA_WIDTH_RANGE_M,
+    END_MARGIN_M,
+    KEEP_CLEAR_M,
+    NARROW_EXTRA_M,
+    POST_DIAMETERS_M,
+    SEED_BOX_SIZES_M,
+    START_AT_TARGET_RANGE_M,
+    WALL_THICKNESS_RANGE_M,
+    ArenaError,
+    GenerationFailed,
+)
+from .families import ALL_FAMILY_NAMES, FAMILIES, FAMILY_NAMES
+from .generate import (
+    GALLERY_COUNT,
+    INDEX_FIELDS,
+    MAX_COUNT,
+    MAX_TRIES,
+    GeneratedArena,
+    generate_arena,
+    generate_arenas,
+    index_row,
+    write_arenas,
+    write_gallery,
+)
 
 __all__ = [
     "ARENA_HEIGHT_RANGE_M", "ARENA_WIDTH_RANGE_M", "ArenaError", "END_MARGIN_M", "GenerationFailed", "KEEP_CLEAR_M",

@@ -9,7 +9,6 @@ import numpy as np
 
 from .draw import _Box, _Draw, _Layout, _Redraw
 
-
 # --- cellular: BARN's worlds, scaled to this rover -------------------------------------------------
 
 #: BARN (Perille et al., 2020) draws its 300 worlds on a grid of 0.15 m cells for a Jackal
@@ -143,7 +142,7 @@ def _cellular(d: _Draw) -> _Layout:
     # a rover whose inflation spans 4 cells seldom does), a way is carved through the last along
     # a wandering line, so that the densities stay as drawn.
     need = d.inflation_m / c + 0.5
-    for attempt in range(CELLULAR_FIELDS):
+    for _attempt in range(CELLULAR_FIELDS):
         occ = d.rng.random((ny, nx)) < fill
         for _ in range(smoothing):
             occ = _smooth(occ)

@@ -4,15 +4,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from ...validate import output_file
 from .difficulty import BAND_HARD, BAND_MEDIUM, RAY_LENGTH_M, SCORE_WEIGHTS
 from .draw import ArenaError, GenerationFailed
 from .families import ALL_FAMILY_NAMES, FAMILIES
-from .generate import GALLERY_COUNT, GeneratedArena, MAX_COUNT, _families, generate_arenas, write_arenas, write_gallery
-
+from .generate import GALLERY_COUNT, MAX_COUNT, GeneratedArena, _families, generate_arenas, write_arenas, write_gallery
 
 # --- the command ----------------------------------------------------------------------------------
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from ...planning import NoPathError, OccupancyGrid, PlanResult, PlannerConfig, Unreachable, plan
+from ...planning import NoPathError, OccupancyGrid, PlannerConfig, PlanResult, Unreachable, plan
 from ...scenario import Scenario
-
 
 RAY_COUNT = 16
 RAY_LENGTH_M = 1.0

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from ...angles import compass_deg
 from ...errors import InputError, PlanningError
-from ...planning import NoPathError, OccupancyGrid, PlanResult, PlannerConfig, plan
-
+from ...planning import NoPathError, OccupancyGrid, PlannerConfig, PlanResult, plan
 
 ARENA_WIDTH_RANGE_M = (2.0, 3.0)
 ARENA_HEIGHT_RANGE_M = (1.5, 2.2)
@@ -58,7 +58,7 @@ class _Box:
         dy = max(self.y0 - y_m, 0.0, y_m - self.y1)
         return math.hypot(dx, dy)
 
-    def gap_to(self, other: "_Box | _Post") -> float:
+    def gap_to(self, other: _Box | _Post) -> float:
         if isinstance(other, _Post):
             return other.gap_to(self)
         dx = max(self.x0 - other.x1, other.x0 - self.x1, 0.0)
@@ -82,7 +82,7 @@ class _Post:
     def distance_to(self, x_m: float, y_m: float) -> float:
         return max(math.hypot(x_m - self.x, y_m - self.y) - self.r, 0.0)
 
-    def gap_to(self, other: "_Box | _Post") -> float:
+    def gap_to(self, other: _Box | _Post) -> float:
         if isinstance(other, _Post):
             return max(math.hypot(other.x - self.x, other.y - self.y) - self.r - other.r, 0.0)
         return max(other.distance_to(self.x, self.y) - self.r, 0.0)

@@ -4,15 +4,26 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ...planning import NoPathError, OccupancyGrid, plan
 from .cellular import _cellular
-from .draw import (NARROW_EXTRA_M, POST_DIAMETERS_M, SEED_BOX_SIZES_M, START_AT_TARGET_RANGE_M, WALL_THICKNESS_RANGE_M,
-                   _Box, _Draw, _Layout, _Post, _Redraw, _Seg, _wall)
-
+from .draw import (
+    NARROW_EXTRA_M,
+    POST_DIAMETERS_M,
+    SEED_BOX_SIZES_M,
+    START_AT_TARGET_RANGE_M,
+    WALL_THICKNESS_RANGE_M,
+    _Box,
+    _Draw,
+    _Layout,
+    _Post,
+    _Redraw,
+    _Seg,
+    _wall,
+)
 
 # --- the families, each drawn with the start on the left and the target on the right --------------
 

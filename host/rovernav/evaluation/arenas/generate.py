@@ -8,8 +8,9 @@ import io
 import json
 import math
 import re
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -19,8 +20,7 @@ from ...planning import NoPathError, PlannerConfig
 from ...scenario import Scenario, parse_scenario
 from .difficulty import measure_scenario
 from .draw import ArenaError, GenerationFailed, _Box, _Draw, _Layout, _Post, _Redraw, _Seg
-from .families import ALL_FAMILY_NAMES, FAMILY_NAMES, _BY_NAME
-
+from .families import _BY_NAME, ALL_FAMILY_NAMES, FAMILY_NAMES
 
 MAX_COUNT = 100_000
 MAX_TRIES = 400                      # draws of one arena before GenerationFailed
