@@ -10,6 +10,7 @@ steps: cycle counts, not wall time) and the flash the MAC adds over the same pro
 it (avr-size). The MACs: firmware/lib/link/siphash.cpp, and benchmarks/avr/hmac_sha256.cpp
 (checked against Python's hmac by tests/test_siphash.py).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,8 +56,12 @@ int main() {
 
 
 def avr_flags() -> list[str]:
-    out = subprocess.run([sys.executable, str(ROOT / "tools/build_uno.py"), "--print-flags", "uno"],
-                         capture_output=True, text=True, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "tools/build_uno.py"), "--print-flags", "uno"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
     return [f for f in out if f.startswith(("-m", "-f")) and f != "-mmcu"]
 
 
@@ -64,15 +69,32 @@ def build(mac: int, length: int, work: Path) -> tuple[Path, int]:
     src = work / "main.cpp"
     src.write_text(PROGRAM)
     elf = work / f"mac{mac}-{length}.elf"
-    cmd = ["avr-g++", "-mmcu=atmega328p", "-Os", "-std=gnu++14", "-flto", *avr_flags(), f"-DMAC={mac}",
-           f"-DLEN={length}", f"-I{ROOT / 'firmware/lib/link'}", str(src),
-           str(ROOT / "firmware/lib/link/siphash.cpp"), str(ROOT / "firmware/lib/link/sip_round_avr.S"),
-           str(ROOT / "benchmarks/avr/hmac_sha256.cpp"),
-           "-Wl,--gc-sections", "-ffunction-sections", "-o", str(elf)]
+    cmd = [
+        "avr-g++",
+        "-mmcu=atmega328p",
+        "-Os",
+        "-std=gnu++14",
+        "-flto",
+        *avr_flags(),
+        f"-DMAC={mac}",
+        f"-DLEN={length}",
+        f"-I{ROOT / 'firmware/lib/link'}",
+        str(src),
+        str(ROOT / "firmware/lib/link/siphash.cpp"),
+        str(ROOT / "firmware/lib/link/sip_round_avr.S"),
+        str(ROOT / "benchmarks/avr/hmac_sha256.cpp"),
+        "-Wl,--gc-sections",
+        "-ffunction-sections",
+        "-o",
+        str(elf),
+    ]
     subprocess.run(cmd, check=True)
-    text = subprocess.run(["avr-size", "--format=berkeley", str(elf)], capture_output=True, text=True,
-                          check=True).stdout.splitlines()[1].split()
-    return elf, int(text[0]) + int(text[1])   # text + data: the flash
+    text = (
+        subprocess.run(["avr-size", "--format=berkeley", str(elf)], capture_output=True, text=True, check=True)
+        .stdout.splitlines()[1]
+        .split()
+    )
+    return elf, int(text[0]) + int(text[1])  # text + data: the flash
 
 
 def tag_us(elf: Path) -> float:
@@ -106,9 +128,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|")
     for length, sip_us, _, hmac_us, _ in rows:
         print(f"| {length} | {sip_us:.0f} | {hmac_us:.0f} | {sip_us / hmac_us:.2f} |")
-    print(f"\nflash added (bytes): SipHash-2-4 {statistics.median(r[2] for r in rows):.0f}, "
-          f"HMAC-SHA256 {statistics.median(r[4] for r in rows):.0f} (medians over the lengths); "
-          "16 MHz, cycles counted in simavr")
+    print(
+        f"\nflash added (bytes): SipHash-2-4 {statistics.median(r[2] for r in rows):.0f}, "
+        f"HMAC-SHA256 {statistics.median(r[4] for r in rows):.0f} (medians over the lengths); "
+        "16 MHz, cycles counted in simavr"
+    )
     print()
     frame_table(work_dir=None)
     return 0

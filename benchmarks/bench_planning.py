@@ -11,6 +11,7 @@ the start; the graph's construction counts in its time. Times are medians over t
 after one warm-up; both must find the same optimal cost. The plain-Python column runs the
 very A* kernel uncompiled, once, to show what the compiler buys.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,13 +43,17 @@ def csgraph_graph(blocked: np.ndarray):
     free[pad:-pad, pad:-pad] = ~blocked
 
     def shifted(dx: int, dy: int) -> np.ndarray:
-        return free[pad + dy:pad + dy + ny, pad + dx:pad + dx + nx]
+        return free[pad + dy : pad + dy + ny, pad + dx : pad + dx + nx]
 
     index = np.arange(nx * ny).reshape(ny, nx)
     src, dst, cost = [], [], []
     for k in range(len(MOVE_DX)):
-        ok = shifted(0, 0) & shifted(MOVE_DX[k], MOVE_DY[k]) & shifted(MID1_DX[k], MID1_DY[k]) \
+        ok = (
+            shifted(0, 0)
+            & shifted(MOVE_DX[k], MOVE_DY[k])
+            & shifted(MID1_DX[k], MID1_DY[k])
             & shifted(MID2_DX[k], MID2_DY[k])
+        )
         s = index[ok]
         src.append(s)
         dst.append(s + MOVE_DY[k] * nx + MOVE_DX[k])
@@ -80,8 +85,14 @@ def cases():
         boxes = [(o.x_m, o.y_m, o.w_m, o.h_m) for o in s.obstacles]
         yield name, (s.arena.width_m, s.arena.height_m), PlannerConfig(), boxes, s.start.xy, s.target.xy
     start, goal = (0.6, 0.6), (19.4, 19.4)
-    yield ("generated 20 × 20 m, 40 boxes", (20.0, 20.0), PlannerConfig(resolution_m=0.05),
-           generated_boxes(40, 20.0, seed=2024, keep_clear=[start, goal]), start, goal)
+    yield (
+        "generated 20 × 20 m, 40 boxes",
+        (20.0, 20.0),
+        PlannerConfig(resolution_m=0.05),
+        generated_boxes(40, 20.0, seed=2024, keep_clear=[start, goal]),
+        start,
+        goal,
+    )
 
 
 def build(size, config, boxes) -> OccupancyGrid:
@@ -112,11 +123,15 @@ def main() -> int:
     import numba
     import scipy
 
-    print(f"cores: {os.cpu_count()} ({affinity} usable); Python {platform.python_version()}, numpy {np.__version__}, "
-          f"scipy {scipy.__version__}, numba {numba.__version__} (A* compiled: {COMPILED})")
+    print(
+        f"cores: {os.cpu_count()} ({affinity} usable); Python {platform.python_version()}, numpy {np.__version__}, "
+        f"scipy {scipy.__version__}, numba {numba.__version__} (A* compiled: {COMPILED})"
+    )
     print(f"median of {args.runs} runs after a warm-up, in ms; cost = the optimal path's length on the grid\n")
-    header = (f"{'case':<32} {'cells':>9} {'grid':>6} {'A*':>6} {'ours':>7} {'exp.':>7} {'cost m':>8} {'wp':>3} | "
-              f"{'graph':>7} {'dijk.':>7} {'scipy':>7} {'cost m':>8} | {'plain Py':>8}")
+    header = (
+        f"{'case':<32} {'cells':>9} {'grid':>6} {'A*':>6} {'ours':>7} {'exp.':>7} {'cost m':>8} {'wp':>3} | "
+        f"{'graph':>7} {'dijk.':>7} {'scipy':>7} {'cost m':>8} | {'plain Py':>8}"
+    )
     print(header)
     print("-" * len(header))
     for name, size, config, boxes, start, goal in cases():
@@ -129,7 +144,8 @@ def main() -> int:
         graph_ms, graph = timed(lambda: csgraph_graph(grid.inflated), few)
         dijkstra_ms, _ = timed(lambda: csgraph_cost(graph, grid.nx, s_cell, g_cell), few)
         scipy_ms, scipy_cost = timed(
-            lambda: csgraph_cost(csgraph_graph(build(size, config, boxes).inflated), grid.nx, s_cell, g_cell), few)
+            lambda: csgraph_cost(csgraph_graph(build(size, config, boxes).inflated), grid.nx, s_cell, g_cell), few
+        )
         res = grid.resolution_m
         same = abs(scipy_cost * res - result.cost_m) < 1e-6
         plain = "skipped"
@@ -138,16 +154,20 @@ def main() -> int:
             _, plain_cost, _ = astar_cells.py_func(grid.inflated, *s_cell, *g_cell)
             plain = f"{(time.perf_counter() - t0) * 1e3:8.0f}"
             same = same and abs(plain_cost * res - result.cost_m) < 1e-6
-        print(f"{name:<32} {f'{grid.nx}×{grid.ny}':>9} {grid_ms:6.2f} {astar_ms:6.2f} {ours_ms:7.2f} "
-              f"{result.expansions:7d} {result.cost_m:8.4f} {len(result.waypoints):3d} | "
-              f"{graph_ms:7.1f} {dijkstra_ms:7.1f} {scipy_ms:7.1f} {scipy_cost * res:8.4f} | {plain:>8}"
-              + ("" if same else "   COSTS DIFFER"))
+        print(
+            f"{name:<32} {f'{grid.nx}×{grid.ny}':>9} {grid_ms:6.2f} {astar_ms:6.2f} {ours_ms:7.2f} "
+            f"{result.expansions:7d} {result.cost_m:8.4f} {len(result.waypoints):3d} | "
+            f"{graph_ms:7.1f} {dijkstra_ms:7.1f} {scipy_ms:7.1f} {scipy_cost * res:8.4f} | {plain:>8}"
+            + ("" if same else "   COSTS DIFFER")
+        )
         if not same:
             return 1
-    print("\ngrid: building the occupancy grid from the boxes; A*: plan() on it (search + simplification);"
-          "\nours: both; exp.: cells A* expanded; wp: waypoints after simplification;"
-          "\ngraph+dijk.: scipy on our grid (graph built from it, then Dijkstra from the start);"
-          "\nscipy: grid + graph + Dijkstra; plain Py: our A* kernel uncompiled, one run.")
+    print(
+        "\ngrid: building the occupancy grid from the boxes; A*: plan() on it (search + simplification);"
+        "\nours: both; exp.: cells A* expanded; wp: waypoints after simplification;"
+        "\ngraph+dijk.: scipy on our grid (graph built from it, then Dijkstra from the start);"
+        "\nscipy: grid + graph + Dijkstra; plain Py: our A* kernel uncompiled, one run."
+    )
     return 0
 
 

@@ -21,6 +21,7 @@ with 8x8 single-step supersampling, the whole frame's noise every frame): 0.36 m
 0.80 ms (the rover 0.19 ms of it, the arena with its noise 0.04 ms); the first frame of a scene,
 which draws the floor, about 0.2 s CPU for both.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,17 +43,21 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _load(path: Path):
     spec = importlib.util.spec_from_file_location("rovernav._render_against", path)
-    module = importlib.util.module_from_spec(spec)   # type: ignore[arg-type]
-    sys.modules[spec.name] = module                  # type: ignore[union-attr]
-    spec.loader.exec_module(module)                  # type: ignore[union-attr]
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules[spec.name] = module  # type: ignore[union-attr]
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
     return module
 
 
 def _scene(module, markers: str):
     sc = load_scenario(ROOT / "scenarios" / "out-and-back.toml")
-    return module.Scene(arena_w_m=sc.arena.width_m, arena_h_m=sc.arena.height_m,
-                        obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in sc.obstacles),
-                        target=(sc.target.x_m, sc.target.y_m), marker_kind=markers)
+    return module.Scene(
+        arena_w_m=sc.arena.width_m,
+        arena_h_m=sc.arena.height_m,
+        obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in sc.obstacles),
+        target=(sc.target.x_m, sc.target.y_m),
+        marker_kind=markers,
+    )
 
 
 def _poses(rng: np.random.Generator, n: int, w: float, h: float) -> list[tuple[float, float, float]]:
@@ -120,8 +125,10 @@ def main() -> None:
             cpu = [1000 * t[1] for t in times]
             p95 = float(np.percentile(wall, 95)) if len(wall) > 1 else wall[0]
             per_run.setdefault(name, []).append((statistics.median(wall), p95, statistics.median(cpu)))
-    print(f"rendered 640x480 frames, {args.markers} markers, {args.runs} runs of {args.frames} frames "
-          f"(medians over runs of each run's median)")
+    print(
+        f"rendered 640x480 frames, {args.markers} markers, {args.runs} runs of {args.frames} frames "
+        f"(medians over runs of each run's median)"
+    )
     print(f"{'':24s} {'wall ms':>8s} {'p95 ms':>8s} {'CPU ms':>8s}")
     order = ["this first frame", "this", "  arena, noise", "  rover"]
     if "against" in modules:
@@ -129,8 +136,10 @@ def main() -> None:
     for name in order:
         rows = per_run[name]
         label = {"this": "this, a frame", "against": "against, a frame"}.get(name, name)
-        print(f"{label:24s} {statistics.median(r[0] for r in rows):8.3f} {statistics.median(r[1] for r in rows):8.3f} "
-              f"{statistics.median(r[2] for r in rows):8.3f}")
+        print(
+            f"{label:24s} {statistics.median(r[0] for r in rows):8.3f} {statistics.median(r[1] for r in rows):8.3f} "
+            f"{statistics.median(r[2] for r in rows):8.3f}"
+        )
     if "against" in modules:
         print(f"against: {args.against}")
 

@@ -14,6 +14,7 @@ Replay on arenas nobody tuned for: K generated arenas (`rovernav arenas`), each 
 simulator seed and a random fault (a radio outage, or a host restart) in its first 30 s; every
 log is replayed and must give the recorded host's decisions exactly. Exits 1 if one does not.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,19 +55,27 @@ def arenas(folder: Path, sample: int, seed: int) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for i, path in enumerate(rng.sample(files, min(sample, len(files)))):
             sim_seed = rng.randint(1, 10**6)
-            faults = (Faults(link_outages=[(rng.uniform(5, 30), rng.uniform(1, 8))]) if i % 2
-                      else Faults(host_restarts=[rng.uniform(5, 30)]))
+            faults = (
+                Faults(link_outages=[(rng.uniform(5, 30), rng.uniform(1, 8))])
+                if i % 2
+                else Faults(host_restarts=[rng.uniform(5, 30)])
+            )
             log = Path(tmp) / f"{i}.mcap"
-            sim = Simulation(load_scenario(path), SimOptions(seed=sim_seed, log=log, log_image_hz=0, faults=faults,
-                                                             max_time_s=300), progress=lambda t, x: None)
+            sim = Simulation(
+                load_scenario(path),
+                SimOptions(seed=sim_seed, log=log, log_image_hz=0, faults=faults, max_time_s=300),
+                progress=lambda t, x: None,
+            )
             sim.run()
             sim.close_log()
             result = replay(read_log(log))
             same += result.identical
             outcomes[sim.outcome] = outcomes.get(sim.outcome, 0) + 1
-            print(f"{path.stem} seed {sim_seed} {'outage' if i % 2 else 'host restart'}: {sim.outcome}, replay "
-                  f"{'identical' if result.identical else f'DIFFERENT at frame {result.first_difference()}'}",
-                  flush=True)
+            print(
+                f"{path.stem} seed {sim_seed} {'outage' if i % 2 else 'host restart'}: {sim.outcome}, replay "
+                f"{'identical' if result.identical else f'DIFFERENT at frame {result.first_difference()}'}",
+                flush=True,
+            )
     n = sum(outcomes.values())
     print(f"\n{same}/{n} replays identical; outcomes: " + ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items())))
     return 0 if same == n else 1
@@ -104,17 +113,22 @@ def main() -> int:
             started = time.perf_counter()
             identical &= replay(run).identical
             rows["replay"].append(time.perf_counter() - started)
-            print(f"run {k + 1}: {t:.1f} s simulated; wall {rows['none'][-1]:.2f} s without a log, "
-                  f"{rows['log_no_images'][-1]:.2f} s with (no images), {wall:.2f} s with (images at 2 Hz); "
-                  f"log {rows['mb'][-1]:.2f} MB", flush=True)
+            print(
+                f"run {k + 1}: {t:.1f} s simulated; wall {rows['none'][-1]:.2f} s without a log, "
+                f"{rows['log_no_images'][-1]:.2f} s with (no images), {wall:.2f} s with (images at 2 Hz); "
+                f"log {rows['mb'][-1]:.2f} MB",
+                flush=True,
+            )
         with open(log, "rb") as f:
             s = make_reader(f).get_summary()
             counts = {s.channels[c].topic: n for c, n in s.statistics.channel_message_counts.items()}
     med = {k: statistics.median(v) for k, v in rows.items()}
     print(f"\n{args.scenario}, seed {args.seed}, medians of {args.runs} runs (no video):")
-    print(f"  wall time: {med['none']:.2f} s without a log, {med['log_no_images']:.2f} s with it and no images "
-          f"(+{100 * (med['log_no_images'] / med['none'] - 1):.0f} %), {med['log']:.2f} s with images at 2 Hz "
-          f"(+{100 * (med['log'] / med['none'] - 1):.0f} %)")
+    print(
+        f"  wall time: {med['none']:.2f} s without a log, {med['log_no_images']:.2f} s with it and no images "
+        f"(+{100 * (med['log_no_images'] / med['none'] - 1):.0f} %), {med['log']:.2f} s with images at 2 Hz "
+        f"(+{100 * (med['log'] / med['none'] - 1):.0f} %)"
+    )
     print(f"  log: {med['mb']:.2f} MB ({med['kb_min']:.0f} kB per simulated minute)")
     print(f"  replay: read {med['read']:.2f} s, host again {med['replay']:.2f} s; identical: {identical}")
     print("  messages per channel: " + ", ".join(f"{t} {n}" for t, n in sorted(counts.items())))

@@ -21,6 +21,7 @@ yuv420p; encode 1.4 ms a frame (median; 99th percentile 5.3 ms), annotate 0.6 ms
 wall with video, 7.7 s without. OpenCV's mp4v, before: 26.3 MB, the run 23-31 s wall (median of
 3 interleaved runs each: mp4v 26.2 s, libx264 23.7 s, no video 8.3 s). CRF 16: 16.2 MB, exit 1.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,7 +37,7 @@ from rovernav.scenario import load_scenario
 from rovernav.sim.report import VideoWriter
 from rovernav.sim.runner import SimOptions, Simulation
 
-LIMIT_MB = 5.0   # for out-and-back
+LIMIT_MB = 5.0  # for out-and-back
 
 
 class TimedVideoWriter(VideoWriter):
@@ -69,9 +70,15 @@ def probe(path: Path) -> dict:
     """What the file says of itself, and the frames it decodes to."""
     with av.open(str(path)) as c:
         s = c.streams.video[0]
-        info = {"codec": s.codec_context.name, "profile": s.codec_context.profile, "pix_fmt": s.codec_context.pix_fmt,
-                "width": s.codec_context.width, "height": s.codec_context.height, "rate": s.average_rate,
-                "duration_s": float(s.duration * s.time_base) if s.duration else c.duration / 1e6}
+        info = {
+            "codec": s.codec_context.name,
+            "profile": s.codec_context.profile,
+            "pix_fmt": s.codec_context.pix_fmt,
+            "width": s.codec_context.width,
+            "height": s.codec_context.height,
+            "rate": s.average_rate,
+            "duration_s": float(s.duration * s.time_base) if s.duration else c.duration / 1e6,
+        }
         info["frames"] = sum(1 for _ in c.decode(video=0))
     return info
 
@@ -87,7 +94,9 @@ def main() -> int:
     ap.add_argument("--crf", type=float, default=None, help=f"x264 CRF (default {VideoWriter.CRF_DEFAULT})")
     ap.add_argument("--preset", default=None, help=f"x264 preset (default {VideoWriter.PRESET_DEFAULT})")
     ap.add_argument("--out", type=Path, default=None, help="keep the video in this folder (default: a temporary one)")
-    ap.add_argument("--without-video", action="store_true", help="also run the mission without video, for its wall time")
+    ap.add_argument(
+        "--without-video", action="store_true", help="also run the mission without video, for its wall time"
+    )
     args = ap.parse_args()
 
     scenario = load_scenario(args.scenario)
@@ -103,20 +112,25 @@ def main() -> int:
         info = probe(video.path)
         mb = size / 1e6
         print(f"{scenario.name} (seed {args.seed}), {sim.t:.1f} s simulated, {sim.frames_rendered} frames rendered")
-        print(f"video {video.path if args.out else 'video.mp4'}: {mb:.2f} MB, {info['duration_s']:.1f} s, "
-              f"{size * 8 / info['duration_s'] / 1000:.0f} kbit/s mean, {info['frames']} frames "
-              f"({video.frames} written), {info['width']}x{info['height']} at {float(info['rate']):g} fps, "
-              f"{info['codec']} ({video.codec}, {info['profile']}, {info['pix_fmt']}), "
-              f"crf {video.crf:g}, preset {video.preset}")
-        print(f"per frame: encode (VideoWriter.write) median {statistics.median(video.encode_s) * 1000:.2f} ms, "
-              f"99th percentile {ms(video.encode_s, 99):.2f} ms; annotate median "
-              f"{statistics.median(video.annotate_s) * 1000:.2f} ms; flush at close {flush_s:.2f} s")
-        print(f"run with video: {wall:.1f} s wall, {cpu:.1f} s CPU (all threads), "
-              f"{sim.t / wall:.1f}x real time")
+        print(
+            f"video {video.path if args.out else 'video.mp4'}: {mb:.2f} MB, {info['duration_s']:.1f} s, "
+            f"{size * 8 / info['duration_s'] / 1000:.0f} kbit/s mean, {info['frames']} frames "
+            f"({video.frames} written), {info['width']}x{info['height']} at {float(info['rate']):g} fps, "
+            f"{info['codec']} ({video.codec}, {info['profile']}, {info['pix_fmt']}), "
+            f"crf {video.crf:g}, preset {video.preset}"
+        )
+        print(
+            f"per frame: encode (VideoWriter.write) median {statistics.median(video.encode_s) * 1000:.2f} ms, "
+            f"99th percentile {ms(video.encode_s, 99):.2f} ms; annotate median "
+            f"{statistics.median(video.annotate_s) * 1000:.2f} ms; flush at close {flush_s:.2f} s"
+        )
+        print(f"run with video: {wall:.1f} s wall, {cpu:.1f} s CPU (all threads), {sim.t / wall:.1f}x real time")
         if args.without_video:
             sim0, wall0, cpu0 = run(scenario, args.seed, None)
-            print(f"run without video: {wall0:.1f} s wall, {cpu0:.1f} s CPU, {sim0.t / wall0:.1f}x real time "
-                  f"(video adds {wall - wall0:.1f} s wall, {(wall - wall0) / max(1, video.frames) * 1000:.2f} ms a frame)")
+            print(
+                f"run without video: {wall0:.1f} s wall, {cpu0:.1f} s CPU, {sim0.t / wall0:.1f}x real time "
+                f"(video adds {wall - wall0:.1f} s wall, {(wall - wall0) / max(1, video.frames) * 1000:.2f} ms a frame)"
+            )
     if scenario.name == "out-and-back" and mb > LIMIT_MB:
         print(f"FAIL: {mb:.2f} MB is over {LIMIT_MB:g} MB for out-and-back", file=sys.stderr)
         return 1

@@ -9,6 +9,7 @@ locator always searches the whole frame) and "cold" (every frame alone, random p
 Times are the median and 95th percentile over a run's frames, then the median of those over the
 runs (each run a new seed: new light, new poses). Accuracy is over all runs' frames together.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,7 +35,7 @@ def run(kind: str, frames: int, seed: int, tracking: bool) -> dict:
     x, y, h = 0.4, 0.4, 30.0
     t_loc, t_ren, pos_mm, head_deg, misses = [], [], [], [], 0
     for i in range(frames):
-        if tracking:   # a rover wandering at 0.1 m/s, turning now and then, filmed at 30 fps
+        if tracking:  # a rover wandering at 0.1 m/s, turning now and then, filmed at 30 fps
             h += float(rng.normal(0, 2.0))
             x = min(max(x + 0.0033 * math.sin(math.radians(h)), 0.3), W - 0.3)
             y = min(max(y + 0.0033 * math.cos(math.radians(h)), 0.3), H - 0.3)
@@ -55,10 +56,17 @@ def run(kind: str, frames: int, seed: int, tracking: bool) -> dict:
         pos_mm.append(1000 * math.hypot(det.rover[0] - x, det.rover[1] - y))
         head_deg.append(abs(wrap_deg(det.rover[2] - h)))
     q95 = lambda v: float(np.percentile(v, 95))  # noqa: E731
-    return {"kind": kind, "mode": "tracking" if tracking else "cold", "frames": frames, "misses": misses,
-            "locate_ms_median": 1000 * statistics.median(t_loc), "locate_ms_p95": 1000 * q95(t_loc),
-            "render_ms_median": 1000 * statistics.median(t_ren),
-            "pos_mm": pos_mm, "head_deg": head_deg}
+    return {
+        "kind": kind,
+        "mode": "tracking" if tracking else "cold",
+        "frames": frames,
+        "misses": misses,
+        "locate_ms_median": 1000 * statistics.median(t_loc),
+        "locate_ms_p95": 1000 * q95(t_loc),
+        "render_ms_median": 1000 * statistics.median(t_ren),
+        "pos_mm": pos_mm,
+        "head_deg": head_deg,
+    }
 
 
 def combine(runs: list[dict]) -> dict:
@@ -68,9 +76,14 @@ def combine(runs: list[dict]) -> dict:
         out[key] = statistics.median(r[key] for r in runs)
     pos = [v for r in runs for v in r["pos_mm"]]
     head = [v for r in runs for v in r["head_deg"]]
-    out.update(pos_mm_median=statistics.median(pos), pos_mm_max=max(pos),
-               heading_deg_median=statistics.median(head), heading_deg_max=max(head),
-               misses=sum(r["misses"] for r in runs), frames=sum(r["frames"] for r in runs))
+    out.update(
+        pos_mm_median=statistics.median(pos),
+        pos_mm_max=max(pos),
+        heading_deg_median=statistics.median(head),
+        heading_deg_max=max(head),
+        misses=sum(r["misses"] for r in runs),
+        frames=sum(r["frames"] for r in runs),
+    )
     return out
 
 
@@ -80,16 +93,22 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3, help="runs, each with its own seed (default 3)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the first run (default 1)")
     args = ap.parse_args()
-    print(f"{os.cpu_count()} cores; {args.runs} runs of {args.frames} frames, 640x480, noise sigma 3, uneven light; "
-          f"times: median over runs of each run's median / 95th percentile")
-    print(f"{'markers':<8} {'mode':<9} {'locate ms':>10} {'p95':>6} {'render ms':>10} {'pos mm':>7} {'max':>6} "
-          f"{'head deg':>9} {'max':>6} {'misses':>7}")
+    print(
+        f"{os.cpu_count()} cores; {args.runs} runs of {args.frames} frames, 640x480, noise sigma 3, uneven light; "
+        f"times: median over runs of each run's median / 95th percentile"
+    )
+    print(
+        f"{'markers':<8} {'mode':<9} {'locate ms':>10} {'p95':>6} {'render ms':>10} {'pos mm':>7} {'max':>6} "
+        f"{'head deg':>9} {'max':>6} {'misses':>7}"
+    )
     for kind in ("colour", "aruco"):
         for tracking in (True, False):
             r = combine([run(kind, args.frames, args.seed + i, tracking) for i in range(args.runs)])
-            print(f"{r['kind']:<8} {r['mode']:<9} {r['locate_ms_median']:10.2f} {r['locate_ms_p95']:6.2f} "
-                  f"{r['render_ms_median']:10.2f} {r['pos_mm_median']:7.2f} {r['pos_mm_max']:6.2f} "
-                  f"{r['heading_deg_median']:9.2f} {r['heading_deg_max']:6.2f} {r['misses']:7d}")
+            print(
+                f"{r['kind']:<8} {r['mode']:<9} {r['locate_ms_median']:10.2f} {r['locate_ms_p95']:6.2f} "
+                f"{r['render_ms_median']:10.2f} {r['pos_mm_median']:7.2f} {r['pos_mm_max']:6.2f} "
+                f"{r['heading_deg_median']:9.2f} {r['heading_deg_max']:6.2f} {r['misses']:7d}"
+            )
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ heading error's RMS is at most 1 degree (the sd the rover's estimator assumes of
 heading). The last line names the largest width served; exit status 1 if 4 m (the cellular
 family's largest) is not.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,22 +40,39 @@ def measure(width_m: float, poses: int, seed: int) -> dict:
     from rovernav.vision.config import VisionConfig
 
     height_m = round(0.75 * width_m, 3)
-    scenario = Scenario(name="reach", arena=Arena(width_m, height_m), start=Pose(0.3, 0.3, 0.0),
-                        target=Target(width_m - 0.3, height_m - 0.3), mission=Mission("reach", 1), obstacles=())
+    scenario = Scenario(
+        name="reach",
+        arena=Arena(width_m, height_m),
+        start=Pose(0.3, 0.3, 0.0),
+        target=Target(width_m - 0.3, height_m - 0.3),
+        mission=Mission("reach", 1),
+        obstacles=(),
+    )
     errors = pose_errors(Setup(corner_tags=False), VisionConfig(), scenario, n=poses, seed=seed)
     found = [(p, h) for p, h in errors if p is not None]
-    row = {"width_m": width_m, "height_m": height_m, "px_per_cm": round(640 / (100 * width_m), 2),
-           "found": len(found), "poses": poses}
+    row = {
+        "width_m": width_m,
+        "height_m": height_m,
+        "px_per_cm": round(640 / (100 * width_m), 2),
+        "found": len(found),
+        "poses": poses,
+    }
     if found:
         pos = sorted(1000 * p for p, _ in found)
         head = sorted(abs(h) for _, h in found)
-        row.update(position_median_mm=round(statistics.median(pos), 2),
-                   position_p95_mm=round(pos[min(len(pos) - 1, int(0.95 * len(pos)))], 2),
-                   position_max_mm=round(pos[-1], 2),
-                   heading_rms_deg=round(math.sqrt(statistics.fmean(h * h for h in head)), 3),
-                   heading_p95_deg=round(head[min(len(head) - 1, int(0.95 * len(head)))], 3))
-    row["served"] = bool(found and len(found) >= FOUND_MIN * poses and row["position_p95_mm"] <= POSITION_P95_MAX_MM
-                         and row["heading_rms_deg"] <= HEADING_RMS_MAX_DEG)
+        row.update(
+            position_median_mm=round(statistics.median(pos), 2),
+            position_p95_mm=round(pos[min(len(pos) - 1, int(0.95 * len(pos)))], 2),
+            position_max_mm=round(pos[-1], 2),
+            heading_rms_deg=round(math.sqrt(statistics.fmean(h * h for h in head)), 3),
+            heading_p95_deg=round(head[min(len(head) - 1, int(0.95 * len(head)))], 3),
+        )
+    row["served"] = bool(
+        found
+        and len(found) >= FOUND_MIN * poses
+        and row["position_p95_mm"] <= POSITION_P95_MAX_MM
+        and row["heading_rms_deg"] <= HEADING_RMS_MAX_DEG
+    )
     return row
 
 
@@ -74,17 +92,25 @@ def main() -> int:
         rows.append(r)
         arena = f"{r['width_m']:g} x {r['height_m']:g}"
         if r["found"]:
-            print(f"{arena:>12}  {r['px_per_cm']:5.2f}  {r['found']:>3}/{r['poses']:<3}  "
-                  f"{r['position_median_mm']:8.2f} {r['position_p95_mm']:6.2f} {r['position_max_mm']:7.2f}"
-                  f"          {r['heading_rms_deg']:6.3f} {r['heading_p95_deg']:6.3f}        {'yes' if r['served'] else 'no'}",
-                  flush=True)
+            print(
+                f"{arena:>12}  {r['px_per_cm']:5.2f}  {r['found']:>3}/{r['poses']:<3}  "
+                f"{r['position_median_mm']:8.2f} {r['position_p95_mm']:6.2f} {r['position_max_mm']:7.2f}"
+                f"          {r['heading_rms_deg']:6.3f} {r['heading_p95_deg']:6.3f}        {'yes' if r['served'] else 'no'}",
+                flush=True,
+            )
         else:
-            print(f"{arena:>12}  {r['px_per_cm']:5.2f}  {0:>3}/{r['poses']:<3}  (the rover never found)   no", flush=True)
+            print(
+                f"{arena:>12}  {r['px_per_cm']:5.2f}  {0:>3}/{r['poses']:<3}  (the rover never found)   no", flush=True
+            )
     served = [r["width_m"] for r in rows if r["served"]]
     largest = max((w for w in served if all(r["served"] for r in rows if r["width_m"] <= w)), default=None)
     print(f"\n{len(widths)} sizes, {a.poses} poses each, {time.monotonic() - t0:.0f} s")
-    print(f"served (found >= {100 * FOUND_MIN:.0f} %, position p95 <= {POSITION_P95_MAX_MM:g} mm, heading RMS <= "
-          f"{HEADING_RMS_MAX_DEG:g} deg): up to {largest:g} m wide" if largest else "served: none")
+    print(
+        f"served (found >= {100 * FOUND_MIN:.0f} %, position p95 <= {POSITION_P95_MAX_MM:g} mm, heading RMS <= "
+        f"{HEADING_RMS_MAX_DEG:g} deg): up to {largest:g} m wide"
+        if largest
+        else "served: none"
+    )
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
     return 0 if largest is not None and largest >= 4.0 else 1

@@ -17,6 +17,7 @@ both ways as the host measured them, and frames the host sent again. The generat
 `rovernav arenas --count 200 --seed 1` (made in build/arenas if missing), sampled evenly as
 `rovernav trials --sample` does. Exit status 1 when an acceptance figure is missed (see ACCEPT).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,10 +36,12 @@ RADIOS = {
     "burst2": {"byte_loss": 0.02, "burst_mean_s": 0.5, "burst_share": 0.10},
     "loss5": {"byte_loss": 0.05},
 }
-MAX_TIME_S = 1800.0   # past every deadline of the mission (a leg: 90 s + 60 s a metre, re-planned twice): it ends by itself
+MAX_TIME_S = (
+    1800.0  # past every deadline of the mission (a leg: 90 s + 60 s a metre, re-planned twice): it ends by itself
+)
 # The issue's acceptance, per radio: least share reached, most time ratio to clean (None: not asked).
 ACCEPT = {"loss1": (1.00, 1.3), "burst2": (0.97, None), "loss5": (0.0, None)}
-MOVING = {1, 2, 3, 7, 9}   # rotate, drive, scan, back_off, planning (mg.RoverState)
+MOVING = {1, 2, 3, 7, 9}  # rotate, drive, scan, back_off, planning (mg.RoverState)
 
 
 def run_one(job: tuple) -> dict:
@@ -49,25 +52,38 @@ def run_one(job: tuple) -> dict:
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()
-    sim = Simulation(load_scenario(scenario), SimOptions(seed=seed, max_time_s=MAX_TIME_S,
-                                                         channel=ChannelConfig(**RADIOS[radio])))
+    sim = Simulation(
+        load_scenario(scenario), SimOptions(seed=seed, max_time_s=MAX_TIME_S, channel=ChannelConfig(**RADIOS[radio]))
+    )
     sim.run()
     m = sim.mission
     state = sim.core.probe().state
     link = m.link_summary()
-    return {"scenario": scenario, "seed": seed, "radio": radio, "outcome": sim.outcome, "error": m.error,
-            "mission_time_s": round(sim.t, 2), "rover_state_at_end": int(state),
-            "rover_stopped": sim.outcome == "reached" or state not in MOVING,
-            "to_rover": link["host_to_rover"]["success"], "to_host": link["rover_to_host"]["success"],
-            "sent_again": sum(link["host_sent_again"].values()), "frames_sent": sum(link["host_sent"].values()),
-            "wall_s": round(time.monotonic() - started, 1)}
+    return {
+        "scenario": scenario,
+        "seed": seed,
+        "radio": radio,
+        "outcome": sim.outcome,
+        "error": m.error,
+        "mission_time_s": round(sim.t, 2),
+        "rover_state_at_end": int(state),
+        "rover_stopped": sim.outcome == "reached" or state not in MOVING,
+        "to_rover": link["host_to_rover"]["success"],
+        "to_host": link["rover_to_host"]["success"],
+        "sent_again": sum(link["host_sent_again"].values()),
+        "frames_sent": sum(link["host_sent"].values()),
+        "wall_s": round(time.monotonic() - started, 1),
+    }
 
 
 def arenas(count: int) -> list[str]:
     folder = ROOT / "build" / "arenas"
     if not folder.is_dir() or len(list(folder.glob("*.toml"))) < 200:
-        subprocess.run([str(ROOT / ".venv" / "bin" / "rovernav"), "arenas", "--count", "200", "--seed", "1",
-                        "--out", str(folder)], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [str(ROOT / ".venv" / "bin" / "rovernav"), "arenas", "--count", "200", "--seed", "1", "--out", str(folder)],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
     sys.path.insert(0, str(ROOT / "host"))
     from rovernav.evaluation.trials import find_arenas, sample_arenas
 
@@ -92,25 +108,37 @@ def summarise(rows: list[dict], radio: str, clean: dict[tuple, float]) -> dict:
     reached = [r for r in mine if r["outcome"] == "reached"]
     unsolvable = [r for r in mine if not solvable(r["scenario"])]
     times = [r["mission_time_s"] for r in reached]
-    ratios = [r["mission_time_s"] / clean[(r["scenario"], r["seed"])] for r in reached
-              if (r["scenario"], r["seed"]) in clean]
+    ratios = [
+        r["mission_time_s"] / clean[(r["scenario"], r["seed"])] for r in reached if (r["scenario"], r["seed"]) in clean
+    ]
     clean_times = [clean[(r["scenario"], r["seed"])] for r in reached if (r["scenario"], r["seed"]) in clean]
 
     def med(values):
         values = [v for v in values if v is not None]
         return statistics.median(values) if values else None
-    return {"radio": radio, "runs": len(mine), "reached": len(reached), "right": sum(right(r) for r in mine),
-            "unsolvable": len(unsolvable), "unsolvable_right": sum(right(r) for r in unsolvable),
-            "crashed": sum(r["outcome"] == "crashed" for r in mine),
-            "timeout": sum(r["outcome"] == "timeout" for r in mine),
-            "failed_named": sum(r["outcome"] == "failed" for r in mine),
-            "not_stopped": sum(not r["rover_stopped"] for r in mine),
-            "median_time_s": med(times), "median_clean_time_s": med(clean_times),
-            "median_ratio": med(ratios), "ratio_of_medians": (med(times) / med(clean_times)) if times else None,
-            "to_rover": med([r["to_rover"] for r in mine]), "to_host": med([r["to_host"] for r in mine]),
-            "sent_again_share": (sum(r["sent_again"] for r in mine) / max(1, sum(r["frames_sent"] for r in mine))),
-            "failures": sorted({f"{Path(r['scenario']).stem} seed {r['seed']}: {r['error'] or r['outcome']}"
-                                for r in mine if not right(r)})}
+
+    return {
+        "radio": radio,
+        "runs": len(mine),
+        "reached": len(reached),
+        "right": sum(right(r) for r in mine),
+        "unsolvable": len(unsolvable),
+        "unsolvable_right": sum(right(r) for r in unsolvable),
+        "crashed": sum(r["outcome"] == "crashed" for r in mine),
+        "timeout": sum(r["outcome"] == "timeout" for r in mine),
+        "failed_named": sum(r["outcome"] == "failed" for r in mine),
+        "not_stopped": sum(not r["rover_stopped"] for r in mine),
+        "median_time_s": med(times),
+        "median_clean_time_s": med(clean_times),
+        "median_ratio": med(ratios),
+        "ratio_of_medians": (med(times) / med(clean_times)) if times else None,
+        "to_rover": med([r["to_rover"] for r in mine]),
+        "to_host": med([r["to_host"] for r in mine]),
+        "sent_again_share": (sum(r["sent_again"] for r in mine) / max(1, sum(r["frames_sent"] for r in mine))),
+        "failures": sorted(
+            {f"{Path(r['scenario']).stem} seed {r['seed']}: {r['error'] or r['outcome']}" for r in mine if not right(r)}
+        ),
+    }
 
 
 def main() -> int:
@@ -128,7 +156,7 @@ def main() -> int:
     if unknown:
         ap.error(f"unknown radio {unknown[0]!r} (known: {', '.join(RADIOS)})")
     if "clean" not in radios:
-        radios.insert(0, "clean")   # the time ratios need it
+        radios.insert(0, "clean")  # the time ratios need it
     seeds = [int(s) for s in a.seeds.split(",")]
     t0 = time.monotonic()
     rows = []
@@ -142,8 +170,11 @@ def main() -> int:
         scenarios = [str(ROOT / "scenarios" / f"{s}.toml") for s in SHARED] + (arenas(a.arenas) if a.arenas else [])
         # Each scenario and seed under every radio in turn: runs cut short still compare like with like.
         jobs = [(s, k, r) for s in scenarios for k in seeds for r in radios]
-        print(f"{len(scenarios)} scenarios x {len(seeds)} seeds x {len(radios)} radios = {len(jobs)} runs, "
-              f"{a.jobs} processes", file=sys.stderr)
+        print(
+            f"{len(scenarios)} scenarios x {len(seeds)} seeds x {len(radios)} radios = {len(jobs)} runs, "
+            f"{a.jobs} processes",
+            file=sys.stderr,
+        )
     sys.path.insert(0, str(ROOT / "host"))
     from rovernav.evaluation.pool import map_runs
 
@@ -154,29 +185,42 @@ def main() -> int:
                 f.write(json.dumps(row) + "\n")
         if n % 12 == 0 or n == len(jobs):
             print(f"  {n}/{len(jobs)} runs, {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
-    clean = {(r["scenario"], r["seed"]): r["mission_time_s"] for r in rows
-             if r["radio"] == "clean" and r["outcome"] == "reached"}
+    clean = {
+        (r["scenario"], r["seed"]): r["mission_time_s"]
+        for r in rows
+        if r["radio"] == "clean" and r["outcome"] == "reached"
+    }
     summaries = [summarise(rows, radio, clean) for radio in radios]
-    print(f"\n{len(scenarios)} scenarios ({len(SHARED)} shared, {len(scenarios) - len(SHARED)} generated) x seeds "
-          f"{a.seeds}; {time.monotonic() - t0:.0f} s with {a.jobs} processes\n")
-    print("| radio | right (reached, or 'no path' where there is none) | crashed | time limit | named failure | "
-          "rover left moving | median time (s) | x clean (median of ratios) | frames through to rover / from rover | "
-          "frames sent again |")
+    print(
+        f"\n{len(scenarios)} scenarios ({len(SHARED)} shared, {len(scenarios) - len(SHARED)} generated) x seeds "
+        f"{a.seeds}; {time.monotonic() - t0:.0f} s with {a.jobs} processes\n"
+    )
+    print(
+        "| radio | right (reached, or 'no path' where there is none) | crashed | time limit | named failure | "
+        "rover left moving | median time (s) | x clean (median of ratios) | frames through to rover / from rover | "
+        "frames sent again |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for s in summaries:
+
         def f(v, fmt):
             return "-" if v is None else format(v, fmt)
-        print(f"| {s['radio']} | {s['right']}/{s['runs']} ({s['unsolvable_right']}/{s['unsolvable']} 'no path') | {s['crashed']} | {s['timeout']} | {s['failed_named']} | "
-              f"{s['not_stopped']} | {f(s['median_time_s'], '.1f')} | {f(s['median_ratio'], '.2f')} | "
-              f"{f(s['to_rover'] and 100 * s['to_rover'], '.1f')} % / {f(s['to_host'] and 100 * s['to_host'], '.1f')} % | "
-              f"{100 * s['sent_again_share']:.1f} % |")
+
+        print(
+            f"| {s['radio']} | {s['right']}/{s['runs']} ({s['unsolvable_right']}/{s['unsolvable']} 'no path') | {s['crashed']} | {s['timeout']} | {s['failed_named']} | "
+            f"{s['not_stopped']} | {f(s['median_time_s'], '.1f')} | {f(s['median_ratio'], '.2f')} | "
+            f"{f(s['to_rover'] and 100 * s['to_rover'], '.1f')} % / {f(s['to_host'] and 100 * s['to_host'], '.1f')} % | "
+            f"{100 * s['sent_again_share']:.1f} % |"
+        )
     missed = []
     for s in summaries:
         for why in s["failures"]:
             print(f"  {s['radio']}: {why}")
         if s["crashed"] or s["timeout"] or s["not_stopped"]:
-            missed.append(f"{s['radio']}: {s['crashed']} crashed, {s['timeout']} by the time limit, "
-                          f"{s['not_stopped']} left moving")
+            missed.append(
+                f"{s['radio']}: {s['crashed']} crashed, {s['timeout']} by the time limit, "
+                f"{s['not_stopped']} left moving"
+            )
         rule = ACCEPT.get(s["radio"])
         if rule is not None:
             least, ratio = rule

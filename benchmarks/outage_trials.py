@@ -8,6 +8,7 @@ way) and its length (2-30 s). It reports the completion rate, the collisions (wh
 the dead-reckoning error the first fix after each outage revealed, how often the rover held
 because its estimate grew too uncertain, and how long it took to recover.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,11 +31,21 @@ def trial(args: tuple) -> dict:
     sim = Simulation(load_scenario(scenario), SimOptions(seed=seed, faults=faults, max_time_s=400))
     sim.run()
     f = fault_figures(sim)
-    return {"scenario": scenario, "seed": seed, "kind": kind, "start_s": start, "length_s": length,
-            "reached": all(leg.reached for leg in sim.mission.legs) and len(sim.mission.legs) == sim.mission.legs_asked,
-            "collisions": sim.collisions, "min_clearance_m": sim.min_clearance_m, "mission_time_s": sim.t,
-            "dr_errors_m": f["dr_errors_m"], "holds": len(f["holds"]), "recoveries_s": f["hold_recovery_s"],
-            "error": sim.mission.error}
+    return {
+        "scenario": scenario,
+        "seed": seed,
+        "kind": kind,
+        "start_s": start,
+        "length_s": length,
+        "reached": all(leg.reached for leg in sim.mission.legs) and len(sim.mission.legs) == sim.mission.legs_asked,
+        "collisions": sim.collisions,
+        "min_clearance_m": sim.min_clearance_m,
+        "mission_time_s": sim.t,
+        "dr_errors_m": f["dr_errors_m"],
+        "holds": len(f["holds"]),
+        "recoveries_s": f["hold_recovery_s"],
+        "error": sim.mission.error,
+    }
 
 
 def main() -> int:
@@ -45,9 +56,16 @@ def main() -> int:
     ap.add_argument("--json", help="write every trial here")
     a = ap.parse_args()
     rng = np.random.default_rng(a.seed)
-    jobs = [(SCENARIOS[int(rng.integers(len(SCENARIOS)))], int(rng.integers(1, 10_000)),
-             "radio" if rng.random() < 0.5 else "camera", round(float(rng.uniform(3, 25)), 1),
-             round(float(rng.uniform(2, 30)), 1)) for _ in range(a.trials)]
+    jobs = [
+        (
+            SCENARIOS[int(rng.integers(len(SCENARIOS)))],
+            int(rng.integers(1, 10_000)),
+            "radio" if rng.random() < 0.5 else "camera",
+            round(float(rng.uniform(3, 25)), 1),
+            round(float(rng.uniform(2, 30)), 1),
+        )
+        for _ in range(a.trials)
+    ]
     t0 = time.monotonic()
     results = []
     from rovernav.evaluation.pool import map_runs
@@ -61,22 +79,30 @@ def main() -> int:
     errors = np.array([e for r in results for e in r["dr_errors_m"]]) * 1000
     holds = sum(r["holds"] for r in results)
     rec = [x for r in results for x in r["recoveries_s"] if x is not None]
-    print(f"{len(results)} trials ({sum(r['kind'] == 'radio' for r in results)} radio, "
-          f"{sum(r['kind'] == 'camera' for r in results)} camera outages of 2-30 s), {a.jobs} processes, "
-          f"{time.monotonic() - t0:.0f} s")
+    print(
+        f"{len(results)} trials ({sum(r['kind'] == 'radio' for r in results)} radio, "
+        f"{sum(r['kind'] == 'camera' for r in results)} camera outages of 2-30 s), {a.jobs} processes, "
+        f"{time.monotonic() - t0:.0f} s"
+    )
     print(f"completed: {reached}/{len(results)} ({100 * reached / len(results):.0f} %)")
     print(f"collisions: {collisions}")
     if len(errors):
-        print(f"dead-reckoning error when fixes returned (mm), {len(errors)} outages: median {np.median(errors):.0f}, "
-              f"90th percentile {np.percentile(errors, 90):.0f}, max {errors.max():.0f}")
-    print(f"safe stops (hold): {holds}; time to recover after a hold (s): "
-          + (f"median {np.median(rec):.1f}, max {max(rec):.1f}" if rec else "none"))
+        print(
+            f"dead-reckoning error when fixes returned (mm), {len(errors)} outages: median {np.median(errors):.0f}, "
+            f"90th percentile {np.percentile(errors, 90):.0f}, max {errors.max():.0f}"
+        )
+    print(
+        f"safe stops (hold): {holds}; time to recover after a hold (s): "
+        + (f"median {np.median(rec):.1f}, max {max(rec):.1f}" if rec else "none")
+    )
     worst = min(r["min_clearance_m"] for r in results)
     print(f"closest any rover came to an obstacle: {worst * 1000:.0f} mm")
     failed = [r for r in results if not r["reached"] or r["collisions"]]
     for r in failed[:10]:
-        print(f"  not completed: {r['scenario']} seed {r['seed']} {r['kind']} {r['start_s']}+{r['length_s']} s: "
-              f"{r['error'] or 'timed out'}, {r['collisions']} collisions")
+        print(
+            f"  not completed: {r['scenario']} seed {r['seed']} {r['kind']} {r['start_s']}+{r['length_s']} s: "
+            f"{r['error'] or 'timed out'}, {r['collisions']} collisions"
+        )
     if a.json:
         with open(a.json, "w") as fh:
             json.dump(results, fh, indent=1)

@@ -16,6 +16,7 @@ step the sweep began and the state it left:
 - other: from any other state (a mission's start, a new path after a reflex stop, the radio back,
   a wait for the host's word that ran out).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,9 +38,13 @@ def run(args: tuple[str, int]) -> dict:
     spent: dict[str, float] = collections.Counter()
     for a, b in zip(sim.samples, sim.samples[1:]):
         spent[mg.RoverState(a.state).name] += b.t_s - a.t_s
-    return {"arena": Path(path).stem, "outcome": sim.outcome, "mission_s": round(sim.t, 2),
-            "states_s": {k: round(v, 3) for k, v in spent.items()},
-            "sweeps": sweep_causes(sim.samples, [m for _, m in sim.mission.events])}
+    return {
+        "arena": Path(path).stem,
+        "outcome": sim.outcome,
+        "mission_s": round(sim.t, 2),
+        "states_s": {k: round(v, 3) for k, v in spent.items()},
+        "sweeps": sweep_causes(sim.samples, [m for _, m in sim.mission.events]),
+    }
 
 
 def sweep_causes(samples, events) -> dict[str, list[float]]:
@@ -47,7 +52,7 @@ def sweep_causes(samples, events) -> dict[str, list[float]]:
     from rovernav.link import messages_gen as mg
 
     scan = mg.RoverState.SCAN
-    near_ms = 15   # the sweep begins in the step of its cause; samples come every 10 ms
+    near_ms = 15  # the sweep begins in the step of its cause; samples come every 10 ms
     causes: dict[str, list[float]] = collections.defaultdict(list)
     i = 1
     while i < len(samples):
@@ -86,7 +91,7 @@ def main() -> int:
         ap.error(f"no arena files (*.toml) in {a.arenas}")
     if a.every < 1:
         ap.error("--every must be 1 or more")
-    files = files[::a.every]
+    files = files[:: a.every]
     t0 = time.monotonic()
     results = []
     from rovernav.evaluation.pool import map_runs
@@ -98,8 +103,10 @@ def main() -> int:
     for r in results:
         total.update(r["states_s"])
     whole = sum(total.values())
-    print(f"\n{len(results)} runs of {a.arenas} (every {a.every}th, seed {a.seed}), "
-          f"{whole:.0f} s simulated, {time.monotonic() - t0:.0f} s wall, {a.jobs} processes\n")
+    print(
+        f"\n{len(results)} runs of {a.arenas} (every {a.every}th, seed {a.seed}), "
+        f"{whole:.0f} s simulated, {time.monotonic() - t0:.0f} s wall, {a.jobs} processes\n"
+    )
     print("| state | time (s) | share |\n|---|---|---|")
     for state, s in sorted(total.items(), key=lambda kv: -kv[1]):
         print(f"| {state} | {s:.1f} | {100 * s / whole:.1f} % |")

@@ -17,6 +17,7 @@ step passes 5 ms, the jitter 1 ms, or the stack margin falls under 256 bytes: th
 12 asks of the image. One seed's mission time swings by a few seconds with any change to the
 rover (the runs are chaotic), hence the median over seeds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,8 +30,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ["seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles", "out-and-back"]
 # The rover alone: its own detour planner, the obstacle list full on the last two.
-DETOURS = ["seed-fig4-8-unknown-obstacle", str(ROOT / "scenarios" / "full-echoes-wall.toml"),
-           str(ROOT / "scenarios" / "full-echoes-posts.toml")]
+DETOURS = [
+    "seed-fig4-8-unknown-obstacle",
+    str(ROOT / "scenarios" / "full-echoes-wall.toml"),
+    str(ROOT / "scenarios" / "full-echoes-posts.toml"),
+]
 ALONE = " (rover alone)"
 STEP_LIMIT_US = 5000.0
 JITTER_LIMIT_MS = 1.0
@@ -90,10 +94,12 @@ def table_row(scenario: str, native: list[dict], uno: list[dict]) -> str:
     t_nat_s, t_uno_s = _median_time_s(native), _median_time_s(uno)
     dt = f" ({100 * (t_uno_s - t_nat_s) / t_nat_s:+.1f} %)" if t_nat_s and t_uno_s else ""
     did = ", ".join(worst["flags"] or []) or "nothing flagged"
-    return (f"| {label_of(scenario)} | {runs_cell(native)} | {runs_cell(uno)}{dt} | "
-            f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
-            f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
-            f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used_bytes} / {margin_bytes} B |")
+    return (
+        f"| {label_of(scenario)} | {runs_cell(native)} | {runs_cell(uno)}{dt} | "
+        f"{max(t['step_time']['median_us'] for t in timing) / 1000:.2f} / "
+        f"{max(t['step_time']['p99_us'] for t in timing) / 1000:.2f} / {worst['us'] / 1000:.2f} ms "
+        f"({worst['state']}: {did}) | {jitter_ms:.2f} ms | {used_bytes} / {margin_bytes} B |"
+    )
 
 
 def failures_of(scenario: str, seeds: list[int], native: list[dict], uno: list[dict]) -> list[str]:
@@ -116,8 +122,10 @@ def failures_of(scenario: str, seeds: list[int], native: list[dict], uno: list[d
     return failures
 
 
-TABLE_HEADER = ("| scenario | native | Uno image | Uno step: median / p99 / worst (what the worst did) | jitter "
-                "| stack used / spare |\n|---|---|---|---|---|---|")
+TABLE_HEADER = (
+    "| scenario | native | Uno image | Uno step: median / p99 / worst (what the worst did) | jitter "
+    "| stack used / spare |\n|---|---|---|---|---|---|"
+)
 
 
 def table(scenarios: list[str], seeds: list[int], results: dict[tuple, dict]) -> tuple[str, list[str]]:
@@ -158,8 +166,11 @@ def main(argv: list[str] | None = None) -> int:
     for n, (job, r) in enumerate(map_runs(run_one, jobs, args.jobs, ordered=False, star=True), 1):
         sc, rover, seed = job
         results[(sc, rover, seed)] = r
-        print(f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
-              file=sys.stderr, flush=True)
+        print(
+            f"[{n}/{len(jobs)} {time.monotonic() - t0:5.0f} s] {sc} / {rover} / seed {seed}: {outcome(r)}",
+            file=sys.stderr,
+            flush=True,
+        )
     text, failures = table(args.scenarios, args.seeds, results)
     print(text)
     print(f"\n({time.monotonic() - t0:.0f} s for {len(jobs)} runs, {args.jobs} at a time)")

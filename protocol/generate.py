@@ -16,6 +16,7 @@ Writes, with a banner naming this file and the definition:
 
 Standard library only: it runs before anything is installed.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,7 +31,17 @@ if str(Path(__file__).resolve().parent) not in sys.path:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from generator.definition import (  # noqa: E402
-    OUT_CPP, OUT_PY, OUT_VECTORS_H, OUT_VEHICLE_H, OUT_VEHICLE_PY, ROOT, TYPES, VECTORS, DefinitionError, load)
+    OUT_CPP,
+    OUT_PY,
+    OUT_VECTORS_H,
+    OUT_VEHICLE_H,
+    OUT_VEHICLE_PY,
+    ROOT,
+    TYPES,
+    VECTORS,
+    DefinitionError,
+    load,
+)
 from generator.definition import schema_hash  # noqa: E402, F401  (the tests call generate.schema_hash)
 from generator.emit_cpp import render_cpp, render_vectors_h  # noqa: E402
 from generator.emit_python import render_py  # noqa: E402
@@ -40,6 +51,7 @@ from generator.emit_vehicle import render_vehicle_h, render_vehicle_py  # noqa: 
 # ---------------------------------------------------------------- reference encoder
 # Written apart from the host runtime on purpose: the golden vectors it produces are
 # checked against both the C++ and the Python implementation.
+
 
 def _crc16_ccitt_false(data: bytes) -> int:
     crc = 0xFFFF
@@ -126,13 +138,13 @@ def reference_siphash24(key: bytes, m: bytes) -> bytes:
     b = len(m)
     padded = m + bytes(-(b + 1) % 8) + bytes((b % 256,))
     for i in range(0, len(padded), 8):
-        mi = int.from_bytes(padded[i:i + 8], "little")
+        mi = int.from_bytes(padded[i : i + 8], "little")
         v0, v1, v2, v3 = v[0], v[1], v[2], v[3] ^ mi
-        for _ in range(2):                      # c = 2 compression rounds
+        for _ in range(2):  # c = 2 compression rounds
             v0, v1, v2, v3 = _sip_round(v0, v1, v2, v3)
         v = (v0 ^ mi, v1, v2, v3)
     v0, v1, v2, v3 = v[0], v[1], v[2] ^ 0xFF, v[3]
-    for _ in range(4):                          # d = 4 finalisation rounds
+    for _ in range(4):  # d = 4 finalisation rounds
         v0, v1, v2, v3 = _sip_round(v0, v1, v2, v3)
     return (v0 ^ v1 ^ v2 ^ v3).to_bytes(8, "little")
 
@@ -149,8 +161,9 @@ def check_reference_siphash() -> None:
         raise AssertionError(f"reference SipHash-2-4 gives 0x{got:016x} on the paper's vector, not 0x{expected:016x}")
 
 
-def reference_signed_frame(d: dict, message: dict, seq: int, fields: dict, key: bytes, counter: int,
-                           direction: str) -> tuple[bytes, bytes, bytes]:
+def reference_signed_frame(
+    d: dict, message: dict, seq: int, fields: dict, key: bytes, counter: int, direction: str
+) -> tuple[bytes, bytes, bytes]:
     """A signed frame ([signing]): its bytes on the wire (delimiter included), its tag, and what
     the tag is SipHash-2-4 of (the direction byte, then version|flag .. counter)."""
     sig = d["signing"]
@@ -164,13 +177,14 @@ def reference_signed_frame(d: dict, message: dict, seq: int, fields: dict, key: 
     body = _reference_body(d, message, seq, fields, d["protocol"]["version"] | sig["flag"])
     body += counter.to_bytes(sig["counter_bytes"], "little")
     mac_input = bytes((sig[direction],)) + bytes(body)
-    tag = reference_siphash24(key, mac_input)[:sig["tag_bytes"]]
+    tag = reference_siphash24(key, mac_input)[: sig["tag_bytes"]]
     body += tag
     body += _crc16_ccitt_false(bytes(body)).to_bytes(2, "little")
     return _cobs(bytes(body)) + b"\x00", tag, mac_input
 
 
 # ---------------------------------------------------------------- vectors.json
+
 
 def update_vectors(d: dict, vectors: dict) -> dict:
     """Recompute every frame_hex from its fields, and the bad frames from the good ones."""
@@ -201,8 +215,9 @@ def update_vectors(d: dict, vectors: dict) -> dict:
     bad.append({"name": "longer than any frame", "counter": "overlong", "hex": ("41" * 70) + "00"})
     vectors["bad_frames"] = bad
     for s in vectors.get("signed_frames", []):
-        frame, tag, mac_input = reference_signed_frame(d, by_name[s["message"]], s["seq"], s["fields"],
-                                                       bytes.fromhex(s["key_hex"]), s["counter"], s["direction"])
+        frame, tag, mac_input = reference_signed_frame(
+            d, by_name[s["message"]], s["seq"], s["fields"], bytes.fromhex(s["key_hex"]), s["counter"], s["direction"]
+        )
         s["frame_hex"], s["tag_hex"], s["mac_input_hex"] = frame.hex(), tag.hex(), mac_input.hex()
     return vectors
 
@@ -211,7 +226,7 @@ def _uncobs(data: bytes) -> bytes:
     out, i = bytearray(), 0
     while i < len(data):
         code = data[i]
-        out += data[i + 1:i + code]
+        out += data[i + 1 : i + code]
         i += code
         if code < 0xFF and i < len(data):
             out.append(0)
@@ -220,14 +235,23 @@ def _uncobs(data: bytes) -> bytes:
 
 def outputs(d: dict) -> dict[Path, str]:
     vectors = json.loads(VECTORS.read_text())
-    return {OUT_CPP: render_cpp(d), OUT_PY: render_py(d), OUT_VECTORS_H: render_vectors_h(d, vectors),
-            OUT_VEHICLE_H: render_vehicle_h(d), OUT_VEHICLE_PY: render_vehicle_py(d)}
+    return {
+        OUT_CPP: render_cpp(d),
+        OUT_PY: render_py(d),
+        OUT_VECTORS_H: render_vectors_h(d, vectors),
+        OUT_VEHICLE_H: render_vehicle_h(d),
+        OUT_VEHICLE_PY: render_vehicle_py(d),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--check", action="store_true", help="exit 1 if a committed output differs from what the definition gives")
-    ap.add_argument("--update-vectors", action="store_true", help="recompute frame_hex and bad frames in protocol/vectors.json")
+    ap.add_argument(
+        "--check", action="store_true", help="exit 1 if a committed output differs from what the definition gives"
+    )
+    ap.add_argument(
+        "--update-vectors", action="store_true", help="recompute frame_hex and bad frames in protocol/vectors.json"
+    )
     args = ap.parse_args(argv)
     try:
         d = load()
@@ -253,8 +277,12 @@ def main(argv: list[str] | None = None) -> int:
         if update_vectors(d, json.loads(VECTORS.read_text())) != vectors:
             drifted.append(str(VECTORS.relative_to(ROOT)) + " (its computed bytes: run --update-vectors)")
         if drifted:
-            print("generated files drifted from protocol/messages.toml and protocol/vehicle.toml: " + ", ".join(drifted)
-                  + "\nrun: python3 protocol/generate.py", file=sys.stderr)
+            print(
+                "generated files drifted from protocol/messages.toml and protocol/vehicle.toml: "
+                + ", ".join(drifted)
+                + "\nrun: python3 protocol/generate.py",
+                file=sys.stderr,
+            )
             return 1
         print(f"generated files match the definition (schema hash 0x{d['schema_hash']:08X})")
     return 0

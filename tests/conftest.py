@@ -1,13 +1,14 @@
 """Fixtures the tests share: what several test files set up alike.
 
-    repo_root          the checkout's root folder (scenarios/, benchmarks/, docs/, ...)
-    scenario_toml      a shared scenario's TOML text, by name ("seed-fig4-8-unknown-obstacle")
-    fig48              that scenario, loaded (the one most tests run)
-    rovernav_command   `python -m rovernav.cli ARGS` in a subprocess, as a user types it
-    benchmark_module   a script of benchmarks/ imported as a module, to call its functions
-    native_core        the firmware core's library built (once), and its RoverCore class
-    simulate           a Simulation of a scenario with its progress lines silenced
+repo_root          the checkout's root folder (scenarios/, benchmarks/, docs/, ...)
+scenario_toml      a shared scenario's TOML text, by name ("seed-fig4-8-unknown-obstacle")
+fig48              that scenario, loaded (the one most tests run)
+rovernav_command   `python -m rovernav.cli ARGS` in a subprocess, as a user types it
+benchmark_module   a script of benchmarks/ imported as a module, to call its functions
+native_core        the firmware core's library built (once), and its RoverCore class
+simulate           a Simulation of a scenario with its progress lines silenced
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -31,8 +32,10 @@ def repo_root() -> Path:
 @pytest.fixture(scope="session")
 def scenario_toml():
     """name -> the text of scenarios/NAME.toml."""
+
     def text(name: str) -> str:
         return (REPO_ROOT / "scenarios" / f"{name}.toml").read_text()
+
     return text
 
 
@@ -55,9 +58,16 @@ def rovernav_command():
         def limit() -> None:
             resource.setrlimit(resource.RLIMIT_AS, (memory_limit_bytes, memory_limit_bytes))
 
-        return subprocess.run([sys.executable, "-m", "rovernav.cli", *map(str, args)], capture_output=True,
-                              text=True, timeout=timeout_s, env=env, cwd=cwd,
-                              preexec_fn=limit if memory_limit_bytes is not None else None)
+        return subprocess.run(
+            [sys.executable, "-m", "rovernav.cli", *map(str, args)],
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+            env=env,
+            cwd=cwd,
+            preexec_fn=limit if memory_limit_bytes is not None else None,
+        )
+
     return run
 
 
@@ -73,6 +83,7 @@ def benchmark_module():
             spec.loader.exec_module(module)
             loaded[name] = module
         return loaded[name]
+
     return load
 
 
@@ -93,6 +104,7 @@ def simulate():
 
     def make(scenario, **options):
         return Simulation(scenario, SimOptions(**options), progress=lambda t_s, text: None)
+
     return make
 
 

@@ -1,5 +1,6 @@
 """A test helper: the rover's firmware core (its C ABI) behind a Transport, in simulated time.
 Used by the provisioning, Uno, run-log, mission and lossy-exchange tests."""
+
 from __future__ import annotations
 
 from rovernav.cores import NativeCore
@@ -66,9 +67,9 @@ class CoreRover:
         self.end, self.core, self.t_ms = end, NativeCore(boot_id=boot_id), 0
         self.decoder = framing.FrameDecoder()
         self.got: list = []
-        self.said: list = []    # what the rover itself sent, decoded
+        self.said: list = []  # what the rover itself sent, decoded
         self._out = framing.FrameDecoder()
-        self.seq = 128   # frames said for the rover, numbered apart from its own
+        self.seq = 128  # frames said for the rover, numbered apart from its own
 
     def serve(self, t_s):
         data = self.end.read(65536, 0)
@@ -96,7 +97,9 @@ class CoreRover:
     def paths(self) -> dict[int, list]:
         out: dict[int, list] = {}
         for m in self.of(mg.Path):
-            out.setdefault(m.path_id, {})[m.first_index] = [(m.x_mm[i] / 1000, m.y_mm[i] / 1000) for i in range(m.count)]
+            out.setdefault(m.path_id, {})[m.first_index] = [
+                (m.x_mm[i] / 1000, m.y_mm[i] / 1000) for i in range(m.count)
+            ]
         return {k: [p for first in sorted(v) for p in v[first]] for k, v in out.items()}
 
     @property

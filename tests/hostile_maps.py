@@ -1,5 +1,6 @@
 """A test helper: learned-map files, good and bad, for the hostile-input tests of the map
 loader (test_hostile_map_files.py) and of `rovernav run --map` (test_hostile_cli.py)."""
+
 from __future__ import annotations
 
 import json
@@ -13,8 +14,15 @@ def grid() -> OccupancyGrid:
 
 
 def reading(**kw) -> dict:
-    r = {"x_m": 1.0, "y_m": 0.9, "heading_deg": 90.0, "bearing_deg": 0.0, "range_m": 0.25,
-         "max_range_m": 0.4, "sd_m": 0.003}
+    r = {
+        "x_m": 1.0,
+        "y_m": 0.9,
+        "heading_deg": 90.0,
+        "bearing_deg": 0.0,
+        "range_m": 0.25,
+        "max_range_m": 0.4,
+        "sd_m": 0.003,
+    }
     r.update(kw)
     return r
 
@@ -48,10 +56,16 @@ BAD_MAPS = [
     ("1e999", map_text([reading()]).replace('"y_m": 0.9', '"y_m": 1e999').encode(), "y_m must be a finite"),
     ("a string", map_text([reading(heading_deg="90")]).encode(), "heading_deg must be a finite number"),
     ("a bool", map_text([reading(bearing_deg=True)]).encode(), "bearing_deg must be a finite number"),
-    ("a 5000-digit integer", map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 5000).encode(),
-     "thousands of digits"),
-    ("a 400-digit integer", map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 400).encode(),
-     "x_m must be a finite number"),
+    (
+        "a 5000-digit integer",
+        map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 5000).encode(),
+        "thousands of digits",
+    ),
+    (
+        "a 400-digit integer",
+        map_text([reading()]).replace('"x_m": 1.0', '"x_m": 1' + "0" * 400).encode(),
+        "x_m must be a finite number",
+    ),
     ("far off the arena", map_text([reading(x_m=40.0)]).encode(), "readings[0].x_m must be within"),
     ("another arena", map_text([reading(x_m=9.0, y_m=7.0)]).encode(), "a map of another arena"),
     ("a crazy angle", map_text([reading(heading_deg=1e6)]).encode(), "heading_deg must be within"),
@@ -60,7 +74,15 @@ BAD_MAPS = [
     ("max range zero", map_text([reading(max_range_m=0)]).encode(), "max_range_m must be in"),
     ("negative sd", map_text([reading(sd_m=-0.1)]).encode(), "sd_m must be in"),
     ("nested deep", b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
-    ("v1 with a null range", json.dumps({"format": "rovernav-map", "version": 1, "echoes": [
-        {k: v for k, v in reading(range_m=None).items() if k not in ("max_range_m", "sd_m")}]}).encode(),
-     "echoes[0].range_m must be a finite number"),
+    (
+        "v1 with a null range",
+        json.dumps(
+            {
+                "format": "rovernav-map",
+                "version": 1,
+                "echoes": [{k: v for k, v in reading(range_m=None).items() if k not in ("max_range_m", "sd_m")}],
+            }
+        ).encode(),
+        "echoes[0].range_m must be a finite number",
+    ),
 ]

@@ -1,6 +1,7 @@
 """A test helper for the planning tests: the shared scenarios' grids, and a check of a path's
 cells by fine sampling. Used by test_planning_astar.py, test_planning_grid.py and
 test_planning_paths.py."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,6 @@
 """A test helper: whole simulated missions on a shared scenario, by name, and what they report.
 Used by the mission tests (test_sim_missions.py) and the fault tests (test_sim_faults.py)."""
+
 from __future__ import annotations
 
 from rovernav.scenario import load_scenario

@@ -1,4 +1,5 @@
 """rovernav.angles: one convention for the host, the firmware's (angles.h)."""
+
 from __future__ import annotations
 
 import math

@@ -1,4 +1,5 @@
 """The arena generator: every family, deterministic files that load, labels that hold."""
+
 from __future__ import annotations
 
 import collections
@@ -42,7 +43,7 @@ def test_200_arenas_of_seed_1_cover_every_family_evenly(arenas200):
     assert len(arenas200) == 200
     assert len(FAMILIES) == len(ALL_FAMILY_NAMES) > len(FAMILY_NAMES) >= 14
     counts = collections.Counter(a.family for a in arenas200)
-    assert set(counts) == set(FAMILY_NAMES)   # by-name families (cellular) are not in the default cycle
+    assert set(counts) == set(FAMILY_NAMES)  # by-name families (cellular) are not in the default cycle
     assert max(counts.values()) - min(counts.values()) <= 1
     assert [a.index for a in arenas200] == list(range(1, 201))
     assert {a.difficulty["band"] for a in arenas200} == {"easy", "medium", "hard"}
@@ -69,20 +70,23 @@ def test_every_written_file_loads_and_keeps_its_labels(arenas200, tmp_path):
         assert 0.0 <= g["difficulty"]["score"] <= 1.0
         assert loaded.obstacles == arena.scenario.obstacles
         assert loaded.start == arena.scenario.start and loaded.target == arena.scenario.target
-        for o in loaded.obstacles:   # every box on the arena
+        for o in loaded.obstacles:  # every box on the arena
             assert o.x_m - o.w_m / 2 >= -1e-9 and o.x_m + o.w_m / 2 <= loaded.arena.width_m + 1e-9
             assert o.y_m - o.h_m / 2 >= -1e-9 and o.y_m + o.h_m / 2 <= loaded.arena.height_m + 1e-9
         assert loaded.walls == arena.scenario.walls and loaded.posts == arena.scenario.posts
-        for w in loaded.walls:       # every wall and post on the arena
-            assert all(-1e-9 <= x <= loaded.arena.width_m + 1e-9 and -1e-9 <= y <= loaded.arena.height_m + 1e-9
-                       for x, y in w.corners())
+        for w in loaded.walls:  # every wall and post on the arena
+            assert all(
+                -1e-9 <= x <= loaded.arena.width_m + 1e-9 and -1e-9 <= y <= loaded.arena.height_m + 1e-9
+                for x, y in w.corners()
+            )
         for o in loaded.posts:
             assert o.radius_m - 1e-9 <= o.x_m <= loaded.arena.width_m - o.radius_m + 1e-9
             assert o.radius_m - 1e-9 <= o.y_m <= loaded.arena.height_m - o.radius_m + 1e-9
     rows = json.loads((tmp_path / "index.json").read_text())
     assert [r["file"] for r in rows] == [p.name for p in paths]
-    assert [(r["family"], r["solvable"], r["band"], r["score"]) for r in rows] == \
-        [(a.family, a.solvable, a.difficulty["band"], a.difficulty["score"]) for a in arenas200]
+    assert [(r["family"], r["solvable"], r["band"], r["score"]) for r in rows] == [
+        (a.family, a.solvable, a.difficulty["band"], a.difficulty["score"]) for a in arenas200
+    ]
     csv_lines = (tmp_path / "index.csv").read_text().splitlines()
     assert len(csv_lines) == 201 and csv_lines[0].startswith("file,")
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "a temporary file was left behind"
@@ -112,7 +116,7 @@ def test_the_unreachable_family_is_enclosed_and_start_at_target_is_within_5_cm(a
     for a in of_family(arenas200, "unreachable"):
         assert not a.solvable
         grid = OccupancyGrid.from_scenario(a.scenario, all_obstacles=True)
-        with pytest.raises(Unreachable):   # not GoalBlocked: the target is free but walled in
+        with pytest.raises(Unreachable):  # not GoalBlocked: the target is free but walled in
             plan(grid, a.scenario.start.xy, a.scenario.target.xy)
     assert all(a.solvable for a in arenas200 if a.family not in ("unreachable", "narrow_passage"))
     for a in of_family(arenas200, "start_at_target"):
@@ -174,23 +178,33 @@ def test_unknown_boxes_on_the_path_cross_the_optimum_of_the_known_map(arenas200)
 def test_families_put_unknown_boxes_where_they_say(arenas200):
     for a in of_family(arenas200, "unknown_near_start") + of_family(arenas200, "unknown_near_target"):
         p = a.scenario.start if a.family == "unknown_near_start" else a.scenario.target
-        near = [math.hypot(max(abs(p.x_m - o.x_m) - o.w_m / 2, 0), max(abs(p.y_m - o.y_m) - o.h_m / 2, 0))
-                for o in a.scenario.unknown_obstacles]
+        near = [
+            math.hypot(max(abs(p.x_m - o.x_m) - o.w_m / 2, 0), max(abs(p.y_m - o.y_m) - o.h_m / 2, 0))
+            for o in a.scenario.unknown_obstacles
+        ]
         assert near and min(near) < INFLATION_M + 0.16, a.name
     for a in of_family(arenas200, "unknown_against_wall"):
         s, W, H = a.scenario, a.scenario.arena.width_m, a.scenario.arena.height_m
-        assert any(min(o.x_m - o.w_m / 2, W - o.x_m - o.w_m / 2, o.y_m - o.h_m / 2, H - o.y_m - o.h_m / 2) < 1e-9
-                   for o in s.unknown_obstacles), a.name
+        assert any(
+            min(o.x_m - o.w_m / 2, W - o.x_m - o.w_m / 2, o.y_m - o.h_m / 2, H - o.y_m - o.h_m / 2) < 1e-9
+            for o in s.unknown_obstacles
+        ), a.name
     for a in of_family(arenas200, "out_and_back"):
         assert (a.scenario.mission.kind, a.scenario.mission.trips) == ("out-and-back", 1)
         assert a.scenario.unknown_obstacles, a.name
-    for family in FAMILY_NAMES:   # every family tests the sonar somewhere (an unknown box, wall or post)
+    for family in FAMILY_NAMES:  # every family tests the sonar somewhere (an unknown box, wall or post)
         assert any(a.scenario.unknown_shapes for a in of_family(arenas200, family)), family
 
 
 def _scenario(obstacles, start=(1.0, 0.6), target=(1.0, 1.4)):
-    return Scenario(name="t", arena=Arena(2.0, 2.0), start=Pose(*start), target=Target(*target),
-                    mission=Mission(), obstacles=tuple(obstacles))
+    return Scenario(
+        name="t",
+        arena=Arena(2.0, 2.0),
+        start=Pose(*start),
+        target=Target(*target),
+        mission=Mission(),
+        obstacles=tuple(obstacles),
+    )
 
 
 def test_the_metrics_on_arenas_worked_by_hand():
@@ -207,7 +221,7 @@ def test_the_metrics_on_arenas_worked_by_hand():
     assert d["mean_clearance_m"] == pytest.approx(0.25)
     assert d["characteristic_dimension_m"] == pytest.approx(0.5)
     assert d["narrowest_dimension_m"] == pytest.approx(0.5)
-    assert d["dispersion"] > 4   # both horizontal rays cross a wall, in and out
+    assert d["dispersion"] > 4  # both horizontal rays cross a wall, in and out
     assert d["known_path_blocked"] is False
     assert d["score"] > empty.difficulty["score"]
     # The same walls closed across the way: unsolvable, measured along the straight segment.
@@ -222,17 +236,18 @@ def test_the_metrics_on_arenas_worked_by_hand():
 def test_rooms_are_drawn_with_walls_and_clutter_with_posts(arenas200):
     for family in ("wall_gap", "corridor", "trap_l", "trap_u", "unreachable"):
         assert all(a.scenario.walls for a in of_family(arenas200, family)), family
-    assert any(a.scenario.walls for a in of_family(arenas200, "narrow_passage"))       # its thin dividers
+    assert any(a.scenario.walls for a in of_family(arenas200, "narrow_passage"))  # its thin dividers
     assert any(a.scenario.posts for a in of_family(arenas200, "clutter"))
     assert any(not w.known for a in arenas200 for w in a.scenario.walls)
     assert any(not p.known for a in arenas200 for p in a.scenario.posts)
     doors = [w for a in of_family(arenas200, "wall_gap") for w in a.scenario.walls if not w.axis_aligned]
-    assert doors   # an open door leaf at an angle
-    for family in ("scattered", "unknown_on_path", "out_and_back"):   # these stay boxes
+    assert doors  # an open door leaf at an angle
+    for family in ("scattered", "unknown_on_path", "out_and_back"):  # these stay boxes
         assert not any(a.scenario.walls or a.scenario.posts for a in of_family(arenas200, family)), family
     # the index counts every obstacle, whatever its shape
     a = next(a for a in arenas200 if a.scenario.walls and a.scenario.posts == () and a.scenario.obstacles == ())
     from rovernav.evaluation.arenas import index_row
+
     row = index_row(a)
     assert row["known_obstacles"] + row["unknown_obstacles"] == len(a.scenario.walls)
 
@@ -242,10 +257,19 @@ def test_the_metrics_count_walls_at_an_angle_and_posts():
 
     # A corridor 0.5 m wide at 45°, of walls 5 cm thick, along the straight way: as the axis-aligned one.
     off = 0.275 / math.sqrt(2)
-    walls = (Wall(0.3 - off, 0.3 + off, 1.7 - off, 1.7 + off, 0.05),
-             Wall(0.3 + off, 0.3 - off, 1.7 + off, 1.7 - off, 0.05, known=False))
-    s = Scenario(name="t", arena=Arena(2.0, 2.0), start=Pose(0.6, 0.6), target=Target(1.4, 1.4), mission=Mission(),
-                 obstacles=(), walls=walls)
+    walls = (
+        Wall(0.3 - off, 0.3 + off, 1.7 - off, 1.7 + off, 0.05),
+        Wall(0.3 + off, 0.3 - off, 1.7 + off, 1.7 - off, 0.05, known=False),
+    )
+    s = Scenario(
+        name="t",
+        arena=Arena(2.0, 2.0),
+        start=Pose(0.6, 0.6),
+        target=Target(1.4, 1.4),
+        mission=Mission(),
+        obstacles=(),
+        walls=walls,
+    )
     d = measure_scenario(s).difficulty
     assert d["optimal_length_m"] == pytest.approx(0.8 * math.sqrt(2), abs=1e-6)
     assert d["closest_obstacle_m"] == pytest.approx(0.25) and d["mean_clearance_m"] == pytest.approx(0.25)
@@ -257,7 +281,7 @@ def test_the_metrics_count_walls_at_an_angle_and_posts():
     d = measure_scenario(s).difficulty
     # (the path is sampled every 3 cm or less: its point nearest the post is within 1.5 cm of the middle)
     assert d["closest_obstacle_m"] == pytest.approx(0.25, abs=1e-3)
-    assert d["narrowest_dimension_m"] == pytest.approx(1.0 + 0.25, abs=5e-3)   # from the left wall to the post
+    assert d["narrowest_dimension_m"] == pytest.approx(1.0 + 0.25, abs=5e-3)  # from the left wall to the post
     assert d["dispersion"] > 0
     # Across the way, the post blocks the known path: the grid of every obstacle has it.
     s = dataclasses.replace(s, posts=(Post(1.0, 1.0, 0.05, known=False),))
@@ -267,7 +291,7 @@ def test_the_metrics_count_walls_at_an_angle_and_posts():
 
 def test_the_family_filter_keeps_only_those_families():
     arenas = generate_arenas(5, 3, families=["trap_u", "clutter"])
-    assert [a.family for a in arenas] == ["trap_u", "clutter", "trap_u", "clutter", "trap_u"]   # FAMILY_NAMES order
+    assert [a.family for a in arenas] == ["trap_u", "clutter", "trap_u", "clutter", "trap_u"]  # FAMILY_NAMES order
     with pytest.raises(ArenaError, match="unknown family 'cave'"):
         generate_arenas(3, 1, families=["cave"])
     for count, seed in ((0, 1), (100_001, 1), (3, -1)):
@@ -281,29 +305,53 @@ def test_the_command_writes_arenas_indexes_and_a_contact_sheet(tmp_path, capsys)
     printed = capsys.readouterr().out
     assert "corridor" in printed and "unreachable" in printed and "all" in printed
     names = sorted(p.name for p in out.glob("*.toml"))
-    assert names == ["arena-0001-corridor.toml", "arena-0002-unreachable.toml",
-                     "arena-0003-corridor.toml", "arena-0004-unreachable.toml"]
+    assert names == [
+        "arena-0001-corridor.toml",
+        "arena-0002-unreachable.toml",
+        "arena-0003-corridor.toml",
+        "arena-0004-unreachable.toml",
+    ]
     assert (out / "gallery.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(json.loads((out / "index.json").read_text())) == 4
     first = (out / names[0]).read_bytes()
     # Run again with fewer: the same bytes, and the files of the earlier run it did not write are gone.
     picture = tmp_path / "sheet.png"
-    assert main(["arenas", "--count", "2", "--seed", "5", "--out", str(out), "--family", "unreachable,corridor",
-                 "--picture", str(picture)]) == 0
+    assert (
+        main(
+            [
+                "arenas",
+                "--count",
+                "2",
+                "--seed",
+                "5",
+                "--out",
+                str(out),
+                "--family",
+                "unreachable,corridor",
+                "--picture",
+                str(picture),
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in out.glob("*.toml")) == names[:2]
     assert (out / names[0]).read_bytes() == first
     assert picture.is_file()
     parse_scenario((out / names[1]).read_text())
 
 
-@pytest.mark.parametrize("flags, says", [
-    (["--count", "0"], "--count"),
-    (["--count", "100001"], "--count"),
-    (["--count", "ten"], "--count"),
-    (["--seed", "-1"], "--seed"),
-    (["--family", "scattered,cave"], "cave"),
-    (["--out", "FILE"], "not a folder"),
-], ids=["zero", "too many", "not a number", "negative seed", "unknown family", "out is a file"])
+@pytest.mark.parametrize(
+    "flags, says",
+    [
+        (["--count", "0"], "--count"),
+        (["--count", "100001"], "--count"),
+        (["--count", "ten"], "--count"),
+        (["--seed", "-1"], "--seed"),
+        (["--family", "scattered,cave"], "cave"),
+        (["--out", "FILE"], "not a folder"),
+    ],
+    ids=["zero", "too many", "not a number", "negative seed", "unknown family", "out is a file"],
+)
 def test_bad_input_gives_one_line_and_exit_status_2(tmp_path, capsys, flags, says):
     existing = tmp_path / "existing.txt"
     existing.write_text("keep me")
@@ -343,14 +391,15 @@ def test_cellular_worlds_are_barn_s_scaled_every_box_unknown_a_way_through(cellu
         assert a.solvable and not s.known_shapes and 8 <= len(s.obstacles) <= 120
         assert s.start.y_m == pytest.approx(s.arena.height_m / 2, abs=0.001)
         assert s.target.y_m == pytest.approx(s.arena.height_m / 2, abs=0.001)
-        for o in s.obstacles:   # whole cells
+        for o in s.obstacles:  # whole cells
             for side in (o.w_m, o.h_m):
                 assert side / CELLULAR_CELL_M == pytest.approx(round(side / CELLULAR_CELL_M), abs=1e-3)
         # The independent check: A* with every box known finds a way.
-        plan(OccupancyGrid.from_scenario(s, all_obstacles=True), (s.start.x_m, s.start.y_m),
-             (s.target.x_m, s.target.y_m))
+        plan(
+            OccupancyGrid.from_scenario(s, all_obstacles=True), (s.start.x_m, s.start.y_m), (s.target.x_m, s.target.y_m)
+        )
     counts = [len(a.scenario.obstacles) for a in cellular40]
-    assert max(counts) >= 40 and min(counts) <= 20   # the densities BARN's fill and smoothing give
+    assert max(counts) >= 40 and min(counts) <= 20  # the densities BARN's fill and smoothing give
     bands = collections.Counter(a.difficulty["band"] for a in cellular40)
     assert bands["medium"] + bands["hard"] >= 20
     carved = sum("carved for a way through" in a.scenario.description for a in cellular40)
@@ -363,5 +412,5 @@ def test_cellular_worlds_are_drawn_only_by_name_and_the_same_each_time(cellular4
     assert "cellular" not in FAMILY_NAMES and "cellular" in ALL_FAMILY_NAMES
     mixed = generate_arenas(3, 7, families=["cellular", "scattered"])
     assert [a.family for a in mixed] == ["scattered", "cellular", "scattered"]
-    with pytest.raises(ArenaError, match="cellular"):   # the error lists every family
+    with pytest.raises(ArenaError, match="cellular"):  # the error lists every family
         generate_arenas(1, 1, families=["cave"])

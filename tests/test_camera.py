@@ -1,4 +1,5 @@
 """The overhead-frame renderer: what it draws, where, in which colours, how exactly and how fast."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -30,12 +31,18 @@ def test_a_frame_is_640_by_480_bgr_and_the_same_rng_gives_the_same_frame():
     c = render_frame(scene, np.random.default_rng(5))
     assert a.shape == (480, 640, 3) and a.dtype == np.uint8
     assert np.array_equal(a, b)
-    assert not np.array_equal(a, c)                        # new noise
+    assert not np.array_equal(a, c)  # new noise
     assert np.abs(a.astype(int) - c.astype(int)).mean() < 6  # ... but only noise
 
 
-@pytest.mark.parametrize("lighting", [Lighting.uniform(), Lighting(level=1.05, gradient=0.25, vignette=0.35),
-                                      Lighting(level=0.9, gradient=0.25, gradient_angle_deg=200, vignette=0.35)])
+@pytest.mark.parametrize(
+    "lighting",
+    [
+        Lighting.uniform(),
+        Lighting(level=1.05, gradient=0.25, vignette=0.35),
+        Lighting(level=0.9, gradient=0.25, gradient_angle_deg=200, vignette=0.35),
+    ],
+)
 def test_only_the_markers_fall_in_the_markers_hsv_ranges(lighting):
     """Floor, grout, obstacles, rover body and what lies beyond the arena are in no marker's range,
     under bright and dim uneven light; each marker is in its own (apart from its edge pixels)."""
@@ -52,7 +59,7 @@ def test_only_the_markers_fall_in_the_markers_hsv_ranges(lighting):
         u, v = cal.to_pixels((x, y))
         r_px = radius * 640 / W
         vv, uu = np.mgrid[0:480, 0:640]
-        far &= (uu - u) ** 2 + (vv - v) ** 2 > r_px ** 2
+        far &= (uu - u) ** 2 + (vv - v) ** 2 > r_px**2
     for name, m in masks.items():
         assert not (m & far).any(), f"{name} range matches {int((m & far).sum())} background pixels"
     # Each marker's centre pixel is in its own range.
@@ -71,7 +78,7 @@ def test_a_marker_moved_by_a_tenth_of_a_pixel_moves_its_rendered_centroid_by_a_t
     empty = r.render(Scene(), np.random.default_rng(0)).astype(np.float64)
     px_per_m = 640 / W
     for k in range(11):
-        x = 1.0 + k * 0.1 / px_per_m                       # steps of 0.1 px
+        x = 1.0 + k * 0.1 / px_per_m  # steps of 0.1 px
         frame = r.render(Scene(target=(x, 0.9)), np.random.default_rng(0)).astype(np.float64)
         diff = np.abs(frame - empty).sum(axis=2)
         vv, uu = np.mgrid[0:480, 0:640]
@@ -84,7 +91,8 @@ def test_an_oblique_camera_puts_the_arena_corners_at_the_calibrated_pixels():
     corners = [(60.0, 450.0), (600.0, 440.0), (520.0, 80.0), (130.0, 95.0)]
     cal = Calibration.from_corners(corners, W, H)
     frame = Renderer(RoverLook(), Camera(calibration=cal, lighting=Lighting.uniform(), noise_sigma=0.0)).render(
-        Scene(), np.random.default_rng(0))
+        Scene(), np.random.default_rng(0)
+    )
     outside = np.array(RoverLook().outside_bgr)
     for (u, v), (du, dv) in zip(corners, [(-1, 1), (1, 1), (1, -1), (-1, -1)]):
         # Just outside each corner: beyond the arena; just inside: floor.
@@ -98,13 +106,12 @@ def test_an_oblique_camera_puts_the_arena_corners_at_the_calibrated_pixels():
 def test_an_aruco_rover_is_a_readable_tag_whose_top_edge_faces_forward(heading):
     look = RoverLook()
     r = Renderer(look, Camera(lighting=Lighting.uniform(), noise_sigma=2.0))
-    frame = r.render(Scene(rover=(1.0, 0.8, heading), target=(2.0, 1.4), marker_kind="aruco"),
-                     np.random.default_rng(1))
+    frame = r.render(Scene(rover=(1.0, 0.8, heading), target=(2.0, 1.4), marker_kind="aruco"), np.random.default_rng(1))
     detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50))
     corners, ids, _ = detector.detectMarkers(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
     assert ids is not None and sorted(ids.ravel().tolist()) == [look.rover_tag_id, look.target_tag_id]
     c = corners[list(ids.ravel()).index(look.rover_tag_id)].reshape(4, 2)
-    up = (c[0] + c[1]) / 2 - (c[2] + c[3]) / 2            # image pixels, v down
+    up = (c[0] + c[1]) / 2 - (c[2] + c[3]) / 2  # image pixels, v down
     seen = math.degrees(math.atan2(up[0], -up[1]))
     assert abs(wrap_deg(seen - heading)) < 3
 
@@ -112,17 +119,21 @@ def test_an_aruco_rover_is_a_readable_tag_whose_top_edge_faces_forward(heading):
 def test_hidden_markers_and_decoys_are_drawn_as_asked():
     cam = Camera(lighting=Lighting.uniform(), noise_sigma=0.0)
     r = Renderer(RoverLook(), cam)
-    hsv = cv2.cvtColor(r.render(Scene(rover=(1.0, 0.8, 0.0), hidden=frozenset({"front"}),
-                                      decoys=(("back", 2.0, 0.3), ("target", 0.4, 1.5))),
-                                np.random.default_rng(0)), cv2.COLOR_BGR2HSV)
+    hsv = cv2.cvtColor(
+        r.render(
+            Scene(
+                rover=(1.0, 0.8, 0.0), hidden=frozenset({"front"}), decoys=(("back", 2.0, 0.3), ("target", 0.4, 1.5))
+            ),
+            np.random.default_rng(0),
+        ),
+        cv2.COLOR_BGR2HSV,
+    )
     count = lambda name: cv2.connectedComponents(_in_range(hsv, RANGES[name]).astype(np.uint8))[0] - 1  # noqa: E731
     assert count("rover_front") == 0
     assert count("rover_back") == 2
     assert count("target") == 1
     with pytest.raises(ValueError, match="decoy kind"):
         r.render(Scene(decoys=(("purple", 1.0, 1.0),)), np.random.default_rng(0))
-
-
 
 
 OBSTACLES = ((0.8, 1.2, 0.3, 0.15), (1.6, 0.45, 0.25, 0.25), (1.1, 0.7, 0.18, 0.18), (1.65, 1.15, 0.15, 0.15))
@@ -136,16 +147,25 @@ def test_a_cached_frame_is_the_whole_scene_drawn_plainly_pixel_for_pixel(markers
     frame must be what reference_frame() paints on one full-frame image: the rover anywhere
     (crossing the frame's edge, off it, over the target, hidden markers), after the static scene
     changed and changed back."""
-    cam = Camera(calibration=calibration, lighting=Lighting(level=1.0, gradient=0.25, vignette=0.35),
-                 noise_sigma=0.0)
+    cam = Camera(calibration=calibration, lighting=Lighting(level=1.0, gradient=0.25, vignette=0.35), noise_sigma=0.0)
     r = Renderer(RoverLook(), cam, seed=7)
     rng = np.random.default_rng(11)
     decoys = (("back", 0.3, 1.5), (7, 2.1, 0.3))
-    arenas = [Scene(obstacles=OBSTACLES, target=(2.0, 1.4), marker_kind=markers, decoys=decoys),
-              Scene(obstacles=OBSTACLES[:2], target=(0.5, 1.5), marker_kind=markers)]
-    poses = [(1.0, 0.8, 30.0), (2.0, 1.4, -75.0), (0.02, 0.9, 45.0), (2.33, 1.73, 200.0), (-0.5, 0.9, 0.0),
-             (1.18, 0.02, 135.0)] + [(float(rng.uniform(-0.05, W + 0.05)), float(rng.uniform(-0.05, H + 0.05)),
-                                      float(rng.uniform(-180, 180))) for _ in range(6)]
+    arenas = [
+        Scene(obstacles=OBSTACLES, target=(2.0, 1.4), marker_kind=markers, decoys=decoys),
+        Scene(obstacles=OBSTACLES[:2], target=(0.5, 1.5), marker_kind=markers),
+    ]
+    poses = [
+        (1.0, 0.8, 30.0),
+        (2.0, 1.4, -75.0),
+        (0.02, 0.9, 45.0),
+        (2.33, 1.73, 200.0),
+        (-0.5, 0.9, 0.0),
+        (1.18, 0.02, 135.0),
+    ] + [
+        (float(rng.uniform(-0.05, W + 0.05)), float(rng.uniform(-0.05, H + 0.05)), float(rng.uniform(-180, 180)))
+        for _ in range(6)
+    ]
     checked = 0
     for k, pose in enumerate(poses):
         base = arenas[(k // 3) % 2]
@@ -184,7 +204,7 @@ def test_the_noise_is_gaussian_everywhere_and_fresh_each_frame_where_the_locator
     base = Scene(obstacles=OBSTACLES, target=(2.0, 1.4))
     scene = dataclasses.replace(base, rover=(0.9, 0.5, 40.0))
     noise, ok = _noise_of(r, scene, 24, seed=5)
-    expected = math.sqrt(sigma ** 2 + 1 / 12)
+    expected = math.sqrt(sigma**2 + 1 / 12)
     seen = noise[:, ok].astype(np.float64)
     assert abs(seen.mean()) < 0.02
     assert abs(seen.std() - expected) < 0.03 * expected

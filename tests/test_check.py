@@ -1,5 +1,6 @@
 """`rovernav check`: a healthy set-up passes every line; each fault, injected one at a time into the
 simulated rover, is named by its own line, and the command exits 1."""
+
 from __future__ import annotations
 
 import json
@@ -10,7 +11,7 @@ from rovernav import check
 from rovernav.cli import main
 from rovernav.config import config_from_dict
 
-pytestmark = pytest.mark.mission   # each test runs the simulated rover for a few seconds
+pytestmark = pytest.mark.mission  # each test runs the simulated rover for a few seconds
 
 
 # The line that must fail for each fault, and words it must say.
@@ -45,10 +46,10 @@ def test_the_command_s_exit_statuses_and_json(capsys):
     assert main(["check", "--sim", "--fault", "sonar-unwired", "--json"]) == 1
     out = json.loads(capsys.readouterr().out)
     assert out["passed"] is False and {c["name"]: c["status"] for c in out["checks"]}["sonar"] == "FAIL"
-    assert main(["check"]) == 2                                    # neither --port nor --sim
+    assert main(["check"]) == 2  # neither --port nor --sim
     assert main(["check", "--port", "loop://", "--fault", "dead-gyro"]) == 2
     capsys.readouterr()
-    assert main(["check", "--port", "/dev/ttyUSB9", "--camera", "no-such-video.mp4"]) == 2   # before any device opens
+    assert main(["check", "--port", "/dev/ttyUSB9", "--camera", "no-such-video.mp4"]) == 2  # before any device opens
     assert "no-such-video.mp4" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(["check", "--sim", "--fault", "everything"])

@@ -1,5 +1,6 @@
 """The host's TOML configuration, and `rovernav run`'s errors for a missing port, a missing
 camera and a rover built from another protocol definition."""
+
 from __future__ import annotations
 
 import subprocess
@@ -20,7 +21,10 @@ from rovernav.link.transport import PtyTransport
 
 def test_defaults_are_the_seeds_set_up():
     cfg = load_config(None)
-    assert (cfg.arena.width_m, cfg.arena.height_m) == (vehicle.DEFAULT_ARENA_WIDTH_MM / 1000, vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000)
+    assert (cfg.arena.width_m, cfg.arena.height_m) == (
+        vehicle.DEFAULT_ARENA_WIDTH_MM / 1000,
+        vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000,
+    )
     assert cfg.link.baud == vehicle.LINK_BAUD
     assert cfg.vision.markers == "colour" and cfg.vision.hsv.rover_back == ((55, 50, 50), (80, 255, 255))
     assert cfg.planner.resolution_m == 0.03 and cfg.planner.robot_radius_m == 0.12
@@ -28,30 +32,35 @@ def test_defaults_are_the_seeds_set_up():
 
 def test_a_full_file_is_read(tmp_path):
     f = tmp_path / "rover.toml"
-    f.write_text('[arena]\nwidth_m = 3.0\nheight_m = 2\n[link]\nport = "/dev/ttyUSB0"\n'
-                 '[rover]\ndrive_pwm = 90\nsweep_interval_mm = 250\n[vision]\nmarkers = "aruco"\n')
+    f.write_text(
+        '[arena]\nwidth_m = 3.0\nheight_m = 2\n[link]\nport = "/dev/ttyUSB0"\n'
+        '[rover]\ndrive_pwm = 90\nsweep_interval_mm = 250\n[vision]\nmarkers = "aruco"\n'
+    )
     cfg = load_config(f)
     assert cfg.arena.width_m == 3.0 and cfg.arena.height_m == 2.0
     assert dict(cfg.rover_params()) == {mg.Param.DRIVE_PWM: 90, mg.Param.SWEEP_INTERVAL_MM: 250}
     assert cfg.vision.markers == "aruco"
 
 
-@pytest.mark.parametrize("data, words", [
-    ({"arena": {"width_m": -1}}, "[arena] width_m"),
-    ({"arena": {"depth_m": 1}}, "no key 'depth_m'"),
-    ({"link": {"baud": 12345}}, "[link] baud"),
-    ({"rover": {"drive_pwm": 300}}, "drive_pwm = 300 is outside [0, 255]"),
-    ({"rover": {"warp_speed": 9}}, "no parameter 'warp_speed'"),
-    ({"rover": {"drive_pwm": 1.5}}, "should be an integer"),
-    ({"vision": {"markers": "lasers"}}, "vision.markers"),
-    ({"planner": {"resolution_m": -0.1}}, "[planner]"),
-    ({"warp": {}}, "unknown section [warp]"),
-    # The sensor's facts, once (protocol/vehicle.toml): no report range past what
-    # the HC-SR04 driver measures, no beam wider than the rover's parameter takes.
-    ({"rover": {"sonar_report_mm": 4000}}, "sonar_report_mm = 4000 is outside [50, 1000]"),
-    ({"planner": {"sonar_max_range_m": 4.0}}, "sonar_max_range_m is gone: the sensor's range is the protocol's"),
-    ({"planner": {"sonar_cone_deg": 120}}, "sonar_cone_deg must be 1-90"),
-])
+@pytest.mark.parametrize(
+    "data, words",
+    [
+        ({"arena": {"width_m": -1}}, "[arena] width_m"),
+        ({"arena": {"depth_m": 1}}, "no key 'depth_m'"),
+        ({"link": {"baud": 12345}}, "[link] baud"),
+        ({"rover": {"drive_pwm": 300}}, "drive_pwm = 300 is outside [0, 255]"),
+        ({"rover": {"warp_speed": 9}}, "no parameter 'warp_speed'"),
+        ({"rover": {"drive_pwm": 1.5}}, "should be an integer"),
+        ({"vision": {"markers": "lasers"}}, "vision.markers"),
+        ({"planner": {"resolution_m": -0.1}}, "[planner]"),
+        ({"warp": {}}, "unknown section [warp]"),
+        # The sensor's facts, once (protocol/vehicle.toml): no report range past what
+        # the HC-SR04 driver measures, no beam wider than the rover's parameter takes.
+        ({"rover": {"sonar_report_mm": 4000}}, "sonar_report_mm = 4000 is outside [50, 1000]"),
+        ({"planner": {"sonar_max_range_m": 4.0}}, "sonar_max_range_m is gone: the sensor's range is the protocol's"),
+        ({"planner": {"sonar_cone_deg": 120}}, "sonar_cone_deg must be 1-90"),
+    ],
+)
 def test_a_bad_value_names_its_section_and_key(data, words):
     with pytest.raises(ConfigError) as exc:
         config_from_dict(data, where="rover.toml: ")
@@ -64,7 +73,7 @@ def test_unreadable_files_are_refused_clearly(tmp_path):
     with pytest.raises(ConfigError, match="is a folder, not a configuration file"):
         load_config(tmp_path)
     latin = tmp_path / "latin.toml"
-    latin.write_bytes(b"[camera]\nsource = \"c\xe1mara\"\n")
+    latin.write_bytes(b'[camera]\nsource = "c\xe1mara"\n')
     with pytest.raises(ConfigError, match="not a UTF-8 text file"):
         load_config(latin)
     bad = tmp_path / "bad.toml"
@@ -74,8 +83,9 @@ def test_unreadable_files_are_refused_clearly(tmp_path):
 
 
 def _rovernav(*args, timeout=60):
-    return subprocess.run([sys.executable, "-m", "rovernav.cli", *args], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "rovernav.cli", *args], capture_output=True, text=True, timeout=timeout
+    )
 
 
 def test_run_with_a_missing_camera_or_port_fails_with_a_message(tmp_path):
@@ -108,15 +118,23 @@ def test_run_refuses_a_rover_built_from_another_protocol_definition(tmp_path):
             while not stop.is_set():
                 for f in dec.feed(rover_end.read(4096, 0.05)):
                     if isinstance(f.message, mg.Hello):
-                        rover_end.write(framing.encode_frame(
-                            firmware_hello(schema_hash=0xBADC0DE5, boot_id=7), 0))
+                        rover_end.write(framing.encode_frame(firmware_hello(schema_hash=0xBADC0DE5, boot_id=7), 0))
 
         t = threading.Thread(target=fake_rover, daemon=True)
         t.start()
         try:
-            r = _rovernav("run", "--port", rover_end.peer_name, "--camera", str(video),
-                          "--scenario", "seed-fig4-8-unknown-obstacle", "--log", str(tmp_path / "refused.mcap"),
-                          timeout=90)
+            r = _rovernav(
+                "run",
+                "--port",
+                rover_end.peer_name,
+                "--camera",
+                str(video),
+                "--scenario",
+                "seed-fig4-8-unknown-obstacle",
+                "--log",
+                str(tmp_path / "refused.mcap"),
+                timeout=90,
+            )
         finally:
             stop.set()
             t.join(2)

@@ -1,6 +1,7 @@
 """The README is a page to start from, and docs/ holds the rest: the README stays short, its first
 code block is the two commands (CI runs `scripts/test`, the README's test command), and every
 relative link and image in the README and in docs/ points at a file in the repository."""
+
 from __future__ import annotations
 
 import re
@@ -31,10 +32,10 @@ def broken_links(text: str, folder: Path) -> list[str]:
     """The relative links of a page in `folder` that name no file or folder of the repository."""
     broken = []
     for target in links(text):
-        if re.match(r"[a-z][a-z0-9+.-]*:", target, re.IGNORECASE):   # http:, https:, mailto:, ...
+        if re.match(r"[a-z][a-z0-9+.-]*:", target, re.IGNORECASE):  # http:, https:, mailto:, ...
             continue
         path = target.split("#", 1)[0].split("?", 1)[0]
-        if not path:                                                  # an anchor on the same page
+        if not path:  # an anchor on the same page
             continue
         resolved = (folder / path).resolve()
         if not resolved.exists() or ROOT.resolve() not in (resolved, *resolved.parents):
@@ -63,9 +64,15 @@ def test_the_readmes_first_code_block_is_the_two_commands():
 
 def test_the_link_check_finds_a_broken_link_and_passes_the_rest():
     # The check itself: a missing file, a path out of the repository, and links in code told apart.
-    text = ("[ok](../README.md) [ok](#anchor) [ok](https://example.org/x) ![ok](arenas.png)\n"
-            "[missing](no-such-page.md#part) ![missing](no-such.png) [outside](../../../etc/passwd)\n"
-            "`[in code](nowhere.md)`\n```\n[in a block](nowhere.md)\n```\n[ref]: also-missing.md\n")
+    text = (
+        "[ok](../README.md) [ok](#anchor) [ok](https://example.org/x) ![ok](arenas.png)\n"
+        "[missing](no-such-page.md#part) ![missing](no-such.png) [outside](../../../etc/passwd)\n"
+        "`[in code](nowhere.md)`\n```\n[in a block](nowhere.md)\n```\n[ref]: also-missing.md\n"
+    )
     assert "nowhere.md" not in links(text)
-    assert broken_links(text, ROOT / "docs") == ["no-such-page.md#part", "no-such.png",
-                                                 "../../../etc/passwd", "also-missing.md"]
+    assert broken_links(text, ROOT / "docs") == [
+        "no-such-page.md#part",
+        "no-such.png",
+        "../../../etc/passwd",
+        "also-missing.md",
+    ]

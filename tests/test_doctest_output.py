@@ -2,6 +2,7 @@
 (it turns success reporting on and reads the output in quadratic time: one test case that printed
 700,000 passing assertions, 88 MB, kept `pio test` from finishing). A loop over many inputs counts
 its failures and asserts once."""
+
 from __future__ import annotations
 
 import collections
@@ -22,10 +23,14 @@ def suites() -> list[Path]:
     if shutil.which("cmake") is None:
         pytest.skip("cmake is not installed (scripts/test installs it)")
     if not (BUILD / "CMakeCache.txt").exists():
-        subprocess.run(["cmake", "-S", str(ROOT / "firmware"), "-B", str(BUILD), "-DCMAKE_BUILD_TYPE=Release"],
-                       check=True, capture_output=True)
-    subprocess.run(["cmake", "--build", str(BUILD), "--target", "test_core", "test_link", "-j2"], check=True,
-                   capture_output=True)
+        subprocess.run(
+            ["cmake", "-S", str(ROOT / "firmware"), "-B", str(BUILD), "-DCMAKE_BUILD_TYPE=Release"],
+            check=True,
+            capture_output=True,
+        )
+    subprocess.run(
+        ["cmake", "--build", str(BUILD), "--target", "test_core", "test_link", "-j2"], check=True, capture_output=True
+    )
     return [BUILD / "test_core", BUILD / "test_link"]
 
 

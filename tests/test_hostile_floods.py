@@ -5,6 +5,7 @@ read size is a one-line InputError; any bytes on the line give frames or counted
 The rest of what was test_hostile_link.py: test_hostile_ports.py (transport specs),
 test_hostile_map_files.py (learned-map files), test_hostile_cli.py (`rovernav run` and
 `rovernav demo`)."""
+
 from __future__ import annotations
 
 import math
@@ -75,7 +76,7 @@ class Flooder:
         while not self.stop.is_set():
             try:
                 self.end.write(self.burst)
-            except LinkTimeout:   # the reader's queue is full: it is bounded
+            except LinkTimeout:  # the reader's queue is full: it is bounded
                 continue
             except LinkError:
                 return
@@ -111,9 +112,11 @@ def assert_bounded(host: Link) -> None:
 
 # ------------------------------------------------------------------ case 3: floods and timeouts
 
+
 def test_handshake_under_a_flood_of_valid_non_hello_frames_times_out_in_time_with_bounded_memory(
-        host_and_flood_end, monkeypatch, clock):
-    monkeypatch.setattr(link_mod, "MAX_PENDING_FRAMES", 64)   # the cap, met quickly
+    host_and_flood_end, monkeypatch, clock
+):
+    monkeypatch.setattr(link_mod, "MAX_PENDING_FRAMES", 64)  # the cap, met quickly
     host, end = host_and_flood_end
     with Flooder(end, status_burst()):
         started = clock.now
@@ -140,13 +143,12 @@ def test_handshake_finds_the_rovers_hello_inside_a_flood(host_and_flood_end, clo
     with Flooder(end, burst):
         started = clock.now
         hello = host.handshake(boot_id=1, timeout_s=2.0)
-        assert clock.now - started < 2.0   # found, not timed out
+        assert clock.now - started < 2.0  # found, not timed out
         assert hello.boot_id == 7 and host.peer_hello == hello
         assert_bounded(host)
 
 
-@pytest.mark.parametrize("junk", [b"\x55" * 4096, bytes(range(1, 256)) * 16, b"\x00" * 4096,
-                                  b"\x02\x01\x00" * 1000])
+@pytest.mark.parametrize("junk", [b"\x55" * 4096, bytes(range(1, 256)) * 16, b"\x00" * 4096, b"\x02\x01\x00" * 1000])
 def test_handshake_under_a_flood_of_junk_bytes_times_out_in_time_with_bounded_buffers(host_and_flood_end, junk, clock):
     host, end = host_and_flood_end
     with Flooder(end, junk):
@@ -160,11 +162,11 @@ def test_handshake_under_a_flood_of_junk_bytes_times_out_in_time_with_bounded_bu
 
 def test_request_under_a_flood_times_out_in_time(host_and_flood_end, clock):
     host, end = host_and_flood_end
-    with Flooder(end, status_burst()):   # ACKs, but none for what we ask
+    with Flooder(end, status_burst()):  # ACKs, but none for what we ask
         started = clock.now
         with pytest.raises(LinkTimeout, match="STOP"):
             host.request(mg.Stop(), timeout_s=0.15, retries=1)
-        assert 0.3 <= clock.now - started < 0.3 + 2 * LATE_S   # two attempts of 0.15 s
+        assert 0.3 <= clock.now - started < 0.3 + 2 * LATE_S  # two attempts of 0.15 s
         assert_bounded(host)
 
 
@@ -184,7 +186,7 @@ def test_handshake_refuses_a_timeout_that_is_not_finite_and_positive(timeout_s):
     with Link(LoopbackTransport()) as link:
         with pytest.raises(InputError, match="timeout_s"):
             link.handshake(boot_id=1, timeout_s=timeout_s)
-        assert link.tx_frames == 0   # refused before anything was sent
+        assert link.tx_frames == 0  # refused before anything was sent
 
 
 @pytest.mark.parametrize("timeout_s", [t for t in BAD_TIMEOUTS if t is not None])
@@ -198,9 +200,14 @@ def test_recv_request_and_read_refuse_a_bad_timeout(timeout_s):
             link.transport.read(10, timeout_s)
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    ({"retries": math.nan}, "retries"), ({"retries": 10**9}, "retries"), ({"retries": 1.5}, "retries"),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"retries": math.nan}, "retries"),
+        ({"retries": 10**9}, "retries"),
+        ({"retries": 1.5}, "retries"),
+    ],
+)
 def test_request_refuses_bad_retries(kwargs, words):
     with Link(LoopbackTransport()) as link:
         with pytest.raises(InputError, match=words):
@@ -241,7 +248,7 @@ def test_a_loopback_nobody_reads_refuses_more_than_its_capacity_after_its_write_
         started = time.monotonic()
         with pytest.raises(LinkTimeout, match="nobody is reading"):
             t.write(b"b")
-        assert time.monotonic() - started >= 0.1   # it waited its timeout for room, then gave up
+        assert time.monotonic() - started >= 0.1  # it waited its timeout for room, then gave up
         assert t.buffered == 1000
 
 
@@ -256,7 +263,7 @@ def test_a_pipe_writer_waits_for_room_and_then_everything_arrives_in_order():
 
     t = threading.Thread(target=reader)
     t.start()
-    a.write(data)   # 160 times the capacity: waits for the reader, never grows past 64 bytes
+    a.write(data)  # 160 times the capacity: waits for the reader, never grows past 64 bytes
     t.join(5)
     assert bytes(got) == data
     a.close()

@@ -10,6 +10,7 @@
 - Strict JSON in report.json when a value is undefined; a run cut short leaves a report saying
   so and none of the previous run's files.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,8 +26,33 @@ from rovernav.cli import build_parser
 from rovernav.config import ConfigError, config_from_dict
 from rovernav.scenario import ScenarioError, parse_scenario
 
-HOSTILE = ["nan", "NaN", "inf", "-inf", "infinity", "0", "-0", "-1", "-1e308", "1e308", "1e999", "", " ", "abc",
-           "1e-300", "0x10", "1_000", "--", "9" * 400, "\x00", "1:2:3", "nan:nan", "-5:10", "5:-1", "1:inf"]
+HOSTILE = [
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "infinity",
+    "0",
+    "-0",
+    "-1",
+    "-1e308",
+    "1e308",
+    "1e999",
+    "",
+    " ",
+    "abc",
+    "1e-300",
+    "0x10",
+    "1_000",
+    "--",
+    "9" * 400,
+    "\x00",
+    "1:2:3",
+    "nan:nan",
+    "-5:10",
+    "5:-1",
+    "1:inf",
+]
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -69,7 +95,7 @@ def _parse(cmd: str, flag: str, action, value: str, capsys):
     if cmd == "plan":
         argv.append("seed-small-obstacles")
     if cmd == "replay":
-        argv.append(__file__)   # a file that exists (the log's checks come after parsing)
+        argv.append(__file__)  # a file that exists (the log's checks come after parsing)
     if cmd in ("link-check", "provision") and flag != "--port":
         argv += ["--port", "loop://"]
     if cmd == "provision" and flag not in ("--key-file", "--erase"):
@@ -85,8 +111,11 @@ def _parse(cmd: str, flag: str, action, value: str, capsys):
 
 @pytest.mark.parametrize("cmd, flag, action", ALL_OPTIONS, ids=[f"{c} {f}" for c, f, _ in ALL_OPTIONS])
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(value=st.one_of(st.sampled_from(HOSTILE), st.floats().map(repr), st.integers(-10**30, 10**30).map(str),
-                       st.text(max_size=12)))
+@given(
+    value=st.one_of(
+        st.sampled_from(HOSTILE), st.floats().map(repr), st.integers(-(10**30), 10**30).map(str), st.text(max_size=12)
+    )
+)
 def test_every_flag_refuses_hostile_values_in_one_line_or_gives_a_finite_value(cmd, flag, action, value, capsys):
     code, ns, err = _parse(cmd, flag, action, value, capsys)
     if code is not None:
@@ -103,7 +132,8 @@ def test_every_flag_refuses_hostile_values_in_one_line_or_gives_a_finite_value(c
 # ---------------------------------------------------------------- files: scenario and configuration keys
 
 GOOD_SCENARIO = {
-    "name": "t", "version": 1,
+    "name": "t",
+    "version": 1,
     "arena": {"width_m": 2.0, "height_m": 1.5},
     "start": {"x_m": 0.3, "y_m": 0.3, "heading_deg": 0.0},
     "target": {"x_m": 1.7, "y_m": 1.2},
@@ -112,12 +142,19 @@ GOOD_SCENARIO = {
     "walls": [{"x0_m": 0.2, "y0_m": 1.0, "x1_m": 0.8, "y1_m": 1.0, "thickness_m": 0.05}],
     "posts": [{"x_m": 1.5, "y_m": 0.4, "radius_m": 0.05}],
 }
-SCENARIO_KEYS = [(t, i, k) for t, v in GOOD_SCENARIO.items() if isinstance(v, (dict, list))
-                 for i, table in enumerate(v if isinstance(v, list) else [v]) for k in table] + \
-                [(None, None, "name"), (None, None, "version")]
+SCENARIO_KEYS = [
+    (t, i, k)
+    for t, v in GOOD_SCENARIO.items()
+    if isinstance(v, (dict, list))
+    for i, table in enumerate(v if isinstance(v, list) else [v])
+    for k in table
+] + [(None, None, "name"), (None, None, "version")]
 HOSTILE_VALUES = st.one_of(
     st.sampled_from([math.nan, math.inf, -math.inf, 0, -1, 1e308, -1e308, 10**30, "", "x", True, [], {}, [1, 2]]),
-    st.floats(), st.integers(-10**20, 10**20), st.text(max_size=8))
+    st.floats(),
+    st.integers(-(10**20), 10**20),
+    st.text(max_size=8),
+)
 
 
 def _toml(doc: dict) -> str:
@@ -133,8 +170,12 @@ def _toml(doc: dict) -> str:
         if isinstance(v, dict):
             return "{" + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + "}"
         return str(v)
-    lines = [f"{k} = {value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list)) or
-             (isinstance(v, list) and not all(isinstance(x, dict) for x in v))]
+
+    lines = [
+        f"{k} = {value(v)}"
+        for k, v in doc.items()
+        if not isinstance(v, (dict, list)) or (isinstance(v, list) and not all(isinstance(x, dict) for x in v))
+    ]
     for k, v in doc.items():
         if isinstance(v, dict):
             lines += [f"[{k}]"] + [f"{kk} = {value(vv)}" for kk, vv in v.items()]
@@ -156,7 +197,7 @@ def test_the_good_scenario_loads():
             assert len(loaded) == len(value), key
             for i, table in enumerate(value):
                 assert {k: getattr(loaded[i], k) for k in table} == table, f"{key}[{i}]"
-            assert all(item.known for item in loaded), key   # the default where a table leaves it out
+            assert all(item.known for item in loaded), key  # the default where a table leaves it out
         else:
             assert getattr(s, key) == value, key
 
@@ -173,17 +214,37 @@ def test_every_scenario_key_refuses_hostile_values_naming_the_key(table, index, 
     except ScenarioError as exc:
         assert str(exc).startswith("hostile.toml: ")
         return
-    for v in (s.arena.width_m, s.arena.height_m, s.start.x_m, s.start.y_m, s.start.heading_deg, s.target.x_m,
-              s.target.y_m):
+    for v in (
+        s.arena.width_m,
+        s.arena.height_m,
+        s.start.x_m,
+        s.start.y_m,
+        s.start.heading_deg,
+        s.target.x_m,
+        s.target.y_m,
+    ):
         assert math.isfinite(v)
     assert 1 <= s.mission.trips <= 1000 and s.arena.width_m <= 100 and s.arena.height_m <= 100
 
 
-CONFIG_KEYS = [("arena", "width_m"), ("arena", "height_m"), ("link", "port"), ("link", "baud"), ("camera", "source"),
-               ("camera", "fps"), ("mission", "trips"), ("mission", "heartbeat_hz"),
-               ("mission", "fix_sd_mm"), ("mission", "map"), ("rover", "arrival_radius_mm"), ("rover", "pose_k_rho_x1000"),
-               ("rover", "pose_k_beta_x1000"), ("rover", "drive_mode"), ("planner", "resolution_m"),
-               ("planner", "robot_radius_m")]
+CONFIG_KEYS = [
+    ("arena", "width_m"),
+    ("arena", "height_m"),
+    ("link", "port"),
+    ("link", "baud"),
+    ("camera", "source"),
+    ("camera", "fps"),
+    ("mission", "trips"),
+    ("mission", "heartbeat_hz"),
+    ("mission", "fix_sd_mm"),
+    ("mission", "map"),
+    ("rover", "arrival_radius_mm"),
+    ("rover", "pose_k_rho_x1000"),
+    ("rover", "pose_k_beta_x1000"),
+    ("rover", "drive_mode"),
+    ("planner", "resolution_m"),
+    ("planner", "robot_radius_m"),
+]
 
 
 @pytest.mark.parametrize("section, key", CONFIG_KEYS, ids=[f"{s}.{k}" for s, k in CONFIG_KEYS])
@@ -216,9 +277,11 @@ MEMORY_LIMIT_BYTES = 3 << 30
 @pytest.fixture(scope="module")
 def rovernav(rovernav_command):
     """`python -m rovernav.cli ARGS` under MEMORY_LIMIT_BYTES: (exit status, stdout, stderr)."""
+
     def run(*args, cwd=None):
         r = rovernav_command(*args, cwd=cwd, memory_limit_bytes=MEMORY_LIMIT_BYTES)
         return r.returncode, r.stdout, r.stderr
+
     return run
 
 
@@ -254,9 +317,16 @@ CASES = [
     ("sim unstable pose gains", lambda d: ["sim", SC, "--config", d / "gains.toml"], "pose_k_alpha_x1000"),
     ("calibrate camera a missing image", lambda d: ["calibrate", "camera", d / "missing.png"], "missing.png"),
     ("calibrate camera a text file", lambda d: ["calibrate", "camera", d / "afile"], "afile"),
-    ("calibrate camera --config not UTF-8", lambda d: ["calibrate", "camera", d / "afile", "--config", d / "latin.toml"],
-     "latin.toml"),
-    ("calibrate camera --write a folder", lambda d: ["calibrate", "camera", d / "afile", "--write", d / "adir"], "--write"),
+    (
+        "calibrate camera --config not UTF-8",
+        lambda d: ["calibrate", "camera", d / "afile", "--config", d / "latin.toml"],
+        "latin.toml",
+    ),
+    (
+        "calibrate camera --write a folder",
+        lambda d: ["calibrate", "camera", d / "afile", "--write", d / "adir"],
+        "--write",
+    ),
     ("calibrate camera --frames 0", lambda d: ["calibrate", "camera", "--camera", "0", "--frames", "0"], "--frames"),
     ("calibrate tags into a file", lambda d: ["calibrate", "tags", d / "afile"], "afile"),
     ("plan a 1 km arena", lambda d: ["plan", d / "km.toml"], "arena.width_m"),
@@ -282,17 +352,19 @@ def test_bad_input_end_to_end_gives_one_line_and_status_2(rovernav, files, what,
 def test_every_help_states_the_exit_statuses_once():
     for cmd, p in _subparsers().items():
         text = " ".join(p.format_help().split()).lower()
-        assert text.count("exit status") == 1, cmd   # `locate --help` once said them twice
-        statuses = text[text.index("exit status"):]
+        assert text.count("exit status") == 1, cmd  # `locate --help` once said them twice
+        statuses = text[text.index("exit status") :]
         for code in ("0 ", "1 ", "2 ", "3 ", "130 interrupted"):
             assert code in statuses, (cmd, code)
 
 
 # ---------------------------------------------------------------- what a run leaves on disk
 
+
 def _strict(text: str):
     def refuse(name):
         raise ValueError(f"not JSON: {name}")
+
     return json.loads(text, parse_constant=refuse)
 
 
@@ -300,7 +372,8 @@ def _strict(text: str):
 def test_an_unreachable_target_gives_a_strict_json_report_with_nulls(rovernav, scenario_toml, tmp_path):
     walled = scenario_toml(SC).replace("known = false", "known = true") + "".join(
         f"\n[[walls]]\nx0_m = {a}\ny0_m = {b}\nx1_m = {c}\ny1_m = {e}\nthickness_m = 0.05\n"
-        for a, b, c, e in ((1.7, 1.1, 2.3, 1.1), (1.7, 1.1, 1.7, 1.7), (2.3, 1.1, 2.3, 1.7)))
+        for a, b, c, e in ((1.7, 1.1, 2.3, 1.1), (1.7, 1.1, 1.7, 1.7), (2.3, 1.1, 2.3, 1.7))
+    )
     sc = tmp_path / "walled.toml"
     sc.write_text(walled.replace("height_m = 1.75", "height_m = 1.70"))
     code, out, err = rovernav("sim", sc, "--no-video", "--quiet", "--out", tmp_path / "run", "--max-time", "60")
@@ -329,14 +402,15 @@ def test_a_run_cut_short_leaves_a_report_saying_so_and_none_of_the_last_runs_fil
     report = _strict((out / "report.json").read_text())
     assert report["interrupted"] is True and report["outcome"] == "interrupted" and report["reached"] is False
     assert not (out / "summary.png").exists() and not (out / "video.mp4").exists()
-    assert not list(out.glob(".*partial*"))   # no half video under any name
+    assert not list(out.glob(".*partial*"))  # no half video under any name
 
 
 @pytest.mark.mission
 def test_the_report_names_the_drive_mode_the_configuration_sent(rovernav, tmp_path):
     cfg = tmp_path / "pose.toml"
     cfg.write_text("[rover]\ndrive_mode = 1\n")
-    code, out, err = rovernav("sim", SC, "--config", cfg, "--no-video", "--quiet", "--out", tmp_path / "run",
-                              "--max-time", "5")
+    code, out, err = rovernav(
+        "sim", SC, "--config", cfg, "--no-video", "--quiet", "--out", tmp_path / "run", "--max-time", "5"
+    )
     assert "Traceback" not in err
     assert _strict((tmp_path / "run" / "report.json").read_text())["drive_mode"] == "pose_law"

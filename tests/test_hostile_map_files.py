@@ -2,6 +2,7 @@
 line, and nothing of it is replayed; a file too large, with too many readings or too much replay
 work is refused before it is read or checked; any content loads or raises only a MapFileError.
 (Split from test_hostile_link.py.)"""
+
 from __future__ import annotations
 
 import json
@@ -26,6 +27,7 @@ from rovernav.mapping.learned_map import (
 
 # ------------------------------------------------------------------ case 1: learned-map files
 
+
 @pytest.mark.parametrize("content, words", [(c, w) for _, c, w in BAD_MAPS], ids=[i for i, _, _ in BAD_MAPS])
 def test_a_bad_map_file_is_one_map_file_error_naming_the_file_and_nothing_is_replayed(tmp_path, content, words):
     path = tmp_path / "learned.json"
@@ -41,7 +43,7 @@ def test_a_bad_map_file_is_one_map_file_error_naming_the_file_and_nothing_is_rep
 def test_a_map_file_larger_than_its_limit_is_refused_before_it_is_read(tmp_path):
     path = tmp_path / "huge.json"
     with open(path, "wb") as f:
-        f.truncate(MAX_MAP_BYTES + 1)   # sparse: costs no disk
+        f.truncate(MAX_MAP_BYTES + 1)  # sparse: costs no disk
     with pytest.raises(MapFileError, match="a map file is at most"):
         read_map_file(path)
 
@@ -85,8 +87,9 @@ def test_a_map_path_that_is_not_a_regular_file_is_refused(tmp_path, make):
         read_map_file(path)
 
 
-@pytest.mark.parametrize("where, words", [("nodir/map.json", "no folder"), ("", "empty map file name"),
-                                          (".", "is a folder")])
+@pytest.mark.parametrize(
+    "where, words", [("nodir/map.json", "no folder"), ("", "empty map file name"), (".", "is a folder")]
+)
 def test_a_map_file_that_could_not_be_saved_is_refused_before_the_run(tmp_path, monkeypatch, where, words):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(MapFileError, match=words):
@@ -99,28 +102,42 @@ def test_a_good_map_still_loads_and_version_1_too(tmp_path):
     lm.add(SonarReading(1.0, 0.9, 90.0, 30.0, None, 0.4, 0.003))
     lm.save(tmp_path / "m.json")
     assert LearnedMap(grid()).load(tmp_path / "m.json") == 2
-    (tmp_path / "v1.json").write_text(json.dumps({"format": "rovernav-map", "version": 1, "echoes": [
-        {"x_m": 1, "y_m": 0.9, "heading_deg": 90, "bearing_deg": 0, "range_m": 0.25}]}))
+    (tmp_path / "v1.json").write_text(
+        json.dumps(
+            {
+                "format": "rovernav-map",
+                "version": 1,
+                "echoes": [{"x_m": 1, "y_m": 0.9, "heading_deg": 90, "bearing_deg": 0, "range_m": 0.25}],
+            }
+        )
+    )
     assert LearnedMap(grid()).load(tmp_path / "v1.json") == 1
 
 
 _json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=10),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
-    max_leaves=20)
+    max_leaves=20,
+)
 _number = st.one_of(st.floats(), st.integers(), st.none(), st.booleans(), st.text(max_size=3))
 _near_readings = st.fixed_dictionaries({k: _number for k in reading()})
-_near_maps = st.fixed_dictionaries({
-    "format": st.sampled_from(["rovernav-map", "x"]), "version": st.sampled_from([1, 2, 2.0, 3, "2", None]),
-    "readings": st.lists(st.one_of(_near_readings, _json_values), max_size=5)})
+_near_maps = st.fixed_dictionaries(
+    {
+        "format": st.sampled_from(["rovernav-map", "x"]),
+        "version": st.sampled_from([1, 2, 2.0, 3, "2", None]),
+        "readings": st.lists(st.one_of(_near_readings, _json_values), max_size=5),
+    }
+)
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.one_of(
-    st.binary(max_size=200),
-    _json_values.map(lambda v: json.dumps(v).encode()),
-    _near_maps.map(lambda v: json.dumps(v).encode()),
-))
+@given(
+    st.one_of(
+        st.binary(max_size=200),
+        _json_values.map(lambda v: json.dumps(v).encode()),
+        _near_maps.map(lambda v: json.dumps(v).encode()),
+    )
+)
 def test_any_map_file_content_loads_or_raises_only_a_map_file_error(tmp_path, content):
     path = tmp_path / "fuzz.json"
     path.write_bytes(content)

@@ -3,6 +3,7 @@
 Every bad flag, file or value gives one line naming it and exit status 2, quickly, never a
 traceback, never unbounded work, never a wrong or half-written output file.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -34,8 +35,10 @@ from rovernav.vision.cli import MAX_IMAGE_PIXELS, MIN_IMAGE_SIDE_PX
 @pytest.fixture
 def no_work(monkeypatch):
     """A refusal must come before any work: running the pose law or decoding an image fails the test."""
+
     def worked(*args, **kwargs):
         raise AssertionError("the command started its work before refusing the input")
+
     monkeypatch.setattr(pose_mod, "simulate_pose", worked)
     monkeypatch.setattr(cv2, "imread", worked)
 
@@ -46,7 +49,7 @@ def run(argv: list[str]) -> tuple[int, str, str]:
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
             code = rovernav_cli.main(argv)
-        except SystemExit as exc:   # argparse
+        except SystemExit as exc:  # argparse
             code = exc.code if isinstance(exc.code, int) else 2
     return code, out.getvalue(), err.getvalue()
 
@@ -66,12 +69,15 @@ def assert_refused(result: tuple[int, str, str], *words: str) -> str:
 
 def strict_json(text: str):
     """json.loads that refuses NaN and Infinity."""
+
     def no(constant):
         raise AssertionError(f"not strict JSON: {constant}")
+
     return json.loads(text, parse_constant=no)
 
 
 # --- pose -------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("dt", ["0.001", "0.01"])
 def test_pose_small_dt_over_the_report_route_is_refused_before_any_work(dt, no_work):
@@ -84,21 +90,24 @@ def test_pose_dt_of_1e_9_is_out_of_the_flags_limits():
     assert line.startswith("rovernav pose: error: argument --dt:")
 
 
-@pytest.mark.parametrize("flag, values, bad", [
-    ("--from", ["nan", "0", "0"], "nan"),
-    ("--from", ["1e30", "0", "0"], "1e30"),
-    ("--from", ["0", "-inf", "0"], "expected 3 arguments"),   # argparse takes -inf for an option
-    ("--to", ["nan", "0", "0"], "nan"),
-    ("--to", ["0", "1e30", "0"], "1e30"),
-    ("--to", ["0", "0", "inf"], "inf"),
-    ("--gains", ["nan", "1", "1"], "nan"),
-    ("--gains", ["0.1", "1e300", "-0.2"], "1e300"),
-    ("--vmax", ["nan"], "nan"),
-    ("--vmax", ["inf"], "inf"),
-    ("--vmax", ["0"], "'0'"),
-    ("--vmax", ["-1"], "'-1'"),
-    ("--vmax", ["abc"], "abc"),
-])
+@pytest.mark.parametrize(
+    "flag, values, bad",
+    [
+        ("--from", ["nan", "0", "0"], "nan"),
+        ("--from", ["1e30", "0", "0"], "1e30"),
+        ("--from", ["0", "-inf", "0"], "expected 3 arguments"),  # argparse takes -inf for an option
+        ("--to", ["nan", "0", "0"], "nan"),
+        ("--to", ["0", "1e30", "0"], "1e30"),
+        ("--to", ["0", "0", "inf"], "inf"),
+        ("--gains", ["nan", "1", "1"], "nan"),
+        ("--gains", ["0.1", "1e300", "-0.2"], "1e300"),
+        ("--vmax", ["nan"], "nan"),
+        ("--vmax", ["inf"], "inf"),
+        ("--vmax", ["0"], "'0'"),
+        ("--vmax", ["-1"], "'-1'"),
+        ("--vmax", ["abc"], "abc"),
+    ],
+)
 def test_pose_non_finite_or_out_of_range_numbers_are_refused_naming_the_flag(flag, values, bad, no_work):
     assert_refused(run(["pose", flag, *values]), f"argument {flag}", bad)
 
@@ -107,10 +116,13 @@ def test_pose_theta_in_degrees_is_refused():
     assert_refused(run(["pose", "--to", "0", "0", "90"]), "--to", "THETA 90", "radians")
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--vmax", "1e-6"], ["--vmax 1e-06", "limit"]),
-    (["--gains", "1e-9", "1", "-1"], ["K_rho 1e-09", "limit"]),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--vmax", "1e-6"], ["--vmax 1e-06", "limit"]),
+        (["--gains", "1e-9", "1", "-1"], ["K_rho 1e-09", "limit"]),
+    ],
+)
 def test_pose_a_run_that_cannot_end_within_the_limits_is_refused_before_it_starts(args, words, no_work):
     assert_refused(run(["pose", *args]), *words)
 
@@ -127,21 +139,44 @@ def test_pose_plot_into_a_folder_is_refused_and_writes_nothing(tmp_path, make):
     assert not (tmp_path / ".png").exists() and not (tmp_path / "sub" / ".png").exists()
 
 
-@pytest.mark.parametrize("name, words", [("picture.jpg", [".png"]), ("missing/p.png", ["no folder"]),
-                                         ("9" * 400 + ".png", ["too long"])])
+@pytest.mark.parametrize(
+    "name, words", [("picture.jpg", [".png"]), ("missing/p.png", ["no folder"]), ("9" * 400 + ".png", ["too long"])]
+)
 def test_pose_plot_needs_a_png_name_in_an_existing_folder(tmp_path, name, words):
     assert_refused(run(["pose", "--plot", str(tmp_path / name)]), "--plot", *words)
 
 
 def test_pose_a_legal_small_dt_finishes_quickly_with_strict_json_and_a_whole_plot(tmp_path):
     png = tmp_path / "p.png"
-    code, out, err = run(["pose", "--from", "0", "0", "0", "--to", "3", "0", "0", "--gains", "0.5", "1.5", "-0.3",
-                          "--vmax", "1", "--dt", "0.001", "--json", "--plot", str(png)])
+    code, out, err = run(
+        [
+            "pose",
+            "--from",
+            "0",
+            "0",
+            "0",
+            "--to",
+            "3",
+            "0",
+            "0",
+            "--gains",
+            "0.5",
+            "1.5",
+            "-0.3",
+            "--vmax",
+            "1",
+            "--dt",
+            "0.001",
+            "--json",
+            "--plot",
+            str(png),
+        ]
+    )
     assert code == 0, err
     data = strict_json(out)
     assert data["converged"] and abs(data["final_error"][0]) < 0.1
     assert png.stat().st_size > 10_000
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.png"]   # no temporary left behind
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.png"]  # no temporary left behind
 
 
 def test_simulate_pose_caps_its_steps_and_refuses_non_finite_poses():
@@ -155,14 +190,18 @@ def test_simulate_pose_caps_its_steps_and_refuses_non_finite_poses():
 
 def test_min_time_is_a_lower_bound_of_the_simulated_time():
     gains = pose_mod.PoseGains(0.3, 0.8, -0.15)
-    for start, goal, vmax, dt in [((0, 0, 0), (3, 0, 0), 1.0, 0.05), ((0, 0, 0), (3, 0, 0), 1.0, 1.0),
-                                  ((0, 0, 0), (3, 0, 0), 10.0, 0.001), ((0, 0, 0), (20, 10, 1.0), 0.5, 0.05),
-                                  ((0, 0, 0), (1000, 0, 0), 0.5, 1.0),
-                                  (pose_mod.REPORT_P0, pose_mod.REPORT_P1, 0.04, 1.0)]:
+    for start, goal, vmax, dt in [
+        ((0, 0, 0), (3, 0, 0), 1.0, 0.05),
+        ((0, 0, 0), (3, 0, 0), 1.0, 1.0),
+        ((0, 0, 0), (3, 0, 0), 10.0, 0.001),
+        ((0, 0, 0), (20, 10, 1.0), 0.5, 0.05),
+        ((0, 0, 0), (1000, 0, 0), 0.5, 1.0),
+        (pose_mod.REPORT_P0, pose_mod.REPORT_P1, 0.04, 1.0),
+    ]:
         r = pose_mod.simulate_pose(start, goal, gains, vmax=vmax, dt=dt)
         bound = pose_mod.min_time_s(start, goal, gains.k_rho, vmax, dt)
         assert r.converged and bound <= r.time_s, (start, goal, vmax, dt, bound, r.time_s)
-        assert bound > 0.5 * r.time_s, (start, goal, vmax, dt, bound, r.time_s)   # and not a useless bound
+        assert bound > 0.5 * r.time_s, (start, goal, vmax, dt, bound, r.time_s)  # and not a useless bound
     # A goal already within the arrival tolerance (0.1 m): no step is taken, and the bound says so.
     r = pose_mod.simulate_pose((0, 0, 0), (0.05, 0, 0), gains, vmax=1.0, dt=0.05)
     assert r.converged and len(r.t) == 1
@@ -177,7 +216,8 @@ def test_json_output_has_no_nan_or_infinity():
 
 # --- study ------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("value", ["0", "-3", str(10 ** 12), str(MAX_RUNS + 1), "nan", "1.5", "", "1e3"])
+
+@pytest.mark.parametrize("value", ["0", "-3", str(10**12), str(MAX_RUNS + 1), "nan", "1.5", "", "1e3"])
 def test_study_runs_must_be_a_whole_number_within_its_limits(value, tmp_path):
     assert_refused(run(["study", "--out", str(tmp_path / "o"), "--runs", value]), "--runs", repr(value))
     assert not (tmp_path / "o").exists()
@@ -197,7 +237,8 @@ def test_study_out_naming_an_existing_file_is_refused(tmp_path):
 
 def test_study_library_refuses_bad_runs_and_seeds(tmp_path):
     from rovernav.study.cli import study
-    for kwargs in ({"runs": 0}, {"runs": -3}, {"runs": 10 ** 9}, {"seed": -1}, {"runs": 2.5}):
+
+    for kwargs in ({"runs": 0}, {"runs": -3}, {"runs": 10**9}, {"seed": -1}, {"runs": 2.5}):
         with pytest.raises(InputError):
             study(tmp_path / "o", **kwargs)
     with pytest.raises(ValueError, match="n_runs"):
@@ -213,7 +254,7 @@ def test_study_writes_nothing_when_a_task_fails(tmp_path, monkeypatch):
     def no_path(*args, **kwargs):
         raise NoPathError("walled off")
 
-    monkeypatch.setattr(crater, "crater_map", lambda *a, **k: None)   # the map is not needed here
+    monkeypatch.setattr(crater, "crater_map", lambda *a, **k: None)  # the map is not needed here
     monkeypatch.setattr(crater, "plan_on_map", no_path)
     out = tmp_path / "o"
     assert_refused(run(["study", "--out", str(out), "--runs", "1"]), "no path", "--seed 0")
@@ -221,6 +262,7 @@ def test_study_writes_nothing_when_a_task_fails(tmp_path, monkeypatch):
 
 
 # --- locate -----------------------------------------------------------------------------------
+
 
 @pytest.fixture
 def frame_png(tmp_path) -> Path:
@@ -239,20 +281,28 @@ def test_locate_refuses_an_image_too_small_to_search(tmp_path, shape):
 def test_locate_refuses_an_image_whose_header_claims_too_many_pixels_without_decoding_it(tmp_path, no_work):
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
     for w, h in [(100_000, 100_000), (6000, 5000)]:
         path = tmp_path / f"bomb{w}.png"
-        path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-                         + chunk(b"IDAT", zlib.compress(b"\0" * 100)) + chunk(b"IEND", b""))
+        path.write_bytes(
+            b"\x89PNG\r\n\x1a\n"
+            + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\0" * 100))
+            + chunk(b"IEND", b"")
+        )
         assert_refused(run(["locate", str(path)]), str(path), f"{MAX_IMAGE_PIXELS / 1e6:g} megapixels")
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda p: p.mkdir(), ["is a folder"]),
-    (lambda p: p.write_text("hello, not a picture"), ["not an image OpenCV can decode"]),
-    (lambda p: p.write_bytes(np.random.default_rng(0).bytes(20_000)), ["not an image OpenCV can decode"]),
-    (lambda p: p.write_bytes(b""), ["not an image OpenCV can decode"]),
-    (lambda p: None, ["no such file"]),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda p: p.mkdir(), ["is a folder"]),
+        (lambda p: p.write_text("hello, not a picture"), ["not an image OpenCV can decode"]),
+        (lambda p: p.write_bytes(np.random.default_rng(0).bytes(20_000)), ["not an image OpenCV can decode"]),
+        (lambda p: p.write_bytes(b""), ["not an image OpenCV can decode"]),
+        (lambda p: None, ["no such file"]),
+    ],
+)
 def test_locate_refuses_what_is_not_an_image(tmp_path, make, words):
     path = tmp_path / "frame.png"
     make(path)
@@ -271,14 +321,17 @@ def test_locate_arena_size_must_be_finite_positive_and_at_most_the_largest_arena
     assert_refused(run(["locate", str(frame_png), "--arena-size", *size]), "--arena-size", repr(bad))
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda p: p.mkdir(), ["folder"]),
-    (lambda p: p.write_bytes(b"[arena]\nwidth_m = 2.0\n# \xff\xfe\n"), ["UTF-8"]),
-    (lambda p: p.write_text("[arena]\nwidth_m = inf\n"), ["width_m"]),
-    (lambda p: p.write_text("[arena]\nwidth_m = 1e9\n"), ["width_m"]),
-    (lambda p: p.write_text("[arena]\nwidth_m = nan\n"), ["width_m"]),
-    (lambda p: p.write_text("not = [toml"), ["TOML"]),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda p: p.mkdir(), ["folder"]),
+        (lambda p: p.write_bytes(b"[arena]\nwidth_m = 2.0\n# \xff\xfe\n"), ["UTF-8"]),
+        (lambda p: p.write_text("[arena]\nwidth_m = inf\n"), ["width_m"]),
+        (lambda p: p.write_text("[arena]\nwidth_m = 1e9\n"), ["width_m"]),
+        (lambda p: p.write_text("[arena]\nwidth_m = nan\n"), ["width_m"]),
+        (lambda p: p.write_text("not = [toml"), ["TOML"]),
+    ],
+)
 def test_locate_refuses_a_config_it_cannot_use_naming_it(frame_png, tmp_path, make, words):
     config = tmp_path / "rovernav.toml"
     make(config)
@@ -303,13 +356,33 @@ def test_the_real_command_exits_2_with_one_line_and_no_traceback(rovernav_comman
 
 # --- help: units and limits of every numeric flag ---------------------------------------------
 
-@pytest.mark.parametrize("command, expected", [
-    ("pose", ["--from", "metres within +-100,000", "radians within +-10", "--gains", "1/s, each within +-10",
-              "--vmax", "m/s, > 0 and <= 10", "--dt", "seconds, 0.001 to 1", "2,000,000", "exit status"]),
-    ("study", ["--seed", "integer 0 to 4294967295", "--runs", "integer 1 to 200", "exit status"]),
-    ("locate", ["--arena-size", "metres, each > 0 and <= 100", "at least 32 x 32 pixels", "25 megapixels",
-                "exit status"]),
-])
+
+@pytest.mark.parametrize(
+    "command, expected",
+    [
+        (
+            "pose",
+            [
+                "--from",
+                "metres within +-100,000",
+                "radians within +-10",
+                "--gains",
+                "1/s, each within +-10",
+                "--vmax",
+                "m/s, > 0 and <= 10",
+                "--dt",
+                "seconds, 0.001 to 1",
+                "2,000,000",
+                "exit status",
+            ],
+        ),
+        ("study", ["--seed", "integer 0 to 4294967295", "--runs", "integer 1 to 200", "exit status"]),
+        (
+            "locate",
+            ["--arena-size", "metres, each > 0 and <= 100", "at least 32 x 32 pixels", "25 megapixels", "exit status"],
+        ),
+    ],
+)
 def test_help_states_the_units_and_limits_of_each_numeric_flag(command, expected):
     code, out, _ = run([command, "--help"])
     assert code == 0
@@ -338,10 +411,32 @@ NUMERIC_FLAGS = [
     ("locate", "--arena-size", 2, 0, 0.0, MAX_ARENA_M, True, False),
     ("locate", "--arena-size", 2, 1, 0.0, MAX_ARENA_M, True, False),
 ]
-HOSTILE = ["nan", "NaN", "inf", "-inf", "Infinity", "0", "-0", "-1", "1e308", "-1e308", "1e309", "", " ", "abc",
-           "1e-300", "0x10", "1_000", "9" * 400, "--help", "-h", "1,5", "\x00", "١"]
-hostile = st.one_of(st.sampled_from(HOSTILE), st.floats().map(repr), st.integers().map(str),
-                    st.text(max_size=8))
+HOSTILE = [
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "Infinity",
+    "0",
+    "-0",
+    "-1",
+    "1e308",
+    "-1e308",
+    "1e309",
+    "",
+    " ",
+    "abc",
+    "1e-300",
+    "0x10",
+    "1_000",
+    "9" * 400,
+    "--help",
+    "-h",
+    "1,5",
+    "\x00",
+    "١",
+]
+hostile = st.one_of(st.sampled_from(HOSTILE), st.floats().map(repr), st.integers().map(str), st.text(max_size=8))
 PARSER = rovernav_cli.build_parser()
 
 

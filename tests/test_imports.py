@@ -22,6 +22,7 @@ longer than 600 lines.
 There is no allowlist: an import that closes a cycle, or a hand-written file over 600 lines,
 fails the test until it is moved below what it serves, or split.
 """
+
 from __future__ import annotations
 
 import ast
@@ -161,7 +162,7 @@ def a_loop(graph: dict[str, set[str]], component: frozenset[str]) -> list[str]:
     start = min(component)
     paths = {start: [start]}
     queue = [start]
-    while queue:                                   # breadth first: the shortest way back to start
+    while queue:  # breadth first: the shortest way back to start
         node = queue.pop(0)
         for child in sorted(graph.get(node, ())):
             if child == start:
@@ -214,30 +215,49 @@ def test_no_long_file():
 
 # ---------------------------------------------------------------- the checks can fail
 
+
 def test_cycle_finder_sees_a_cycle():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set(), "e": {"e"}}
     assert cycles(graph) == [frozenset({"a", "b", "c"})]
     assert a_loop(graph, frozenset({"a", "b", "c"})) == ["a", "b", "c", "a"]
     with pytest.raises(AssertionError, match="a -> b -> c -> a"):
         check_cycles(graph)
-    check_cycles({**graph, "c": {"d"}})              # the loop broken: no cycle left
+    check_cycles({**graph, "c": {"d"}})  # the loop broken: no cycle left
 
 
 def test_units_fold_modules():
     # what the issue found: the simulator writes run logs, and the replay drew with the simulator's report
-    graph = {"rovernav.sim.runner": {"rovernav.runlog.writer"}, "rovernav.runlog.writer": set(),
-             "rovernav.runlog.replay": {"rovernav.sim.report"}, "rovernav.sim.report": set()}
-    assert cycles(graph) == []                      # no module imports itself round a loop ...
-    assert cycles(unit_graph(graph)) == [frozenset({"rovernav.sim", "rovernav.runlog"})]   # ... but the packages do
+    graph = {
+        "rovernav.sim.runner": {"rovernav.runlog.writer"},
+        "rovernav.runlog.writer": set(),
+        "rovernav.runlog.replay": {"rovernav.sim.report"},
+        "rovernav.sim.report": set(),
+    }
+    assert cycles(graph) == []  # no module imports itself round a loop ...
+    assert cycles(unit_graph(graph)) == [frozenset({"rovernav.sim", "rovernav.runlog"})]  # ... but the packages do
     assert [unit_of(m) for m in ("rovernav.sim.cli", "rovernav.evaluation.arenas.cli", "rovernav.cli", "rovernav")] == [
-        "rovernav.sim.cli", "rovernav.evaluation", "rovernav.cli", "rovernav"]
+        "rovernav.sim.cli",
+        "rovernav.evaluation",
+        "rovernav.cli",
+        "rovernav",
+    ]
 
 
 def test_relative_imports_resolve(tmp_path):
-    known = {"rovernav": HOST / ROOT / "__init__.py", "rovernav.sim": HOST / ROOT / "sim" / "__init__.py",
-             "rovernav.sim.a": tmp_path / "a.py", "rovernav.sim.b": tmp_path / "b.py",
-             "rovernav.files": tmp_path / "files.py", "rovernav.runlog": tmp_path / "runlog.py"}
-    (tmp_path / "a.py").write_text("from . import b\nfrom ..files import write_atomic\nimport os\n"
-                                   "def f():\n    from .. import runlog\n    from rovernav.sim.b import x\n")
+    known = {
+        "rovernav": HOST / ROOT / "__init__.py",
+        "rovernav.sim": HOST / ROOT / "sim" / "__init__.py",
+        "rovernav.sim.a": tmp_path / "a.py",
+        "rovernav.sim.b": tmp_path / "b.py",
+        "rovernav.files": tmp_path / "files.py",
+        "rovernav.runlog": tmp_path / "runlog.py",
+    }
+    (tmp_path / "a.py").write_text(
+        "from . import b\nfrom ..files import write_atomic\nimport os\n"
+        "def f():\n    from .. import runlog\n    from rovernav.sim.b import x\n"
+    )
     assert imports_of("rovernav.sim.a", tmp_path / "a.py", known) == {
-        "rovernav.sim.b", "rovernav.files", "rovernav.runlog"}
+        "rovernav.sim.b",
+        "rovernav.files",
+        "rovernav.runlog",
+    }

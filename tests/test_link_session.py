@@ -1,4 +1,5 @@
 """The Link: sequenced frames, tolerance of split and corrupt input, requests and the HELLO handshake."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -44,15 +45,41 @@ SAMPLES: list[Message] = [
     Hello(schema_hash=0xFFFFFFFF, boot_id=0xCAFEBABE, firmware_version=0x0102, role=Role.ROVER, max_waypoints=32),
     Heartbeat(host_time_ms=4_000_000_000, camera=2),
     Fix(x_mm=-32768, y_mm=32767, heading_cdeg=-17999, age_ms=120, sd_mm=255, frame_seq=65535),
-    Path(path_id=7, total=20, first_index=8, count=8,
-         x_mm=(-400, -300, -200, -100, 0, 100, 200, 300), y_mm=(1, -2, 3, -4, 5, -6, 7, -8)),
+    Path(
+        path_id=7,
+        total=20,
+        first_index=8,
+        count=8,
+        x_mm=(-400, -300, -200, -100, 0, 100, 200, 300),
+        y_mm=(1, -2, 3, -4, 5, -6, 7, -8),
+    ),
     Start(path_id=0xFFFF),
     Stop(reason=StopReason.REPLANNING),
     Config(param=Param.PID_KP_X100, value=-300),
-    Status(time_ms=123_456, state=RoverState.DRIVE, flags=0x81, fault=0, path_id=7, waypoint_index=3,
-           x_mm=-1500, y_mm=900, heading_cdeg=9000, sd_x_mm=12, sd_y_mm=13, corr_xy_permille=-250,
-           sd_heading_cdeg=150, dr_distance_mm=300, fix_age_ms=65535, left_pwm=-255, right_pwm=255,
-           rx_ok=65535, rx_bad_crc=1, rx_overlong=2, rx_unknown_id=3, rx_malformed=4),
+    Status(
+        time_ms=123_456,
+        state=RoverState.DRIVE,
+        flags=0x81,
+        fault=0,
+        path_id=7,
+        waypoint_index=3,
+        x_mm=-1500,
+        y_mm=900,
+        heading_cdeg=9000,
+        sd_x_mm=12,
+        sd_y_mm=13,
+        corr_xy_permille=-250,
+        sd_heading_cdeg=150,
+        dr_distance_mm=300,
+        fix_age_ms=65535,
+        left_pwm=-255,
+        right_pwm=255,
+        rx_ok=65535,
+        rx_bad_crc=1,
+        rx_overlong=2,
+        rx_unknown_id=3,
+        rx_malformed=4,
+    ),
     Obstacle(scan_id=3, bearing_cdeg=-4500, range_mm=380, x_mm=100, y_mm=-200, heading_cdeg=18000, sd_mm=25),
     Ack(msg_id=Start.ID, seq=255),
     Nack(msg_id=Path.ID, seq=0, reason=NackReason.OUT_OF_ORDER, detail=65535),
@@ -135,6 +162,7 @@ def rover_hello(schema_hash: int = SCHEMA_HASH) -> Hello:
 
 
 # ------------------------------------------------------------------ send and receive
+
 
 def test_the_samples_cover_every_message_in_the_protocol():
     assert {type(m) for m in SAMPLES} == set(MESSAGES.values())
@@ -260,6 +288,7 @@ def test_sends_from_many_threads_get_distinct_sequence_numbers_and_all_arrive(pi
 
 # ------------------------------------------------------------------ split and corrupt input
 
+
 class OneByteAtATime(Transport):
     """Wraps a transport so that every read returns at most one byte."""
 
@@ -351,6 +380,7 @@ def test_a_frame_glued_to_undelimited_noise_is_lost_but_the_decoder_resynchronis
 
 # ------------------------------------------------------------------ request
 
+
 def test_request_returns_the_matching_ack(host_and_rover_end):
     host, end = host_and_rover_end
     rover = FakeRover(end, lambda link, frame: [ack(frame)])
@@ -362,8 +392,9 @@ def test_request_returns_the_matching_ack(host_and_rover_end):
 
 def test_request_raises_nacked_with_the_rovers_reason(host_and_rover_end):
     host, end = host_and_rover_end
-    rover = FakeRover(end, lambda link, frame: [Nack(msg_id=frame.msg_id, seq=frame.seq,
-                                                     reason=NackReason.NO_PATH, detail=0)])
+    rover = FakeRover(
+        end, lambda link, frame: [Nack(msg_id=frame.msg_id, seq=frame.seq, reason=NackReason.NO_PATH, detail=0)]
+    )
     with pytest.raises(Nacked) as info:
         host.request(Start(path_id=3), timeout_s=1.0)
     assert info.value.reason == NackReason.NO_PATH
@@ -452,6 +483,7 @@ def test_frames_arriving_across_several_requests_are_all_kept(host_and_rover_end
 
 # ------------------------------------------------------------------ handshake
 
+
 def test_version_word_is_major_times_256_plus_minor():
     assert version_word("0.1.0") == 1
     assert version_word("1.2.3") == 258
@@ -474,6 +506,7 @@ def _answer_hello(schema_hash: int = SCHEMA_HASH):
         if isinstance(frame.message, Hello) and frame.message.role == Role.HOST:
             return [rover_hello(schema_hash)]
         return []
+
     return answer
 
 
@@ -485,8 +518,13 @@ def test_handshake_returns_the_rovers_hello_after_sending_ours(host_and_rover_en
     assert host.peer_hello == theirs
     seen = rover.stop()
     ours = seen[0].message
-    assert ours == Hello(schema_hash=SCHEMA_HASH, boot_id=0xB007, firmware_version=version_word(rovernav.__version__),
-                         role=Role.HOST, max_waypoints=0)
+    assert ours == Hello(
+        schema_hash=SCHEMA_HASH,
+        boot_id=0xB007,
+        firmware_version=version_word(rovernav.__version__),
+        role=Role.HOST,
+        max_waypoints=0,
+    )
 
 
 def test_handshake_raises_schema_mismatch_naming_both_hashes(host_and_rover_end):

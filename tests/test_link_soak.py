@@ -3,6 +3,7 @@ time, on a line that carries 57,600 baud and loses a known share of bytes or fra
 loss it reports is the loss the line made, the paths load, the advice shows past its threshold and
 not below it; and the command line, in real time against the core on a thread.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,7 +23,7 @@ from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
 
 KEY = bytes(range(7, 23))
-BYTES_PER_STEP = 58          # 57,600 baud 8N1 is 5,760 bytes a second: 58 in the core's 10 ms step
+BYTES_PER_STEP = 58  # 57,600 baud 8N1 is 5,760 bytes a second: 58 in the core's 10 ms step
 
 
 class Loss:
@@ -33,7 +34,7 @@ class Loss:
 
     def __init__(self, byte_loss: float = 0.0, frame_loss: float = 0.0, seed: int = 1):
         self.byte_loss, self.frame_loss, self.rng = byte_loss, frame_loss, random.Random(seed)
-        self.on = False              # switched on after the HELLO
+        self.on = False  # switched on after the HELLO
         self.frames = self.broken = 0
         self._partial = b""
         self._lost_delimiter = False
@@ -53,7 +54,7 @@ class Loss:
             self.frames += 1
             if self.frame_loss and self.rng.random() < self.frame_loss:
                 self.broken += 1
-                self._lost_delimiter = False      # the whole frame gone: the one before stays whole
+                self._lost_delimiter = False  # the whole frame gone: the one before stays whole
                 continue
             kept = bytes(b for b in frame if not (self.byte_loss and self.rng.random() < self.byte_loss))
             self.broken += len(kept) < len(frame) or self._lost_delimiter
@@ -87,7 +88,7 @@ class Line(CoreTransport):
         super()._write(self.loss_to_rover.apply(data))
 
     def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
-        for _ in range(max(1, round((timeout_s or 0.0) * 100))):   # step until something comes
+        for _ in range(max(1, round((timeout_s or 0.0) * 100))):  # step until something comes
             if self.from_rover:
                 break
             self.run_ms(10)
@@ -95,8 +96,9 @@ class Line(CoreTransport):
         return data
 
 
-def _soak(seconds: float, to_rover: Loss | None = None, to_host: Loss | None = None, key: bytes | None = None,
-          **kwargs) -> tuple[sk.Soak, Line]:
+def _soak(
+    seconds: float, to_rover: Loss | None = None, to_host: Loss | None = None, key: bytes | None = None, **kwargs
+) -> tuple[sk.Soak, Line]:
     line = Line(NativeCore(boot_id=11, key=key), to_rover, to_host)
     link = Link(line, key=key)
     link.handshake(boot_id=5)
@@ -111,6 +113,7 @@ def _lost(soak: sk.Soak, way: str) -> float:
 
 # ------------------------------------------------------------------ a clean line
 
+
 @pytest.mark.parametrize("key", [None, KEY], ids=["unsigned", "signed"])
 def test_a_clean_line_loses_nothing_loads_every_path_and_answers_every_probe(key):
     soak, line = _soak(30.0, key=key)
@@ -122,12 +125,12 @@ def test_a_clean_line_loses_nothing_loads_every_path_and_answers_every_probe(key
     assert s["host_to_rover"]["rover_received_broken"] == 0
     rt = s["round_trip_s"]
     assert rt["sent"] == pytest.approx(30 * sk.PROBE_HZ, abs=2) and rt["unanswered"] == 0
-    assert 0.0 < rt["median"] <= rt["p99"] <= 0.05          # a step or two of the core
+    assert 0.0 < rt["median"] <= rt["p99"] <= 0.05  # a step or two of the core
     p = s["path_load_s"]
     assert p["completed"] == p["started"] >= 5 and p["chunks_sent_again"] == 0 and p["given_up"] == 0
-    assert 0.0 < p["median"] <= p["worst"] < 0.2             # four chunks on a 57,600-baud line
+    assert 0.0 < p["median"] <= p["worst"] < 0.2  # four chunks on a 57,600-baud line
     assert s["verdict"] == "ok" and s["advice"] is None
-    assert line.core.probe().state == mg.RoverState.IDLE    # loaded, never started
+    assert line.core.probe().state == mg.RoverState.IDLE  # loaded, never started
     assert line.core.probe().waypoint_count == sk.PATH_WAYPOINTS
     # Signed frames are 12 bytes longer, so the thresholds are lower.
     assert s["host_to_rover"]["mean_frame_bytes"] > (24 if key else 12)
@@ -135,11 +138,12 @@ def test_a_clean_line_loses_nothing_loads_every_path_and_answers_every_probe(key
 
 # ------------------------------------------------------------------ loss as injected
 
+
 @pytest.mark.parametrize("frame_loss, seed", [(0.02, 1), (0.08, 2), (0.2, 3)])
 def test_the_frame_loss_reported_is_the_frame_loss_injected_each_way(frame_loss, seed):
     soak, line = _soak(120.0, Loss(frame_loss=frame_loss, seed=seed), Loss(frame_loss=frame_loss, seed=seed + 100))
     for way, made in (("host_to_rover", line.loss_to_rover), ("rover_to_host", line.loss_to_host)):
-        assert made.share == pytest.approx(frame_loss, abs=0.25 * frame_loss + 0.005)   # the line did as asked
+        assert made.share == pytest.approx(frame_loss, abs=0.25 * frame_loss + 0.005)  # the line did as asked
         assert _lost(soak, way) == pytest.approx(made.share, abs=0.1 * made.share + 0.005), way
     assert soak.summary()["path_load_s"]["completed"] >= 15
 
@@ -153,7 +157,7 @@ def test_the_frame_loss_reported_under_byte_loss_is_what_the_line_broke_and_give
         assert s[way]["lost_share"] == pytest.approx(made.share, abs=0.1 * made.share + 0.005), way
         # The byte loss that explains the frames lost, from their lengths, is the byte loss made.
         assert s[way]["byte_damage_equivalent"] == pytest.approx(byte_loss, rel=0.3), way
-    assert s["host_to_rover"]["rover_received_broken"] > 0     # broken frames reach the rover's counters
+    assert s["host_to_rover"]["rover_received_broken"] > 0  # broken frames reach the rover's counters
     assert s["path_load_s"]["completed"] >= 15 and s["path_load_s"]["given_up"] == 0
     assert s["round_trip_s"]["unanswered"] > 0
 
@@ -163,14 +167,15 @@ def test_the_path_loads_at_heavy_loss_and_takes_longer():
     lossy, _ = _soak(60.0, Loss(frame_loss=0.2, seed=6), Loss(frame_loss=0.2, seed=7))
     c, p = clean.summary()["path_load_s"], lossy.summary()["path_load_s"]
     assert p["completed"] >= 8 and p["given_up"] == 0 and p["chunks_sent_again"] > 0
-    assert p["worst"] > c["worst"] and p["worst"] >= sk.PATH_RESEND_S     # at least one chunk waited its resend
+    assert p["worst"] > c["worst"] and p["worst"] >= sk.PATH_RESEND_S  # at least one chunk waited its resend
 
 
 # ------------------------------------------------------------------ the advice
 
+
 def test_the_thresholds_follow_from_byte_loss_and_frame_length():
     # One frame of L bytes arrives at byte damage p with probability (1-p)^(L+1).
-    assert sk.frame_loss_at(0.01, {12: 1}, received=False) == pytest.approx(1 - 0.99 ** 13)
+    assert sk.frame_loss_at(0.01, {12: 1}, received=False) == pytest.approx(1 - 0.99**13)
     # Frames received: the lost ones are unseen; the longer ones were lost more often.
     sent = {12: 100, 52: 100}
     keep = {n: 0.95 ** (n + 1) for n in sent}
@@ -179,7 +184,7 @@ def test_the_thresholds_follow_from_byte_loss_and_frame_length():
     assert sk.byte_damage_for(sk.frame_loss_at(0.03, sent, False), sent, False) == pytest.approx(0.03)
     t = sk.typical_thresholds()
     assert t["HEARTBEAT"][0] == 16 and 0.16 < t["HEARTBEAT"][1] < 0.18 and 0.55 < t["HEARTBEAT"][2] < 0.61
-    assert t["STATUS"][1] > t["HEARTBEAT"][1]          # longer frames are lost more often
+    assert t["STATUS"][1] > t["HEARTBEAT"][1]  # longer frames are lost more often
     assert all(a[1] > b[1] for a, b in zip(sk.typical_thresholds(signed=True).values(), t.values()))
 
 
@@ -213,16 +218,17 @@ def test_the_advice_is_for_one_way_when_only_that_way_loses():
 
 # ------------------------------------------------------------------ what a soak does not do
 
+
 def test_no_path_is_sent_to_a_rover_running_a_mission():
     line = Line(NativeCore(boot_id=11))
     link = Link(line)
     link.handshake(boot_id=5)
     soak = sk.Soak(link, clock=line.clock, poll_s=0.0, host_boot_id=5)
-    soak.run(2.0)                               # the soak's first path is loaded ...
+    soak.run(2.0)  # the soak's first path is loaded ...
     assert soak.summary()["path_load_s"]["completed"] == 1 and line.core.probe().state == mg.RoverState.IDLE
     link.send(mg.Fix(x_mm=300, y_mm=300, heading_cdeg=0, age_ms=0, sd_mm=10, frame_seq=1))
     line.run_ms(100)
-    link.send(mg.Start(path_id=soak._path_id(0)))   # ... and someone starts a mission on it
+    link.send(mg.Start(path_id=soak._path_id(0)))  # ... and someone starts a mission on it
     line.run_ms(500)
     assert line.core.probe().state != mg.RoverState.IDLE
     before = soak.loads_started
@@ -260,16 +266,17 @@ def test_progress_lines_every_few_seconds():
 def test_a_rover_that_restarts_mid_soak_is_followed():
     soak, line = _soak(5.0)
     line.core.close()
-    line.core = NativeCore(boot_id=99)           # a reset: a new boot id, counters from 0
+    line.core = NativeCore(boot_id=99)  # a reset: a new boot id, counters from 0
     soak.run(10.0)
     s = soak.summary()
     assert s["rover"]["restarts"] == 1 and s["rover"]["boot_id"] == 99
     assert s["host_to_rover"]["lost_share"] < 0.02 and s["rover_to_host"]["lost_share"] < 0.02
     assert any("RESTARTED" in line.upper() for line in soak.report_lines())
-    assert line.core.probe().flags & mg.StatusFlag.SCHEMA_OK   # told who the host is again
+    assert line.core.probe().flags & mg.StatusFlag.SCHEMA_OK  # told who the host is again
 
 
 # ------------------------------------------------------------------ the command line
+
 
 class _RealTimeRover:
     """The rover core on a thread, stepped every 10 ms of wall time, behind the far end of a pipe."""
@@ -288,8 +295,8 @@ class _RealTimeRover:
             try:
                 line += self.rover_end.read(4096, 0)
             except LinkClosed:
-                return               # the host closed its port
-            rx, line = line[:BYTES_PER_STEP], line[BYTES_PER_STEP:]   # as fast as the line brings them
+                return  # the host closed its port
+            rx, line = line[:BYTES_PER_STEP], line[BYTES_PER_STEP:]  # as fast as the line brings them
             out = self.core.step(step * 10, gyro_rate_mdps=0, rx=rx)
             if out.tx:
                 self.rover_end.write(out.tx)
@@ -347,17 +354,20 @@ def test_link_check_soak_ctrl_c_prints_the_report_and_writes_the_figures(tmp_pat
     assert json.loads((tmp_path / "s.json").read_text())["ended_by"] == "Ctrl-C"
 
 
-@pytest.mark.parametrize("argv, names", [
-    (["--soak", "nan"], "--soak"),
-    (["--soak", "-5"], "--soak"),
-    (["--soak", "0"], "--soak"),
-    (["--soak", "inf"], "--soak"),
-    (["--soak", "1e9"], "--soak"),
-    (["--soak", "ten"], "--soak"),
-    (["--soak", "60", "--json", "figures.txt"], "--json"),
-    (["--json", "figures.json"], "--json"),
-    (["--soak", "60", "--seconds", "5"], "--seconds"),
-])
+@pytest.mark.parametrize(
+    "argv, names",
+    [
+        (["--soak", "nan"], "--soak"),
+        (["--soak", "-5"], "--soak"),
+        (["--soak", "0"], "--soak"),
+        (["--soak", "inf"], "--soak"),
+        (["--soak", "1e9"], "--soak"),
+        (["--soak", "ten"], "--soak"),
+        (["--soak", "60", "--json", "figures.txt"], "--json"),
+        (["--json", "figures.json"], "--json"),
+        (["--soak", "60", "--seconds", "5"], "--seconds"),
+    ],
+)
 def test_link_check_soak_refuses_bad_input_in_one_line_with_status_2(argv, names, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     try:
@@ -375,6 +385,15 @@ def test_link_check_help_says_what_the_soak_measures(capsys):
     with pytest.raises(SystemExit):
         main(["link-check", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    for phrase in ("rx_ok", "sequence numbers", "99th percentile", "NACK unknown_param", "No START is sent",
-                   "(1-p)^(L+1)", "1 % of bytes lost", "Ctrl-C", "--json FILE"):
+    for phrase in (
+        "rx_ok",
+        "sequence numbers",
+        "99th percentile",
+        "NACK unknown_param",
+        "No START is sent",
+        "(1-p)^(L+1)",
+        "1 % of bytes lost",
+        "Ctrl-C",
+        "--json FILE",
+    ):
         assert phrase in text, phrase

@@ -6,6 +6,7 @@ occurrence), so every case is exact and repeatable: a lost HELLO, a lost chunk, 
 duplicated frame, a lost START, a lost STOP. A whole mission on a randomly lossy radio is in
 test_sim_faults.py (`test_a_mission_at_one_percent_byte_loss_reaches_its_target`).
 """
+
 from __future__ import annotations
 
 from tests.core_transport import CoreRover
@@ -24,7 +25,7 @@ def _frames(data: bytes) -> list[tuple[bytes, object]]:
     out, start = [], 0
     for i, b in enumerate(data):
         if b == 0:
-            raw = data[start:i + 1]
+            raw = data[start : i + 1]
             start = i + 1
             decoded = framing.FrameDecoder().feed(raw)
             out.append((raw, decoded[0] if decoded else None))
@@ -95,8 +96,13 @@ def _mission(to_rover=(), to_host=()):
     lossy = LossyEnd(host_end, to_rover, to_host)
     rover = CoreRover(rover_end, boot_id=7)
     notes: list[str] = []
-    mission = Mission(Link(lossy), OccupancyGrid(2.36, 1.75, PlannerConfig()), (0.3, 0.3), (2.0, 1.4),
-                      on_event=lambda t, text: notes.append(text))
+    mission = Mission(
+        Link(lossy),
+        OccupancyGrid(2.36, 1.75, PlannerConfig()),
+        (0.3, 0.3),
+        (2.0, 1.4),
+        on_event=lambda t, text: notes.append(text),
+    )
     return mission, rover, notes
 
 
@@ -116,6 +122,7 @@ def _started(rover) -> bool:
 
 # ------------------------------------------------------------------ the handshake
 
+
 def test_a_lost_host_hello_is_said_again_and_the_mission_goes_on():
     # The host's first two HELLOs are lost: the rover's own HELLO (at boot) reaches the host,
     # which configures and loads; but the rover does not know this host: its STATUS lacks
@@ -130,6 +137,7 @@ def test_a_lost_host_hello_is_said_again_and_the_mission_goes_on():
 
 # ------------------------------------------------------------------ START
 
+
 def test_a_lost_start_is_sent_again_and_taken_once():
     mission, rover, notes = _mission(to_rover=[Rule(is_(mg.Start))])
     _run(mission, rover, 5.0, until=lambda: mission.phase is Phase.RUN)
@@ -141,18 +149,20 @@ def test_a_lost_ack_of_start_sends_start_again_which_the_running_rover_acks_and_
     mission, rover, notes = _mission(to_host=[Rule(answers(mg.Start))])
     _run(mission, rover, 5.0, until=lambda: mission.phase is Phase.RUN)
     assert mission.phase is Phase.RUN and _started(rover)
-    assert len(rover.of(mg.Start)) == 2   # the first taken, its ACK lost; the second ACKed
+    assert len(rover.of(mg.Start)) == 2  # the first taken, its ACK lost; the second ACKed
     assert sum(isinstance(m, mg.Ack) and m.msg_id == mg.Start.ID for m in rover.said) == 2
 
 
 def test_a_duplicated_start_and_duplicated_chunks_change_nothing():
-    mission, rover, notes = _mission(to_rover=[Rule(is_(mg.Start), action="dup"),
-                                               Rule(is_(mg.Path), nth=range(1, 10), action="dup")])
+    mission, rover, notes = _mission(
+        to_rover=[Rule(is_(mg.Start), action="dup"), Rule(is_(mg.Path), nth=range(1, 10), action="dup")]
+    )
     _run(mission, rover, 5.0, until=lambda: mission.phase is Phase.RUN)
     assert mission.phase is Phase.RUN and _started(rover) and not mission.nacks
 
 
 # ------------------------------------------------------------------ the path, chunk by chunk
+
 
 def _path(n):
     return [(100 + 40 * i, 200 + 30 * i) for i in range(n)]
@@ -196,12 +206,12 @@ def test_a_lost_chunk_is_sent_again_and_the_load_resumes_there_not_from_the_star
     seen = _upload(upload, rover, lossy, host)
     assert upload.complete and _held_path(rover, upload)
     firsts = [m.first_index for m in rover.of(mg.Path)]
-    assert firsts == [0, 16, 8, 16]            # what reached the rover: 8 lost once, 0 never again
+    assert firsts == [0, 16, 8, 16]  # what reached the rover: 8 lost once, 0 never again
     assert Answer.RESUME in seen and upload.frames_resent == 2
 
 
 def test_a_lost_ack_of_a_chunk_costs_nothing_when_a_later_chunk_is_acked():
-    host, lossy, rover = _upload_setup(to_host=[Rule(answers(mg.Path))])   # the ACK of chunk 0
+    host, lossy, rover = _upload_setup(to_host=[Rule(answers(mg.Path))])  # the ACK of chunk 0
     upload = PathUpload(0x0102, _path(20), resend_s=0.4)
     _upload(upload, rover, lossy, host)
     assert upload.complete and _held_path(rover, upload)
@@ -211,14 +221,17 @@ def test_a_lost_ack_of_a_chunk_costs_nothing_when_a_later_chunk_is_acked():
 def test_every_ack_lost_the_rover_acks_the_repeats_of_the_path_it_holds():
     # All three ACKs and the PATH_ACCEPTED event are lost: the upload sends every chunk again,
     # and the rover, holding that path whole, ACKs each repeat without starting it over.
-    host, lossy, rover = _upload_setup(to_host=[Rule(answers(mg.Path), nth=(1, 2, 3)),
-                                                Rule(lambda f: isinstance(f.message, mg.Event)
-                                                     and f.message.kind == mg.EventKind.PATH_ACCEPTED)])
+    host, lossy, rover = _upload_setup(
+        to_host=[
+            Rule(answers(mg.Path), nth=(1, 2, 3)),
+            Rule(lambda f: isinstance(f.message, mg.Event) and f.message.kind == mg.EventKind.PATH_ACCEPTED),
+        ]
+    )
     upload = PathUpload(0x0103, _path(20), resend_s=0.4)
     _upload(upload, rover, lossy, host)
     assert upload.complete and _held_path(rover, upload)
     accepted = [m for m in rover.said if isinstance(m, mg.Event) and m.kind == mg.EventKind.PATH_ACCEPTED]
-    assert len(accepted) == 1                  # taken once, not staged again by the repeats
+    assert len(accepted) == 1  # taken once, not staged again by the repeats
     assert not any(isinstance(m, mg.Nack) for m in rover.said)
 
 
@@ -240,6 +253,7 @@ def test_path_chunks_carry_the_waypoints_in_order():
 
 
 # ------------------------------------------------------------------ STOP
+
 
 def test_a_lost_stop_is_sent_again_until_the_rover_acks_it():
     mission, rover, notes = _mission(to_rover=[Rule(is_(mg.Stop))])

@@ -1,5 +1,6 @@
 """The log-odds sonar map: the inverse sensor model against hand-worked cells, sharpening by
 repeated readings, explained echoes, and what the planner then sees."""
+
 from __future__ import annotations
 
 import math
@@ -30,9 +31,9 @@ def test_an_echo_raises_its_arc_lowers_the_cone_before_it_and_leaves_what_is_beh
     # Rover at (1.5, 1.0) facing +y (0 deg), sonar ahead, echo at 0.30 m: the arc is at y = 1.30.
     m.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))
     # Hand-worked cells (centres on the 0.03 m grid: x 1.515 is the column holding 1.5).
-    assert _cell(m, 1.515, 1.305) == pytest.approx(model.occupied_logodds)      # on the axis, on the arc
-    assert _cell(m, 1.515, 1.155) == pytest.approx(model.free_logodds)          # on the axis, half way
-    assert _cell(m, 1.515, 1.395) == 0.0                                         # behind the arc: unknown
+    assert _cell(m, 1.515, 1.305) == pytest.approx(model.occupied_logodds)  # on the axis, on the arc
+    assert _cell(m, 1.515, 1.155) == pytest.approx(model.free_logodds)  # on the axis, half way
+    assert _cell(m, 1.515, 1.395) == 0.0  # behind the arc: unknown
     # 7.5 deg off the axis at 0.30 m is 0.039 m to the side: still on the arc; 0.10 m to the side is not.
     assert _cell(m, 1.545, 1.305) == pytest.approx(model.occupied_logodds)
     assert _cell(m, 1.605, 1.305) == 0.0
@@ -42,9 +43,9 @@ def test_an_echo_raises_its_arc_lowers_the_cone_before_it_and_leaves_what_is_beh
 
 def test_no_echo_clears_the_cone_to_the_report_range_and_no_further():
     m = _map()
-    m.update(SonarReading(1.5, 1.0, 90.0, 0.0, None, 0.4))   # facing +x, nothing within 0.4 m
-    assert _cell(m, 1.875, 1.005) == pytest.approx(m.model.free_logodds)   # 0.36 m out
-    assert _cell(m, 1.965, 1.005) == 0.0                                     # 0.45 m out: unknown
+    m.update(SonarReading(1.5, 1.0, 90.0, 0.0, None, 0.4))  # facing +x, nothing within 0.4 m
+    assert _cell(m, 1.875, 1.005) == pytest.approx(m.model.free_logodds)  # 0.36 m out
+    assert _cell(m, 1.965, 1.005) == 0.0  # 0.45 m out: unknown
     assert not m.occupied.any()
 
 
@@ -62,8 +63,8 @@ def test_silence_clears_only_cells_whose_centre_is_in_the_cone_an_echo_takes_any
     # The Figure 4.8 box's corner after a radio outage: a ping from beside it, aimed so that the
     # corner cell lies just outside the nominal cone, keeps the corner an obstacle.
     corner = _map()
-    corner.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))          # the face, seen once
-    corner.update(SonarReading(1.5, 1.0, 0.0, -17.5, None, 0.4))        # silence, 9 degrees off it
+    corner.update(SonarReading(1.5, 1.0, 0.0, 0.0, 0.30, 0.4))  # the face, seen once
+    corner.update(SonarReading(1.5, 1.0, 0.0, -17.5, None, 0.4))  # silence, 9 degrees off it
     assert corner.occupied[int(1.305 / RES), int(1.455 / RES)]
 
 
@@ -87,9 +88,9 @@ def test_repeated_readings_sharpen_a_smeared_arc_instead_of_widening_it():
 
 def test_an_echo_off_the_wall_or_a_known_obstacle_marks_nothing_new():
     known = np.zeros((100, 100), dtype=bool)
-    known[40:45, 40:60] = True   # a known box, cells [iy, ix]: y 1.20 to 1.35, x 1.20 to 1.80
+    known[40:45, 40:60] = True  # a known box, cells [iy, ix]: y 1.20 to 1.35, x 1.20 to 1.80
     m = _map(known=known)
-    m.update(SonarReading(1.5, 0.9, 0.0, 0.0, 0.30, 0.4))    # its face at y = 1.20
+    m.update(SonarReading(1.5, 0.9, 0.0, 0.0, 0.30, 0.4))  # its face at y = 1.20
     assert not m.occupied.any()
     m.update(SonarReading(0.3, 2.5, -90.0, 0.0, 0.30, 0.4))  # the left wall, at 0.30 m
     assert not m.occupied.any()
@@ -99,7 +100,7 @@ def test_the_planner_goes_round_what_the_sonar_found_and_unknown_space_is_planne
     grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
     lm = LearnedMap(grid)
     direct = plan(grid, (0.3, 0.9), (2.1, 0.9))
-    assert direct.length_m == pytest.approx(1.8, abs=0.01)   # nothing known: straight through
+    assert direct.length_m == pytest.approx(1.8, abs=0.01)  # nothing known: straight through
     # A face 0.30 m ahead of the sensor (offset 0.10 m), across the straight line, seen by a fan.
     for bearing in (-15.0, -7.5, 0.0, 7.5, 15.0):
         lm.add(SonarReading(0.8, 0.9, 90.0, bearing, 0.30 / math.cos(math.radians(bearing)), 0.4))
@@ -136,12 +137,12 @@ def test_the_open_map_clears_what_the_careful_map_keeps_and_is_planned_on_only_a
     assert lm.open_grids() == []
     # The rover at (1.5, 0.9) facing +y: its sensor, 0.10 m ahead, at (1.5, 1.0).
     lm.add(SonarReading(1.5, 0.9, 0.0, 0.0, 0.30, 0.4))
-    assert lm.open_grids() == []                       # both believe the same
+    assert lm.open_grids() == []  # both believe the same
     lm.add(SonarReading(1.5, 0.9, 0.0, -17.5, None, 0.4))
     cell = (int(1.305 / RES), int(1.455 / RES))
     assert lm.sonar.occupied[cell] and not lm.open_sonar.occupied[cell]
     full, lenient = lm.open_grids()
-    assert full.raw[cell] == False and grid.raw[cell] == True   # noqa: E712 - numpy booleans
+    assert full.raw[cell] == False and grid.raw[cell] == True  # noqa: E712 - numpy booleans
     assert full.inflated.sum() < grid.inflated.sum() and lenient.inflated.sum() < full.inflated.sum()
     # Replaying a saved map rebuilds both.
     again = LearnedMap(OccupancyGrid(2.4, 1.8, PlannerConfig()))
@@ -163,15 +164,24 @@ def test_the_map_saves_and_reloads_to_the_same_grid(tmp_path):
     assert len(read_map_file(tmp_path / "map.json")) == 4
 
 
-@pytest.mark.parametrize("text, what", [
-    ("[]", "not a rovernav map"),
-    ('{"format": "rovernav-map", "version": 2, "readings": {}}', "must be a list"),
-    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1}]}', "exactly the keys"),
-    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": NaN, "y_m": 0, "heading_deg": 0, '
-     '"bearing_deg": 0, "range_m": 0.2, "max_range_m": 0.4, "sd_m": 0}]}', "finite number"),
-    ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1, "y_m": 0, "heading_deg": 0, '
-     '"bearing_deg": 0, "range_m": -1, "max_range_m": 0.4, "sd_m": 0}]}', "range_m"),
-])
+@pytest.mark.parametrize(
+    "text, what",
+    [
+        ("[]", "not a rovernav map"),
+        ('{"format": "rovernav-map", "version": 2, "readings": {}}', "must be a list"),
+        ('{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1}]}', "exactly the keys"),
+        (
+            '{"format": "rovernav-map", "version": 2, "readings": [{"x_m": NaN, "y_m": 0, "heading_deg": 0, '
+            '"bearing_deg": 0, "range_m": 0.2, "max_range_m": 0.4, "sd_m": 0}]}',
+            "finite number",
+        ),
+        (
+            '{"format": "rovernav-map", "version": 2, "readings": [{"x_m": 1, "y_m": 0, "heading_deg": 0, '
+            '"bearing_deg": 0, "range_m": -1, "max_range_m": 0.4, "sd_m": 0}]}',
+            "range_m",
+        ),
+    ],
+)
 def test_a_bad_map_file_is_refused_naming_what_is_wrong(tmp_path, text, what):
     from rovernav.errors import MapFileError
 
@@ -197,8 +207,8 @@ def test_the_sonar_geometry_is_defined_once_and_as_the_firmware_places_an_echo()
     off = mg.PARAMS[mg.Param.SONAR_OFFSET_MM].default / 1000
     assert sonar_origin(1.0, 0.5, 0.0, off) == pytest.approx((1.0, 0.6))
     assert sonar_origin(1.0, 0.5, 90.0, off) == pytest.approx((1.1, 0.5))
-    assert echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off) == pytest.approx((1.1, 0.2))     # facing +x, looking -y
-    assert echo_point(1.0, 0.8, 0.0, -45.0, 0.3, off) == pytest.approx((1.0 - 0.3 * 0.5 ** 0.5, 0.9 + 0.3 * 0.5 ** 0.5))
+    assert echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off) == pytest.approx((1.1, 0.2))  # facing +x, looking -y
+    assert echo_point(1.0, 0.8, 0.0, -45.0, 0.3, off) == pytest.approx((1.0 - 0.3 * 0.5**0.5, 0.9 + 0.3 * 0.5**0.5))
     assert Echo(1.0, 0.5, 90.0, 90.0, 0.3).point(off) == echo_point(1.0, 0.5, 90.0, 90.0, 0.3, off)
     assert (legs_per_trip("out-and-back"), legs_per_trip("reach")) == (2, 1)
 
@@ -209,11 +219,11 @@ def test_silence_clears_nothing_past_the_sensor_s_range_whatever_the_reading_cla
     from rovernav.mapping.sonar_map import SonarMap, SonarReading
 
     m = SonarMap(3.0, 1.0, 0.03, 0.1)
-    m.update(SonarReading(0.2, 0.5, 90.0, 0.0, None, 4.0))   # facing +x from x = 0.2 (sensor at 0.3)
+    m.update(SonarReading(0.2, 0.5, 90.0, 0.0, None, 4.0))  # facing +x from x = 0.2 (sensor at 0.3)
     free = m.logodds < 0
     xs_free = m.xs[free.any(axis=0)]
     assert xs_free.max() <= 0.3 + vehicle.SONAR_MAX_RANGE_MM / 1000 + 0.03
-    assert xs_free.max() > 1.2   # it does clear out to the sensor's range
+    assert xs_free.max() > 1.2  # it does clear out to the sensor's range
 
 
 def test_the_host_map_uses_the_cone_the_configuration_sends():

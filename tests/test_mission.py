@@ -2,6 +2,7 @@
 itself (its C ABI, stepped in simulated time) wherever the rover behaves as its firmware does, and
 against a scripted rover only for what the real one never does (another protocol definition, a
 refusal, silence, arrivals early or lost)."""
+
 from __future__ import annotations
 
 import math
@@ -67,8 +68,15 @@ def _setup(legs=1, rover_cls=None, **rover_kw):
     rover = (rover_cls or (ScriptedRover if rover_kw else CoreRover))(rover_end, **rover_kw)
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
     notes = []
-    mission = Mission(Link(host_end), grid, (0.3, 0.3), (2.0, 1.4), legs=legs,
-                      rover_params=[(mg.Param.DRIVE_PWM, 80)], on_event=lambda t, text: notes.append(text))
+    mission = Mission(
+        Link(host_end),
+        grid,
+        (0.3, 0.3),
+        (2.0, 1.4),
+        legs=legs,
+        rover_params=[(mg.Param.DRIVE_PWM, 80)],
+        on_event=lambda t, text: notes.append(text),
+    )
     return mission, rover, notes
 
 
@@ -91,7 +99,9 @@ def test_a_mission_configures_plans_loads_the_path_starts_and_streams_fixes():
         (mg.Param.ROBOT_RADIUS_MM, round(geometry.robot_radius_m * 1000)),
         (mg.Param.SONAR_MARGIN_MM, round(geometry.sonar_margin_m * 1000)),
         (mg.Param.SONAR_OFFSET_MM, round(geometry.sonar_offset_m * 1000)),
-        (mg.Param.SONAR_CONE_CDEG, round(geometry.sonar_cone_deg * 100)), (mg.Param.DRIVE_PWM, 80)]
+        (mg.Param.SONAR_CONE_CDEG, round(geometry.sonar_cone_deg * 100)),
+        (mg.Param.DRIVE_PWM, 80),
+    ]
     # The firmware took the path and START: it is under way (sweeping first, then turning or driving).
     assert [m.path_id for m in rover.of(mg.Start)] == [mission.path_id]
     assert rover.state in (mg.RoverState.SCAN, mg.RoverState.ROTATE, mg.RoverState.DRIVE)
@@ -109,8 +119,17 @@ def test_an_obstacle_that_blocks_the_path_triggers_one_replan_after_the_sweep():
     # The rover, at (0.8, 0.6) heading for the target, sees something 0.3 m straight ahead.
     heading = math.degrees(math.atan2(2.0 - 0.8, 1.4 - 0.6))
     for bearing in (-1500, 0, 1500):
-        rover.say(mg.Obstacle(scan_id=1, bearing_cdeg=bearing, range_mm=300, x_mm=800, y_mm=600,
-                              heading_cdeg=round(heading * 100), sd_mm=3))
+        rover.say(
+            mg.Obstacle(
+                scan_id=1,
+                bearing_cdeg=bearing,
+                range_mm=300,
+                x_mm=800,
+                y_mm=600,
+                heading_cdeg=round(heading * 100),
+                sd_mm=3,
+            )
+        )
     rover.say(mg.Event(kind=mg.EventKind.SCAN_DONE, arg=3))
     _run(mission, rover, 1.0, pose=(0.8, 0.6, heading), t0=t)
     assert mission.replans == 1 and mission.path_id == first + 1
@@ -181,7 +200,7 @@ def test_a_rebooted_rover_is_sent_its_parameters_and_path_again():
     mission, rover, notes = _setup()
     t = _run(mission, rover, 2.0)
     configs = len(rover.of(mg.Config))
-    rover.reboot(boot_id=99)   # the firmware restarts: its boot HELLO, no parameters, no path
+    rover.reboot(boot_id=99)  # the firmware restarts: its boot HELLO, no parameters, no path
     t = _run(mission, rover, 2.0, t0=t)
     assert mission.rover_boot_id == 99 and mission.phase is Phase.RUN
     assert len(rover.of(mg.Config)) == 2 * configs == 2 * len(mission.rover_params)
@@ -204,6 +223,7 @@ def test_the_learned_map_is_saved_and_loaded(tmp_path):
 
 
 # ---------------------------------------------------------------- arrivals the host must not lose
+
 
 class ArrivingRover(ScriptedRover):
     """Arrives as soon as it is started (a leg that is nearly done), before the host has seen
@@ -228,8 +248,14 @@ def _setup_with(rover_cls, start=(0.3, 0.3), target=(2.0, 1.4), legs=1, grid=Non
     host_end, rover_end = PipeTransport.pair()
     rover = rover_cls(rover_end, **kw)
     notes = []
-    mission = Mission(Link(host_end), grid or OccupancyGrid(2.36, 1.75, PlannerConfig()), start, target, legs=legs,
-                      on_event=lambda t, text: notes.append(text))
+    mission = Mission(
+        Link(host_end),
+        grid or OccupancyGrid(2.36, 1.75, PlannerConfig()),
+        start,
+        target,
+        legs=legs,
+        on_event=lambda t, text: notes.append(text),
+    )
     return mission, rover, notes
 
 
@@ -260,6 +286,7 @@ def test_a_status_from_before_start_is_not_taken_for_an_arrival():
 
 
 # ---------------------------------------------------------------- every phase has a deadline
+
 
 def _run_until_done(mission, rover, seconds, seen=True, answer=True):
     t = 0.0
@@ -322,7 +349,7 @@ def test_results_are_written_whole_and_readable_as_an_ordinary_file(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
-    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]   # no temporary file left behind
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]  # no temporary file left behind
 
 
 def test_a_path_longer_than_the_rover_holds_goes_in_parts_and_the_leg_ends_at_its_true_end():
@@ -331,15 +358,15 @@ def test_a_path_longer_than_the_rover_holds_goes_in_parts_and_the_leg_ends_at_it
     assert mission.phase is Phase.RUN
     # A winding path of 40 waypoints (as a cluttered arena's A* can give), ending at the target.
     zigzag = [(0.3 + 0.04 * i, 0.3 + (0.05 if i % 2 else 0.0)) for i in range(39)] + [(2.0, 1.4)]
-    mm = lambda pts: [(round(x * 1000), round(y * 1000)) for x, y in pts]   # noqa: E731 - as the wire carries them
+    mm = lambda pts: [(round(x * 1000), round(y * 1000)) for x, y in pts]  # noqa: E731 - as the wire carries them
     mission.load_path(zigzag)
     t = _run(mission, rover, 1.0, t0=t)
-    assert mm(rover.paths[mission.path_id]) == mm(zigzag[:mg.MAX_WAYPOINTS]) and mission.phase is Phase.RUN
-    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))        # at the end of the first part
+    assert mm(rover.paths[mission.path_id]) == mm(zigzag[: mg.MAX_WAYPOINTS]) and mission.phase is Phase.RUN
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))  # at the end of the first part
     t = _run(mission, rover, 1.0, t0=t)
-    assert mm(rover.paths[mission.path_id]) == mm(zigzag[mg.MAX_WAYPOINTS - 1:])
+    assert mm(rover.paths[mission.path_id]) == mm(zigzag[mg.MAX_WAYPOINTS - 1 :])
     assert not mission.legs[0].reached and mission.phase is Phase.RUN
-    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))        # at the target
+    rover.say(mg.Event(kind=mg.EventKind.ARRIVED, arg=1))  # at the target
     _run(mission, rover, 1.0, t0=t)
     assert mission.legs[0].reached and mission.phase is Phase.DONE
 
@@ -352,7 +379,7 @@ def test_a_goal_an_echo_s_arc_covers_is_reached_from_beside_it_but_a_wall_is_not
     from rovernav.mission import leg_plan
 
     mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(1.6, 0.4))
-    mission.map.add(SonarReading(1.25, 0.4, 90.0, 0.0, 0.15, 0.6))   # an arc at x 1.50 (sensor at 1.35)
+    mission.map.add(SonarReading(1.25, 0.4, 90.0, 0.0, 0.15, 0.6))  # an arc at x 1.50 (sensor at 1.35)
     assert not mission.map.lenient_grid().is_free(1.6, 0.4) and mission.map.known_grid.is_free(1.6, 0.4)
     path = mission.plan_from((0.3, 0.3), (1.6, 0.4))
     assert path is not None and path[-1] == (1.6, 0.4)
@@ -371,7 +398,7 @@ def test_a_rover_that_backed_out_is_sent_a_new_path_when_its_line_on_would_scrap
     # backed out. From where it stopped, the straight line to its next waypoint runs 0.025 m
     # from the box's face (its sides need 0.085 m): the host replans. From 0.15 m off, it does not.
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
-    grid.add_box(1.0, 0.8, 0.3, 0.3)                       # x 0.85..1.15, y 0.65..0.95
+    grid.add_box(1.0, 0.8, 0.3, 0.3)  # x 0.85..1.15, y 0.65..0.95
     mission, rover, notes = _setup_with(ScriptedRover, start=(0.6, 0.5), target=(1.3, 1.4), grid=grid)
     t = _run(mission, rover, 1.5, pose=(0.6, 0.5, 90.0))
     assert mission.phase is Phase.RUN
@@ -380,8 +407,17 @@ def test_a_rover_that_backed_out_is_sent_a_new_path_when_its_line_on_would_scrap
     flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE | mg.StatusFlag.PATH_LOADED)
     x_mm, y_mm = round(backed_to[0] * 1000), round(backed_to[1] * 1000)
     for state in (mg.RoverState.BACK_OFF, mg.RoverState.ROTATE):
-        rover.say(mg.Status(state=int(state), flags=flags, path_id=mission.path_id, waypoint_index=2,
-                            x_mm=x_mm, y_mm=y_mm, heading_cdeg=9000))
+        rover.say(
+            mg.Status(
+                state=int(state),
+                flags=flags,
+                path_id=mission.path_id,
+                waypoint_index=2,
+                x_mm=x_mm,
+                y_mm=y_mm,
+                heading_cdeg=9000,
+            )
+        )
         t = _run(mission, rover, 0.2, pose=(*backed_to, 90.0), t0=t)
     assert mission.replans == replans
     if replans:
@@ -400,7 +436,7 @@ def test_a_turn_refused_twice_in_one_spot_is_not_planned_there_again():
     rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=1500, y_mm=500))
     _run(mission, rover, 0.1, t0=t)
     assert leg.turns_refused_at == [(1.0, 0.8), (1.02, 0.8), (1.5, 0.5)]
-    assert leg.refused_twice() == [(1.0, 0.8), (1.02, 0.8)]           # once is not enough
+    assert leg.refused_twice() == [(1.0, 0.8), (1.02, 0.8)]  # once is not enough
 
 
 def test_a_check_that_finds_no_way_is_no_verdict():
@@ -423,7 +459,7 @@ def test_a_path_from_where_the_rover_stands_without_room_to_turn_starts_straight
     from rovernav.planning.turns import SWING_M, SWING_MARGIN_M, clearance_map
 
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig(sonar_margin_m=0.0))
-    grid.add_box(0.95, 0.64, 0.1, 0.1)                     # x 0.90..1.00, y 0.59..0.69
+    grid.add_box(0.95, 0.64, 0.1, 0.1)  # x 0.90..1.00, y 0.59..0.69
     mission, rover, notes = _setup_with(ScriptedRover, start=(1.0, 0.8), target=(1.5, 1.5), grid=grid)
     flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE)
     rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=9000))
@@ -432,7 +468,7 @@ def test_a_path_from_where_the_rover_stands_without_room_to_turn_starts_straight
     path = mission.plan_from((1.0, 0.8), (1.0, 1.5))
     assert path is not None and path[0] == (1.0, 0.8) and path[-1] == (1.0, 1.5)
     q = path[1]
-    assert abs(q[1] - 0.8) < 1e-9 and 0.0 < q[0] - 1.0 <= 0.3          # straight ahead, east
+    assert abs(q[1] - 0.8) < 1e-9 and 0.0 < q[0] - 1.0 <= 0.3  # straight ahead, east
     need = SWING_M + SWING_MARGIN_M
     clear = clearance_map(grid, 1.0)
     ix, iy = grid.world_to_cell(*q)
@@ -450,8 +486,8 @@ def test_no_room_where_the_rover_stands_and_none_ahead_asks_it_to_back_out_first
     from rovernav.mission.leg_plan import PlannedPath
 
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig(sonar_margin_m=0.0))
-    grid.add_box(0.95, 0.64, 0.1, 0.1)                     # x 0.90..1.00, y 0.59..0.69
-    grid.add_box(1.2, 0.8, 0.02, 0.4)                      # the wall ahead, x 1.19..1.21
+    grid.add_box(0.95, 0.64, 0.1, 0.1)  # x 0.90..1.00, y 0.59..0.69
+    grid.add_box(1.2, 0.8, 0.02, 0.4)  # the wall ahead, x 1.19..1.21
     mission, rover, notes = _setup_with(ScriptedRover, start=(1.0, 0.8), target=(1.5, 1.5), grid=grid)
     flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE)
     rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=9000))
@@ -479,10 +515,14 @@ def test_the_strategies_use_only_what_the_mission_view_declares_and_the_mission_
     from rovernav.mission import interface, strategies
 
     declared = set(interface.MissionView.__annotations__) | {
-        name for name in vars(interface.MissionView) if not name.startswith("_")}
+        name for name in vars(interface.MissionView) if not name.startswith("_")
+    }
     tree = ast.parse(inspect.getsource(strategies))
-    used = {node.attr for node in ast.walk(tree)
-            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "m"}
+    used = {
+        node.attr
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "m"
+    }
     assert used and used <= declared, used - declared
     assert not any(isinstance(node, ast.ImportFrom) and node.module == "core" for node in ast.walk(tree))
     mission, _rover, _notes = _setup_with(ScriptedRover)

@@ -8,6 +8,7 @@ The rest of what was test_planning.py: test_planning_grid.py (the occupancy grid
 test_planning_paths.py (plans on the shared scenarios, Table 4.2, errors), test_planning_cli.py
 (`rovernav plan`).
 """
+
 from __future__ import annotations
 
 import heapq
@@ -87,6 +88,7 @@ def random_grid(seed: int, nx: int, ny: int, density: float):
 
 # --- the motion model and the segment check ---------------------------------------------------
 
+
 def test_the_motion_model_is_the_seeds_16_directions():
     ours = sorted(zip(MOVE_DX.tolist(), MOVE_DY.tolist()))
     assert ours == sorted(MOVES) and N_MOVES == 16
@@ -149,9 +151,9 @@ def test_the_heuristic_is_the_exact_distance_on_an_empty_grid():
 
 # --- A* is optimal on its grid -------------------------------------------------------------------
 
+
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**32 - 1), nx=st.integers(1, 11), ny=st.integers(1, 11),
-       density=st.floats(0.0, 0.5))
+@given(seed=st.integers(0, 2**32 - 1), nx=st.integers(1, 11), ny=st.integers(1, 11), density=st.floats(0.0, 0.5))
 def test_astar_finds_the_brute_force_optimum_on_random_grids(seed, nx, ny, density):
     blocked, start, goal = random_grid(seed, nx, ny, density)
     expected = dijkstra_cost(blocked, start, goal)
@@ -185,7 +187,7 @@ def test_astar_matches_scipy_dijkstra_on_a_larger_grid():
     blocked = np.zeros((70, 90), dtype=bool)
     for _ in range(25):
         x, y = rng.integers(0, 90), rng.integers(0, 70)
-        blocked[y:y + rng.integers(2, 12), x:x + rng.integers(2, 12)] = True
+        blocked[y : y + rng.integers(2, 12), x : x + rng.integers(2, 12)] = True
     ny, nx = blocked.shape
     rows, cols, costs = [], [], []
     for y in range(ny):

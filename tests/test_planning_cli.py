@@ -1,6 +1,7 @@
 """`rovernav plan`: JSON and exit 0 when a path is found, exit 1 with the reason when none is,
 exit 2 on a bad scenario or flag, waypoints printed and a picture drawn.
 (Split from test_planning.py.)"""
+
 from __future__ import annotations
 
 import json
@@ -13,12 +14,13 @@ from rovernav.validate import ArgParser
 
 # --- the command ------------------------------------------------------------------------------------
 
+
 def run_cli(argv, capsys):
     parser = ArgParser(prog="rovernav")
     add_plan_parser(parser.add_subparsers(dest="command", parser_class=ArgParser))
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:   # a flag refused: one line on stderr, status 2
+    except SystemExit as exc:  # a flag refused: one line on stderr, status 2
         out, err = capsys.readouterr()
         return exc.code, out, err
     code = args.func(args)
@@ -59,8 +61,9 @@ def test_plan_exits_2_on_a_bad_scenario_file(tmp_path, capsys):
 
 def test_plan_prints_waypoints_and_draws_a_picture(tmp_path, capsys):
     picture = tmp_path / "plan.png"
-    code, out, _ = run_cli(["plan", "out-and-back", "--all-obstacles", "--resolution", "0.05",
-                            "--plot", str(picture)], capsys)
+    code, out, _ = run_cli(
+        ["plan", "out-and-back", "--all-obstacles", "--resolution", "0.05", "--plot", str(picture)], capsys
+    )
     assert code == 0
     assert "A* found a path of" in out and "48 × 35 cells of 0.05 m" in out and "all obstacles" in out
     assert "x  0.300 m  y  0.300 m" in out and "x  2.000 m  y  1.400 m" in out

@@ -2,6 +2,7 @@
 the sonar margin (boxes, oblique walls and posts, each by its exact distance, incrementally as
 from scratch), the planner's configuration, and a scenario's known and unknown obstacles.
 (Split from test_planning.py.)"""
+
 from __future__ import annotations
 
 import math
@@ -13,6 +14,7 @@ from tests.planning_checks import sampled_cells_free, scenario_grid
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
 
 # --- the occupancy grid -------------------------------------------------------------------------
+
 
 def test_world_and_cell_coordinates_meet_at_cell_centres():
     grid = OccupancyGrid(2.36, 1.75)
@@ -28,11 +30,16 @@ def test_obstacles_are_inflated_by_the_robot_radius_plus_the_sonar_margin():
     grid = OccupancyGrid(2.0, 2.0)
     grid.add_box(1.0, 1.0, 0.2, 0.2)
     margin = 0.12 + 0.05
-    for (x, y), blocked in [((1.0, 1.0), True), ((1.1 + margin - 0.02, 1.0), True),
-                            ((1.1 + margin + 0.02, 1.0), False), ((1.0, 0.9 - margin + 0.02), True),
-                            ((1.0, 0.9 - margin - 0.02), False),
-                            # past the corner the margin is round: 0.12 m out on both axes is 0.17 m away
-                            ((1.1 + 0.11, 1.1 + 0.11), True), ((1.1 + 0.13, 1.1 + 0.13), False)]:
+    for (x, y), blocked in [
+        ((1.0, 1.0), True),
+        ((1.1 + margin - 0.02, 1.0), True),
+        ((1.1 + margin + 0.02, 1.0), False),
+        ((1.0, 0.9 - margin + 0.02), True),
+        ((1.0, 0.9 - margin - 0.02), False),
+        # past the corner the margin is round: 0.12 m out on both axes is 0.17 m away
+        ((1.1 + 0.11, 1.1 + 0.11), True),
+        ((1.1 + 0.13, 1.1 + 0.13), False),
+    ]:
         assert grid.is_free(x, y) is not blocked, (x, y)
     assert grid.raw[grid.world_to_cell(1.0, 1.0)[::-1]] and not grid.raw[grid.world_to_cell(1.15, 1.0)[::-1]]
     # The arena's border is a wall, inflated alike.
@@ -67,13 +74,16 @@ def test_incremental_inflation_equals_inflating_from_scratch():
     grid = OccupancyGrid(3.0, 2.0)
     for _ in range(5):
         grid.add_box(rng.uniform(0, 3), rng.uniform(0, 2), rng.uniform(0.05, 0.5), rng.uniform(0.05, 0.5))
-        grid.add_disks(rng.uniform((0.3, 0.3), (2.7, 1.7), size=(int(rng.integers(1, 30)), 2)), rng.uniform(0.005, 0.03))
+        grid.add_disks(
+            rng.uniform((0.3, 0.3), (2.7, 1.7), size=(int(rng.integers(1, 30)), 2)), rng.uniform(0.005, 0.03)
+        )
     assert (grid.inflated == grid.blocked_within(grid.config.inflation_m)).all()
-    new, newly = grid.add_disks(np.array([[-0.1, -0.2], [3.5, 1.0]]), 0.02)   # off the arena: dropped
+    new, newly = grid.add_disks(np.array([[-0.1, -0.2], [3.5, 1.0]]), 0.02)  # off the arena: dropped
     assert len(new) == 0 and newly == 0
 
 
 # --- walls and posts ----------------------------------------------------------------------------
+
 
 def _rect_outline(corners, step_m=0.0005):
     """Points every step_m along a polygon's outline."""
@@ -113,9 +123,9 @@ def test_an_oblique_wall_is_inflated_by_its_exact_distance():
     bf = _brute_distance(grid, _rect_outline(corners), lambda x, y: _inside_convex(x, y, corners))
     inflation = grid.config.inflation_m
     wall_band = grid.wall_band(inflation)
-    sure = np.abs(bf - inflation) > 1e-3   # the sampled outline is within 0.25 mm of the true one
+    sure = np.abs(bf - inflation) > 1e-3  # the sampled outline is within 0.25 mm of the true one
     assert ((grid.inflated == ((bf <= inflation) | wall_band)) | ~sure).all()
-    assert (sure & ~wall_band).sum() > 500                     # the comparison covers many cells
+    assert (sure & ~wall_band).sum() > 500  # the comparison covers many cells
     # beside the wall's sides: the distance to the centre line minus half the thickness
     ix, iy = grid.world_to_cell(0.8, 0.9)
     px, py = grid.cell_to_world(ix, iy)

@@ -2,6 +2,7 @@
 clear waypoints; Table 4.2 (A* reaches the target in both environments, the potential field is
 trapped by the large obstacles only, across a spread of gains); and the planning errors name
 the start or target that is off the arena, blocked or unreachable. (Split from test_planning.py.)"""
+
 from __future__ import annotations
 
 import math
@@ -25,6 +26,7 @@ from rovernav.planning.potential import body_layer
 from rovernav.planning.simplify import simplify_points
 
 # --- plans on the shared scenarios ----------------------------------------------------------------
+
 
 def random_free_points(grid: OccupancyGrid, blocked: np.ndarray, n: int, seed: int):
     rng = np.random.default_rng(seed)
@@ -94,6 +96,7 @@ def test_simplification_of_a_straight_run_keeps_only_its_ends():
 
 # --- Table 4.2 -----------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name", ["seed-large-obstacles", "seed-small-obstacles"])
 def test_table_4_2_astar_reaches_the_target_in_both_environments(name):
     scenario, grid = scenario_grid(name)
@@ -138,6 +141,7 @@ def test_the_potential_fields_path_keeps_the_robot_radius_but_not_the_sonar_marg
 
 
 # --- errors ---------------------------------------------------------------------------------------
+
 
 def test_a_start_or_target_off_the_arena_is_named():
     _, grid = scenario_grid("out-and-back")

@@ -1,5 +1,6 @@
 """rovernav.evaluation.pool.map_runs, the benchmarks' process pool: every item run once in another
 process, the pairs in the items' order or as the runs end, and a run's exception passed on."""
+
 from __future__ import annotations
 
 import os

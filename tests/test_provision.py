@@ -2,6 +2,7 @@
 is sent only after the rover is seen to boot, a rover with no key takes it only soon after a
 reset, and a rover with a key changes it only with its owner's consent (the PROVISION signed with
 its current key, or the consent pin held to GND at its reset)."""
+
 from __future__ import annotations
 
 import pytest
@@ -19,15 +20,15 @@ RESET_CAUSES = (0x01, 0x02, 0x04, 0x08, 0x00)
 
 
 def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it():
-    port = CoreTransport(NativeCore())              # opening the USB port reset it: it boots now
+    port = CoreTransport(NativeCore())  # opening the USB port reset it: it boots now
     line = provision(port, KEY, clock=port.clock)
     assert line.startswith("stored the key")
     assert port.core.take_key_change() == ("store", KEY)
     # From now on it takes only what this key signs, and signs what it says.
     port.from_rover = b""
     heard = FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST))
-    port.write(encode_frame(mg.Stop(reason=0), 1))                                        # unsigned
-    port.write(encode_frame(mg.Stop(reason=0), 2, Signer(KEY, mg.SIGN_HOST_TO_ROVER)))   # signed
+    port.write(encode_frame(mg.Stop(reason=0), 1))  # unsigned
+    port.write(encode_frame(mg.Stop(reason=0), 2, Signer(KEY, mg.SIGN_HOST_TO_ROVER)))  # signed
     port.run_ms(100)
     said = [f.message for f in heard.feed(port.from_rover)]
     assert [m.seq for m in said if isinstance(m, mg.Ack)] == [2]
@@ -36,7 +37,7 @@ def test_a_rover_that_has_just_booted_takes_the_key_and_answers_signed_with_it()
 
 def test_over_a_port_that_did_not_reset_the_rover_nothing_is_sent():
     port = CoreTransport(NativeCore())
-    port.run_ms(10_000)                            # running for 10 s: a radio link opens no reset
+    port.run_ms(10_000)  # running for 10 s: a radio link opens no reset
     port.from_rover = b""
     with pytest.raises(ProvisionError, match="no rover booted .* USB cable"):
         provision(port, KEY, clock=port.clock)
@@ -46,7 +47,7 @@ def test_over_a_port_that_did_not_reset_the_rover_nothing_is_sent():
 
 def test_a_key_sent_after_the_window_is_refused_by_the_rover():
     port = CoreTransport(NativeCore())
-    port.run_ms(6_000)                             # its boot HELLO still unread, 6 s later
+    port.run_ms(6_000)  # its boot HELLO still unread, 6 s later
     with pytest.raises(ProvisionError, match="6 s after its reset, past its 5 s window"):
         provision(port, KEY, clock=port.clock)
     assert port.core.take_key_change() is None
@@ -150,8 +151,10 @@ def test_the_command_says_the_two_ways_to_consent_in_one_line_and_exits_2(tmp_pa
 def test_the_command_refuses_a_missing_key_file_and_needs_key_or_erase(tmp_path, capsys):
     from rovernav.cli import main
 
-    for argv in (["provision", "--port", "loop://"],
-                 ["provision", "--port", "loop://", "--key-file", str(tmp_path / "none.key")]):
+    for argv in (
+        ["provision", "--port", "loop://"],
+        ["provision", "--port", "loop://", "--key-file", str(tmp_path / "none.key")],
+    ):
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 2

@@ -3,6 +3,7 @@
 A small kinematic plant closes the loop; the host side speaks only in frames (HELLO, PATH,
 START, FIX) and reads only frames (ACK, EVENT, STATUS).
 """
+
 from __future__ import annotations
 
 import math
@@ -29,9 +30,15 @@ def library():
 def ideal_plant(x_mm=300.0, y_mm=300.0, heading_deg=0.0) -> RoverPlant:
     """The simulator's plant (rovernav.sim.plant), with no noise, no bias and motors as the
     firmware's speed model assumes them (its default speed per PWM, equal motors)."""
-    cfg = PlantConfig(mm_s_per_pwm=mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].default / 1000.0,
-                      deadband_pwm=float(mg.PARAMS[mg.Param.MOTOR_DEADBAND_PWM].default), right_gain=1.0,
-                      speed_noise=0.0, gyro_noise_dps=0.0, gyro_bias_dps=0.0, gyro_bias_walk_dps_per_sqrt_s=0.0)
+    cfg = PlantConfig(
+        mm_s_per_pwm=mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].default / 1000.0,
+        deadband_pwm=float(mg.PARAMS[mg.Param.MOTOR_DEADBAND_PWM].default),
+        right_gain=1.0,
+        speed_noise=0.0,
+        gyro_noise_dps=0.0,
+        gyro_bias_dps=0.0,
+        gyro_bias_walk_dps_per_sqrt_s=0.0,
+    )
     return RoverPlant(x_mm / 1000, y_mm / 1000, heading_deg, cfg, np.random.default_rng(0))
 
 
@@ -79,9 +86,14 @@ def test_python_drives_the_core_through_a_waypoint_list_to_arrival():
     arrived_ms = None
     for _ in range(9000):  # at most 90 s
         if now % 33 < 10:
-            host.send(mg.Fix(x_mm=round(plant.x * 1000), y_mm=round(plant.y * 1000),
-                             heading_cdeg=heading_cdeg(plant.heading),
-                             sd_mm=2))
+            host.send(
+                mg.Fix(
+                    x_mm=round(plant.x * 1000),
+                    y_mm=round(plant.y * 1000),
+                    heading_cdeg=heading_cdeg(plant.heading),
+                    sd_mm=2,
+                )
+            )
         if not started and any(isinstance(m, mg.Event) and m.kind == mg.EventKind.PATH_ACCEPTED for m in host.heard):
             host.send(mg.Start(path_id=3))
             started = True
@@ -123,12 +135,15 @@ def test_the_python_structs_are_checked_against_the_librarys_layout():
     from rovernav.cores.native import STRUCTS, FirmwareBuildError, check_layout, load_library
 
     lib = load_library()
-    check_layout(lib)   # the generated copies agree (load_library checks this too)
+    check_layout(lib)  # the generated copies agree (load_library checks this too)
 
-    class Probe(ctypes.Structure):   # as if the library had been built with a field that abi_gen.py lacks
+    class Probe(ctypes.Structure):  # as if the library had been built with a field that abi_gen.py lacks
         _c_name_ = "rover_probe"
-        _fields_ = [("state", ctypes.c_uint8), ("fault", ctypes.c_uint8), ("flags", ctypes.c_uint32)] + \
-            RoverProbe._fields_[3:]
+        _fields_ = [
+            ("state", ctypes.c_uint8),
+            ("fault", ctypes.c_uint8),
+            ("flags", ctypes.c_uint32),
+        ] + RoverProbe._fields_[3:]
 
     with pytest.raises(FirmwareBuildError, match=r"sizeof\(rover_probe\) is 32 there, 36 here"):
         check_layout(lib, STRUCTS[:2] + (Probe,))
@@ -140,4 +155,4 @@ def test_the_native_core_keeps_the_rover_core_protocol():
     core = NativeCore()
     assert isinstance(core, RoverCore)
     core.close()
-    core.close()   # idempotent, as the protocol says
+    core.close()  # idempotent, as the protocol says

@@ -1,5 +1,6 @@
 """Run logs (MCAP, Foxglove's schemas), the live view over Foxglove's WebSocket protocol, and
 `rovernav replay`."""
+
 from __future__ import annotations
 
 import asyncio
@@ -34,8 +35,10 @@ def _summary(path: Path):
     with open(path, "rb") as f:
         reader = make_reader(f)
         s = reader.get_summary()
-        channels = {ch.topic: (ch, s.schemas[ch.schema_id], s.statistics.channel_message_counts.get(cid, 0))
-                    for cid, ch in s.channels.items()}
+        channels = {
+            ch.topic: (ch, s.schemas[ch.schema_id], s.statistics.channel_message_counts.get(cid, 0))
+            for cid, ch in s.channels.items()
+        }
         meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
     return channels, meta
 
@@ -105,8 +108,9 @@ def test_foxglove_messages_decode_to_what_happened(fig48_run):
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         last = {}
-        for _s, ch, _m, msg in reader.iter_decoded_messages(topics=["/sim/true_pose", "/map/occupancy",
-                                                                    "/camera/image", "/plan/path"]):
+        for _s, ch, _m, msg in reader.iter_decoded_messages(
+            topics=["/sim/true_pose", "/map/occupancy", "/camera/image", "/plan/path"]
+        ):
             last[ch.topic] = msg
     pose, grid = last["/sim/true_pose"].pose, last["/map/occupancy"]
     end = sim.samples[-1]
@@ -140,17 +144,30 @@ def test_replay_of_an_out_and_back_log_gives_the_same_decisions_and_shows_a_chan
     assert "identical" in capsys.readouterr().out
     same = json.loads((tmp_path / "same.json").read_text())
     assert same["identical"] and same["paths_recorded"] == same["paths_replayed"] >= 4
-    assert all(p["recorded"] == p["replayed"] for p in same["paths"])     # same waypoints, same times
+    assert all(p["recorded"] == p["replayed"] for p in same["paths"])  # same waypoints, same times
     assert same["outcome_recorded"] == same["outcome_replayed"] == "reached"
 
-    code = main(["replay", str(log), "--set", "planner.robot_radius_m=0.15", "--json", str(tmp_path / "diff.json"),
-                 "--plot", str(tmp_path / "diff.png")])
+    code = main(
+        [
+            "replay",
+            str(log),
+            "--set",
+            "planner.robot_radius_m=0.15",
+            "--json",
+            str(tmp_path / "diff.json"),
+            "--plot",
+            str(tmp_path / "diff.png"),
+        ]
+    )
     text = capsys.readouterr().out
     assert code == 1 and "DIFFERENT" in text and "robot_radius_m 0.12 -> 0.15" in text
     diff = json.loads((tmp_path / "diff.json").read_text())
     assert not diff["identical"] and diff["changed"] == {"planner.robot_radius_m": [0.12, 0.15]}
-    assert any(p["recorded"]["waypoints_m"] != p["replayed"]["waypoints_m"] for p in diff["paths"]
-               if p["recorded"] and p["replayed"])
+    assert any(
+        p["recorded"]["waypoints_m"] != p["replayed"]["waypoints_m"]
+        for p in diff["paths"]
+        if p["recorded"] and p["replayed"]
+    )
     assert cv2.imread(str(tmp_path / "diff.png")) is not None
 
 
@@ -187,8 +204,18 @@ def test_replay_refuses_what_is_not_a_run_log(tmp_path, capsys):
     assert "not a rovernav run log" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("setting", ["planner.nope=1", "planner.robot_radius_m=-1", "planner.resolution_m=x",
-                                     "strategy=fast", "host_replan=maybe", "heartbeat", "=3"])
+@pytest.mark.parametrize(
+    "setting",
+    [
+        "planner.nope=1",
+        "planner.robot_radius_m=-1",
+        "planner.resolution_m=x",
+        "strategy=fast",
+        "host_replan=maybe",
+        "heartbeat",
+        "=3",
+    ],
+)
 def test_replay_refuses_a_bad_setting(fig48_run, setting, capsys):
     _sim, path = fig48_run
     assert main(["replay", str(path), "--set", setting]) == 2
@@ -211,11 +238,14 @@ def test_the_live_view_answers_a_foxglove_websocket_client(simulate, fig48):
                 msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
                 if msg["op"] == "advertise":
                     advertised.update({c["topic"]: c for c in msg["channels"]})
-            await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                {"id": 7, "channelId": advertised["/sim/true_pose"]["id"]}]}))
+            await ws.send(
+                json.dumps(
+                    {"op": "subscribe", "subscriptions": [{"id": 7, "channelId": advertised["/sim/true_pose"]["id"]}]}
+                )
+            )
             while True:
                 data = await asyncio.wait_for(ws.recv(), 10)
-                if isinstance(data, bytes) and data[0] == 1:   # message data: op, subscription, time, payload
+                if isinstance(data, bytes) and data[0] == 1:  # message data: op, subscription, time, payload
                     return info, advertised, data
 
     info, advertised, data = asyncio.run(client())
@@ -264,15 +294,23 @@ def test_the_foxglove_layout_in_docs_is_generated_from_the_channels():
 
     assert LAYOUT_FILE.read_text() == layout_text(), "run python -m rovernav.runlog.layout --write"
     text = LAYOUT_FILE.read_text()
-    shown = {c.topic for c in CHANNELS if c.schema.startswith("foxglove.") and c.schema not in
-             ("foxglove.CompressedImage", "foxglove.Log")}
+    shown = {
+        c.topic
+        for c in CHANNELS
+        if c.schema.startswith("foxglove.") and c.schema not in ("foxglove.CompressedImage", "foxglove.Log")
+    }
     assert all(f'"{t}"' in text for t in shown | {"/camera/image", "/events", "/link/rover_to_host"})
 
 
-@pytest.mark.parametrize("text, why", [("{}", "not a rovernav mission spec"),
-                                       ('{"format": "rovernav.mission-spec", "version": 9}', "version 9"),
-                                       ('{"format": "rovernav.mission-spec", "version": 1}', "lacks"),
-                                       ("[", "not JSON")])
+@pytest.mark.parametrize(
+    "text, why",
+    [
+        ("{}", "not a rovernav mission spec"),
+        ('{"format": "rovernav.mission-spec", "version": 9}', "version 9"),
+        ('{"format": "rovernav.mission-spec", "version": 1}', "lacks"),
+        ("[", "not JSON"),
+    ],
+)
 def test_a_bad_mission_spec_is_refused(text, why):
     with pytest.raises(ValueError, match=why):
         MissionSpec.from_json(text)
@@ -310,7 +348,7 @@ def test_a_damaged_or_foreign_file_is_refused_in_one_line(fig48_run, tmp_path, c
     # A real log truncated anywhere, with bytes flipped, or followed by junk; or junk alone.
     _sim, path = fig48_run
     data = bytearray(path.read_bytes())
-    data = data[:int(len(data) * cut)]
+    data = data[: int(len(data) * cut)]
     for f in flips:
         if data:
             data[f % len(data)] ^= 0xFF
@@ -327,11 +365,11 @@ def test_a_log_cut_off_mid_run_replays_up_to_its_last_whole_chunk(fig48_run, tmp
     # What a run killed before its log was closed leaves (its .partial file): no summary, no index.
     _sim, path = fig48_run
     cut = tmp_path / ".run.partial.mcap"
-    cut.write_bytes(path.read_bytes()[:int(path.stat().st_size * 0.6)])
+    cut.write_bytes(path.read_bytes()[: int(path.stat().st_size * 0.6)])
     run = read_log(cut)
     whole = read_log(path)
     assert run.truncated and 0 < len(run.inputs) < len(whole.inputs) and run.summary == {}
-    assert run.inputs == whole.inputs[:len(run.inputs)]
+    assert run.inputs == whole.inputs[: len(run.inputs)]
     assert main(["replay", str(cut)]) == 0
     out = capsys.readouterr().out
     assert "the log ends early" in out and "identical" in out
@@ -339,12 +377,17 @@ def test_a_log_cut_off_mid_run_replays_up_to_its_last_whole_chunk(fig48_run, tmp
 
 # ---------------------------------------------------------------- what the records carry, and the live view's handshake
 
+
 def _runlog(tmp_path, fig48, **kwargs):
     from rovernav.config import config_from_dict
     from rovernav.runlog import RunLog
 
-    return RunLog(tmp_path / "run.mcap" if "live_port" not in kwargs else None,
-                  MissionSpec.for_run(fig48, config_from_dict({})), source="test", **kwargs)
+    return RunLog(
+        tmp_path / "run.mcap" if "live_port" not in kwargs else None,
+        MissionSpec.for_run(fig48, config_from_dict({})),
+        source="test",
+        **kwargs,
+    )
 
 
 def test_a_signed_frame_is_logged_with_the_counter_it_went_out_with(tmp_path, fig48):
@@ -358,19 +401,26 @@ def test_a_signed_frame_is_logged_with_the_counter_it_went_out_with(tmp_path, fi
     host_end, rover_end = PipeTransport.pair()
     log = _runlog(tmp_path, fig48)
     link = Link(RecordingTransport(host_end, log), key=key)
-    for k, message in enumerate([host_hello(7), mg.Heartbeat(host_time_ms=100), mg.Fix(x_mm=300, y_mm=300),
-                                 mg.Start(path_id=1), mg.Heartbeat(host_time_ms=200)]):
+    for k, message in enumerate(
+        [
+            host_hello(7),
+            mg.Heartbeat(host_time_ms=100),
+            mg.Fix(x_mm=300, y_mm=300),
+            mg.Start(path_id=1),
+            mg.Heartbeat(host_time_ms=200),
+        ]
+    ):
         t_s = 0.1 * k
         log.set_time(t_s)
         log.host_tx(t_s, message, link.send(message))
-    log.host_tx(0.6, mg.Stop(), 5)   # told of a frame that was not the one written last: no counter
+    log.host_tx(0.6, mg.Stop(), 5)  # told of a frame that was not the one written last: no counter
     log.close()
     # The rover's end checks each frame's tag and reads its counter.
     on_the_wire = FrameDecoder(Verifier(key, mg.SIGN_HOST_TO_ROVER)).feed(rover_end.read(4096))
     assert [f.message.NAME for f in on_the_wire] == ["hello", "heartbeat", "fix", "start", "heartbeat"]
     counters = [r["counter"] for r in _json_messages(tmp_path / "run.mcap", "/link/host_to_rover")]
     assert counters == [f.counter for f in on_the_wire] + [None]
-    assert counters[0] is None                                   # HELLO goes unsigned
+    assert counters[0] is None  # HELLO goes unsigned
     assert all(isinstance(c, int) for c in counters[1:5]) and counters[1:5] == sorted(set(counters[1:5]))
     assert counters[4] == link.signer.last_counter
 
@@ -379,7 +429,7 @@ def test_rover_status_carries_the_state_by_name_and_its_number(tmp_path, fig48):
     from rovernav.link.framing import Frame
 
     log = _runlog(tmp_path, fig48)
-    codes = [int(s) for s in mg.RoverState] + [200]   # 200: a state this host does not know
+    codes = [int(s) for s in mg.RoverState] + [200]  # 200: a state this host does not know
     for k, code in enumerate(codes):
         status = mg.Status(state=code, sd_x_mm=10 + k)
         log.host_rx(0.1 * k, Frame(mg.Status.ID, k, status.pack(), status, None))
@@ -387,7 +437,7 @@ def test_rover_status_carries_the_state_by_name_and_its_number(tmp_path, fig48):
     records = _json_messages(tmp_path / "run.mcap", "/rover/status")
     assert [r["state"] for r in records] == [s.name.lower() for s in mg.RoverState] + ["unknown 200"]
     assert [r["state_code"] for r in records] == codes
-    assert [r["sd_x_mm"] for r in records] == [10 + k for k in range(len(codes))]   # the rest as it was
+    assert [r["sd_x_mm"] for r in records] == [10 + k for k in range(len(codes))]  # the rest as it was
 
 
 @pytest.mark.mission
@@ -399,7 +449,7 @@ def test_a_signed_run_logs_every_signed_frame_with_its_counter_and_the_states_by
     assert {r["type"] for r in unsigned} == {"hello"}
     counters = [r["counter"] for r in sent if r["counter"] is not None]
     assert len(counters) == len(sent) - len(unsigned) > 100
-    assert all(b > a for a, b in zip(counters, counters[1:]))   # each above the last, as the rover requires
+    assert all(b > a for a, b in zip(counters, counters[1:]))  # each above the last, as the rover requires
     states = _json_messages(path, "/rover/status")
     assert all(r["state"] == mg.RoverState(r["state_code"]).name.lower() for r in states)
     assert {"rotate", "drive", "scan"} <= {r["state"] for r in states}
@@ -410,8 +460,12 @@ def _offer(port: int, subprotocols: str | None) -> tuple[str, str | None]:
     header): the answer's status line and the subprotocol it chose."""
     header = "" if subprotocols is None else f"Sec-WebSocket-Protocol: {subprotocols}\r\n"
     with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
-        s.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                   f"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n{header}\r\n").encode())
+        s.sendall(
+            (
+                f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                f"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n{header}\r\n"
+            ).encode()
+        )
         answer = b""
         while b"\r\n\r\n" not in answer:
             chunk = s.recv(4096)
@@ -434,8 +488,10 @@ def test_the_live_view_accepts_only_the_sdk_subprotocol(tmp_path, fig48):
         port = log.live_port
         assert LIVE_SUBPROTOCOL == "foxglove.sdk.v1"
         assert _offer(port, "foxglove.sdk.v1") == ("HTTP/1.1 101 Switching Protocols", LIVE_SUBPROTOCOL)
-        assert _offer(port, "foxglove.websocket.v1, foxglove.sdk.v1") == ("HTTP/1.1 101 Switching Protocols",
-                                                                         LIVE_SUBPROTOCOL)
+        assert _offer(port, "foxglove.websocket.v1, foxglove.sdk.v1") == (
+            "HTTP/1.1 101 Switching Protocols",
+            LIVE_SUBPROTOCOL,
+        )
         assert _offer(port, "foxglove.websocket.v1") == ("HTTP/1.1 400 Bad Request", None)
         assert _offer(port, None) == ("HTTP/1.1 400 Bad Request", None)
     finally:

@@ -1,4 +1,5 @@
 """Scenario files: the shared ones load, and every mistake names the file and the key."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -125,8 +126,12 @@ MISTAKES = [
     ("target off the arena", lambda t: _replace(t, "y_m = 1.2", "y_m = -0.1"), "target.y_m", "outside the arena"),
     ("negative size", lambda t: _replace(t, "w_m = 0.1", "w_m = -0.1"), "obstacles[1].w_m", "> 0"),
     ("bad known", lambda t: _replace(t, "known = false", 'known = "no"'), "obstacles[1].known", "true or false"),
-    ("unknown key", lambda t: _replace(t, "h_m = 0.1\n\n", 'h_m = 0.1\ncolour = "red"\n\n'),
-     "obstacles[0].colour", "not a known key"),
+    (
+        "unknown key",
+        lambda t: _replace(t, "h_m = 0.1\n\n", 'h_m = 0.1\ncolour = "red"\n\n'),
+        "obstacles[0].colour",
+        "not a known key",
+    ),
     ("unknown top key", lambda t: "speed = 3\n" + t, "speed", "not a known key"),
     ("bad mission", lambda t: _replace(t, '"out-and-back"', '"explore"'), "mission.kind", "reach, out-and-back"),
     ("zero trips", lambda t: _replace(t, "trips = 3", "trips = 0"), "mission.trips", "from 1 to 1000"),
@@ -137,11 +142,24 @@ MISTAKES = [
     ("a billion trips", lambda t: _replace(t, "trips = 3", "trips = 1000000000"), "mission.trips", "from 1 to 1000"),
     ("infinite size", lambda t: _replace(t, "width_m = 2.0", "width_m = inf"), "arena.width_m", "must be a number"),
     ("NaN position", lambda t: _replace(t, "x_m = 0.3", "x_m = nan"), "start.x_m", "must be a number"),
-    ("obstacle off the arena", lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 9.0\ny_m = 0.7"),
-     "obstacles[0]", "lies outside the arena"),
-    ("start in a box", lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 0.3\ny_m = 0.3"), "start", "is inside obstacles[0]"),
-    ("target in a box", lambda t: _replace(t, "x_m = 0.5\ny_m = 1.0", "x_m = 1.7\ny_m = 1.2"), "target",
-     "is inside obstacles[1]"),
+    (
+        "obstacle off the arena",
+        lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 9.0\ny_m = 0.7"),
+        "obstacles[0]",
+        "lies outside the arena",
+    ),
+    (
+        "start in a box",
+        lambda t: _replace(t, "x_m = 1.0\ny_m = 0.7", "x_m = 0.3\ny_m = 0.3"),
+        "start",
+        "is inside obstacles[0]",
+    ),
+    (
+        "target in a box",
+        lambda t: _replace(t, "x_m = 0.5\ny_m = 1.0", "x_m = 1.7\ny_m = 1.2"),
+        "target",
+        "is inside obstacles[1]",
+    ),
 ]
 
 
@@ -175,8 +193,9 @@ def test_the_scenarios_come_with_the_repository(monkeypatch):
     monkeypatch.delenv("ROVERNAV_SCENARIO_DIR", raising=False)
     repo = Path(rovernav.scenario.__file__).resolve().parents[2]
     assert scenario_dir() == repo / "scenarios"
-    assert {"out-and-back", "seed-fig4-8-unknown-obstacle", "seed-large-obstacles",
-            "seed-small-obstacles"} <= set(scenario_names())
+    assert {"out-and-back", "seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small-obstacles"} <= set(
+        scenario_names()
+    )
 
 
 def test_the_repository_copies_of_the_shared_scenarios_have_not_drifted():
@@ -191,7 +210,9 @@ def test_the_repository_copies_of_the_shared_scenarios_have_not_drifted():
         assert ours.get(name) == data, f"scenarios/{name} differs from {SHARED_SCENARIOS / name}: copy it again"
 
 
-GENERATED = GOOD + """
+GENERATED = (
+    GOOD
+    + """
 [generated]
 family = "narrow_passage"
 seed = 7
@@ -209,6 +230,7 @@ known_path_blocked = true
 score = 0.62
 band = "hard"
 """
+)
 
 
 def test_a_generated_arena_keeps_its_labels_and_others_have_none(tmp_path):
@@ -217,12 +239,27 @@ def test_a_generated_arena_keeps_its_labels_and_others_have_none(tmp_path):
     f.write_text(GENERATED)
     scenario = load_scenario(f)
     assert scenario.generated == {
-        "family": "narrow_passage", "seed": 7, "index": 12, "solvable": False, "passage_width_m": 0.355,
-        "difficulty": {"closest_obstacle_m": 0.0, "mean_clearance_m": 0.21, "dispersion": 6.5,
-                       "characteristic_dimension_m": 0.74, "narrowest_dimension_m": 0.0, "known_path_blocked": True, "score": 0.62,
-                       "band": "hard"}}
-    solvable = _replace(_replace(GENERATED, "solvable = false", "solvable = true"), "score = 0.62",
-                        "score = 0.62\noptimal_length_m = 2.5\ndetour_ratio = 1.1")
+        "family": "narrow_passage",
+        "seed": 7,
+        "index": 12,
+        "solvable": False,
+        "passage_width_m": 0.355,
+        "difficulty": {
+            "closest_obstacle_m": 0.0,
+            "mean_clearance_m": 0.21,
+            "dispersion": 6.5,
+            "characteristic_dimension_m": 0.74,
+            "narrowest_dimension_m": 0.0,
+            "known_path_blocked": True,
+            "score": 0.62,
+            "band": "hard",
+        },
+    }
+    solvable = _replace(
+        _replace(GENERATED, "solvable = false", "solvable = true"),
+        "score = 0.62",
+        "score = 0.62\noptimal_length_m = 2.5\ndetour_ratio = 1.1",
+    )
     difficulty = parse_scenario(solvable).generated["difficulty"]
     assert difficulty["optimal_length_m"] == 2.5 and difficulty["detour_ratio"] == 1.1
     # the rest of the scenario is as without the table
@@ -231,29 +268,60 @@ def test_a_generated_arena_keeps_its_labels_and_others_have_none(tmp_path):
 
 
 GENERATED_MISTAKES = [
-    ("unknown key", lambda t: _replace(t, "index = 12", "index = 12\ncolour = 1"), "generated.colour",
-     "not a known key"),
-    ("unknown metric", lambda t: _replace(t, "dispersion = 6.5", "dispersion = 6.5\nfun = 1.0"),
-     "generated.difficulty.fun", "not a known key"),
+    (
+        "unknown key",
+        lambda t: _replace(t, "index = 12", "index = 12\ncolour = 1"),
+        "generated.colour",
+        "not a known key",
+    ),
+    (
+        "unknown metric",
+        lambda t: _replace(t, "dispersion = 6.5", "dispersion = 6.5\nfun = 1.0"),
+        "generated.difficulty.fun",
+        "not a known key",
+    ),
     ("missing family", lambda t: _replace(t, 'family = "narrow_passage"\n', ""), "generated.family", "missing"),
     ("negative seed", lambda t: _replace(t, "seed = 7", "seed = -7"), "generated.seed", "≥ 0"),
     ("text for an index", lambda t: _replace(t, "index = 12", 'index = "12"'), "generated.index", "whole number"),
-    ("bad solvable", lambda t: _replace(t, "solvable = false", "solvable = 0"), "generated.solvable",
-     "true or false"),
-    ("not finite", lambda t: _replace(t, "dispersion = 6.5", "dispersion = nan"), "generated.difficulty.dispersion",
-     "number"),
-    ("infinite", lambda t: _replace(t, "mean_clearance_m = 0.21", "mean_clearance_m = inf"),
-     "generated.difficulty.mean_clearance_m", "number"),
-    ("negative metric", lambda t: _replace(t, "closest_obstacle_m = 0.0", "closest_obstacle_m = -0.1"),
-     "generated.difficulty.closest_obstacle_m", "≥ 0"),
-    ("missing metric", lambda t: _replace(t, "characteristic_dimension_m = 0.74\n", ""),
-     "generated.difficulty.characteristic_dimension_m", "missing"),
+    ("bad solvable", lambda t: _replace(t, "solvable = false", "solvable = 0"), "generated.solvable", "true or false"),
+    (
+        "not finite",
+        lambda t: _replace(t, "dispersion = 6.5", "dispersion = nan"),
+        "generated.difficulty.dispersion",
+        "number",
+    ),
+    (
+        "infinite",
+        lambda t: _replace(t, "mean_clearance_m = 0.21", "mean_clearance_m = inf"),
+        "generated.difficulty.mean_clearance_m",
+        "number",
+    ),
+    (
+        "negative metric",
+        lambda t: _replace(t, "closest_obstacle_m = 0.0", "closest_obstacle_m = -0.1"),
+        "generated.difficulty.closest_obstacle_m",
+        "≥ 0",
+    ),
+    (
+        "missing metric",
+        lambda t: _replace(t, "characteristic_dimension_m = 0.74\n", ""),
+        "generated.difficulty.characteristic_dimension_m",
+        "missing",
+    ),
     ("score above 1", lambda t: _replace(t, "score = 0.62", "score = 1.5"), "generated.difficulty.score", "0 to 1"),
-    ("bad band", lambda t: _replace(t, 'band = "hard"', 'band = "brutal"'), "generated.difficulty.band",
-     "easy, medium, hard"),
-    ("zero passage", lambda t: _replace(t, "passage_width_m = 0.355", "passage_width_m = 0"),
-     "generated.passage_width_m", "> 0"),
-    ("no difficulty", lambda t: t[:t.index("[generated.difficulty]")], "generated.difficulty", "missing"),
+    (
+        "bad band",
+        lambda t: _replace(t, 'band = "hard"', 'band = "brutal"'),
+        "generated.difficulty.band",
+        "easy, medium, hard",
+    ),
+    (
+        "zero passage",
+        lambda t: _replace(t, "passage_width_m = 0.355", "passage_width_m = 0"),
+        "generated.passage_width_m",
+        "> 0",
+    ),
+    ("no difficulty", lambda t: t[: t.index("[generated.difficulty]")], "generated.difficulty", "missing"),
 ]
 
 
@@ -275,7 +343,9 @@ def test_a_generated_scenario_can_still_be_hashed():
 
 # --- walls and posts -------------------------------------------------------------------------
 
-WALLS = GOOD + """
+WALLS = (
+    GOOD
+    + """
 [[walls]]
 x0_m = 0.9
 y0_m = 0.0
@@ -297,6 +367,7 @@ y_m = 0.4
 radius_m = 0.05
 known = false
 """
+)
 
 
 def test_walls_and_posts_load_and_list_with_the_boxes():
@@ -305,7 +376,7 @@ def test_walls_and_posts_load_and_list_with_the_boxes():
     scenario = parse_scenario(WALLS)
     assert scenario.walls == (Wall(0.9, 0.0, 0.9, 0.6, 0.05, True), Wall(1.2, 0.9, 1.6, 1.3, 0.04, False))
     assert scenario.posts == (Post(1.5, 0.4, 0.05, False),)
-    assert scenario.obstacles == parse_scenario(GOOD).obstacles   # the boxes as before
+    assert scenario.obstacles == parse_scenario(GOOD).obstacles  # the boxes as before
     assert [o.kind for o in scenario.shapes] == ["box", "box", "wall", "wall", "post"]
     assert scenario.known_shapes == (scenario.obstacles[0], scenario.walls[0])
     assert scenario.unknown_shapes == (scenario.obstacles[1], scenario.walls[1], scenario.posts[0])
@@ -330,15 +401,27 @@ WALL_MISTAKES = [
     ("infinite end", lambda t: _replace(t, "y1_m = 1.3", "y1_m = inf"), "walls[1].y1_m", "number"),
     ("missing end", lambda t: _replace(t, "y0_m = 0.9\n", ""), "walls[1].y0_m", "missing"),
     ("no length", lambda t: _replace(t, "y1_m = 0.6", "y1_m = 0.0"), "walls[0]", "has no length"),
-    ("unknown wall key", lambda t: _replace(t, "thickness_m = 0.04", "thickness_m = 0.04\nheight_m = 1"),
-     "walls[1].height_m", "not a known key"),
-    ("bad wall known", lambda t: _replace(t, "known = false\n\n[[posts]]", 'known = 0\n\n[[posts]]'),
-     "walls[1].known", "true or false"),
-    ("walls not an array", lambda t: "walls = 3\n" + t[:t.index("[[walls]]")], "walls", "array of tables"),
+    (
+        "unknown wall key",
+        lambda t: _replace(t, "thickness_m = 0.04", "thickness_m = 0.04\nheight_m = 1"),
+        "walls[1].height_m",
+        "not a known key",
+    ),
+    (
+        "bad wall known",
+        lambda t: _replace(t, "known = false\n\n[[posts]]", "known = 0\n\n[[posts]]"),
+        "walls[1].known",
+        "true or false",
+    ),
+    ("walls not an array", lambda t: "walls = 3\n" + t[: t.index("[[walls]]")], "walls", "array of tables"),
     ("negative radius", lambda t: _replace(t, "radius_m = 0.05", "radius_m = -0.05"), "posts[0].radius_m", "> 0"),
     ("nan post", lambda t: _replace(t, "x_m = 1.5", "x_m = nan"), "posts[0].x_m", "number"),
-    ("unknown post key", lambda t: _replace(t, "radius_m = 0.05", "radius_m = 0.05\nw_m = 0.1"),
-     "posts[0].w_m", "not a known key"),
+    (
+        "unknown post key",
+        lambda t: _replace(t, "radius_m = 0.05", "radius_m = 0.05\nw_m = 0.1"),
+        "posts[0].w_m",
+        "not a known key",
+    ),
     ("missing radius", lambda t: _replace(t, "radius_m = 0.05\n", ""), "posts[0].radius_m", "missing"),
 ]
 

@@ -2,6 +2,7 @@
 reference encoder in protocol/generate.py (its own SipHash-2-4, from the paper), checked here
 against the host's Signer and Verifier (host/rovernav/link/framing.py) in both directions. The
 C++ side checks the same vectors with the rover's FrameAuth (firmware/test/test_link)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -21,7 +22,9 @@ DIRECTIONS = {"host_to_rover": mg.SIGN_HOST_TO_ROVER, "rover_to_host": mg.SIGN_R
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location("rovernav_protocol_generate_signed", ROOT / "protocol" / "generate.py")
+    spec = importlib.util.spec_from_file_location(
+        "rovernav_protocol_generate_signed", ROOT / "protocol" / "generate.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -62,7 +65,7 @@ def test_the_vectors_cover_both_directions_hello_and_max_payload_and_counters_ab
     assert {v["direction"] for v in SIGNED} == set(DIRECTIONS)
     sizes = {v["name"]: len(cobs_decode(bytes.fromhex(v["frame_hex"])[:-1])) for v in SIGNED}
     assert any(v["message"] == "hello" and v["direction"] == d for v in SIGNED for d in DIRECTIONS)
-    assert max(sizes.values()) == mg.MAX_SIGNED_RAW_FRAME    # a max_payload frame, signed
+    assert max(sizes.values()) == mg.MAX_SIGNED_RAW_FRAME  # a max_payload frame, signed
     assert any(len(bytes.fromhex(v["frame_hex"])) == mg.UART_BUFFER_BYTES for v in SIGNED)
     assert any(v["counter"] > 2**32 for v in SIGNED if v["direction"] == "host_to_rover")
     assert any(v["counter"] > 2**32 for v in SIGNED if v["direction"] == "rover_to_host")
@@ -71,18 +74,20 @@ def test_the_vectors_cover_both_directions_hello_and_max_payload_and_counters_ab
 @pytest.mark.parametrize("v", SIGNED, ids=[v["name"] for v in SIGNED])
 def test_the_hosts_signer_makes_each_signed_vector_byte_for_byte(v):
     key, direction = bytes.fromhex(v["key_hex"]), DIRECTIONS[v["direction"]]
-    signer = Signer(key, direction, clock=lambda: float(mg.SIGN_EPOCH_UNIX_S))   # its clock at 0 ms
+    signer = Signer(key, direction, clock=lambda: float(mg.SIGN_EPOCH_UNIX_S))  # its clock at 0 ms
     signer.jump_past(v["counter"] - 1)
     assert encode_frame(_message(v), v["seq"], signer).hex() == v["frame_hex"]
     assert signer.last_counter == v["counter"]
     # the tag, and what it is SipHash-2-4 of
     mac_input = bytes.fromhex(v["mac_input_hex"])
     assert mac_input[0] == direction
-    assert siphash24(key, mac_input).to_bytes(8, "little")[:mg.SIGN_TAG_BYTES].hex() == v["tag_hex"]
+    assert siphash24(key, mac_input).to_bytes(8, "little")[: mg.SIGN_TAG_BYTES].hex() == v["tag_hex"]
     raw = cobs_decode(bytes.fromhex(v["frame_hex"])[:-1])
-    assert raw[:len(mac_input) - 1] == mac_input[1:]
-    assert raw[len(mac_input) - 1:-2].hex() == v["tag_hex"]
-    assert int.from_bytes(raw[len(mac_input) - 1 - mg.SIGN_COUNTER_BYTES:len(mac_input) - 1], "little") == v["counter"]
+    assert raw[: len(mac_input) - 1] == mac_input[1:]
+    assert raw[len(mac_input) - 1 : -2].hex() == v["tag_hex"]
+    assert (
+        int.from_bytes(raw[len(mac_input) - 1 - mg.SIGN_COUNTER_BYTES : len(mac_input) - 1], "little") == v["counter"]
+    )
 
 
 @pytest.mark.parametrize("v", SIGNED, ids=[v["name"] for v in SIGNED])
@@ -92,7 +97,7 @@ def test_the_hosts_verifier_takes_each_signed_vector_once_and_refuses_it_with_an
     dec = FrameDecoder(Verifier(key, direction))
     frames = dec.feed(wire)
     assert len(frames) == 1 and frames[0].counter == v["counter"] and frames[0].message == _message(v)
-    assert dec.feed(wire) == [] and dec.counters.replayed == 1     # the same counter again
+    assert dec.feed(wire) == [] and dec.counters.replayed == 1  # the same counter again
     other_key = bytes(b ^ 1 for b in key)
     other_direction = DIRECTIONS["rover_to_host" if v["direction"] == "host_to_rover" else "host_to_rover"]
     for verifier in (Verifier(other_key, direction), Verifier(key, other_direction)):
@@ -115,9 +120,10 @@ def test_the_drift_check_fails_when_a_signed_vectors_tag_is_stale(tmp_path):
         shutil.copytree(ROOT / rel, tmp_path / rel)
     target = tmp_path / "protocol" / "vectors.json"
     vectors = json.loads(target.read_text())
-    vectors["signed_frames"][0]["counter"] += 1      # authored field changed, computed ones left
+    vectors["signed_frames"][0]["counter"] += 1  # authored field changed, computed ones left
     target.write_text(json.dumps(vectors, indent=1) + "\n")
-    result = subprocess.run([sys.executable, str(tmp_path / "protocol" / "generate.py"), "--check"],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, str(tmp_path / "protocol" / "generate.py"), "--check"], capture_output=True, text=True
+    )
     assert result.returncode == 1
     assert "protocol/vectors.json" in result.stderr and "--update-vectors" in result.stderr

@@ -2,6 +2,7 @@
 the counter, and every way a frame can be refused: forged, altered, reflected, replayed,
 reordered, truncated, unsigned where signatures are required, or signed with no key to check it.
 And the key file: made 0600, never overwritten by accident, refused when others can read it."""
+
 from __future__ import annotations
 
 import os
@@ -62,7 +63,7 @@ def test_a_signed_frame_decodes_with_the_key_and_its_counter():
 def test_the_counter_is_the_clock_in_ms_or_one_more_than_the_last():
     s = host_signer()
     a, b = s.next_counter(), s.next_counter()
-    assert b == a + 1   # the clock stood still: still strictly increasing
+    assert b == a + 1  # the clock stood still: still strictly increasing
     s.jump_past(a + 10_000)
     assert s.next_counter() == a + 10_001
 
@@ -99,8 +100,8 @@ def test_replayed_and_reordered_frames_are_refused():
     signer, d = host_signer(), rover_side()
     first, second = stop_frame(signer, 1), stop_frame(signer, 2)
     assert len(d.feed(second)) == 1
-    assert d.feed(first) == [] and d.counters.replayed == 1      # older counter: reordered
-    assert d.feed(second) == [] and d.counters.replayed == 2     # the same again: replayed
+    assert d.feed(first) == [] and d.counters.replayed == 1  # older counter: reordered
+    assert d.feed(second) == [] and d.counters.replayed == 2  # the same again: replayed
 
 
 def test_a_forged_frame_cannot_raise_the_counter():
@@ -135,7 +136,7 @@ def test_the_tag_is_siphash_of_the_direction_and_the_frame_up_to_the_counter():
 def test_no_single_bit_flip_of_a_signed_frame_is_accepted(pos, bit):
     good = stop_frame(host_signer())
     raw = bytearray(cobs_decode(good[:-1]))
-    pos %= len(raw) - 2   # anywhere but the CRC, which is then made right again
+    pos %= len(raw) - 2  # anywhere but the CRC, which is then made right again
     raw[pos] ^= 1 << bit
     body = bytes(raw[:-2])
     bad = cobs_encode(body + crc16(body).to_bytes(2, "little")) + b"\x00"
@@ -188,22 +189,32 @@ def _rover_answering(end, signing: int, min_counter: int = 0):
         while True:
             try:
                 data = end.read(256, timeout_s=0.05)
-            except Exception:   # noqa: BLE001 - the host closed its end: the test is over
+            except Exception:  # noqa: BLE001 - the host closed its end: the test is over
                 return
             for frame in decoder.feed(data):
                 got.append(frame)
                 if isinstance(frame.message, mg.Hello) and not answered:
                     answered = True
-                    end.write(encode_frame(firmware_hello(boot_id=7, signing=signing,
-                                                          min_counter_lo=min_counter & 0xFFFFFFFF,
-                                                          min_counter_hi=min_counter >> 32), 0, signer))
+                    end.write(
+                        encode_frame(
+                            firmware_hello(
+                                boot_id=7,
+                                signing=signing,
+                                min_counter_lo=min_counter & 0xFFFFFFFF,
+                                min_counter_hi=min_counter >> 32,
+                            ),
+                            0,
+                            signer,
+                        )
+                    )
+
     threading.Thread(target=run, daemon=True).start()
     return got, decoder
 
 
 def test_a_host_with_a_key_signs_every_command_after_the_rovers_minimum_counter():
     host_end, rover_end = PipeTransport.pair()
-    minimum = 5 * 10**12   # far beyond the clock: the host's counter must jump past it
+    minimum = 5 * 10**12  # far beyond the clock: the host's counter must jump past it
     got, decoder = _rover_answering(rover_end, signing=1, min_counter=minimum)
     link = Link(host_end, key=KEY)
     hello = link.handshake(boot_id=1, timeout_s=2.0)
@@ -213,8 +224,8 @@ def test_a_host_with_a_key_signs_every_command_after_the_rovers_minimum_counter(
     while not any(isinstance(f.message, mg.Stop) for f in got) and time.monotonic() < deadline:
         time.sleep(0.01)
     stop = next(f for f in got if isinstance(f.message, mg.Stop))
-    assert stop.counter is not None and stop.counter >= minimum   # signed, and past the rover's minimum
-    assert got[0].message.signing == 1 and got[0].counter is None   # our HELLO: unsigned, saying we sign
+    assert stop.counter is not None and stop.counter >= minimum  # signed, and past the rover's minimum
+    assert got[0].message.signing == 1 and got[0].counter is None  # our HELLO: unsigned, saying we sign
     link.close()
 
 
@@ -237,9 +248,9 @@ def test_a_host_with_a_key_takes_only_the_rovers_signed_frames():
     link = Link(host_end, key=KEY)
     rover = Signer(KEY, R2H, clock=lambda: 1.8e9)
     status = mg.Status(state=1)
-    rover_end.write(encode_frame(status, 1))                                          # unsigned
+    rover_end.write(encode_frame(status, 1))  # unsigned
     rover_end.write(encode_frame(status, 2, Signer(OTHER, R2H, clock=lambda: 1.8e9)))  # forged
-    rover_end.write(encode_frame(status, 3, rover))                                   # the rover's
+    rover_end.write(encode_frame(status, 3, rover))  # the rover's
     frame = link.recv(timeout_s=1.0)
     assert frame is not None and frame.seq == 3 and frame.counter is not None
     c = link.counters

@@ -1,5 +1,6 @@
 """The rover's side of signed frames (firmware/lib/link/frame_auth.cpp), through the core's C ABI:
 what a rover with a key takes and refuses, and a recorded session played back after a reset."""
+
 from __future__ import annotations
 
 from rovernav.cores import NativeCore
@@ -55,18 +56,18 @@ def test_only_frames_signed_with_its_key_and_a_fresh_counter_are_obeyed():
     good = encode_frame(config(1), 1, host)
     b.step(good)
     assert b.acks() == 1
-    b.step(good)                                            # replayed
-    b.step(encode_frame(config(2), 2))                      # unsigned
+    b.step(good)  # replayed
+    b.step(encode_frame(config(2), 2))  # unsigned
     other = Signer(bytes(16), mg.SIGN_HOST_TO_ROVER)
-    other.jump_past(host.last_counter + 1000)               # a fresh counter: only the tag can tell
-    b.step(encode_frame(config(3), 3, other))               # another key
-    b.step(resigned_with_bit_flipped(encode_frame(config(4), 4, host)))           # altered, CRC good
+    other.jump_past(host.last_counter + 1000)  # a fresh counter: only the tag can tell
+    b.step(encode_frame(config(3), 3, other))  # another key
+    b.step(resigned_with_bit_flipped(encode_frame(config(4), 4, host)))  # altered, CRC good
     older = encode_frame(config(5), 5, host)
     newer = encode_frame(config(6), 6, host)
     b.step(newer)
-    b.step(older)                                           # reordered: older counter after newer
+    b.step(older)  # reordered: older counter after newer
     b.step(encode_frame(config(7), 7, host)[:-6] + b"\x00")  # truncated
-    assert b.acks() == 2                                    # the first and `newer` only
+    assert b.acks() == 2  # the first and `newer` only
     assert b.core.auth_counters() == {"bad_tag": 2, "replayed": 2, "not_signed": 1, "unverified": 0}
 
 
@@ -77,7 +78,7 @@ def test_a_recorded_session_played_back_after_a_reset_is_refused():
     for frame in recording:
         b.step(frame)
     assert b.acks() == 3 and b.stored is not None
-    again = Bench(counters=b.stored)                        # the rover resets; its EEPROM kept the counters
+    again = Bench(counters=b.stored)  # the rover resets; its EEPROM kept the counters
     for frame in recording:
         again.step(frame)
     assert again.acks() == 0
@@ -93,8 +94,9 @@ def test_a_rover_without_a_key_refuses_signed_frames_and_takes_unsigned_ones():
     core = NativeCore()
     heard = FrameDecoder()
     said = []
-    for i, frame in enumerate([encode_frame(config(1), 1, Signer(KEY, mg.SIGN_HOST_TO_ROVER)),
-                               encode_frame(config(2), 2)]):
+    for i, frame in enumerate(
+        [encode_frame(config(1), 1, Signer(KEY, mg.SIGN_HOST_TO_ROVER)), encode_frame(config(2), 2)]
+    ):
         out = core.step(10 * i, gyro_rate_mdps=0, rx=frame)
         said += [f.message for f in heard.feed(out.tx)]
     assert sum(isinstance(m, mg.Ack) for m in said) == 1

@@ -1,5 +1,6 @@
 """The simulator's radio channel: line rate and delay, outages, corrupted bits.
 (Split from test_sim.py.)"""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,11 +10,12 @@ from rovernav.sim.channel import Channel
 
 # ---------------------------------------------------------------- radio
 
+
 def test_channel_carries_bytes_at_the_line_rate_after_the_delay():
     ch = Channel(ChannelConfig(delay_s=0.015), np.random.default_rng(0))
-    ch.write(bytes(576), 0.0)           # 0.1 s of line time at 5,760 bytes/s
-    assert ch.receive(0.015) == b""     # nothing before the delay has passed
-    early = len(ch.receive(0.05))       # 35 ms of line time: about 201 bytes
+    ch.write(bytes(576), 0.0)  # 0.1 s of line time at 5,760 bytes/s
+    assert ch.receive(0.015) == b""  # nothing before the delay has passed
+    early = len(ch.receive(0.05))  # 35 ms of line time: about 201 bytes
     assert 195 <= early <= 203
     assert early + len(ch.receive(0.2)) == 576
     assert ch.receive(1.0) == b""

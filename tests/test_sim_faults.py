@@ -1,6 +1,7 @@
 """Whole simulated missions under faults: camera and radio outages, a firmware reset, a dead
 gyro, host restarts, an attacker on the radio, and a lossy line. Each either completes without
 contact or ends in the verdict it should, never a hang. (Split from test_sim.py.)"""
+
 from __future__ import annotations
 
 import json
@@ -36,7 +37,7 @@ def test_a_firmware_reset_mid_mission_is_brought_back_up_to_date_and_the_mission
 
     r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(firmware_resets=[15.0]))
     assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 1
-    assert _rover_events(sim, mg.EventKind.BOOT) == 2   # booted, and booted again after the reset
+    assert _rover_events(sim, mg.EventKind.BOOT) == 2  # booted, and booted again after the reset
 
 
 @pytest.mark.mission
@@ -54,7 +55,7 @@ def test_a_host_restart_mid_mission_takes_up_the_same_leg_and_the_mission_comple
 
     r, sim = _simulate("out-and-back", seed=1, faults=Faults(host_restarts=[80.0]))
     assert r["reached"] and r["collisions"] == 0 and len(r["legs"]) == 4
-    assert sim.restarts_done == 1 and sim.mission.host_boot_id == HOST_BOOT_ID + 1   # a new host finished it
+    assert sim.restarts_done == 1 and sim.mission.host_boot_id == HOST_BOOT_ID + 1  # a new host finished it
 
 
 @pytest.mark.mission
@@ -90,7 +91,7 @@ def test_a_radio_outage_over_the_moment_the_obstacle_is_found_still_ends_without
 
     r = _run("seed-fig4-8-unknown-obstacle", seed=1, faults=Faults(link_outages=[(8.0, 10.0)]))
     assert r["reached"] and r["collisions"] == 0
-    assert r["faults"]["max_dr_error_m"] < 0.05   # dead reckoning through the outage
+    assert r["faults"]["max_dr_error_m"] < 0.05  # dead reckoning through the outage
 
 
 @pytest.mark.mission
@@ -119,8 +120,9 @@ def test_an_attacker_on_the_radio_is_refused_frame_by_frame_and_the_mission_goes
 @pytest.mark.mission
 def test_on_an_unsigned_link_the_same_attacker_stops_the_rover():
     # Why the link is signed: without a key the rover obeys the injected STOPs and replays.
-    sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"),
-                     SimOptions(seed=1, attacker=True, signed=False, max_time_s=90.0))
+    sim = Simulation(
+        load_scenario("seed-fig4-8-unknown-obstacle"), SimOptions(seed=1, attacker=True, signed=False, max_time_s=90.0)
+    )
     sim.run()
     r = build_report(sim, 1.0)
     assert not r["reached"]
@@ -138,7 +140,7 @@ def test_a_mission_at_one_percent_byte_loss_reaches_its_target():
     r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=2, channel=ChannelConfig(byte_loss=0.01, bit_error=0.001))
     assert r["reached"] and r["collisions"] == 0
     assert r["mission_time_s"] < 1.3 * clean["mission_time_s"]
-    link = r["link"]["quality"]   # report.json's, as the host measured it
+    link = r["link"]["quality"]  # report.json's, as the host measured it
     assert link == json.loads(json.dumps(sim.mission.link_summary()))
     assert 0.5 < link["host_to_rover"]["success"] < 0.95 and 0.5 < link["rover_to_host"]["success"] < 0.95
     assert sum(link["host_sent_again"].values()) > 0

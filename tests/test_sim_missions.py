@@ -5,6 +5,7 @@ verdict; `rovernav sim` and its report.
 The rest of what was test_sim.py: test_sim_plant.py (the plant and its sensors),
 test_sim_channel.py (the radio), test_sim_world.py (world geometry), test_sim_faults.py (missions
 under faults)."""
+
 from __future__ import annotations
 
 import json
@@ -24,13 +25,14 @@ from rovernav.sim.runner import SimOptions, Simulation
 
 # ---------------------------------------------------------------- whole missions
 
+
 @pytest.mark.mission
 def test_figure_4_8_mission_finds_the_unknown_obstacle_and_arrives_without_contact():
     r = _run("seed-fig4-8-unknown-obstacle", seed=3)
     assert r["reached"] and r["collisions"] == 0
     assert r["obstacles_discovered"] == 1 and r["replans"] >= 1
     assert r["min_clearance_m"] > 0.0
-    assert r["mission_time_s"] < 156.0   # the seed's rover took 2 min 36 s
+    assert r["mission_time_s"] < 156.0  # the seed's rover took 2 min 36 s
     assert r["spl"] > 0.8
 
 
@@ -39,8 +41,8 @@ def test_out_and_back_second_trip_needs_no_replanning():
     r = _run("out-and-back", seed=2)
     assert r["reached"] and r["collisions"] == 0
     assert len(r["trips"]) == 2 and len(r["legs"]) == 4
-    assert r["trips"][0]["replans"] >= 1           # the first trip learns the two unknown boxes
-    assert r["trips"][1]["replans"] == 0           # the second uses what was learned
+    assert r["trips"][0]["replans"] >= 1  # the first trip learns the two unknown boxes
+    assert r["trips"][1]["replans"] == 0  # the second uses what was learned
     assert r["obstacles_discovered"] == 2
 
 
@@ -55,26 +57,60 @@ def test_the_seed_strategy_is_slower_than_ours_in_the_same_world():
 @pytest.mark.mission
 def test_rovernav_sim_writes_report_video_and_picture(tmp_path):
     out = tmp_path / "run"
-    result = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-large-obstacles", "--out", str(out),
-                             "--seed", "2", "--quiet"], capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.cli",
+            "sim",
+            "seed-large-obstacles",
+            "--out",
+            str(out),
+            "--seed",
+            "2",
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads((out / "report.json").read_text())
-    for key in ("scenario", "strategy", "reached", "collisions", "mission_time_s", "wall_time_s", "path_length_m",
-                "optimal_length_m", "spl", "min_clearance_m", "replans", "obstacles_discovered", "trips", "link"):
+    for key in (
+        "scenario",
+        "strategy",
+        "reached",
+        "collisions",
+        "mission_time_s",
+        "wall_time_s",
+        "path_length_m",
+        "optimal_length_m",
+        "spl",
+        "min_clearance_m",
+        "replans",
+        "obstacles_discovered",
+        "trips",
+        "link",
+    ):
         assert key in report, key
     assert report["reached"] and report["collisions"] == 0
     assert (out / "summary.png").stat().st_size > 10_000
     import cv2
+
     video = cv2.VideoCapture(str(out / "video.mp4"))
     assert video.isOpened() and video.get(cv2.CAP_PROP_FRAME_COUNT) > 100
 
 
 def test_rovernav_sim_refuses_an_unknown_scenario_and_a_bad_fault_window(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "no-such-arena", "--out", str(tmp_path)],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "rovernav.cli", "sim", "no-such-arena", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 2 and "no scenario named 'no-such-arena'" in r.stderr
-    r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "--link-outage", "ten"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "rovernav.cli", "sim", "--link-outage", "ten"], capture_output=True, text=True
+    )
     assert r.returncode == 2 and "START:DURATION" in r.stderr
 
 
@@ -82,7 +118,7 @@ def test_rovernav_sim_refuses_an_unknown_scenario_and_a_bad_fault_window(tmp_pat
 def test_with_the_hosts_replanning_off_the_rover_gets_round_the_figure_4_8_obstacle_itself():
     r, sim = _simulate("seed-fig4-8-unknown-obstacle", seed=1, host_replan=False)
     assert r["reached"] and r["collisions"] == 0 and r["replans"] == 0
-    assert _rover_events(sim, mg.EventKind.REPLANNED) >= 1   # the rover's own detour
+    assert _rover_events(sim, mg.EventKind.REPLANNED) >= 1  # the rover's own detour
 
 
 @pytest.mark.mission
@@ -93,8 +129,24 @@ def test_the_pose_law_drive_mode_completes_a_mission_and_the_report_says_so():
 
 @pytest.mark.mission
 def test_rovernav_sim_compares_the_drive_modes(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-large-obstacles", "--drive-mode", "both",
-                        "--no-video", "--quiet", "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.cli",
+            "sim",
+            "seed-large-obstacles",
+            "--drive-mode",
+            "both",
+            "--no-video",
+            "--quiet",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "faster: rovernav / " in r.stdout
     both = json.loads((tmp_path / "comparison.json").read_text())
@@ -102,6 +154,7 @@ def test_rovernav_sim_compares_the_drive_modes(tmp_path):
 
 
 # ---------------------------------------------------------------- contact ends the run
+
 
 @pytest.mark.mission
 def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its_face(monkeypatch):
@@ -118,14 +171,15 @@ def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its
         step(now)
         x0, y0, x1, y1 = box.bounds
         p = sim.plant
-        deepest = max(deepest, min(p.x - x0, x1 - p.x, p.y - y0, y1 - p.y))   # > 0: the centre is inside
+        deepest = max(deepest, min(p.x - x0, x1 - p.x, p.y - y0, y1 - p.y))  # > 0: the centre is inside
+
     monkeypatch.setattr(sim, "_rover", watched)
     sim.run()
     r = build_report(sim, 1.0)
     assert r["outcome"] == "crashed" and r["crashed"] and not r["reached"] and r["collisions"] == 1
     assert r["crash"]["against"].startswith("obstacle 1 (unknown box")
     assert r["mission_time_s"] == pytest.approx(r["crash"]["t_s"], abs=0.05)
-    assert deepest < 0.0   # the rover's centre never entered the box
+    assert deepest < 0.0  # the rover's centre never entered the box
     json.dumps(r, allow_nan=False)
 
 
@@ -133,8 +187,10 @@ def test_a_blind_rover_crashes_into_the_unknown_obstacle_and_the_run_ends_at_its
 def test_a_target_two_centimetres_from_the_start_is_reached_at_once():
     from rovernav.scenario import parse_scenario
 
-    sc = parse_scenario("version = 1\n[arena]\nwidth_m = 2.0\nheight_m = 1.5\n[start]\nx_m = 0.5\ny_m = 0.5\n"
-                        "[target]\nx_m = 0.52\ny_m = 0.5\n")
+    sc = parse_scenario(
+        "version = 1\n[arena]\nwidth_m = 2.0\nheight_m = 1.5\n[start]\nx_m = 0.5\ny_m = 0.5\n"
+        "[target]\nx_m = 0.52\ny_m = 0.5\n"
+    )
     sim = Simulation(sc, SimOptions(seed=1, max_time_s=120))
     sim.run()
     r = build_report(sim, 1.0)
@@ -194,7 +250,7 @@ def test_a_mission_past_an_unknown_wall_with_a_gap_and_an_unknown_post_arrives(t
     draw_arena(canvas, sim)
     for x, y in ((1.2, 0.3), (1.2, 1.6), (1.62, 1.0)):
         u, v = canvas.pt(x, y)
-        patch = canvas.img[v - 3:v + 4, u - 3:u + 4].reshape(-1, 3).tolist()
+        patch = canvas.img[v - 3 : v + 4, u - 3 : u + 4].reshape(-1, 3).tolist()
         assert [150, 150, 200] in patch or [90, 90, 160] in patch, (x, y)
 
 
@@ -228,7 +284,7 @@ y_m = 0.875
 
 
 def _unknown_wall(y0: float, y1: float) -> str:
-    return (f"[[walls]]\nx0_m = 1.2\ny0_m = {y0}\nx1_m = 1.2\ny1_m = {y1}\nthickness_m = 0.04\nknown = false\n")
+    return f"[[walls]]\nx0_m = 1.2\ny0_m = {y0}\nx1_m = 1.2\ny1_m = {y1}\nthickness_m = 0.04\nknown = false\n"
 
 
 @pytest.mark.mission
@@ -236,7 +292,7 @@ def test_a_gap_one_cell_wider_than_the_rover_needs_is_found_and_driven_through()
     from rovernav.planning import PlannerConfig
     from rovernav.scenario import parse_scenario
 
-    gap = 2 * PlannerConfig().inflation_m + PlannerConfig().resolution_m   # 0.37 m
+    gap = 2 * PlannerConfig().inflation_m + PlannerConfig().resolution_m  # 0.37 m
     lower_top = 0.875 - gap / 2
     text = _WALL_ACROSS + _unknown_wall(0.0, round(lower_top, 3)) + _unknown_wall(round(lower_top + gap, 3), 1.75)
     sim = Simulation(parse_scenario(text), SimOptions(seed=1, max_time_s=300))
@@ -253,7 +309,7 @@ def test_a_target_an_unknown_wall_encloses_gets_the_no_path_verdict_after_the_ro
     sim.run()
     r = build_report(sim, 1.0)
     assert r["outcome"] == "no_path" and r["collisions"] == 0 and not r["timed_out"]
-    assert r["obstacles_discovered"] == 1 and r["replans"] >= 1   # the verdict came from what the sonar saw
+    assert r["obstacles_discovered"] == 1 and r["replans"] >= 1  # the verdict came from what the sonar saw
 
 
 def test_cellular_arena_38_where_a_rover_backed_out_into_what_it_never_saw_is_reached():

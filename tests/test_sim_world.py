@@ -1,6 +1,7 @@
 """The simulator's world geometry: the rover's footprint against boxes, walls and posts
 (contact, clearance, what it touches), rays, echoes and the sonar's cone.
 (Split from test_sim.py.)"""
+
 from __future__ import annotations
 
 import math
@@ -12,11 +13,12 @@ from rovernav.sim.world import Box, Post, Wall, World, footprint
 
 # ---------------------------------------------------------------- footprint, clearance and contact
 
+
 def test_footprint_contact_and_clearance():
     world = World(2.0, 2.0, [Box(1.0, 1.0, 0.2, 0.2)])
-    assert world.clearance_m(1.0, 1.3, 0.0) == pytest.approx(0.095, abs=1e-6)   # nose 0.105 ahead
+    assert world.clearance_m(1.0, 1.3, 0.0) == pytest.approx(0.095, abs=1e-6)  # nose 0.105 ahead
     assert world.collides(1.0, 1.2, 0.0)
-    assert world.collides(0.05, 1.5, 0.0)   # through the wall
+    assert world.collides(0.05, 1.5, 0.0)  # through the wall
     assert world.clearance_bound_m(1.0, 1.5) <= world.clearance_m(1.0, 1.5, 37.0)
 
 
@@ -27,6 +29,7 @@ def test_the_world_names_what_the_rover_touches():
 
 
 # ---------------------------------------------------------------- walls and posts
+
 
 def _outline(points, step_m=0.0005):
     pts = []
@@ -73,20 +76,24 @@ def test_clearance_to_walls_and_posts_is_exact_at_any_heading():
             fp = footprint(x, y, h)
             arena = min(fp[:, 0].min(), fp[:, 1].min(), 4.0 - fp[:, 0].max(), 4.0 - fp[:, 1].max())
             expected = min(_brute_clearance(fp, outline, ref), arena)
-            assert arena > 0.5   # the shape, not the arena's wall, is what is measured
+            assert arena > 0.5  # the shape, not the arena's wall, is what is measured
             got = world.clearance_m(x, y, h)
             assert got == pytest.approx(expected, abs=1e-3), (shape, x, y, h)
             assert world.clearance_bound_m(x, y) <= got + 1e-12
             assert world.collides(x, y, h) == (got <= 0.0)
             contacts += got == 0.0
             clear += got > 0.01
-        assert contacts >= 5 and clear >= 5   # both cases were tried
+        assert contacts >= 5 and clear >= 5  # both cases were tried
 
 
 def test_the_world_names_the_wall_or_post_it_touches():
-    w = World(2.0, 2.0, [Box(0.3, 1.7, 0.1, 0.1)],
-              [Wall(1.0, 0.2, 1.0, 0.9, 0.05), Wall(0.2, 1.2, 0.8, 1.5, 0.04, known=False)],
-              [Post(1.6, 1.5, 0.05, known=False)])
+    w = World(
+        2.0,
+        2.0,
+        [Box(0.3, 1.7, 0.1, 0.1)],
+        [Wall(1.0, 0.2, 1.0, 0.9, 0.05), Wall(0.2, 1.2, 0.8, 1.5, 0.04, known=False)],
+        [Post(1.6, 1.5, 0.05, known=False)],
+    )
     assert w.touching(1.0, 1.0, 0.0) == "wall 1 (known, from (1.00, 0.20) to (1.00, 0.90) m, 0.05 m thick)"
     assert w.touching(0.5, 1.25, 30.0).startswith("wall 2 (unknown, from (0.20, 1.20) to (0.80, 1.50) m")
     assert w.collides(0.5, 1.25, 30.0)
@@ -96,19 +103,19 @@ def test_the_world_names_the_wall_or_post_it_touches():
 
 
 def test_rays_stop_at_walls_and_posts():
-    wall = Wall(1.0, 0.5, 2.0, 1.5, 0.1)          # at 45°
+    wall = Wall(1.0, 0.5, 2.0, 1.5, 0.1)  # at 45°
     w = World(3.0, 3.0, [], [wall], [Post(0.5, 2.0, 0.1)])
     # from (1.0, 1.5) straight to +x (90°): the centre line is x - y = 0.5, the upper-left face
     # half the thickness off it, x - y = 0.5 - 0.05·√2
     face = 0.5 - 0.05 * math.sqrt(2)
     assert w.ray_m(1.0, 1.5, 90.0, 4.0) == pytest.approx((1.5 + face) - 1.0)
-    assert w.ray_m(0.5, 1.0, 0.0, 4.0) == pytest.approx(0.9)                      # to the post's near side
-    assert w.ray_m(0.5 + 0.0999, 1.0, 0.0, 4.0) < 1.0                             # grazing its edge
-    assert w.ray_m(0.5 + 0.1001, 1.0, 0.0, 4.0) == pytest.approx(2.0)             # past it, to the arena's top
-    assert w.ray_m(2.9, 0.1, 135.0, 4.0) == pytest.approx(0.1 * math.sqrt(2))     # the arena's corner
+    assert w.ray_m(0.5, 1.0, 0.0, 4.0) == pytest.approx(0.9)  # to the post's near side
+    assert w.ray_m(0.5 + 0.0999, 1.0, 0.0, 4.0) < 1.0  # grazing its edge
+    assert w.ray_m(0.5 + 0.1001, 1.0, 0.0, 4.0) == pytest.approx(2.0)  # past it, to the arena's top
+    assert w.ray_m(2.9, 0.1, 135.0, 4.0) == pytest.approx(0.1 * math.sqrt(2))  # the arena's corner
     # beyond the wall's square end: the ray along its centre line meets the end face
     assert w.ray_m(0.5, 0.0, 45.0, 4.0) == pytest.approx(math.hypot(0.5, 0.5))
-    assert w.ray_m(1.0, 1.0, 0.0, 0.2) == 0.2                                     # nothing within max_m: max_m
+    assert w.ray_m(1.0, 1.0, 0.0, 0.2) == 0.2  # nothing within max_m: max_m
 
 
 def test_a_flat_face_echoes_only_near_its_normal_and_a_post_always():
@@ -116,20 +123,20 @@ def test_a_flat_face_echoes_only_near_its_normal_and_a_post_always():
     w = World(4.0, 4.0, [], [Wall(0.5, 1.025, 3.5, 1.025, 0.05)], [Post(2.0, 2.6, 0.05)])
     for limit in (40.0, 90.0):
         assert w.echo_m(2.0, 0.6, 20.0, 4.0, limit) == pytest.approx(0.4 / math.cos(math.radians(20)))
-    assert w.echo_m(2.0, 0.6, 60.0, 4.0, 40.0) == 4.0          # sent away: nothing heard
+    assert w.echo_m(2.0, 0.6, 60.0, 4.0, 40.0) == 4.0  # sent away: nothing heard
     assert w.echo_m(2.0, 0.6, 60.0, 4.0, 90.0) == pytest.approx(0.8)
-    assert w.ray_m(2.0, 0.6, 60.0, 4.0) == pytest.approx(0.8)   # the ray still stops there
+    assert w.ray_m(2.0, 0.6, 60.0, 4.0) == pytest.approx(0.8)  # the ray still stops there
     # the same for an oblique wall (normal at 30° from +y, i.e. the wall runs at 120°)
     ox, oy = 2.0, 2.0
     u = (math.sin(math.radians(120)), math.cos(math.radians(120)))
     slanted = World(4.0, 4.0, [], [Wall(ox - u[0], oy - u[1], ox + u[0], oy + u[1], 0.04)])
-    sx, sy = ox - 0.5 * math.sin(math.radians(30)), oy - 0.5 * math.cos(math.radians(30))   # 0.5 m off, on the normal
+    sx, sy = ox - 0.5 * math.sin(math.radians(30)), oy - 0.5 * math.cos(math.radians(30))  # 0.5 m off, on the normal
     assert slanted.echo_m(sx, sy, 30.0 + 20.0, 4.0, 40.0) == pytest.approx(0.48 / math.cos(math.radians(20)))
     assert slanted.echo_m(sx, sy, 30.0 - 20.0, 4.0, 40.0) == pytest.approx(0.48 / math.cos(math.radians(20)))
     assert slanted.echo_m(sx, sy, 30.0 + 60.0, 4.0, 40.0) == 4.0
     # a post echoes whatever the angle its surface is met at
     for dx in (0.0, 0.03, 0.049):
-        assert w.echo_m(2.0 + dx, 2.0, 0.0, 4.0, 40.0) == pytest.approx(0.6 - math.sqrt(0.05 ** 2 - dx ** 2))
+        assert w.echo_m(2.0 + dx, 2.0, 0.0, 4.0, 40.0) == pytest.approx(0.6 - math.sqrt(0.05**2 - dx**2))
 
 
 def test_the_sonar_cone_hears_a_corner_but_not_a_face_met_obliquely():
@@ -142,8 +149,8 @@ def test_the_sonar_cone_hears_a_corner_but_not_a_face_met_obliquely():
     end = World(4.0, 4.0, [], [Wall(0.2, 2.0, 1.6, 2.0, 0.05)])
     corner = (1.6, 1.975)
     bearing = math.degrees(math.atan2(corner[0] - 1.0, corner[1] - 1.5))
-    assert bearing > 47.5   # every ray of the cone meets the lower face more than 40° off its normal
+    assert bearing > 47.5  # every ray of the cone meets the lower face more than 40° off its normal
     assert end.sonar_m(1.0, 1.5, bearing + 3.0, 15.0, 4.0, 40.0) == pytest.approx(math.dist((1.0, 1.5), corner))
-    assert end.sonar_m(1.0, 1.5, bearing + 10.0, 15.0, 2.0, 40.0) == 2.0   # the corner outside the cone
+    assert end.sonar_m(1.0, 1.5, bearing + 10.0, 15.0, 2.0, 40.0) == 2.0  # the corner outside the cone
     # a corner hidden behind the obstacle itself does not echo
     assert end.corner_echo_m(1.0, 1.5, math.degrees(math.atan2(0.6, 0.525)), 2.0, 4.0) == 4.0

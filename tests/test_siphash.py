@@ -1,5 +1,6 @@
 """SipHash-2-4 on the host: the paper's reference vectors, the values the firmware's test checks
 (firmware/test/test_link/test_siphash.cpp), and the firmware's own build against random inputs."""
+
 from __future__ import annotations
 
 import ctypes
@@ -22,8 +23,13 @@ def test_the_papers_reference_vectors():
 
 def test_the_values_the_firmwares_test_checks():
     got = {n: siphash24(KEY, bytes(range(n))) for n in (7, 8, 9, 16, 63)}
-    assert got == {7: 0xAB0200F58B01D137, 8: 0x93F5F5799A932462, 9: 0x9E0082DF0BA9E4B0,
-                   16: 0x3F2ACC7F57C29BDB, 63: 0x958A324CEB064572}
+    assert got == {
+        7: 0xAB0200F58B01D137,
+        8: 0x93F5F5799A932462,
+        9: 0x9E0082DF0BA9E4B0,
+        16: 0x3F2ACC7F57C29BDB,
+        63: 0x958A324CEB064572,
+    }
 
 
 def test_a_wrong_key_length_is_refused():
@@ -36,10 +42,22 @@ def firmware_siphash(tmp_path_factory):
     """The firmware's siphash.cpp built for this machine as a tiny shared library."""
     root = Path(__file__).resolve().parents[1]
     out = tmp_path_factory.mktemp("sip") / "libsip.so"
-    subprocess.run(["g++", "-O2", "-shared", "-fPIC", "-std=c++14", f"-I{root / 'firmware/lib/link'}",
-                    str(root / "firmware/lib/link/siphash.cpp"), "-o", str(out)], check=True)
+    subprocess.run(
+        [
+            "g++",
+            "-O2",
+            "-shared",
+            "-fPIC",
+            "-std=c++14",
+            f"-I{root / 'firmware/lib/link'}",
+            str(root / "firmware/lib/link/siphash.cpp"),
+            "-o",
+            str(out),
+        ],
+        check=True,
+    )
     lib = ctypes.CDLL(str(out))
-    fn = lib._ZN8rovernav9siphash24EPKhS1_hPh   # rovernav::siphash24(key, data, uint8_t len, uint8_t* tag)
+    fn = lib._ZN8rovernav9siphash24EPKhS1_hPh  # rovernav::siphash24(key, data, uint8_t len, uint8_t* tag)
     fn.restype = None
     fn.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint8, ctypes.c_char_p]
 
@@ -47,6 +65,7 @@ def firmware_siphash(tmp_path_factory):
         tag = ctypes.create_string_buffer(8)
         fn(key, data, n, tag)
         return int.from_bytes(tag.raw, "little")
+
     return siphash
 
 
@@ -64,8 +83,10 @@ def test_the_benchmarks_hmac_sha256_is_hmac_sha256(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     lib_path = tmp_path / "libhmac.so"
-    subprocess.run(["g++", "-O2", "-shared", "-fPIC", str(root / "benchmarks/avr/hmac_sha256.cpp"), "-o",
-                    str(lib_path)], check=True)
+    subprocess.run(
+        ["g++", "-O2", "-shared", "-fPIC", str(root / "benchmarks/avr/hmac_sha256.cpp"), "-o", str(lib_path)],
+        check=True,
+    )
     fn = ctypes.CDLL(str(lib_path))._Z11hmac_sha256PKhS0_tPh
     for n in (0, 1, 15, 55, 56, 63, 64, 65, 200):
         key, data, out = os.urandom(16), os.urandom(n), ctypes.create_string_buffer(32)
@@ -106,9 +127,23 @@ def test_siphash_on_the_avr_image(tmp_path):
     root = Path(__file__).resolve().parents[1]
     src, elf = tmp_path / "main.cpp", tmp_path / "sip.elf"
     src.write_text(AVR_PROGRAM)
-    subprocess.run(["avr-g++", "-mmcu=atmega328p", "-Os", "-std=gnu++14", "-flto", "-mcall-prologues",
-                    f"-I{root / 'firmware/lib/link'}", str(src), str(root / "firmware/lib/link/siphash.cpp"),
-                    str(root / "firmware/lib/link/sip_round_avr.S"), "-o", str(elf)], check=True)
+    subprocess.run(
+        [
+            "avr-g++",
+            "-mmcu=atmega328p",
+            "-Os",
+            "-std=gnu++14",
+            "-flto",
+            "-mcall-prologues",
+            f"-I{root / 'firmware/lib/link'}",
+            str(src),
+            str(root / "firmware/lib/link/siphash.cpp"),
+            str(root / "firmware/lib/link/sip_round_avr.S"),
+            "-o",
+            str(elf),
+        ],
+        check=True,
+    )
     symbols = subprocess.run(["avr-nm", str(elf)], capture_output=True, text=True, check=True).stdout
     addr = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" tags")) & 0xFFFF
     core = UnoCore(elf=elf, reset_cause=1)

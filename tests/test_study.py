@@ -1,4 +1,5 @@
 """The seed study (Russo 2024): moving to a pose, A* on a crater map, EKF localisation, and the CLI."""
+
 from __future__ import annotations
 
 import argparse
@@ -63,9 +64,9 @@ def test_the_reports_printed_inverse_does_not_invert_its_transformation():
 
 
 def test_alpha_is_the_goal_bearing_relative_to_the_heading():
-    rho, alpha, beta = to_polar((0.0, 0.0, 0.0), (10.0, 0.0, 0.0))   # goal straight ahead
+    rho, alpha, beta = to_polar((0.0, 0.0, 0.0), (10.0, 0.0, 0.0))  # goal straight ahead
     assert (rho, alpha, beta) == pytest.approx((10.0, 0.0, 0.0))
-    rho, alpha, beta = to_polar((0.0, 0.0, math.pi / 2), (10.0, 0.0, 0.0))   # goal on the right
+    rho, alpha, beta = to_polar((0.0, 0.0, math.pi / 2), (10.0, 0.0, 0.0))  # goal on the right
     assert alpha == pytest.approx(-math.pi / 2)
 
 
@@ -73,7 +74,7 @@ def test_the_law_reaches_p1_from_p0_with_the_reports_gains_in_about_the_reports_
     run = report_run
     assert run.converged
     assert abs(run.time_s - REPORT_TIME_S) <= 0.2 * REPORT_TIME_S
-    assert run.time_s / 86_400 == pytest.approx(3.85, abs=0.02)     # measured 3.846 days
+    assert run.time_s / 86_400 == pytest.approx(3.85, abs=0.02)  # measured 3.846 days
     err = run.final_error
     assert math.hypot(err[0], err[1]) < 1.0
     assert abs(err[2]) < 1e-3
@@ -96,13 +97,16 @@ def test_a_short_manoeuvre_converges_with_other_gains():
     assert math.hypot(*run.final_error[:2]) < 0.1
 
 
-@pytest.mark.parametrize("gains, condition", [
-    ((0.0, 0.145, -0.19), "K_rho > 0"),
-    ((-0.1, 0.145, -0.19), "K_rho > 0"),
-    ((0.1, 0.145, 0.0), "K_beta < 0"),
-    ((0.1, 0.145, 0.2), "K_beta < 0"),
-    ((0.1, 0.05, -0.19), "K_alpha - K_rho > 0"),
-])
+@pytest.mark.parametrize(
+    "gains, condition",
+    [
+        ((0.0, 0.145, -0.19), "K_rho > 0"),
+        ((-0.1, 0.145, -0.19), "K_rho > 0"),
+        ((0.1, 0.145, 0.0), "K_beta < 0"),
+        ((0.1, 0.145, 0.2), "K_beta < 0"),
+        ((0.1, 0.05, -0.19), "K_alpha - K_rho > 0"),
+    ],
+)
 def test_unstable_gains_are_refused_naming_the_condition(gains, condition):
     with pytest.raises(ValueError, match=re_escape(condition)):
         PoseGains(*gains)
@@ -113,21 +117,23 @@ def test_strong_stability_is_checked_on_request_and_the_reports_gains_fail_it():
     assert not g.strongly_stable
     with pytest.raises(ValueError, match=re_escape("K_alpha + 5/3 K_beta - 2/pi K_rho > 0")):
         g.check(strong=True)
-    PoseGains(3.0, 8.0, -1.5).check(strong=True)   # Siegwart's example gains
+    PoseGains(3.0, 8.0, -1.5).check(strong=True)  # Siegwart's example gains
 
 
 def re_escape(s: str) -> str:
     import re
+
     return re.escape(s)
 
 
 # --- crater map and A* ---------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_crater_map_keeps_p1_p2_free_and_astar_crosses_it_without_touching_a_rim(seed):
     cmap = crater_map(seed)
     assert cmap.obstacles.shape == (700, 1000) and cmap.scale_m == 50.0
-    assert cmap.obstacles.mean() > 0.1                      # a real obstacle field
+    assert cmap.obstacles.mean() > 0.1  # a real obstacle field
     for p in (REPORT_P0[:2], REPORT_P1[:2], REPORT_P2):
         assert cmap.is_free(*p)
     result = plan_on_map(cmap)
@@ -164,11 +170,13 @@ def test_a_walled_off_goal_raises_no_path():
 
 # --- EKF -----------------------------------------------------------------------------------
 
+
 def numeric_jacobian(f, x, eps=1e-6):
     x = np.asarray(x, dtype=float)
     cols = []
     for i in range(len(x)):
-        d = np.zeros_like(x); d[i] = eps
+        d = np.zeros_like(x)
+        d[i] = eps
         diff = (np.asarray(f(x + d)) - np.asarray(f(x - d))) / (2 * eps)
         cols.append(diff)
     return np.stack(cols, axis=1)
@@ -194,7 +202,7 @@ def test_observation_jacobian_matches_finite_differences(q, lm):
 def test_the_reports_printed_hq_has_the_wrong_sign_on_dbeta_dx():
     q, lm = STATES[0], (20.0, 15.0)
     dx, dy = q[0] - lm[0], q[1] - lm[1]
-    printed = dy / (dx * dx + dy * dy)                      # eq. 4.7, row 2, column 1
+    printed = dy / (dx * dx + dy * dy)  # eq. 4.7, row 2, column 1
     assert printed == pytest.approx(-numeric_jacobian(lambda s: observe(s, lm), q)[1, 0])
 
 
@@ -226,7 +234,7 @@ def test_det_p_grows_under_dead_reckoning_and_saws_with_the_ekf(localisation_run
     assert np.all(np.diff(dr_det) > 0)
     ekf_det = np.linalg.det(run.ekf_P)
     k = np.flatnonzero(run.observed)
-    assert np.all(ekf_det[k] < ekf_det[k - 1])             # each update drops it
+    assert np.all(ekf_det[k] < ekf_det[k - 1])  # each update drops it
     assert ekf_det.max() < dr_det[-1] * 1e-3
 
 
@@ -256,6 +264,7 @@ class _Mismatched(LocalisationScenario):
 
     def __init__(self, true: LocalisationScenario, told: LocalisationScenario):
         import dataclasses
+
         super().__init__(**{f.name: getattr(true, f.name) for f in dataclasses.fields(true)})
         object.__setattr__(self, "_told_V", told.V)
 
@@ -266,6 +275,7 @@ class _Mismatched(LocalisationScenario):
 
 # --- CLI -----------------------------------------------------------------------------------
 
+
 def parse(argv):
     parser = argparse.ArgumentParser()
     sub = parser.add_subparsers(dest="command")
@@ -275,8 +285,28 @@ def parse(argv):
 
 
 def test_pose_json_gives_time_error_and_length(capsys):
-    args = parse(["pose", "--from", "0", "0", "0", "--to", "20", "10", "1.0", "--gains", "0.3", "0.8", "-0.15",
-                  "--vmax", "0.5", "--dt", "0.05", "--json"])
+    args = parse(
+        [
+            "pose",
+            "--from",
+            "0",
+            "0",
+            "0",
+            "--to",
+            "20",
+            "10",
+            "1.0",
+            "--gains",
+            "0.3",
+            "0.8",
+            "-0.15",
+            "--vmax",
+            "0.5",
+            "--dt",
+            "0.05",
+            "--json",
+        ]
+    )
     assert args.func(args) == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out) >= {"time_s", "final_error", "path_length_m"}
@@ -292,8 +322,9 @@ def test_pose_defaults_are_the_reports_and_print_time_and_error(capsys):
     assert "3.846 days" in out and "final state error" in out
 
 
-@pytest.mark.parametrize("gains, condition", [(["0.1", "0.05", "-0.19"], "K_alpha - K_rho > 0"),
-                                              (["0.1", "0.145", "0.19"], "K_beta < 0")])
+@pytest.mark.parametrize(
+    "gains, condition", [(["0.1", "0.05", "-0.19"], "K_alpha - K_rho > 0"), (["0.1", "0.145", "0.19"], "K_beta < 0")]
+)
 def test_pose_with_unstable_gains_exits_2_with_the_reason(capsys, gains, condition):
     args = parse(["pose", "--gains", *gains, "--json"])
     assert args.func(args) == 2
@@ -304,15 +335,47 @@ def test_pose_with_unstable_gains_exits_2_with_the_reason(capsys, gains, conditi
 def test_pose_runs_as_a_module(tmp_path):
     import subprocess
     import sys
+
     png = tmp_path / "pose.png"
-    proc = subprocess.run([sys.executable, "-m", "rovernav.study.cli", "pose", "--from", "0", "0", "0",
-                           "--to", "3", "0", "0", "--gains", "0.5", "1.5", "-0.3", "--vmax", "1", "--dt", "0.01",
-                           "--json", "--plot", str(png)], capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.study.cli",
+            "pose",
+            "--from",
+            "0",
+            "0",
+            "0",
+            "--to",
+            "3",
+            "0",
+            "0",
+            "--gains",
+            "0.5",
+            "1.5",
+            "-0.3",
+            "--vmax",
+            "1",
+            "--dt",
+            "0.01",
+            "--json",
+            "--plot",
+            str(png),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["final_error"][0] == pytest.approx(0.0, abs=0.1)
     assert png.stat().st_size > 10_000
-    bad = subprocess.run([sys.executable, "-m", "rovernav.study.cli", "pose", "--gains", "-1", "1", "-1"],
-                         capture_output=True, text=True, timeout=60)
+    bad = subprocess.run(
+        [sys.executable, "-m", "rovernav.study.cli", "pose", "--gains", "-1", "1", "-1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert bad.returncode == 2 and "K_rho > 0" in bad.stderr
 
 

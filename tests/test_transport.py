@@ -1,4 +1,5 @@
 """Transports: every kind moves bytes the same way, fails the same way, and is picked by name."""
+
 from __future__ import annotations
 
 import os
@@ -91,6 +92,7 @@ def ends(request):
 
 # ------------------------------------------------------------------ the common contract
 
+
 def test_every_transport_delivers_every_byte_value_in_order(ends):
     writer, reader = ends
     writer.write(ALL_BYTES)
@@ -177,6 +179,7 @@ def test_transport_names_say_what_they_are():
 
 # ------------------------------------------------------------------ in-process pipe
 
+
 def test_a_pipe_end_reads_what_is_left_then_reports_the_other_end_closed():
     a, b = PipeTransport.pair()
     a.write(b"last words")
@@ -228,6 +231,7 @@ def test_a_pipe_carries_bytes_written_from_many_threads_without_losing_any():
 
 # ------------------------------------------------------------------ pseudo-terminal and serial
 
+
 @needs_pty
 def test_a_pty_names_a_peer_device_that_exists():
     with PtyTransport() as pty:
@@ -237,10 +241,16 @@ def test_a_pty_names_a_peer_device_that_exists():
 
 @needs_pty
 def test_a_serial_transport_on_a_pty_peer_exchanges_frames_both_ways():
-    samples_down = [Hello(schema_hash=1, boot_id=2, firmware_version=3, role=Role.HOST), Fix(x_mm=-5, y_mm=7),
-                    Path(path_id=9, total=8, first_index=0, count=8, x_mm=tuple(range(8)), y_mm=tuple(range(-8, 0)))]
-    samples_up = [Status(state=2, x_mm=-1000, rx_ok=65535), Obstacle(range_mm=321, bearing_cdeg=-4500),
-                  Ack(msg_id=4, seq=255)]
+    samples_down = [
+        Hello(schema_hash=1, boot_id=2, firmware_version=3, role=Role.HOST),
+        Fix(x_mm=-5, y_mm=7),
+        Path(path_id=9, total=8, first_index=0, count=8, x_mm=tuple(range(8)), y_mm=tuple(range(-8, 0))),
+    ]
+    samples_up = [
+        Status(state=2, x_mm=-1000, rx_ok=65535),
+        Obstacle(range_mm=321, bearing_cdeg=-4500),
+        Ack(msg_id=4, seq=255),
+    ]
     with PtyTransport() as pty, SerialTransport(pty.peer_name) as serial:
         assert serial.baud == DEFAULT_BAUD
         host, rover = Link(serial), Link(pty)
@@ -318,14 +328,24 @@ def test_a_file_that_is_not_a_serial_device_raises_port_error():
         SerialTransport("/dev/null")
 
 
-@pytest.mark.parametrize("port, baud", [("", 57600), ("  ", 57600), ("/dev/ttyUSB0", 0), ("/dev/ttyUSB0", -9600),
-                                        ("/dev/ttyUSB0", "57600"), ("/dev/ttyUSB0", True)])
+@pytest.mark.parametrize(
+    "port, baud",
+    [
+        ("", 57600),
+        ("  ", 57600),
+        ("/dev/ttyUSB0", 0),
+        ("/dev/ttyUSB0", -9600),
+        ("/dev/ttyUSB0", "57600"),
+        ("/dev/ttyUSB0", True),
+    ],
+)
 def test_a_serial_transport_rejects_bad_settings_before_touching_the_port(port, baud):
     with pytest.raises(ValueError, match="port|baud"):
         SerialTransport(port, baud)
 
 
 # ------------------------------------------------------------------ by name
+
 
 def test_open_transport_makes_a_loopback_from_loop():
     with open_transport("loop://") as t:
@@ -354,28 +374,34 @@ def test_open_transport_opens_a_serial_port_at_the_baud_given():
         assert t.baud == 115200
 
 
-@pytest.mark.parametrize("spec, port, baud", [
-    ("/dev/ttyUSB0", "/dev/ttyUSB0", 57600),
-    ("/dev/ttyUSB0@57600", "/dev/ttyUSB0", 57600),
-    ("COM4@115200", "COM4", 115200),
-    ("COM4", "COM4", 57600),
-    ("/dev/serial/by-id/usb-FTDI@1@9600", "/dev/serial/by-id/usb-FTDI@1", 9600),
-])
+@pytest.mark.parametrize(
+    "spec, port, baud",
+    [
+        ("/dev/ttyUSB0", "/dev/ttyUSB0", 57600),
+        ("/dev/ttyUSB0@57600", "/dev/ttyUSB0", 57600),
+        ("COM4@115200", "COM4", 115200),
+        ("COM4", "COM4", 57600),
+        ("/dev/serial/by-id/usb-FTDI@1@9600", "/dev/serial/by-id/usb-FTDI@1", 9600),
+    ],
+)
 def test_a_serial_spec_splits_into_port_and_baud(spec, port, baud):
     assert parse_serial_spec(spec) == (port, baud)
 
 
-@pytest.mark.parametrize("spec, shown", [
-    ("", "''"),
-    ("   ", "'   '"),
-    ("tcp://rover:5000", "tcp://rover:5000"),
-    ("loop://extra", "loop://extra"),
-    ("/dev/ttyUSB0@", "/dev/ttyUSB0@"),
-    ("/dev/ttyUSB0@fast", "fast"),
-    ("/dev/ttyUSB0@-5", "-5"),
-    ("/dev/ttyUSB0@0", "/dev/ttyUSB0@0"),
-    ("@57600", "@57600"),
-])
+@pytest.mark.parametrize(
+    "spec, shown",
+    [
+        ("", "''"),
+        ("   ", "'   '"),
+        ("tcp://rover:5000", "tcp://rover:5000"),
+        ("loop://extra", "loop://extra"),
+        ("/dev/ttyUSB0@", "/dev/ttyUSB0@"),
+        ("/dev/ttyUSB0@fast", "fast"),
+        ("/dev/ttyUSB0@-5", "-5"),
+        ("/dev/ttyUSB0@0", "/dev/ttyUSB0@0"),
+        ("@57600", "@57600"),
+    ],
+)
 def test_open_transport_rejects_a_bad_spec_naming_it(spec, shown):
     with pytest.raises(ValueError) as info:
         open_transport(spec)

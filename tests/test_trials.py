@@ -1,6 +1,7 @@
 """`rovernav trials`: the scores and the headline figures on hand-made rows, the gate, the arena
 sample, bad input, the hang and error guards, and whole benchmarks on two tiny arenas (marked
 `mission`: serial, and on a one-worker local dask cluster)."""
+
 from __future__ import annotations
 
 import csv
@@ -92,11 +93,27 @@ def _meta(family="wall_gap", band="easy", score=0.2, solvable=True) -> dict:
 def _report(**kw) -> dict:
     """The fields of build_report's dict that a row reads: a reached, contact-free 20 s run, OT 10 s,
     on a solvable, labelled arena."""
-    return {"strategy": "rovernav", "seed": 1, "scenario_meta": _meta(), "outcome": "reached", "reached": True,
-            "collisions": 0, "crashed": False, "crash": None, "timed_out": False, "mission_time_s": 20.0,
-            "optimal_time_s": 10.0, "optimal_length_m": 1.0, "path_length_m": 1.1, "spl": 0.9,
-            "min_clearance_m": 0.05, "replans": 0, "wall_time_s": 1.0, "error": None,
-            "faults": {"max_dr_error_m": None}} | kw
+    return {
+        "strategy": "rovernav",
+        "seed": 1,
+        "scenario_meta": _meta(),
+        "outcome": "reached",
+        "reached": True,
+        "collisions": 0,
+        "crashed": False,
+        "crash": None,
+        "timed_out": False,
+        "mission_time_s": 20.0,
+        "optimal_time_s": 10.0,
+        "optimal_length_m": 1.0,
+        "path_length_m": 1.1,
+        "spl": 0.9,
+        "min_clearance_m": 0.05,
+        "replans": 0,
+        "wall_time_s": 1.0,
+        "error": None,
+        "faults": {"max_dr_error_m": None},
+    } | kw
 
 
 def _row(meta=None, arena="arena-0000", **kw) -> dict:
@@ -106,24 +123,32 @@ def _row(meta=None, arena="arena-0000", **kw) -> dict:
 def _strict_json(path: Path):
     def refuse(constant):
         raise AssertionError(f"{path} is not strict JSON: {constant}")
+
     return json.loads(path.read_text(), parse_constant=refuse)
 
 
 # ---------------------------------------------------------------- scores
 
-@pytest.mark.parametrize("success, ot, at, expected", [
-    (True, 10.0, 20.0, 10.0 / 40.0),     # faster than 4 OT: clipped up to 4 OT, the best score, 0.25
-    (True, 10.0, 60.0, 10.0 / 60.0),     # between 4 OT and 8 OT: OT / AT
-    (True, 10.0, 200.0, 10.0 / 80.0),    # slower than 8 OT: clipped down to 8 OT, 0.125
-    (False, 10.0, 20.0, 0.0),            # a failure scores 0
-    (True, None, 20.0, None),            # no optimal time: undefined
-])
-def test_barn_score_is_success_times_optimal_time_over_actual_time_clipped_to_4_to_8_optimal_times(success, ot, at, expected):
+
+@pytest.mark.parametrize(
+    "success, ot, at, expected",
+    [
+        (True, 10.0, 20.0, 10.0 / 40.0),  # faster than 4 OT: clipped up to 4 OT, the best score, 0.25
+        (True, 10.0, 60.0, 10.0 / 60.0),  # between 4 OT and 8 OT: OT / AT
+        (True, 10.0, 200.0, 10.0 / 80.0),  # slower than 8 OT: clipped down to 8 OT, 0.125
+        (False, 10.0, 20.0, 0.0),  # a failure scores 0
+        (True, None, 20.0, None),  # no optimal time: undefined
+    ],
+)
+def test_barn_score_is_success_times_optimal_time_over_actual_time_clipped_to_4_to_8_optimal_times(
+    success, ot, at, expected
+):
     assert barn_score(success, ot, at) == (pytest.approx(expected) if expected is not None else None)
 
 
-@pytest.mark.parametrize("success, ot, at, expected", [
-    (True, 10.0, 5.0, 1.0), (True, 10.0, 20.0, 0.5), (False, 10.0, 20.0, 0.0)])
+@pytest.mark.parametrize(
+    "success, ot, at, expected", [(True, 10.0, 5.0, 1.0), (True, 10.0, 20.0, 0.5), (False, 10.0, 20.0, 0.0)]
+)
 def test_time_score_is_optimal_time_over_actual_time_and_never_above_one(success, ot, at, expected):
     assert time_score(success, ot, at) == pytest.approx(expected)
 
@@ -154,18 +179,20 @@ def test_an_unreachable_verdict_is_false_on_a_solvable_arena_and_correct_on_an_u
 
 def test_an_unlabelled_arena_is_solvable_when_the_clairvoyant_planner_finds_a_path():
     assert _row(meta={})["solvable"] is True and _row(meta={})["family"] == "unlabelled"
-    walled = row_from_report(_report(scenario_meta=None, outcome="no_path", reached=False, optimal_length_m=None,
-                                     optimal_time_s=None), "arena-0001")
+    walled = row_from_report(
+        _report(scenario_meta=None, outcome="no_path", reached=False, optimal_length_m=None, optimal_time_s=None),
+        "arena-0001",
+    )
     assert walled["solvable"] is False and walled["correct_unreachable"]
 
 
 def test_headline_rates_count_successes_on_solvable_runs_and_verdicts_on_their_own_arenas():
     rows = [
-        _row(mission_time_s=20.0),                                   # success, ratio 2, BARN 0.25
-        _row(mission_time_s=60.0),                                   # success, ratio 6, BARN 1/6
-        _row(crashed=True, reached=False, outcome="crashed"),        # crash on a solvable arena
-        _row(outcome="no_path", reached=False),                      # false 'unreachable'
-        _row(meta=_meta(solvable=False), outcome="no_path", reached=False, optimal_time_s=None),   # correct
+        _row(mission_time_s=20.0),  # success, ratio 2, BARN 0.25
+        _row(mission_time_s=60.0),  # success, ratio 6, BARN 1/6
+        _row(crashed=True, reached=False, outcome="crashed"),  # crash on a solvable arena
+        _row(outcome="no_path", reached=False),  # false 'unreachable'
+        _row(meta=_meta(solvable=False), outcome="no_path", reached=False, optimal_time_s=None),  # correct
         _row(meta=_meta(solvable=False), outcome="timeout", reached=False, timed_out=True, optimal_time_s=None),
     ]
     h = headline(rows)
@@ -175,25 +202,36 @@ def test_headline_rates_count_successes_on_solvable_runs_and_verdicts_on_their_o
     assert h["false_unreachable_rate"] == pytest.approx(1 / 4)
     assert h["correct_unreachable_rate"] == pytest.approx(1 / 2)
     assert (h["timeouts"], h["hung"], h["errors"], h["failed"]) == (1, 0, 0, 3)
-    assert h["median_time_ratio"] == pytest.approx(4.0)                  # over the two successes only
-    assert h["mean_barn_score"] == pytest.approx((0.25 + 10 / 60 + 0 + 0) / 4, abs=1e-4)   # row scores: 4 digits
+    assert h["median_time_ratio"] == pytest.approx(4.0)  # over the two successes only
+    assert h["mean_barn_score"] == pytest.approx((0.25 + 10 / 60 + 0 + 0) / 4, abs=1e-4)  # row scores: 4 digits
     assert headline([])["success_rate"] is None
 
 
 def test_bands_are_ordered_by_difficulty_and_families_by_name_with_unlabelled_last():
-    rows = [_row(meta=_meta("wall_gap", "hard", 0.9)), _row(meta=_meta("maze", "easy", 0.1)),
-            _row(meta=_meta("maze", "medium", 0.5)), _row(meta={})]
+    rows = [
+        _row(meta=_meta("wall_gap", "hard", 0.9)),
+        _row(meta=_meta("maze", "easy", 0.1)),
+        _row(meta=_meta("maze", "medium", 0.5)),
+        _row(meta={}),
+    ]
     assert list(headlines_by(rows, "band")["rovernav"]) == ["easy", "medium", "hard", "unlabelled"]
     assert list(headlines_by(rows, "family")["rovernav"]) == ["maze", "wall_gap", "unlabelled"]
 
 
 def test_the_gate_fails_on_the_rovernav_strategy_only_and_on_the_categories_asked():
     crash = dict(crashed=True, reached=False, outcome="crashed")
-    rows = [_row(strategy="seed", **crash), _row(arena="a1", outcome="timeout", reached=False, timed_out=True),
-            _row(arena="a2", outcome="hung", reached=False), _row(arena="a3", **crash)]
+    rows = [
+        _row(strategy="seed", **crash),
+        _row(arena="a1", outcome="timeout", reached=False, timed_out=True),
+        _row(arena="a2", outcome="hung", reached=False),
+        _row(arena="a3", **crash),
+    ]
     found = gate_violations(rows, ["crash", "timeout"])
     assert [(v["run"], v["category"]) for v in found] == [
-        ("a1 rovernav s1", "timeout"), ("a2 rovernav s1", "timeout"), ("a3 rovernav s1", "crash")]
+        ("a1 rovernav s1", "timeout"),
+        ("a2 rovernav s1", "timeout"),
+        ("a3 rovernav s1", "crash"),
+    ]
     assert gate_violations(rows, ["false_unreachable", "error"]) == []
 
 
@@ -208,11 +246,18 @@ def test_the_sample_gives_every_family_its_turn_even_when_a_regular_step_would_m
     arenas = [(Path(f"arena-{i:04d}.toml"), {"family": "abcd"[i % 4]}) for i in range(16)]
     picked = sample_arenas(arenas, 6)
     assert sorted(meta["family"] for _, meta in picked) == ["a", "a", "b", "b", "c", "d"]
-    assert [p.stem for p, _ in picked] == ["arena-0000", "arena-0001", "arena-0002", "arena-0003",
-                                           "arena-0008", "arena-0009"]   # a and b: their 1st and 3rd of 4
+    assert [p.stem for p, _ in picked] == [
+        "arena-0000",
+        "arena-0001",
+        "arena-0002",
+        "arena-0003",
+        "arena-0008",
+        "arena-0009",
+    ]  # a and b: their 1st and 3rd of 4
 
 
 # ---------------------------------------------------------------- guards
+
 
 def _job(tmp_path: Path, seed: int, run_timeout_s: float | None = 600.0) -> TrialJob:
     return TrialJob(tmp_path / "easy.toml", "rovernav", seed, tmp_path / "runs" / f"easy-s{seed}", 30.0, run_timeout_s)
@@ -226,7 +271,7 @@ def _raise_on_seed_1(scenario_path, strategy, seed, out_dir, max_time_s, run_tim
 
 def _hang_on_seed_1(scenario_path, strategy, seed, out_dir, max_time_s, run_timeout_s):
     if seed == 1:
-        time.sleep(3600)   # a run that never returns to the simulator's loop
+        time.sleep(3600)  # a run that never returns to the simulator's loop
     return {"seed": seed, "outcome": "stand-in"}
 
 
@@ -254,19 +299,23 @@ def test_on_a_dask_cluster_a_run_that_never_returns_is_killed_and_the_benchmark_
 
 # ---------------------------------------------------------------- the command
 
-@pytest.mark.parametrize("make, extra", [
-    (lambda d: d / "missing", []),
-    (lambda d: _arenas(d / "empty"), []),                           # a folder without *.toml
-    (lambda d: _arenas(d / "arenas", easy=EASY), ["--seeds", "0"]),
-    (lambda d: _arenas(d / "arenas", easy=EASY), ["--sample", "0"]),
-    (lambda d: _arenas(d / "arenas", easy=EASY), ["--fail-on", "crash,slowness"]),
-    (lambda d: _arenas(d / "arenas", bad="version = 1\n[arena]\nwidth_m = -1\n"), []),
-    (lambda d: _arenas(d / "arenas", easy=EASY), ["--scheduler", "nonsense://nowhere"]),
-])
+
+@pytest.mark.parametrize(
+    "make, extra",
+    [
+        (lambda d: d / "missing", []),
+        (lambda d: _arenas(d / "empty"), []),  # a folder without *.toml
+        (lambda d: _arenas(d / "arenas", easy=EASY), ["--seeds", "0"]),
+        (lambda d: _arenas(d / "arenas", easy=EASY), ["--sample", "0"]),
+        (lambda d: _arenas(d / "arenas", easy=EASY), ["--fail-on", "crash,slowness"]),
+        (lambda d: _arenas(d / "arenas", bad="version = 1\n[arena]\nwidth_m = -1\n"), []),
+        (lambda d: _arenas(d / "arenas", easy=EASY), ["--scheduler", "nonsense://nowhere"]),
+    ],
+)
 def test_bad_input_ends_with_a_one_line_error_and_status_2(tmp_path, capsys, make, extra):
     try:
         code = main(["trials", str(make(tmp_path)), "--out", str(tmp_path / "out"), *extra])
-    except SystemExit as exc:   # a flag refused by the parser
+    except SystemExit as exc:  # a flag refused by the parser
         code = exc.code
     assert code == 2
     err = capsys.readouterr().err.strip()
@@ -293,8 +342,21 @@ def _arenas(folder: Path, **files: str) -> Path:
 def test_a_serial_benchmark_on_two_tiny_arenas_writes_every_output(tmp_path, capsys):
     arenas = _arenas(tmp_path / "arenas", easy=EASY, enclosed=ENCLOSED)
     out = tmp_path / "out"
-    rc = main(["trials", str(arenas), "--serial", "--strategy", "rovernav", "--seeds", "1", "--max-time", "60",
-               "--out", str(out)])
+    rc = main(
+        [
+            "trials",
+            str(arenas),
+            "--serial",
+            "--strategy",
+            "rovernav",
+            "--seeds",
+            "1",
+            "--max-time",
+            "60",
+            "--out",
+            str(out),
+        ]
+    )
     captured = capsys.readouterr()
     assert rc in (0, 1), captured.err
     printed = captured.out
@@ -303,8 +365,12 @@ def test_a_serial_benchmark_on_two_tiny_arenas_writes_every_output(tmp_path, cap
     rows = {r["arena"]: r for r in summary["rows"]}
     assert set(rows) == {"easy", "enclosed"} and summary["headline"]["rovernav"]["runs"] == 2
     assert rows["easy"]["reached"] and rows["easy"]["success"] and not rows["easy"]["failed"]
-    assert (rows["easy"]["family"], rows["easy"]["solvable"]) == ("unlabelled", True)   # by the clairvoyant planner
-    assert (rows["enclosed"]["family"], rows["enclosed"]["band"], rows["enclosed"]["solvable"]) == ("enclosure", "hard", False)
+    assert (rows["easy"]["family"], rows["easy"]["solvable"]) == ("unlabelled", True)  # by the clairvoyant planner
+    assert (rows["enclosed"]["family"], rows["enclosed"]["band"], rows["enclosed"]["solvable"]) == (
+        "enclosure",
+        "hard",
+        False,
+    )
     assert rc == (1 if summary["gate"]["violations"] else 0)
     with (out / "trials.csv").open() as f:
         assert sorted(r["arena"] for r in csv.DictReader(f)) == ["easy", "enclosed"]

@@ -1,5 +1,6 @@
 """The turns a path asks for at its waypoints: the host moves a bend where the body's corners
 cannot swing (rovernav.planning.turns)."""
+
 from __future__ import annotations
 
 import math
@@ -43,8 +44,11 @@ def _grid(margin_m: float) -> OccupancyGrid:
 
 def _tight_turns(path) -> list[int]:
     need = SWING_M + SWING_MARGIN_M
-    return [i for i in range(1, len(path) - 1)
-            if turn_deg(*path[i - 1:i + 2]) > MIN_TURN_DEG and _wall_distance(path[i]) < need]
+    return [
+        i
+        for i in range(1, len(path) - 1)
+        if turn_deg(*path[i - 1 : i + 2]) > MIN_TURN_DEG and _wall_distance(path[i]) < need
+    ]
 
 
 def _echo_grid() -> tuple[OccupancyGrid, np.ndarray]:
@@ -62,9 +66,12 @@ def _echo_grid() -> tuple[OccupancyGrid, np.ndarray]:
 
 def _tight_echo_turns(path, centres: np.ndarray, res: float) -> list[int]:
     need = SWING_M + SWING_MARGIN_M
-    return [i for i in range(1, len(path) - 1)
-            if turn_deg(*path[i - 1:i + 2]) > MIN_TURN_DEG
-            and np.hypot(*(centres - np.asarray(path[i])).T).min() - res / 2 < need]
+    return [
+        i
+        for i in range(1, len(path) - 1)
+        if turn_deg(*path[i - 1 : i + 2]) > MIN_TURN_DEG
+        and np.hypot(*(centres - np.asarray(path[i])).T).min() - res / 2 < need
+    ]
 
 
 def test_a_bend_round_what_the_sonar_saw_moves_where_the_corners_swing_clear():
@@ -76,8 +83,8 @@ def test_a_bend_round_what_the_sonar_saw_moves_where_the_corners_swing_clear():
     path, moved, left = turnable(g, raw)
     assert moved >= 1 and left == 0
     assert _tight_echo_turns(path, centres, g.resolution_m) == []
-    assert path[0] == raw[0] and path[-1] == raw[-1]   # the start and the target stay
-    assert not g.path_blocked(path)                     # every leg still on free cells
+    assert path[0] == raw[0] and path[-1] == raw[-1]  # the start and the target stay
+    assert not g.path_blocked(path)  # every leg still on free cells
     added = sum(map(math.dist, path, path[1:])) - sum(map(math.dist, raw, raw[1:]))
     assert 0.0 <= added < 0.1
 
@@ -92,7 +99,7 @@ def test_a_known_walls_end_is_measured_exactly():
 
 
 def test_a_path_with_room_for_its_turns_is_left_as_it_is():
-    g = _grid(0.05)   # the full margin: every bend 0.17 m from the divider
+    g = _grid(0.05)  # the full margin: every bend 0.17 m from the divider
     raw = plan(g, (1.2, 1.3), (1.8, 0.9)).waypoints
     path, moved, left = turnable(g, raw)
     assert (moved, left) == (0, 0)
@@ -102,11 +109,11 @@ def test_a_path_with_room_for_its_turns_is_left_as_it_is():
 def test_a_bend_with_no_room_near_stays_and_is_counted():
     # A passage the body barely fits, the bend in its middle: nowhere within reach has room.
     g = OccupancyGrid(1.0, 1.0, PlannerConfig(sonar_margin_m=0.0))
-    g.add_box(0.5, 0.2, 1.0, 0.1)    # floor of a corridor 0.26 m high (centres at y 0.38)
+    g.add_box(0.5, 0.2, 1.0, 0.1)  # floor of a corridor 0.26 m high (centres at y 0.38)
     g.add_box(0.5, 0.56, 1.0, 0.1)
     path = [(0.15, 0.38), (0.5, 0.38), (0.85, 0.40)]
     assert turn_deg(*path) < MIN_TURN_DEG
-    assert turnable(g, path)[1:] == (0, 0)             # too small a turn to check
+    assert turnable(g, path)[1:] == (0, 0)  # too small a turn to check
     sharp = [(0.15, 0.38), (0.5, 0.38), (0.6, 0.45)]
     out, moved, left = turnable(g, sharp)
     assert (moved, left) == (0, 1) and out == sharp
@@ -121,9 +128,9 @@ def _box_grid() -> OccupancyGrid:
 
 def test_body_clear_tells_a_line_past_a_corner_from_one_into_it():
     g = _box_grid()
-    assert body_clear(g, (1.0, 1.3), (1.8, 1.3))           # 0.255 m below the box: clear
-    assert not body_clear(g, (0.6, 1.3), (0.9, 1.6))       # through the corner
-    assert not body_clear(g, (0.82, 1.50), (1.2, 1.50))    # 0.055 m below the corner: a side scrapes
+    assert body_clear(g, (1.0, 1.3), (1.8, 1.3))  # 0.255 m below the box: clear
+    assert not body_clear(g, (0.6, 1.3), (0.9, 1.6))  # through the corner
+    assert not body_clear(g, (0.82, 1.50), (1.2, 1.50))  # 0.055 m below the corner: a side scrapes
 
 
 def test_a_turn_where_the_rover_refused_one_has_no_room():
@@ -140,6 +147,7 @@ def test_a_turn_where_the_rover_refused_one_has_no_room():
 
 # ---------------------------------------------------------------- half seen, and the first turn
 
+
 def _box_face_grid() -> tuple[OccupancyGrid, Echo]:
     """An 8 cm box's south face at y = 1.71 m (x 1.93-2.01) as one echo heard from below
     (cellular seed 2612's arena 60): the rover 0.45 m south of it, looking north."""
@@ -147,7 +155,7 @@ def _box_face_grid() -> tuple[OccupancyGrid, Echo]:
     echo = Echo(x_m=1.97, y_m=1.16, heading_deg=0.0, bearing_deg=0.0, range_m=0.45)
     sx, sy = 1.97, 1.16 + g.config.sonar_offset_m
     ix, iy = g.world_to_cell(sx, sy + 0.45)
-    g.raw[iy, ix - 1:ix + 2] = True   # the arc's cells
+    g.raw[iy, ix - 1 : ix + 2] = True  # the arc's cells
     return g, echo
 
 
@@ -156,10 +164,10 @@ def test_what_an_echo_hides_lies_behind_its_face_along_the_beam():
     hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
     ys = g.ys[np.nonzero(hidden.any(axis=1))[0]]
     face_y = 1.16 + g.config.sonar_offset_m + 0.45
-    assert ys.min() > face_y - g.resolution_m            # nothing in front of the face
+    assert ys.min() > face_y - g.resolution_m  # nothing in front of the face
     assert face_y + HALF_SEEN_DEPTH_M - g.resolution_m <= ys.max() <= face_y + HALF_SEEN_DEPTH_M + g.resolution_m
     xs = g.xs[np.nonzero(hidden.any(axis=0))[0]]
-    assert xs.min() > 1.85 and xs.max() < 2.09          # within the cone's width there
+    assert xs.min() > 1.85 and xs.max() < 2.09  # within the cone's width there
     # An arc the sonar has since seen clear (its cells no longer held) casts nothing.
     g.raw[:] = False
     assert not half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg).any()
@@ -180,12 +188,12 @@ def test_the_hidden_depth_takes_room_from_a_turn_beside_the_face():
 def test_no_room_to_turn_where_the_rover_stands_puts_a_point_straight_ahead_first():
     g, echo = _box_face_grid()
     hidden = half_seen(g, [echo], g.config.sonar_offset_m, g.config.sonar_cone_deg)
-    start, heading = (1.965, 1.90), -90.0          # facing west, the box beside its left rear
-    path = [start, (1.55, 2.2)]                    # the next leg asks for a turn of about 125 degrees
+    start, heading = (1.965, 1.90), -90.0  # facing west, the box beside its left rear
+    path = [start, (1.55, 2.2)]  # the next leg asks for a turn of about 125 degrees
     out, ahead = ahead_first(g, path, heading, hidden)
     assert ahead == 1 and len(out) == 3 and out[0] == start and out[-1] == path[-1]
     q = out[1]
-    assert abs(q[1] - start[1]) < 1e-9 and 0.0 < start[0] - q[0] <= 0.3   # straight ahead, west
+    assert abs(q[1] - start[1]) < 1e-9 and 0.0 < start[0] - q[0] <= 0.3  # straight ahead, west
     clear = clearance_map(g, 1.0, hidden=hidden)
     assert clear[g.world_to_cell(*q)[1], g.world_to_cell(*q)[0]] >= SWING_M + SWING_MARGIN_M
     # The same turn with the box known to be only its face: room where it stands, nothing added.

@@ -4,6 +4,7 @@ Builds the image (tools/build_uno.py) and the harness (make -C tools/avrsim unoc
 are missing, and skips (saying which Debian package is missing) when the AVR toolchain or
 libsimavr-dev is not installed. The whole-mission tests are marked `mission`.
 """
+
 from __future__ import annotations
 
 import json
@@ -56,6 +57,7 @@ def _messages(core: UnoCore, seconds: float, gyro_mdps: int | None = 0, rx_at: d
 
 # ---------------------------------------------------------------- no toolchain needed
 
+
 def test_a_missing_libsimavr_is_named_in_the_error(monkeypatch, tmp_path):
     monkeypatch.setattr(harness, "missing_packages", lambda: {"libsimavr-dev": "/usr/include/simavr/sim_avr.h"})
     monkeypatch.setattr(harness, "LIBRARY", tmp_path / "libunocore.so")
@@ -66,13 +68,13 @@ def test_a_missing_libsimavr_is_named_in_the_error(monkeypatch, tmp_path):
 def test_motor_pwm_is_read_from_the_compare_registers_or_the_port_bits():
     r = _Regs()
     r.ddrd, r.ddrb = 0b0110_1000, 0b0000_1000
-    r.tccr0a, r.ocr0b = 0x20, 180            # pin 5 (left forward) on OC0B at 180
-    r.tccr2a, r.ocr2a = 0x80, 90             # pin 11 (right forward) on OC2A at 90
+    r.tccr0a, r.ocr0b = 0x20, 180  # pin 5 (left forward) on OC0B at 180
+    r.tccr2a, r.ocr2a = 0x80, 90  # pin 11 (right forward) on OC2A at 90
     assert UnoCore._motors(r) == (180, 90)
-    r.tccr0a, r.tccr2a = 0x80, 0x20          # now the backward inputs: OC0A (pin 6), OC2B (pin 3)
+    r.tccr0a, r.tccr2a = 0x80, 0x20  # now the backward inputs: OC0A (pin 6), OC2B (pin 3)
     r.ocr0a, r.ocr2b = 120, 200
     assert UnoCore._motors(r) == (-200, -120)
-    r.tccr0a = r.tccr2a = 0                  # analogWrite(255): timer off, port bit high
+    r.tccr0a = r.tccr2a = 0  # analogWrite(255): timer off, port bit high
     r.portd = 1 << 5
     r.portb = 1 << 3
     assert UnoCore._motors(r) == (255, 255)
@@ -80,22 +82,23 @@ def test_motor_pwm_is_read_from_the_compare_registers_or_the_port_bits():
 
 def test_the_servo_angle_is_the_inverse_of_servo_timer1s_mapping():
     board = uno.board_constants()
-    core = UnoCore.__new__(UnoCore)   # only the conversion, no simulator
+    core = UnoCore.__new__(UnoCore)  # only the conversion, no simulator
     core.board, core._servo_cdeg = board, 0
     span = board.servo_pulse_max_us - board.servo_pulse_min_us
     for angle in (-9000, -3000, -1234, 0, 450, 3000, 7000):
         servo = 9000 + board.servo_centre_trim_cdeg + board.servo_clockwise_sign * angle
         servo = max(0, min(18000, servo))
-        pulse_us = board.servo_pulse_min_us + (servo * span + 9000) // 18000   # as the firmware
+        pulse_us = board.servo_pulse_min_us + (servo * span + 9000) // 18000  # as the firmware
         r = _Regs()
         r.tccr1a, r.tccr1b, r.icr1, r.ocr1a = 0x82, 0x1A, 39999, pulse_us * 2  # mode 14, clk/8
         expected = board.servo_clockwise_sign * (servo - 9000 - board.servo_centre_trim_cdeg)
-        assert abs(core._servo(r) - expected) <= 10, angle   # one microsecond is ~9.7 cdeg
-    r.tccr1a = 0x02                                            # pulses off: the servo stays put
+        assert abs(core._servo(r) - expected) <= 10, angle  # one microsecond is ~9.7 cdeg
+    r.tccr1a = 0x02  # pulses off: the servo stays put
     assert core._servo(r) == core._servo_cdeg
 
 
 # ---------------------------------------------------------------- the image in simavr
+
 
 def test_the_uno_core_keeps_the_rover_core_protocol(built):
     from rovernav.cores import RoverCore
@@ -103,23 +106,23 @@ def test_the_uno_core_keeps_the_rover_core_protocol(built):
     core = UnoCore(reset_cause=1)
     assert isinstance(core, RoverCore)
     core.close()
-    core.close()   # idempotent, as the protocol says
+    core.close()  # idempotent, as the protocol says
 
 
 def test_the_gyro_model_answers_who_am_i_and_the_firmware_reports_no_gyro_fault(built):
     core = UnoCore(boot_id=42, reset_cause=1, sonar=lambda: 0)
     try:
-        _, messages = _messages(core, 3.0, gyro_mdps=-1500)   # turning anticlockwise while it calibrates
+        _, messages = _messages(core, 3.0, gyro_mdps=-1500)  # turning anticlockwise while it calibrates
         stats = core.stats()
     finally:
         core.close()
     assert stats["twi_whoami_reads"] >= 1
-    assert stats["twi_gyro_reads"] >= 100 + 150       # the calibration's samples, then one a step
+    assert stats["twi_gyro_reads"] >= 100 + 150  # the calibration's samples, then one a step
     assert stats["twi_nacked"] == 0
     hellos = [m for _, m in messages if isinstance(m, mg.Hello)]
     assert hellos and hellos[0].boot_id == 42 and hellos[0].schema_hash == mg.SCHEMA_HASH
     boot = [m for _, m in messages if isinstance(m, mg.Event) and m.kind == mg.EventKind.BOOT]
-    assert boot and boot[0].arg == 1                  # MCUSR's PORF, as the harness set it
+    assert boot and boot[0].arg == 1  # MCUSR's PORF, as the harness set it
     statuses = [m for _, m in messages if isinstance(m, mg.Status)]
     assert statuses and all(s.fault == mg.FaultCode.NONE for s in statuses)
     assert not any(s.flags & mg.StatusFlag.GYRO_FAULT for s in statuses)
@@ -135,8 +138,11 @@ def test_a_gyro_that_stops_answering_is_a_gyro_fault(built):
         faults = []
         for k in range(201, 400):
             out = core.step(k * 10, gyro_rate_mdps=None)
-            faults += [f.message.arg for f in decoder.feed(out.tx)
-                       if isinstance(f.message, mg.Event) and f.message.kind == mg.EventKind.FAULT]
+            faults += [
+                f.message.arg
+                for f in decoder.feed(out.tx)
+                if isinstance(f.message, mg.Event) and f.message.kind == mg.EventKind.FAULT
+            ]
         assert core.stats()["twi_nacked"] > 0
     finally:
         core.close()
@@ -149,17 +155,19 @@ def test_a_reset_keeps_the_eeprom_boot_counter_and_the_firmware_finds_the_cause_
         _, before = _messages(core, 2.0)
         core.reset(4)
         decoder = FrameDecoder()
-        decoder.feed(b"\0")   # the frame the reset cut, if any, ends here
+        decoder.feed(b"\0")  # the frame the reset cut, if any, ends here
         after = []
         for k in range(201, 420):
             after += [f.message for f in decoder.feed(core.step(k * 10, gyro_rate_mdps=0).tx)]
         stats = core.stats()
     finally:
         core.close()
-    hellos = [m.boot_id for _, m in before if isinstance(m, mg.Hello)] + \
-             [m.boot_id for m in after if isinstance(m, mg.Hello)]
-    boots = [m.arg for _, m in before if isinstance(m, mg.Event) and m.kind == mg.EventKind.BOOT] + \
-            [m.arg for m in after if isinstance(m, mg.Event) and m.kind == mg.EventKind.BOOT]
+    hellos = [m.boot_id for _, m in before if isinstance(m, mg.Hello)] + [
+        m.boot_id for m in after if isinstance(m, mg.Hello)
+    ]
+    boots = [m.arg for _, m in before if isinstance(m, mg.Event) and m.kind == mg.EventKind.BOOT] + [
+        m.arg for m in after if isinstance(m, mg.Event) and m.kind == mg.EventKind.BOOT
+    ]
     assert hellos == [7, 8] and boots == [1, 4]
     assert stats["resets"] == 1 and stats["twi_whoami_reads"] == 2
 
@@ -191,12 +199,12 @@ def test_a_watchdog_reset_is_seen_and_cuts_the_step_it_interrupts(built, tmp_pat
         records, stats = core._records, core.stats()
     finally:
         core.close()
-    assert stats["resets"] >= 5                              # WDTO_15MS: ~16 ms each
-    assert [r[4] for r in records] == list(range(len(records)))   # one step per boot
-    assert [r[2] for r in records][:3] == [0x01, 0x08, 0x08]      # PORF, then WDRF
+    assert stats["resets"] >= 5  # WDTO_15MS: ~16 ms each
+    assert [r[4] for r in records] == list(range(len(records)))  # one step per boot
+    assert [r[2] for r in records][:3] == [0x01, 0x08, 0x08]  # PORF, then WDRF
     periods_ms = [(b[0] - a[0]) / harness.CYCLES_PER_MS for a, b in zip(records, records[1:])]
     assert all(14 < p < 20 for p in periods_ms)
-    assert all(r[1] > r[0] for r in records)                 # each cut where the reset came
+    assert all(r[1] > r[0] for r in records)  # each cut where the reset came
 
 
 def test_idle_fast_forward_changes_nothing_the_firmware_or_the_host_can_see(built):
@@ -224,9 +232,26 @@ def test_idle_fast_forward_changes_nothing_the_firmware_or_the_host_can_see(buil
 @pytest.mark.mission
 def test_rovernav_sim_rover_uno_reaches_the_target_and_reports_the_images_timing(built, tmp_path):
     out = tmp_path / "run"
-    result = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-fig4-8-unknown-obstacle", "--rover",
-                             "uno", "--seed", "1", "--no-video", "--quiet", "--out", str(out)],
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.cli",
+            "sim",
+            "seed-fig4-8-unknown-obstacle",
+            "--rover",
+            "uno",
+            "--seed",
+            "1",
+            "--no-video",
+            "--quiet",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "AVR simulated at" in result.stdout
     r = json.loads((out / "report.json").read_text())
@@ -236,10 +261,10 @@ def test_rovernav_sim_rover_uno_reaches_the_target_and_reports_the_images_timing
     assert t["gyro"]["whoami_reads"] == 1 and t["gyro"]["nacked"] == 0
     stack = t["stack"]
     assert 0 < stack["used_bytes"] < 2048 - stack["static_bytes"] and stack["margin_bytes"] > 0
-    assert t["speed"]["avr_x_real_time"] > 0   # the speed is a figure printed, not a timed test
+    assert t["speed"]["avr_x_real_time"] > 0  # the speed is a figure printed, not a timed test
     if not t["hooks"]["step_probe_pb0"]:
         pytest.skip("this image has no PB0 step probe: no step times to check")
-    assert t["steps"] > 3000 and t["step_time"]["max_us"] <= 5000   # every step within half the 10 ms period
+    assert t["steps"] > 3000 and t["step_time"]["max_us"] <= 5000  # every step within half the 10 ms period
     for state in ("rotate", "drive", "scan"):
         figures = t["by_state"][state]
         assert figures["count"] > 0
@@ -259,8 +284,10 @@ def test_a_firmware_reset_of_the_uno_mid_mission_is_brought_back_up_to_date(buil
     from rovernav.sim.report import build_report
     from rovernav.sim.runner import Faults, SimOptions, Simulation
 
-    sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"),
-                     SimOptions(seed=1, rover="uno", max_time_s=90, faults=Faults(firmware_resets=[20.0])))
+    sim = Simulation(
+        load_scenario("seed-fig4-8-unknown-obstacle"),
+        SimOptions(seed=1, rover="uno", max_time_s=90, faults=Faults(firmware_resets=[20.0])),
+    )
     sim.run()
     r = build_report(sim, 1.0)
     assert sim.uno_timing()["resets"] == 1
@@ -280,9 +307,27 @@ def test_the_images_own_detour_planner_fits_the_step_period(built, tmp_path):
     # no replanning step past half the 10 ms period, the period's jitter within 1 ms, and at
     # least 256 bytes of stack to spare. (The planner once took a 45 ms step here.)
     out = tmp_path / "run"
-    result = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "seed-fig4-8-unknown-obstacle", "--rover",
-                             "uno", "--no-host-replan", "--seed", "1", "--no-video", "--quiet", "--out", str(out)],
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.cli",
+            "sim",
+            "seed-fig4-8-unknown-obstacle",
+            "--rover",
+            "uno",
+            "--no-host-replan",
+            "--seed",
+            "1",
+            "--no-video",
+            "--quiet",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     r = json.loads((out / "report.json").read_text())
     assert r["reached"] and r["collisions"] == 0
@@ -290,10 +335,10 @@ def test_the_images_own_detour_planner_fits_the_step_period(built, tmp_path):
     if not t["hooks"]["step_probe_pb0"]:
         pytest.skip("this image has no PB0 step probe: no step times to check")
     replanning = t["by_flag"]["replanning"]
-    assert replanning["count"] >= 5            # the detour was planned over several steps
+    assert replanning["count"] >= 5  # the detour was planned over several steps
     assert replanning["max_us"] <= 5000
-    assert t["by_state"]["planning"]["count"] >= 5   # in the rover's Planning mode, holding still
-    assert t["step_time"]["max_us"] <= 5000    # and no other step of the mission past 5 ms either
+    assert t["by_state"]["planning"]["count"] >= 5  # in the rover's Planning mode, holding still
+    assert t["step_time"]["max_us"] <= 5000  # and no other step of the mission past 5 ms either
     assert t["period_jitter"]["max_abs_us"] <= 1000
     assert t["stack"]["margin_bytes"] >= 256
 
@@ -312,16 +357,18 @@ def test_the_images_detour_planner_with_its_obstacle_list_full_fits_the_step_per
     root = Path(__file__).resolve().parents[1]
     header = (root / "firmware" / "lib" / "core" / "local_planner.h").read_text()
     max_echoes = int(re.search(r"kMaxEchoes = (\d+)", header).group(1))
-    sim = Simulation(load_scenario(str(root / "scenarios" / f"{scenario}.toml")),
-                     SimOptions(seed=1, rover="uno", host_replan=False, max_time_s=300))
+    sim = Simulation(
+        load_scenario(str(root / "scenarios" / f"{scenario}.toml")),
+        SimOptions(seed=1, rover="uno", host_replan=False, max_time_s=300),
+    )
     sim.run()
     t = sim.uno_timing()
     if not t["hooks"]["step_probe_pb0"]:
         pytest.skip("this image has no PB0 step probe: no step times to check")
     echoes = [m.arg for _, m in sim.mission.events if m.kind == mg.EventKind.SCAN_DONE]
     detours = [m.arg for _, m in sim.mission.events if m.kind == mg.EventKind.REPLANNED]
-    assert max(echoes) > max_echoes                 # one sweep filled the obstacle list
-    assert detours and max(detours) >= 2            # and the rover planned its way round
+    assert max(echoes) > max_echoes  # one sweep filled the obstacle list
+    assert detours and max(detours) >= 2  # and the rover planned its way round
     assert all(leg.reached for leg in sim.mission.legs) and sim.collisions == 0
     assert t["by_flag"]["replanning"]["count"] >= 5
     assert t["by_flag"]["replanning"]["max_us"] <= 5000
@@ -379,7 +426,7 @@ def test_the_profile_counts_every_cycle_of_a_step_to_its_function_and_interrupts
     assert steps > 20 and prof["open_frames_at_step_end"] == 0
     all_, fix, sonar = (prof["kinds"][k] for k in ("all", "fix", "sonar"))
     assert all_["steps"] == steps and fix["steps"] + sonar["steps"] == steps
-    assert all_["counted_share"] == 1.0 and all_["named_share"] == 1.0   # every cycle, all in named code
+    assert all_["counted_share"] == 1.0 and all_["named_share"] == 1.0  # every cycle, all in named code
     work = next(r for r in all_["functions"] if r["function"] == "work")
     assert work["calls_per_step"] == 1.0 and work["share"] > 0.5
     # work() calls nothing: its inclusive time is its own, the interrupts taken inside it left out
@@ -397,7 +444,7 @@ def test_the_profile_counts_every_cycle_of_a_step_to_its_function_and_interrupts
     assert {"main"} == {e["caller"] for e in fix["calls"] if e["callee"] in ("work", "fwork")}
     assert fix["mean_step_us"] > sonar["mean_step_us"]
     worst = prof["kinds"]["worst_1pct"]
-    assert worst["steps"] == 1 and worst["flags"]["fix"] == 1   # the longest step is a float one
+    assert worst["steps"] == 1 and worst["flags"]["fix"] == 1  # the longest step is a float one
     json.dumps(prof, allow_nan=False)
 
 
@@ -431,22 +478,34 @@ def test_rovernav_sim_help_documents_the_profile_flag_and_it_needs_the_uno():
     out = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "--help"], capture_output=True, text=True)
     text = " ".join(out.stdout.split())
     assert "--profile" in text and 'uno_timing["profile"]' in text and "FIX" in text
-    out = subprocess.run([sys.executable, "-m", "rovernav.cli", "sim", "--profile", "--max-time", "1"],
-                         capture_output=True, text=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "rovernav.cli", "sim", "--profile", "--max-time", "1"], capture_output=True, text=True
+    )
     assert out.returncode == 2 and "--rover uno" in out.stderr
 
 
 def test_short_names_drop_parameters_clones_and_the_namespace():
-    assert short_name("rovernav::core::Rover::step(rovernav::core::Inputs const&, rovernav::core::Outputs&) "
-                          "[clone .constprop.3]") == "core::Rover::step"
-    assert short_name("rovernav::core::(anonymous namespace)::sequential_update(float const*, float*) "
-                          "[clone .lto_priv.164]") == "core::sequential_update"
-    assert short_name("rovernav::core::Estimator::position_sd_mm() const [clone .constprop.102]") == \
-        "core::Estimator::position_sd_mm"
+    assert (
+        short_name(
+            "rovernav::core::Rover::step(rovernav::core::Inputs const&, rovernav::core::Outputs&) [clone .constprop.3]"
+        )
+        == "core::Rover::step"
+    )
+    assert (
+        short_name(
+            "rovernav::core::(anonymous namespace)::sequential_update(float const*, float*) [clone .lto_priv.164]"
+        )
+        == "core::sequential_update"
+    )
+    assert (
+        short_name("rovernav::core::Estimator::position_sd_mm() const [clone .constprop.102]")
+        == "core::Estimator::position_sd_mm"
+    )
     assert short_name("__subsf3 / __addsf3") == "__subsf3 / __addsf3"
 
 
 # ---------------------------------------------------------------- signed frames on the image
+
 
 def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_after_a_reset(built):
     from tests.core_transport import CoreTransport
@@ -455,26 +514,26 @@ def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_af
     from rovernav.link.provision import provision
 
     key = bytes(range(200, 216))
-    core = uno.UnoCore(boot_id=3, reset_cause=2)   # the USB port opened: an external reset
+    core = uno.UnoCore(boot_id=3, reset_cause=2)  # the USB port opened: an external reset
     try:
         port = CoreTransport(core)
-        assert provision(port, key, clock=port.clock).startswith("stored the key")   # no key yet: first use
-        port.run_ms(1000)   # the EEPROM record goes a byte a step, never waiting for the EEPROM
+        assert provision(port, key, clock=port.clock).startswith("stored the key")  # no key yet: first use
+        port.run_ms(1000)  # the EEPROM record goes a byte a step, never waiting for the EEPROM
         board = uno.board_constants()
         assert core.eeprom(board.eeprom_link_addr, size=19) == uno.link_key_record(key)
         # After a reset the image loads the key: its HELLO says it signs, signed with the key, and
         # it obeys only what the key signs.
         core.reset(2)
         port.from_rover = b""
-        port.run_ms(2500)   # the image boots in about 1.6 s (the gyro's calibration)
+        port.run_ms(2500)  # the image boots in about 1.6 s (the gyro's calibration)
         heard = FrameDecoder(Verifier(key, mg.SIGN_ROVER_TO_HOST))
         hello = next(f for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Hello))
         assert hello.counter is not None and hello.message.signing == 1
         host = Signer(key, mg.SIGN_HOST_TO_ROVER)
         host.jump_past((hello.message.min_counter_hi << 32 | hello.message.min_counter_lo) - 1)
         port.from_rover = b""
-        port.write(encode_frame(mg.Stop(reason=0), 9))            # unsigned: refused
-        port.write(encode_frame(mg.Stop(reason=0), 10, host))     # signed: obeyed
+        port.write(encode_frame(mg.Stop(reason=0), 9))  # unsigned: refused
+        port.write(encode_frame(mg.Stop(reason=0), 10, host))  # signed: obeyed
         port.run_ms(300)
         acks = [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)]
         assert acks == [10] and heard.counters.dropped == 0
@@ -482,12 +541,15 @@ def test_the_image_takes_a_key_over_usb_stores_it_in_eeprom_and_signs_with_it_af
         core.close()
 
 
-@pytest.mark.parametrize("slots, expected_rx", [
-    ([(1000, 5000, 5, True), (9999, 99999, 6, False)], 5000),    # the newer slot torn (bad CRC): the other
-    ([(1000, 5000, 5, True), (2000, 9000, 6, True)], 9000),      # both whole: the newer age
-    ([(2000, 9000, 255, True), (3000, 12000, 0, True)], 12000),  # ages wrap: 0 follows 255
-    ([(1, 2, 3, False), (4, 5, 6, False)], 0),                   # none whole: from zero
-])
+@pytest.mark.parametrize(
+    "slots, expected_rx",
+    [
+        ([(1000, 5000, 5, True), (9999, 99999, 6, False)], 5000),  # the newer slot torn (bad CRC): the other
+        ([(1000, 5000, 5, True), (2000, 9000, 6, True)], 9000),  # both whole: the newer age
+        ([(2000, 9000, 255, True), (3000, 12000, 0, True)], 12000),  # ages wrap: 0 follows 255
+        ([(1, 2, 3, False), (4, 5, 6, False)], 0),  # none whole: from zero
+    ],
+)
 def test_the_image_resumes_from_the_newest_whole_counter_slot(built, slots, expected_rx):
     from rovernav.link.framing import FrameDecoder, Verifier, crc16
 
@@ -505,7 +567,9 @@ def test_the_image_resumes_from_the_newest_whole_counter_slot(built, slots, expe
         for k in range(1, 260):
             frames += heard.feed(core.step(k * 10, gyro_rate_mdps=0).tx)
         hello = next(f for f in frames if isinstance(f.message, mg.Hello))
-        assert (hello.message.min_counter_hi << 32 | hello.message.min_counter_lo) == expected_rx + mg.SIGN_RESET_MARGIN + 1
+        assert (
+            hello.message.min_counter_hi << 32 | hello.message.min_counter_lo
+        ) == expected_rx + mg.SIGN_RESET_MARGIN + 1
         # ... and it stored the resumed counters at once, in the slot it did not take
         stored = [core.eeprom(base + 19 + 15 * i, size=15) for i in range(2)]
         whole = [s for s in stored if crc16(s[:13]) == int.from_bytes(s[13:], "little")]
@@ -539,17 +603,19 @@ def _recording_port(core):
     return Recording(core)
 
 
-def test_a_keyed_image_refuses_a_strangers_provision_after_power_on_brown_out_and_watchdog_resets_and_takes_it_with_the_pin_held(built):
+def test_a_keyed_image_refuses_a_strangers_provision_after_power_on_brown_out_and_watchdog_resets_and_takes_it_with_the_pin_held(
+    built,
+):
     from rovernav.link.framing import Verifier
     from rovernav.link.provision import NeedsConsent, provision
 
-    core = uno.UnoCore(boot_id=5, reset_cause=0x01, key=OWNER_KEY)   # power-on, the owner's key in EEPROM
+    core = uno.UnoCore(boot_id=5, reset_cause=0x01, key=OWNER_KEY)  # power-on, the owner's key in EEPROM
     board = uno.board_constants()
     try:
         port = _recording_port(core)
-        for cause in (None, 0x04, 0x08):          # power-on (the first boot), brown-out, watchdog
+        for cause in (None, 0x04, 0x08):  # power-on (the first boot), brown-out, watchdog
             if cause is not None:
-                core.reset(cause)                 # MCUSR as each reset leaves it
+                core.reset(cause)  # MCUSR as each reset leaves it
                 port.from_rover = b""
             with pytest.raises(NeedsConsent) as info:
                 provision(port, STRANGER_KEY, clock=port.clock)
@@ -564,7 +630,7 @@ def test_a_keyed_image_refuses_a_strangers_provision_after_power_on_brown_out_an
         line = provision(port, STRANGER_KEY, clock=port.clock)
         assert "consent pin (D7)" in line
         booted = FrameDecoder(Verifier(OWNER_KEY, mg.SIGN_ROVER_TO_HOST, require=False)).feed(port.heard)
-        port.run_ms(1000)   # the EEPROM record goes a byte a step
+        port.run_ms(1000)  # the EEPROM record goes a byte a step
         assert core.eeprom(board.eeprom_link_addr, size=19) == uno.link_key_record(STRANGER_KEY)
         # The jumper off again: after the next reset the pin reads high, and the new key holds.
         core.hold_consent_pin(False)
@@ -573,7 +639,9 @@ def test_a_keyed_image_refuses_a_strangers_provision_after_power_on_brown_out_an
         with pytest.raises(NeedsConsent):
             provision(port, OWNER_KEY, clock=port.clock)
         port.run_ms(200)
-        after = FrameDecoder(Verifier(STRANGER_KEY, mg.SIGN_ROVER_TO_HOST, require=False)).feed(port.heard + port.from_rover)
+        after = FrameDecoder(Verifier(STRANGER_KEY, mg.SIGN_ROVER_TO_HOST, require=False)).feed(
+            port.heard + port.from_rover
+        )
     finally:
         core.close()
     assert mg.SIGN_CONSENT_RESET_BIT | 0x02 in _boot_events(booted)
@@ -602,8 +670,8 @@ def test_a_keyed_image_takes_a_new_key_signed_with_its_current_one_and_signs_wit
         host = Signer(STRANGER_KEY, mg.SIGN_HOST_TO_ROVER)
         host.jump_past((hello.message.min_counter_hi << 32 | hello.message.min_counter_lo) - 1)
         port.from_rover = b""
-        port.write(encode_frame(mg.Stop(reason=0), 21, Signer(OWNER_KEY, mg.SIGN_HOST_TO_ROVER)))   # the old key
-        port.write(encode_frame(mg.Stop(reason=0), 22, host))                                       # the new one
+        port.write(encode_frame(mg.Stop(reason=0), 21, Signer(OWNER_KEY, mg.SIGN_HOST_TO_ROVER)))  # the old key
+        port.write(encode_frame(mg.Stop(reason=0), 22, host))  # the new one
         port.run_ms(300)
         acks = [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)]
     finally:

@@ -1,5 +1,6 @@
 """The vehicle's facts (protocol/vehicle.toml) are written once: generated into C++ and Python,
 and nowhere else by hand (issue 27)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -35,7 +36,9 @@ def _set_fact(toml: Path, name: str, value: int) -> None:
 
 
 def _generate(tree: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(tree / "protocol" / "generate.py"), *args], capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, str(tree / "protocol" / "generate.py"), *args], capture_output=True, text=True
+    )
 
 
 def _load_module(path: Path):
@@ -54,6 +57,7 @@ def _schema_hash(tree: Path) -> str:
 
 # ---------------------------------------------------------------- one edit, both sides follow
 
+
 def test_the_committed_vehicle_outputs_are_the_definition_s():
     result = _generate(ROOT, "--check")
     assert result.returncode == 0, result.stderr
@@ -67,7 +71,7 @@ def test_changing_the_sonar_s_range_in_a_copy_moves_both_sides_and_the_parameter
     _copy_generator_tree(tmp_path)
     before = _schema_hash(tmp_path)
     _set_fact(tmp_path / "protocol/vehicle.toml", "sonar_max_range_mm", 1200)
-    assert _generate(tmp_path, "--check").returncode == 1        # the committed outputs are now stale
+    assert _generate(tmp_path, "--check").returncode == 1  # the committed outputs are now stale
     result = _generate(tmp_path)
     assert result.returncode == 0, result.stderr
 
@@ -77,7 +81,10 @@ def test_changing_the_sonar_s_range_in_a_copy_moves_both_sides_and_the_parameter
     # sonar_report_mm's limit names the fact: both sides' parameter tables follow, and the wire's
     # meaning changed with it, so the schema hash does.
     assert "11 sonar_report_mm: 600, 50..1200" in (tmp_path / "firmware/lib/link/messages_gen.h").read_text()
-    assert "ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1200," in (tmp_path / "host/rovernav/link/messages_gen.py").read_text()
+    assert (
+        "ParamSpec(11, 'sonar_report_mm', 'mm', 600, 50, 1200,"
+        in (tmp_path / "host/rovernav/link/messages_gen.py").read_text()
+    )
     assert _schema_hash(tmp_path) != before
     assert _generate(tmp_path, "--check").returncode == 0
 
@@ -94,9 +101,12 @@ def test_changing_the_body_in_a_copy_moves_both_sides_but_not_the_schema_hash(tm
     module = _load_module(tmp_path / "host/rovernav/vehicle_gen.py")
     assert (module.BODY_WIDTH_MM, module.SONAR_OFFSET_MM) == (180, 120)
     # A parameter's default may name a fact: the rover's default and the host's follow.
-    assert "ParamSpec(32, 'sonar_offset_mm', 'mm', 120, 0, 300," in (tmp_path / "host/rovernav/link/messages_gen.py").read_text()
+    assert (
+        "ParamSpec(32, 'sonar_offset_mm', 'mm', 120, 0, 300,"
+        in (tmp_path / "host/rovernav/link/messages_gen.py").read_text()
+    )
     assert "32 sonar_offset_mm: 120, 0..300" in (tmp_path / "firmware/lib/link/messages_gen.h").read_text()
-    assert _schema_hash(tmp_path) == before   # not on the wire
+    assert _schema_hash(tmp_path) == before  # not on the wire
 
 
 @pytest.mark.skipif(shutil.which("c++") is None, reason="no C++ compiler")
@@ -108,14 +118,26 @@ def test_the_core_s_derived_body_sizes_follow_a_changed_body(tmp_path):
     _set_fact(tmp_path / "protocol/vehicle.toml", "body_width_mm", 160)
     assert _generate(tmp_path).returncode == 0
     probe = tmp_path / "probe.cpp"
-    probe.write_text('#include "body.h"\n'
-                     "static_assert(rovernav::kBodyLengthMm == 300, \"length\");\n"
-                     "static_assert(rovernav::core::kBodyHalfWidthMm == 80, \"half-width\");\n"
-                     "static_assert(rovernav::core::kBodyHalfDiagonalMm == 170, \"half-diagonal\");  // sqrt(300^2+160^2)=340\n"
-                     "int main() { return 0; }\n")
+    probe.write_text(
+        '#include "body.h"\n'
+        'static_assert(rovernav::kBodyLengthMm == 300, "length");\n'
+        'static_assert(rovernav::core::kBodyHalfWidthMm == 80, "half-width");\n'
+        'static_assert(rovernav::core::kBodyHalfDiagonalMm == 170, "half-diagonal");  // sqrt(300^2+160^2)=340\n'
+        "int main() { return 0; }\n"
+    )
     # The copy's link directory comes first, so body.h (the repository's) reads the copy's facts.
-    result = subprocess.run(["c++", "-std=c++14", "-fsyntax-only", f"-I{tmp_path / 'firmware/lib/link'}",
-                             f"-I{ROOT / 'firmware/lib/core'}", str(probe)], capture_output=True, text=True)
+    result = subprocess.run(
+        [
+            "c++",
+            "-std=c++14",
+            "-fsyntax-only",
+            f"-I{tmp_path / 'firmware/lib/link'}",
+            f"-I{ROOT / 'firmware/lib/core'}",
+            str(probe),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stderr
 
 
@@ -133,8 +155,9 @@ PINNED = [
 def test_a_copy_outside_the_generator_s_reach_agrees_with_the_fact(path, pattern, fact, scale):
     found = re.findall(pattern, (ROOT / path).read_text(), re.M)
     assert len(found) == 1, f"{path}: {pattern!r} found {len(found)} times"
-    assert int(found[0].replace("_", "")) == vehicle.FACTS[fact] * scale, \
+    assert int(found[0].replace("_", "")) == vehicle.FACTS[fact] * scale, (
         f"{path} writes {fact} as {found[0]}; protocol/vehicle.toml says {vehicle.FACTS[fact]}"
+    )
 
 
 # Hand-written copies of the facts, as code (comments, docstrings and strings are prose and
@@ -142,27 +165,48 @@ def test_a_copy_outside_the_generator_s_reach_agrees_with_the_fact(path, pattern
 COPIES = {
     "link_baud": re.compile(r"\b57_?600[uUlL]*\b"),
     "default arena": re.compile(r"\b(2\.36|1\.75|2_?360|1_?750)\b"),
-    "step_period_ms": re.compile(r"(?i)\b\w*step_?(s|ms|us|period\w*)\s*(:\s*\w+\s*)?=\s*(0?\.010?|10|10_?000)\b(?!\.)"),
-    "the body": re.compile(r"(?i)\b\w*(body|rover|half)_?(width|length|diagonal|radius)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+\b"
-                           r"|\bk(CornerReach|HalfWidth)Mm\s*=\s*\d"),
+    "step_period_ms": re.compile(
+        r"(?i)\b\w*step_?(s|ms|us|period\w*)\s*(:\s*\w+\s*)?=\s*(0?\.010?|10|10_?000)\b(?!\.)"
+    ),
+    "the body": re.compile(
+        r"(?i)\b\w*(body|rover|half)_?(width|length|diagonal|radius)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+\b"
+        r"|\bk(CornerReach|HalfWidth)Mm\s*=\s*\d"
+    ),
     "wheel_track_mm": re.compile(r"(?i)\btrack_?(m|mm)\s*(:\s*\w+\s*)?=\s*[\d.]+"),
-    "sonar_max_range_mm": re.compile(r"(?i)\b\w*(sonar|sensor)_?(max_?(range|m\b|mm\b)|range_?max)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+"),
+    "sonar_max_range_mm": re.compile(
+        r"(?i)\b\w*(sonar|sensor)_?(max_?(range|m\b|mm\b)|range_?max)\w*\s*(:\s*\w+\s*)?=\s*[\d.]+"
+    ),
     "sonar_cone_cdeg": re.compile(r"(?i)\bcone_?(deg|cdeg|rad)\s*(:\s*\w+\s*)?=\s*[\d.]+"),
     # A parameter's scale is its name's (param_scale): not a number next to its read.
-    "a parameter's scale": re.compile(r"\bParam\s*\.\s*\w+_(X100|X1000|PERMILLE)\s*\)?\s*[*/]\s*100"
-                                      r"|\b(hundredths|thousandths)\(Param::\w*(X100|X1000|Permille)\)"),
+    "a parameter's scale": re.compile(
+        r"\bParam\s*\.\s*\w+_(X100|X1000|PERMILLE)\s*\)?\s*[*/]\s*100"
+        r"|\b(hundredths|thousandths)\(Param::\w*(X100|X1000|Permille)\)"
+    ),
 }
 # Lines that hold the number for another reason, each with it.
 NOT_COPIES = {
-    ("firmware/lib/hal/link_serial.cpp", "baud == 57600"): "the Arduino core's UART rule for that rate, whatever the link's",
-    ("host/rovernav/config.py", "frozenset((9600, 19200, 38400, 57600, 115200))"): "the standard rates a user may choose",
+    (
+        "firmware/lib/hal/link_serial.cpp",
+        "baud == 57600",
+    ): "the Arduino core's UART rule for that rate, whatever the link's",
+    (
+        "host/rovernav/config.py",
+        "frozenset((9600, 19200, 38400, 57600, 115200))",
+    ): "the standard rates a user may choose",
 }
 SCANNED = ("host/rovernav", "firmware/lib", "firmware/src", "firmware/abi", "tools")
 GENERATED = re.compile(r"_gen\.(h|py)$")
 
 
-_NOT_CODE = {tokenize.COMMENT, tokenize.STRING, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
-             tokenize.ENDMARKER} | {getattr(tokenize, "FSTRING_MIDDLE", tokenize.STRING)}   # f-string text (3.12+)
+_NOT_CODE = {
+    tokenize.COMMENT,
+    tokenize.STRING,
+    tokenize.NL,
+    tokenize.NEWLINE,
+    tokenize.INDENT,
+    tokenize.DEDENT,
+    tokenize.ENDMARKER,
+} | {getattr(tokenize, "FSTRING_MIDDLE", tokenize.STRING)}  # f-string text (3.12+)
 
 
 def python_code_lines(text: str) -> dict[int, str]:
@@ -204,7 +248,9 @@ def find_copies(path: str, text: str) -> list[str]:
 def _tracked_sources() -> list[str]:
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("not a git checkout")
-    out = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--", *SCANNED], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "--", *SCANNED], capture_output=True, text=True, check=True
+    )
     return [p for p in out.stdout.splitlines() if not GENERATED.search(p) and (ROOT / p).is_file()]
 
 
@@ -215,23 +261,29 @@ def test_no_tracked_source_writes_a_vehicle_fact_by_hand():
     assert not hits, "hand-written copies of protocol/vehicle.toml's facts:\n" + "\n".join(hits)
 
 
-@pytest.mark.parametrize("path, line", [
-    ("host/rovernav/config.py", "    baud: int = 57600"),
-    ("host/rovernav/sim/camera.py", "    arena_w_m: float = 2.36"),
-    ("host/rovernav/sim/runner.py", "STEP_S = 0.010"),
-    ("firmware/src/main.cpp", "constexpr uint8_t kStepMs = 10;  // the core runs at 100 Hz"),
-    ("firmware/lib/core/local_planner.h", "  enum : int16_t { kFaceRunMm = 250, kHalfWidthMm = 75 };"),
-    ("firmware/lib/core/rover.h", "    kCornerReachMm = 140,"),
-    ("host/rovernav/sim/plant.py", "    track_m: float = 0.13             # distance between the wheels"),
-    ("host/rovernav/sim/world.py", "ROVER_WIDTH_M = 0.15"),
-    ("host/rovernav/mapping/sonar_map.py", "    body_radius_m: float = 0.075      # (half its width)"),
-    ("host/rovernav/mapping/sonar_map.py", "SENSOR_MAX_RANGE_M = 4.0"),
-    ("host/rovernav/sim/plant.py", "    sonar_max_m: float = 4.0"),
-    ("firmware/lib/hal/board.h", "constexpr uint16_t kSonarMaxRangeMm = 1000;"),
-    ("host/rovernav/calibrate/rover.py", "def fit(runs, cone_deg: float = 15.0):"),
-    ("host/rovernav/sim/report.py", "    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000"),
-    ("firmware/lib/core/params.h", "  float kp() const { return hundredths(Param::PidKpX100); }"),
-])
+@pytest.mark.parametrize(
+    "path, line",
+    [
+        ("host/rovernav/config.py", "    baud: int = 57600"),
+        ("host/rovernav/sim/camera.py", "    arena_w_m: float = 2.36"),
+        ("host/rovernav/sim/runner.py", "STEP_S = 0.010"),
+        ("firmware/src/main.cpp", "constexpr uint8_t kStepMs = 10;  // the core runs at 100 Hz"),
+        ("firmware/lib/core/local_planner.h", "  enum : int16_t { kFaceRunMm = 250, kHalfWidthMm = 75 };"),
+        ("firmware/lib/core/rover.h", "    kCornerReachMm = 140,"),
+        ("host/rovernav/sim/plant.py", "    track_m: float = 0.13             # distance between the wheels"),
+        ("host/rovernav/sim/world.py", "ROVER_WIDTH_M = 0.15"),
+        ("host/rovernav/mapping/sonar_map.py", "    body_radius_m: float = 0.075      # (half its width)"),
+        ("host/rovernav/mapping/sonar_map.py", "SENSOR_MAX_RANGE_M = 4.0"),
+        ("host/rovernav/sim/plant.py", "    sonar_max_m: float = 4.0"),
+        ("firmware/lib/hal/board.h", "constexpr uint16_t kSonarMaxRangeMm = 1000;"),
+        ("host/rovernav/calibrate/rover.py", "def fit(runs, cone_deg: float = 15.0):"),
+        (
+            "host/rovernav/sim/report.py",
+            "    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000",
+        ),
+        ("firmware/lib/core/params.h", "  float kp() const { return hundredths(Param::PidKpX100); }"),
+    ],
+)
 def test_the_scan_finds_a_copy_added_by_hand(path, line):
     # The copies this change removed, put back: each is found. Prose about them is not.
     assert find_copies(path, line + "\n")
@@ -240,6 +292,7 @@ def test_the_scan_finds_a_copy_added_by_hand(path, line):
 
 
 # ---------------------------------------------------------------- parameter scales
+
 
 def _camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))

@@ -1,4 +1,5 @@
 """The annotated video: H.264 through PyAV (libx264), its hidden partial file, and its size."""
+
 from __future__ import annotations
 
 import hashlib
@@ -32,8 +33,14 @@ def _probe(path):
         s = c.streams.video[0]
         cc = s.codec_context
         decoded = [f.to_ndarray(format="bgr24") for f in c.decode(video=0)]
-        return {"codec": cc.name, "pix_fmt": cc.pix_fmt, "size": (cc.width, cc.height), "rate": s.average_rate,
-                "frames": len(decoded), "last": decoded[-1] if decoded else None}
+        return {
+            "codec": cc.name,
+            "pix_fmt": cc.pix_fmt,
+            "size": (cc.width, cc.height),
+            "rate": s.average_rate,
+            "frames": len(decoded),
+            "last": decoded[-1] if decoded else None,
+        }
 
 
 def _top_level_boxes(path) -> list[str]:
@@ -41,9 +48,9 @@ def _top_level_boxes(path) -> list[str]:
     data = path.read_bytes()
     out, at = [], 0
     while at + 8 <= len(data):
-        size, kind = int.from_bytes(data[at:at + 4], "big"), data[at + 4:at + 8].decode("latin-1")
+        size, kind = int.from_bytes(data[at : at + 4], "big"), data[at + 4 : at + 8].decode("latin-1")
         if size == 1:
-            size = int.from_bytes(data[at + 8:at + 16], "big")
+            size = int.from_bytes(data[at + 8 : at + 16], "big")
         out.append(kind)
         if size < 8:
             break
@@ -58,7 +65,7 @@ def test_frames_written_come_back_as_h264_640x480_at_the_rate_given(tmp_path):
     for img in frames:
         video.write(img)
     assert video.frames == 45 and video.codec == "libx264"
-    assert video.partial.exists() and not path.exists()   # written under the hidden name until closed
+    assert video.partial.exists() and not path.exists()  # written under the hidden name until closed
     video.close()
     assert path.exists() and not video.partial.exists()
     assert not list(tmp_path.glob(".*partial*"))
@@ -67,7 +74,7 @@ def test_frames_written_come_back_as_h264_640x480_at_the_rate_given(tmp_path):
     assert got["frames"] == 45 and got["rate"] == 30
     # the last frame is the last written (nothing lost in the encoder's queue), near enough
     assert cv2.PSNR(got["last"], frames[-1]) > 30
-    boxes = _top_level_boxes(path)   # +faststart: the index (moov) before the data (mdat), for browsers
+    boxes = _top_level_boxes(path)  # +faststart: the index (moov) before the data (mdat), for browsers
     assert boxes.index("moov") < boxes.index("mdat"), boxes
 
 
@@ -87,7 +94,7 @@ def test_close_without_keep_leaves_no_file(tmp_path):
         video.write(img)
     video.close(keep=False)
     assert list(tmp_path.iterdir()) == []
-    video.close(keep=False)   # twice is harmless; so is closing a writer that never got a frame
+    video.close(keep=False)  # twice is harmless; so is closing a writer that never got a frame
     VideoWriter(tmp_path / "none.mp4", 30.0).close()
     assert list(tmp_path.iterdir()) == []
 
@@ -116,7 +123,7 @@ def test_a_short_mission_video_is_small_and_leaves_the_cameras_frames_alone(tmp_
     sim = Simulation(load_scenario("out-and-back"), SimOptions(seed=1, max_time_s=10.0), frame_sink=sink)
     sim.run()
     video.close()
-    assert changed == []   # the annotations go on a copy: the host's frames are the camera's
+    assert changed == []  # the annotations go on a copy: the host's frames are the camera's
     assert video.frames == sim.frames_rendered > 250
     got = _probe(video.path)
     assert got["codec"] == "h264" and got["size"] == (640, 480) and got["frames"] == video.frames

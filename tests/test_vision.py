@@ -1,6 +1,7 @@
 """Vision on rendered frames: accuracy under noise and uneven light, sub-pixel centroids, missing,
 doubled and implausible markers, an oblique camera, ArUco tags, configuration errors, the
 calibration, and `rovernav locate`."""
+
 from __future__ import annotations
 
 import argparse
@@ -20,7 +21,7 @@ from rovernav.vision import Calibration, Locator, VisionConfig, heading_deg
 from rovernav.vision.cli import add_locate_parser
 
 W, H = 2.36, 1.75
-OBLIQUE_CORNERS = [(70.0, 440.0), (590.0, 455.0), (540.0, 60.0), (120.0, 40.0)]   # tilted and turned
+OBLIQUE_CORNERS = [(70.0, 440.0), (590.0, 455.0), (540.0, 60.0), (120.0, 40.0)]  # tilted and turned
 #: What the oblique camera, calibrated, must meet: worst position [mm] and heading [deg] errors.
 OBLIQUE_TOLERANCE_MM = 5.0
 OBLIQUE_TOLERANCE_DEG = 1.0
@@ -36,8 +37,12 @@ def _heading_error(a: float, b: float) -> float:
 
 
 def _oblique_config(markers: str = "colour") -> VisionConfig:
-    return VisionConfig.from_dict({"markers": markers, "calibration": {
-        "corners_px": [list(c) for c in OBLIQUE_CORNERS], "width_m": W, "height_m": H}})
+    return VisionConfig.from_dict(
+        {
+            "markers": markers,
+            "calibration": {"corners_px": [list(c) for c in OBLIQUE_CORNERS], "width_m": W, "height_m": H},
+        }
+    )
 
 
 def _worst_errors(cfg: VisionConfig, renderer: Renderer, rng, n: int, obstacles=(), target=(2.0, 1.4)):
@@ -47,9 +52,10 @@ def _worst_errors(cfg: VisionConfig, renderer: Renderer, rng, n: int, obstacles=
     for _ in range(n):
         x, y, h = rng.uniform(0.2, W - 0.2), rng.uniform(0.2, H - 0.2), rng.uniform(0.0, 360.0)
         if math.hypot(x - target[0], y - target[1]) < 0.2:
-            continue   # the rover would cover the target: tested on its own below
-        frame = renderer.render(Scene(rover=(x, y, h), target=target, obstacles=obstacles,
-                                      marker_kind=cfg.markers), rng)
+            continue  # the rover would cover the target: tested on its own below
+        frame = renderer.render(
+            Scene(rover=(x, y, h), target=target, obstacles=obstacles, marker_kind=cfg.markers), rng
+        )
         loc.reset()
         det = loc.locate(frame)
         assert det.rover is not None, f"({x:.3f}, {y:.3f}, {h:.1f}): {det.reason}"
@@ -60,6 +66,7 @@ def _worst_errors(cfg: VisionConfig, renderer: Renderer, rng, n: int, obstacles=
 
 
 # -- accuracy -----------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("light_seed", [1, 2, 3])
 def test_the_pose_is_within_5_mm_and_1_degree_under_noise_and_uneven_light(light_seed):
@@ -84,13 +91,13 @@ def test_a_still_scene_gives_a_steady_heading_not_the_seeds_2_5_degree_jumps():
         headings.append(det.rover.heading_deg)
     spread = max(headings) - min(headings)
     print(f"still scene: headings spread over {spread:.3f} deg")
-    assert spread < 0.25   # ten times steadier than the seed's rounding
+    assert spread < 0.25  # ten times steadier than the seed's rounding
 
 
 def test_centroids_are_sub_pixel_a_rover_moved_by_a_tenth_of_a_pixel_is_seen_to_move():
     """The seed rounded centroids to whole pixels; here a 0.37 mm (0.1 px) step shows."""
     cfg = VisionConfig()
-    r = _renderer(cfg, camera=Camera(lighting=Lighting(), noise_sigma=0.0))   # noise would hide a 0.1 px step
+    r = _renderer(cfg, camera=Camera(lighting=Lighting(), noise_sigma=0.0))  # noise would hide a 0.1 px step
     loc = Locator(cfg, W, H)
     rng = np.random.default_rng(2)
     step_m = 0.1 * W / 640
@@ -115,11 +122,12 @@ def test_the_rover_standing_on_the_target_is_still_located_exactly():
 
 def test_a_detection_reports_pixel_centroids_and_areas():
     cfg = VisionConfig()
-    det = Locator(cfg, W, H).locate(_renderer(cfg).render(Scene(rover=(1.0, 0.8, 0.0), target=(2.0, 1.4)),
-                                                          np.random.default_rng(1)), t_s=3.5)
+    det = Locator(cfg, W, H).locate(
+        _renderer(cfg).render(Scene(rover=(1.0, 0.8, 0.0), target=(2.0, 1.4)), np.random.default_rng(1)), t_s=3.5
+    )
     assert set(det.pixels) == {"front", "back", "target"} and det.t_s == 3.5
-    side_px = 0.05 * 640 / W   # a 5 cm marker
-    assert det.areas_px["front"] == pytest.approx(side_px ** 2, rel=0.1)
+    side_px = 0.05 * 640 / W  # a 5 cm marker
+    assert det.areas_px["front"] == pytest.approx(side_px**2, rel=0.1)
     u, v = det.pixels["target"]
     assert (u, v) == pytest.approx(tuple(Calibration.straight_down(640, 480, W, H).to_pixels((2.0, 1.4))), abs=0.1)
     assert det.front_px == det.pixels["front"]
@@ -127,18 +135,23 @@ def test_a_detection_reports_pixel_centroids_and_areas():
 
 # -- no fix, and why --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("hidden, words", [
-    (frozenset({"front"}), "rover front marker (orange) not found"),
-    (frozenset({"back"}), "rover back marker (green) not found"),
-])
+
+@pytest.mark.parametrize(
+    "hidden, words",
+    [
+        (frozenset({"front"}), "rover front marker (orange) not found"),
+        (frozenset({"back"}), "rover back marker (green) not found"),
+    ],
+)
 def test_a_missing_marker_gives_no_fix_and_says_which(hidden, words):
     cfg = VisionConfig()
-    frame = _renderer(cfg).render(Scene(rover=(1.0, 0.8, 10.0), target=(2.0, 1.4), hidden=hidden),
-                                  np.random.default_rng(1))
+    frame = _renderer(cfg).render(
+        Scene(rover=(1.0, 0.8, 10.0), target=(2.0, 1.4), hidden=hidden), np.random.default_rng(1)
+    )
     det = Locator(cfg, W, H).locate(frame)
     assert det.rover is None
     assert det.reason == words
-    assert det.target is not None   # the target is still reported
+    assert det.target is not None  # the target is still reported
 
 
 def test_a_missing_target_is_reported_apart_from_the_rover():
@@ -148,15 +161,19 @@ def test_a_missing_target_is_reported_apart_from_the_rover():
     assert det.target is None and det.target_reason == "target marker (yellow) not found"
 
 
-@pytest.mark.parametrize("decoy, words, about", [
-    ("back", "two candidate green markers", "rover"),
-    ("front", "two candidate orange markers", "rover"),
-    ("target", "two candidate yellow markers", "target"),
-])
+@pytest.mark.parametrize(
+    "decoy, words, about",
+    [
+        ("back", "two candidate green markers", "rover"),
+        ("front", "two candidate orange markers", "rover"),
+        ("target", "two candidate yellow markers", "target"),
+    ],
+)
 def test_a_doubled_marker_gives_no_fix(decoy, words, about):
     cfg = VisionConfig()
-    frame = _renderer(cfg).render(Scene(rover=(1.0, 0.8, 10.0), target=(2.0, 1.4), decoys=((decoy, 1.8, 0.4),)),
-                                  np.random.default_rng(1))
+    frame = _renderer(cfg).render(
+        Scene(rover=(1.0, 0.8, 10.0), target=(2.0, 1.4), decoys=((decoy, 1.8, 0.4),)), np.random.default_rng(1)
+    )
     det = Locator(cfg, W, H).locate(frame)
     if about == "rover":
         assert det.rover is None and det.reason == words
@@ -166,14 +183,14 @@ def test_a_doubled_marker_gives_no_fix(decoy, words, about):
 
 def test_markers_implausibly_far_apart_give_no_fix():
     cfg = VisionConfig()
-    r = _renderer(cfg, marker_distance_m=0.20)   # a rover built wrong, or two stray stickers
+    r = _renderer(cfg, marker_distance_m=0.20)  # a rover built wrong, or two stray stickers
     det = Locator(cfg, W, H).locate(r.render(Scene(rover=(1.0, 0.8, 60.0)), np.random.default_rng(2)))
     assert det.rover is None
     assert det.reason == "markers 0.20 m apart, expected 0.09 ± 0.03"
 
 
 def test_a_jump_the_rover_could_not_have_made_gives_no_fix_until_time_makes_it_possible():
-    cfg = VisionConfig()   # at most 0.5 m/s, plus 0.03 m of measurement noise
+    cfg = VisionConfig()  # at most 0.5 m/s, plus 0.03 m of measurement noise
     r = _renderer(cfg)
     loc = Locator(cfg, W, H)
     rng = np.random.default_rng(3)
@@ -193,6 +210,7 @@ def test_a_jump_the_rover_could_not_have_made_gives_no_fix_until_time_makes_it_p
 
 
 # -- an oblique camera --------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("markers", ["colour", "aruco"])
 def test_an_oblique_camera_with_a_calibration_stays_within_tolerance(markers):
@@ -227,6 +245,7 @@ def test_a_calibration_for_another_arena_size_is_refused():
 
 # -- ArUco --------------------------------------------------------------------------------------------
 
+
 def test_aruco_tags_locate_the_rover_and_the_target():
     cfg = VisionConfig(markers="aruco")
     rng = np.random.default_rng(5)
@@ -243,24 +262,29 @@ def test_aruco_tracking_gives_the_same_fixes_as_searching_every_frame_whole():
     tracking, cold = Locator(cfg, W, H), Locator(cfg, W, H)
     rng = np.random.default_rng(6)
     for i in range(15):
-        frame = r.render(Scene(rover=(0.6 + 0.01 * i, 0.5 + 0.005 * i, 10.0 + 2 * i), target=(2.0, 1.4),
-                               marker_kind="aruco"), rng)
+        frame = r.render(
+            Scene(rover=(0.6 + 0.01 * i, 0.5 + 0.005 * i, 10.0 + 2 * i), target=(2.0, 1.4), marker_kind="aruco"), rng
+        )
         a = tracking.locate(frame, t_s=i / 30)
         cold.reset()
         b = cold.locate(frame)
         assert a.rover == pytest.approx(b.rover, abs=1e-6) and a.target == pytest.approx(b.target, abs=1e-6)
 
 
-@pytest.mark.parametrize("scene_kw, look_kw, words", [
-    ({"hidden": frozenset({"tag"})}, {}, "rover tag (id 1) not found"),
-    ({"decoys": ((1, 1.8, 0.4),)}, {}, "two candidate rover tags (id 1)"),
-    ({}, {"aruco_size_m": 0.05}, "rover tag 0.05 m wide, expected 0.10 ± 0.03"),
-])
+@pytest.mark.parametrize(
+    "scene_kw, look_kw, words",
+    [
+        ({"hidden": frozenset({"tag"})}, {}, "rover tag (id 1) not found"),
+        ({"decoys": ((1, 1.8, 0.4),)}, {}, "two candidate rover tags (id 1)"),
+        ({}, {"aruco_size_m": 0.05}, "rover tag 0.05 m wide, expected 0.10 ± 0.03"),
+    ],
+)
 def test_an_aruco_rover_tag_missing_doubled_or_of_the_wrong_size_gives_no_fix(scene_kw, look_kw, words):
     cfg = VisionConfig(markers="aruco")
     r = _renderer(cfg, **look_kw)
-    frame = r.render(Scene(rover=(1.0, 0.9, 30.0), target=(2.0, 1.4), marker_kind="aruco", **scene_kw),
-                     np.random.default_rng(8))
+    frame = r.render(
+        Scene(rover=(1.0, 0.9, 30.0), target=(2.0, 1.4), marker_kind="aruco", **scene_kw), np.random.default_rng(8)
+    )
     det = Locator(cfg, W, H).locate(frame)
     assert det.rover is None
     assert det.reason == words
@@ -268,27 +292,37 @@ def test_an_aruco_rover_tag_missing_doubled_or_of_the_wrong_size_gives_no_fix(sc
 
 # -- configuration --------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("table, message", [
-    ({"markers": "lasers"}, "vision.markers: 'lasers' is not one of colour, aruco"),
-    ({"hsv": {"target": [[40, 40, 50], [35, 255, 255]]}}, "vision.hsv.target: lower bound 40 > upper bound 35 (H)"),
-    ({"hsv": {"rover_back": [[55, 50, 50], [180, 255, 255]]}}, "vision.hsv.rover_back: upper H 180"),
-    ({"hsv": {"rover_front": [5, 67, 50]}}, "vision.hsv.rover_front: expected [[H, S, V], [H, S, V]]"),
-    ({"bogus": 1}, "vision.bogus: unknown key"),
-    ({"marker_distance_m": -1}, "vision.marker_distance_m: -1 is outside"),
-    ({"max_rover_speed_m_s": "fast"}, "vision.max_rover_speed_m_s: 'fast' is not a number"),
-    ({"downscale": 1.5}, "vision.downscale: 1.5 is not a whole number"),
-    ({"open_kernel_px": True}, "vision.open_kernel_px: True is not a whole number"),
-    ({"aruco": {"dictionary": "DICT_9X9_1"}}, "vision.aruco.dictionary: 'DICT_9X9_1' is not an OpenCV ArUco"),
-    ({"aruco": {"rover_id": 3, "target_id": 3}}, "vision.aruco.target_id: 3 is also the rover_id"),
-    ({"aruco": {"rover_id": 50}}, "vision.aruco.rover_id: 50 is outside [0, 49]"),
-    ({"calibration": {"corners_px": [[0, 480], [640, 480], [640, 0]], "width_m": 2, "height_m": 1}},
-     "vision.calibration.corners_px: expected four [u, v]"),
-    ({"calibration": {"corners_px": [[0, 0], [640, 0], [640, 480], [0, 480]], "width_m": 2, "height_m": 1}},
-     "vision.calibration.corners_px: [[0, 0], [640, 0], [640, 480], [0, 480]] is not a convex quadrilateral in "
-     "the order bottom-left, bottom-right, top-right, top-left as the camera sees them (out of order or mirrored)"),
-    ({"calibration": {"corners_px": [[0, 480], [640, 480], [640, 0], [0, 0]], "width_m": 2}},
-     "vision.calibration.height_m: missing"),
-])
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ({"markers": "lasers"}, "vision.markers: 'lasers' is not one of colour, aruco"),
+        ({"hsv": {"target": [[40, 40, 50], [35, 255, 255]]}}, "vision.hsv.target: lower bound 40 > upper bound 35 (H)"),
+        ({"hsv": {"rover_back": [[55, 50, 50], [180, 255, 255]]}}, "vision.hsv.rover_back: upper H 180"),
+        ({"hsv": {"rover_front": [5, 67, 50]}}, "vision.hsv.rover_front: expected [[H, S, V], [H, S, V]]"),
+        ({"bogus": 1}, "vision.bogus: unknown key"),
+        ({"marker_distance_m": -1}, "vision.marker_distance_m: -1 is outside"),
+        ({"max_rover_speed_m_s": "fast"}, "vision.max_rover_speed_m_s: 'fast' is not a number"),
+        ({"downscale": 1.5}, "vision.downscale: 1.5 is not a whole number"),
+        ({"open_kernel_px": True}, "vision.open_kernel_px: True is not a whole number"),
+        ({"aruco": {"dictionary": "DICT_9X9_1"}}, "vision.aruco.dictionary: 'DICT_9X9_1' is not an OpenCV ArUco"),
+        ({"aruco": {"rover_id": 3, "target_id": 3}}, "vision.aruco.target_id: 3 is also the rover_id"),
+        ({"aruco": {"rover_id": 50}}, "vision.aruco.rover_id: 50 is outside [0, 49]"),
+        (
+            {"calibration": {"corners_px": [[0, 480], [640, 480], [640, 0]], "width_m": 2, "height_m": 1}},
+            "vision.calibration.corners_px: expected four [u, v]",
+        ),
+        (
+            {"calibration": {"corners_px": [[0, 0], [640, 0], [640, 480], [0, 480]], "width_m": 2, "height_m": 1}},
+            "vision.calibration.corners_px: [[0, 0], [640, 0], [640, 480], [0, 480]] is not a convex quadrilateral in "
+            "the order bottom-left, bottom-right, top-right, top-left as the camera sees them (out of order or mirrored)",
+        ),
+        (
+            {"calibration": {"corners_px": [[0, 480], [640, 480], [640, 0], [0, 0]], "width_m": 2}},
+            "vision.calibration.height_m: missing",
+        ),
+    ],
+)
 def test_bad_vision_configuration_names_the_key_and_the_value(table, message):
     with pytest.raises(ValueError, match=re.escape(message)):
         VisionConfig.from_dict(table)
@@ -308,6 +342,7 @@ def test_a_config_built_in_code_is_validated_too_and_round_trips_through_a_dict(
 
 # -- calibration ----------------------------------------------------------------------------------------
 
+
 @settings(max_examples=60, deadline=None)
 @given(x=st.floats(0, W), y=st.floats(0, H))
 def test_pixels_and_metres_map_back_and_forth(x, y):
@@ -325,14 +360,17 @@ def test_straight_down_the_frame_spans_the_arena_exactly():
     assert cal.to_pixels([(0, 0), (W, 0), (W, H), (0, H)]) == pytest.approx(np.array(OBLIQUE_CORNERS))
 
 
-@pytest.mark.parametrize("dx, dy, expected", [(0, 1, 0.0), (1, 1, 45.0), (1, 0, 90.0), (0, -1, 180.0),
-                                              (-1, 0, 270.0), (-1, 1e-18, 270.0), (-1e-18, 1, 0.0)])
+@pytest.mark.parametrize(
+    "dx, dy, expected",
+    [(0, 1, 0.0), (1, 1, 45.0), (1, 0, 90.0), (0, -1, 180.0), (-1, 0, 270.0), (-1, 1e-18, 270.0), (-1e-18, 1, 0.0)],
+)
 def test_heading_is_0_up_clockwise_in_0_to_360(dx, dy, expected):
     h = heading_deg((0.0, 0.0), (dx, dy))
     assert 0.0 <= h < 360.0 and h == pytest.approx(expected, abs=1e-9)
 
 
 # -- rovernav locate --------------------------------------------------------------------------------------
+
 
 def _locate_cli(argv: list[str], capsys) -> tuple[int, str, str]:
     parser = argparse.ArgumentParser()
@@ -369,23 +407,29 @@ def test_rovernav_locate_reads_the_arena_and_vision_tables_of_a_config_file(tmp_
     cfg = _oblique_config("aruco")
     cal = Calibration.from_corners(OBLIQUE_CORNERS, W, H)
     frame = _renderer(cfg, camera=Camera(calibration=cal)).render(
-        Scene(rover=(1.0, 1.0, 300.0), target=(2.0, 1.4), marker_kind="aruco"), np.random.default_rng(1))
+        Scene(rover=(1.0, 1.0, 300.0), target=(2.0, 1.4), marker_kind="aruco"), np.random.default_rng(1)
+    )
     image = tmp_path / "frame.png"
     cv2.imwrite(str(image), frame)
     corners = ", ".join(f"[{u}, {v}]" for u, v in OBLIQUE_CORNERS)
     config = tmp_path / "rovernav.toml"
-    config.write_text(f'[arena]\nwidth_m = {W}\nheight_m = {H}\n\n[vision]\nmarkers = "aruco"\n\n'
-                      f'[vision.calibration]\ncorners_px = [{corners}]\nwidth_m = {W}\nheight_m = {H}\n')
+    config.write_text(
+        f'[arena]\nwidth_m = {W}\nheight_m = {H}\n\n[vision]\nmarkers = "aruco"\n\n'
+        f"[vision.calibration]\ncorners_px = [{corners}]\nwidth_m = {W}\nheight_m = {H}\n"
+    )
     code, out, err = _locate_cli([str(image), "--config", str(config)], capsys)
     assert code == 0, err
     assert out.startswith("rover   x 1.000 m  y 1.000 m  heading 300.0°")
     assert "target  x 2.000 m  y 1.400 m" in out
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda p: None, "cannot read image"),
-    (lambda p: p.write_bytes(b"not a picture"), "not an image OpenCV can decode"),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda p: None, "cannot read image"),
+        (lambda p: p.write_bytes(b"not a picture"), "not an image OpenCV can decode"),
+    ],
+)
 def test_rovernav_locate_exits_2_on_an_image_it_cannot_read(tmp_path, capsys, make, words):
     image = tmp_path / "frame.png"
     make(image)

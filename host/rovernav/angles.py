@@ -10,6 +10,7 @@ Headings: 0 = +y (up the arena), clockwise positive. Every function takes a floa
 array; the end of the range is the same either way, also where floating-point rounding would
 land a value on the other end (-pi).
 """
+
 from __future__ import annotations
 
 import math
@@ -46,4 +47,4 @@ def compass_deg(a):
     w = a % 360.0
     if isinstance(w, np.ndarray):
         return np.where(w >= 360.0, 0.0, w)
-    return 0.0 if w >= 360.0 else w + 0.0   # -1e-15 % 360 is 360.0; + 0.0 turns -0.0 into 0.0
+    return 0.0 if w >= 360.0 else w + 0.0  # -1e-15 % 360 is 360.0; + 0.0 turns -0.0 into 0.0

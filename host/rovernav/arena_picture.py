@@ -4,6 +4,7 @@ unknown ones hatched), what the host's map holds, the sonar's echoes, the start 
 Drawn under the simulator's summary picture (sim/report.py) and the replay's (runlog/replay.py):
 it needs a scenario and a mission (anything with .scenario and .mission), not the simulator.
 """
+
 from __future__ import annotations
 
 import cv2
@@ -16,8 +17,9 @@ class Canvas:
     def __init__(self, width_m: float, height_m: float, px_per_m: float = 400, margin_px: int = 20):
         self.s, self.m = px_per_m, margin_px
         self.h_m = height_m
-        self.img = np.full((int(height_m * px_per_m) + 2 * margin_px, int(width_m * px_per_m) + 2 * margin_px, 3),
-                           245, np.uint8)
+        self.img = np.full(
+            (int(height_m * px_per_m) + 2 * margin_px, int(width_m * px_per_m) + 2 * margin_px, 3), 245, np.uint8
+        )
 
     def pt(self, x_m: float, y_m: float) -> tuple[int, int]:
         return int(round(self.m + x_m * self.s)), int(round(self.m + (self.h_m - y_m) * self.s))
@@ -41,7 +43,7 @@ def _fill(img: np.ndarray, draw, known: bool) -> None:
     img[inside] = (150, 150, 200)
     x0, x1, y0, y1 = xs.min(), xs.max(), ys.min(), ys.max()
     hatch = np.zeros_like(mask)
-    for k in range(x0 - (y1 - y0), x1 + 1, 8):   # the boxes' hatch: lines at 45°, 8 px apart
+    for k in range(x0 - (y1 - y0), x1 + 1, 8):  # the boxes' hatch: lines at 45°, 8 px apart
         cv2.line(hatch, (k, y1), (k + (y1 - y0), y0), 255, 1)
     img[inside & (hatch > 0)] = (90, 90, 160)
 
@@ -52,7 +54,7 @@ def draw_arena(canvas: Canvas, sim, grid=None) -> None:
     if grid is not None:  # what the host's map holds: inflated cells shaded, sonar cells dark
         res = grid.resolution_m
         inflated = grid.inflated
-        for iy, ix in zip(*np.nonzero(inflated)):   # layers are (rows = y, columns = x)
+        for iy, ix in zip(*np.nonzero(inflated)):  # layers are (rows = y, columns = x)
             x0, y0 = canvas.pt(ix * res, (iy + 1) * res)
             x1, y1 = canvas.pt((ix + 1) * res, iy * res)
             cv2.rectangle(img, (x0, y0), (x1, y1), (225, 225, 235), -1)
@@ -64,7 +66,13 @@ def draw_arena(canvas: Canvas, sim, grid=None) -> None:
         else:
             cv2.rectangle(img, p0, p1, (150, 150, 200), -1)
             for k in range(p0[0] - (p1[1] - p0[1]), p1[0], 8):  # hatch: unknown to the planner
-                cv2.line(img, (max(k, p0[0]), p0[1] + max(0, p0[0] - k)), (min(k + (p1[1] - p0[1]), p1[0]), p1[1] - max(0, k + (p1[1] - p0[1]) - p1[0])), (90, 90, 160), 1)
+                cv2.line(
+                    img,
+                    (max(k, p0[0]), p0[1] + max(0, p0[0] - k)),
+                    (min(k + (p1[1] - p0[1]), p1[0]), p1[1] - max(0, k + (p1[1] - p0[1]) - p1[0])),
+                    (90, 90, 160),
+                    1,
+                )
     for w in getattr(sc, "walls", ()):
         _fill(img, lambda m, c: cv2.fillPoly(m, [canvas.pts(w.corners())], c, cv2.LINE_AA), w.known)
     for o in getattr(sc, "posts", ()):

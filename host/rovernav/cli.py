@@ -16,6 +16,7 @@ protocol, no answer) end with a one-line message and exit status 2, not a traceb
 that could not reach its goal ends with exit status 1; an internal error with 3 (see
 rovernav.validate, which every entry point checks its input with).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,16 +41,26 @@ def _cmd_protocol(args: argparse.Namespace) -> int:
             "protocol_version": mg.PROTOCOL_VERSION,
             "max_frame_bytes": framing.MAX_FRAME,
             "messages": [
-                {"name": cls.NAME, "id": cls.ID, "direction": cls.DIRECTION, "payload_bytes": cls.STRUCT.size,
-                 "fields": [{"name": f.name, "type": f.type, "count": f.count, "unit": f.unit} for f in cls.FIELDS]}
-                for cls in mg.MESSAGES.values()],
-            "params": [{"id": p.id, "name": p.name, "unit": p.unit, "default": p.default, "min": p.min, "max": p.max}
-                       for p in mg.PARAMS.values()],
+                {
+                    "name": cls.NAME,
+                    "id": cls.ID,
+                    "direction": cls.DIRECTION,
+                    "payload_bytes": cls.STRUCT.size,
+                    "fields": [{"name": f.name, "type": f.type, "count": f.count, "unit": f.unit} for f in cls.FIELDS],
+                }
+                for cls in mg.MESSAGES.values()
+            ],
+            "params": [
+                {"id": p.id, "name": p.name, "unit": p.unit, "default": p.default, "min": p.min, "max": p.max}
+                for p in mg.PARAMS.values()
+            ],
         }
         print(json.dumps(out, indent=2))
         return 0
-    print(f"rovernav link protocol v{mg.PROTOCOL_VERSION}, schema hash 0x{mg.SCHEMA_HASH:08X}, "
-          f"frames up to {framing.MAX_FRAME} bytes on the wire (COBS, CRC-16/CCITT-FALSE)\n")
+    print(
+        f"rovernav link protocol v{mg.PROTOCOL_VERSION}, schema hash 0x{mg.SCHEMA_HASH:08X}, "
+        f"frames up to {framing.MAX_FRAME} bytes on the wire (COBS, CRC-16/CCITT-FALSE)\n"
+    )
     print(f"{'id':>4}  {'message':<10} {'direction':<14} {'bytes':>5}  fields")
     for cls in mg.MESSAGES.values():
         fields = ", ".join(f"{f.name}[{f.count}]" if f.count else f.name for f in cls.FIELDS)
@@ -70,8 +81,10 @@ def _cmd_link_check(args: argparse.Namespace) -> int:
         print("rovernav link-check: --json writes a soak's figures: give --soak SECONDS too", file=sys.stderr)
         return 2
     if args.soak is not None and args.seconds is not None:
-        print("rovernav link-check: --seconds is how long to listen without a soak; with --soak give one of them",
-              file=sys.stderr)
+        print(
+            "rovernav link-check: --seconds is how long to listen without a soak; with --soak give one of them",
+            file=sys.stderr,
+        )
         return 2
     key = load_key_file(args.key_file) if args.key_file else None
     with open_transport(args.port) as transport:
@@ -87,8 +100,10 @@ def _cmd_keygen(args: argparse.Namespace) -> int:
     from .link.keys import write_key_file
 
     write_key_file(args.out, force=args.force)
-    print(f"wrote a new 128-bit link key to {args.out} (mode 0600); keep it secret, and give the same file "
-          "to the host that commands this rover ([link] key_file in its configuration)")
+    print(
+        f"wrote a new 128-bit link key to {args.out} (mode 0600); keep it secret, and give the same file "
+        "to the host that commands this rover ([link] key_file in its configuration)"
+    )
     return 0
 
 
@@ -122,8 +137,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .runlog.cli import live_port_of
 
     log_path = None if args.no_log else (args.log or default_log_path())
-    return run_hardware(args.port, args.camera, args.config, args.scenario, args.map, max_time_s=args.max_time,
-                        log_path=log_path, live_port=live_port_of(args), log_image_hz=args.log_image_hz)
+    return run_hardware(
+        args.port,
+        args.camera,
+        args.config,
+        args.scenario,
+        args.map,
+        max_time_s=args.max_time,
+        log_path=log_path,
+        live_port=live_port_of(args),
+        log_image_hz=args.log_image_hz,
+    )
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -137,8 +161,11 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
         cfg = load_config(args.config)
         if args.setup is not None and args.config is None:
-            print("rovernav check: --setup without --config: the default configuration does not see that set-up's "
-                  "markers (calibrate: rovernav sim --setup SEED --calibration-frames DIR)", file=sys.stderr)
+            print(
+                "rovernav check: --setup without --config: the default configuration does not see that set-up's "
+                "markers (calibrate: rovernav sim --setup SEED --calibration-frames DIR)",
+                file=sys.stderr,
+            )
         lines, elapsed = check.check_sim(cfg, fault=args.fault, setup_seed=args.setup)
     else:
         if args.fault or args.setup is not None:
@@ -148,8 +175,15 @@ def _cmd_check(args: argparse.Namespace) -> int:
         lines, elapsed = check.check_hardware(args.port, args.camera, args.config)
     failed = not check.passed(lines)
     if args.json:
-        print(json.dumps({"passed": not failed, "elapsed_s": round(elapsed, 1),
-                           "checks": [{"name": ln.name, "status": ln.status, "text": ln.text} for ln in lines]}))
+        print(
+            json.dumps(
+                {
+                    "passed": not failed,
+                    "elapsed_s": round(elapsed, 1),
+                    "checks": [{"name": ln.name, "status": ln.status, "text": ln.text} for ln in lines],
+                }
+            )
+        )
     else:
         for line in lines:
             print(line)
@@ -160,39 +194,63 @@ def _cmd_check(args: argparse.Namespace) -> int:
 def add_check_parser(sub) -> None:
     from . import check
 
-    p = sub.add_parser("check", help="pre-flight check: link, camera, gyro, sonar, servo, motors, one line each",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description=check.__doc__,
-                       epilog="exit status: 0 every check passed; 1 a check failed or could not be made (its line "
-                              "says what to do); 2 "
-                              "unusable input (a flag, file or port, named in a one-line error); 3 an internal error "
-                              "(rerun with -v for the traceback); 130 interrupted.")
+    p = sub.add_parser(
+        "check",
+        help="pre-flight check: link, camera, gyro, sonar, servo, motors, one line each",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=check.__doc__,
+        epilog="exit status: 0 every check passed; 1 a check failed or could not be made (its line "
+        "says what to do); 2 "
+        "unusable input (a flag, file or port, named in a one-line error); 3 an internal error "
+        "(rerun with -v for the traceback); 130 interrupted.",
+    )
     p.add_argument("--port", type=port_spec, help="the rover's serial port (its radio or USB cable)")
-    p.add_argument("--camera", help="the overhead camera: an index such as 0, or a video file (default: [camera] source)")
+    p.add_argument(
+        "--camera", help="the overhead camera: an index such as 0, or a video file (default: [camera] source)"
+    )
     p.add_argument("--config", help="the configuration (calibrated [vision], [link] key_file, [rover] parameters)")
-    p.add_argument("--sim", action="store_true", help="check the simulated rover instead (the firmware core, a plant, "
-                                                      "a rendered camera)")
-    p.add_argument("--setup", type=number(0, 2**32 - 1, integer=True), metavar="SEED",
-                   help="with --sim: a set-up that is not the defaults (rovernav sim --setup)")
+    p.add_argument(
+        "--sim",
+        action="store_true",
+        help="check the simulated rover instead (the firmware core, a plant, a rendered camera)",
+    )
+    p.add_argument(
+        "--setup",
+        type=number(0, 2**32 - 1, integer=True),
+        metavar="SEED",
+        help="with --sim: a set-up that is not the defaults (rovernav sim --setup)",
+    )
     p.add_argument("--fault", choices=check.FAULTS, help="with --sim: one fault for the check to find")
     p.add_argument("--json", action="store_true", help="print the lines as one JSON object")
     p.set_defaults(func=_cmd_check)
 
 
 def add_run_parser(sub) -> None:
-    p = sub.add_parser("run", help="run a mission with a real rover and webcam",
-                       description="Run a mission against a real rover on PORT and an overhead camera SOURCE: "
-                                   "the same host code as the simulator. Without --scenario the target is the "
-                                   "yellow marker in view and the map starts empty. Ctrl-C stops the rover.")
+    p = sub.add_parser(
+        "run",
+        help="run a mission with a real rover and webcam",
+        description="Run a mission against a real rover on PORT and an overhead camera SOURCE: "
+        "the same host code as the simulator. Without --scenario the target is the "
+        "yellow marker in view and the map starts empty. Ctrl-C stops the rover.",
+    )
     p.add_argument("--port", default="", help="serial port of the radio, e.g. /dev/ttyUSB0 or COM4 (or [link] port)")
     p.add_argument("--camera", default="", help="camera index (0) or a video file (or [camera] source)")
     p.add_argument("--config", type=input_file, help="rovernav TOML configuration")
     p.add_argument("--scenario", help="scenario file: arena, start, target, known obstacles")
     p.add_argument("--map", help="learned map (JSON) to load at the start and save at the end")
-    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=1800.0, metavar="S",
-                   help="stop the rover and end the mission after S seconds (default 1800)")
-    p.add_argument("--log", type=output_file(".mcap"), metavar="FILE",
-                   help="the run log to write (default run-YYYYMMDD-HHMMSS.mcap in this folder)")
+    p.add_argument(
+        "--max-time",
+        type=seconds(MAX_SIM_TIME_S, positive=True),
+        default=1800.0,
+        metavar="S",
+        help="stop the rover and end the mission after S seconds (default 1800)",
+    )
+    p.add_argument(
+        "--log",
+        type=output_file(".mcap"),
+        metavar="FILE",
+        help="the run log to write (default run-YYYYMMDD-HHMMSS.mcap in this folder)",
+    )
     from .runlog.cli import add_log_flags
 
     add_log_flags(p, "--log")
@@ -201,18 +259,23 @@ def add_run_parser(sub) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = ArgParser(
-        prog="rovernav", formatter_class=argparse.RawDescriptionHelpFormatter,
+        prog="rovernav",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Guide a small rover through a partially unknown arena from an overhead camera. "
-                    "The rover (Arduino Uno firmware) follows waypoints on its own; this host sends it "
-                    "camera fixes and global paths over a framed, CRC-checked serial link.",
-        epilog="Run `rovernav COMMAND --help` for a command's options.\n\n" + EXIT_CODES)
+        "The rover (Arduino Uno firmware) follows waypoints on its own; this host sends it "
+        "camera fixes and global paths over a framed, CRC-checked serial link.",
+        epilog="Run `rovernav COMMAND --help` for a command's options.\n\n" + EXIT_CODES,
+    )
     parser.add_argument("--version", action="version", version=f"rovernav {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log what the link does")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgParser)
 
-    p = sub.add_parser("protocol", help="list the link protocol's messages and parameters",
-                       description="Print every message (id, direction, size on the wire, fields) and every "
-                                   "CONFIG parameter (default, range, unit) of protocol/messages.toml.")
+    p = sub.add_parser(
+        "protocol",
+        help="list the link protocol's messages and parameters",
+        description="Print every message (id, direction, size on the wire, fields) and every "
+        "CONFIG parameter (default, range, unit) of protocol/messages.toml.",
+    )
     p.add_argument("--json", action="store_true", help="print a JSON object instead of tables")
     p.set_defaults(func=_cmd_protocol)
 
@@ -239,76 +302,137 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .link import soak as sk
 
-    p = sub.add_parser("link-check", help="say HELLO to a rover and show what it sends, or soak the radio",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description=sk.wrap(f"Open PORT at {LINK_BAUD:,} baud, exchange HELLO with the rover (checking that "
-                                           "both were built from the same protocol definition), then print every "
-                                           "message the rover sends for a few seconds, and the link's error "
-                                           "counters.") + "\n\n" + sk.help_text())
-    p.add_argument("--port", required=True, type=port_spec,
-                   help=f"serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@{LINK_BAUD}")
-    p.add_argument("--seconds", type=seconds(3600.0), default=None,
-                   help="how long to listen after the HELLO, 0 to 3600 (default 3)")
-    p.add_argument("--soak", type=number(sk.MIN_SOAK_S, sk.MAX_SOAK_S), metavar="SECONDS",
-                   help=f"measure the radio for SECONDS ({sk.MIN_SOAK_S:g} to {sk.MAX_SOAK_S:,.0f}) instead of "
-                        "listening: frame loss both ways, round trip, path load time, advice (see above)")
-    p.add_argument("--json", type=output_file(".json"), metavar="FILE",
-                   help="with --soak: write the soak's figures to FILE (.json)")
-    p.add_argument("--timeout", type=seconds(600.0, positive=True), default=3.0,
-                   help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)")
-    p.add_argument("--key-file", type=input_file, metavar="FILE",
-                   help="the link key of a rover that holds one (`rovernav keygen`, `rovernav provision`): "
-                        "frames are then signed and checked")
+    p = sub.add_parser(
+        "link-check",
+        help="say HELLO to a rover and show what it sends, or soak the radio",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=sk.wrap(
+            f"Open PORT at {LINK_BAUD:,} baud, exchange HELLO with the rover (checking that "
+            "both were built from the same protocol definition), then print every "
+            "message the rover sends for a few seconds, and the link's error "
+            "counters."
+        )
+        + "\n\n"
+        + sk.help_text(),
+    )
+    p.add_argument(
+        "--port",
+        required=True,
+        type=port_spec,
+        help=f"serial port of the radio or USB cable, e.g. /dev/ttyUSB0, COM4, or /dev/ttyUSB0@{LINK_BAUD}",
+    )
+    p.add_argument(
+        "--seconds",
+        type=seconds(3600.0),
+        default=None,
+        help="how long to listen after the HELLO, 0 to 3600 (default 3)",
+    )
+    p.add_argument(
+        "--soak",
+        type=number(sk.MIN_SOAK_S, sk.MAX_SOAK_S),
+        metavar="SECONDS",
+        help=f"measure the radio for SECONDS ({sk.MIN_SOAK_S:g} to {sk.MAX_SOAK_S:,.0f}) instead of "
+        "listening: frame loss both ways, round trip, path load time, advice (see above)",
+    )
+    p.add_argument(
+        "--json",
+        type=output_file(".json"),
+        metavar="FILE",
+        help="with --soak: write the soak's figures to FILE (.json)",
+    )
+    p.add_argument(
+        "--timeout",
+        type=seconds(600.0, positive=True),
+        default=3.0,
+        help="how long to wait for the rover's HELLO, up to 600 s (default 3 s)",
+    )
+    p.add_argument(
+        "--key-file",
+        type=input_file,
+        metavar="FILE",
+        help="the link key of a rover that holds one (`rovernav keygen`, `rovernav provision`): "
+        "frames are then signed and checked",
+    )
     p.set_defaults(func=_cmd_link_check)
 
-    p = sub.add_parser("keygen", help="make a new key for signed frames",
-                       description="Write a new random 128-bit key for the link's signed frames (SipHash-2-4 "
-                                   "tags, protocol/messages.toml [signing]) to FILE, readable by its owner only "
-                                   "(mode 0600). An existing file is not replaced unless --force is given. "
-                                   "Store it on the rover with `rovernav provision`, and give the host the same "
-                                   "file ([link] key_file).")
-    p.add_argument("--out", type=output_file(".key"), default="link.key", metavar="FILE",
-                   help="the key file to write, ending in .key (default link.key)")
+    p = sub.add_parser(
+        "keygen",
+        help="make a new key for signed frames",
+        description="Write a new random 128-bit key for the link's signed frames (SipHash-2-4 "
+        "tags, protocol/messages.toml [signing]) to FILE, readable by its owner only "
+        "(mode 0600). An existing file is not replaced unless --force is given. "
+        "Store it on the rover with `rovernav provision`, and give the host the same "
+        "file ([link] key_file).",
+    )
+    p.add_argument(
+        "--out",
+        type=output_file(".key"),
+        default="link.key",
+        metavar="FILE",
+        help="the key file to write, ending in .key (default link.key)",
+    )
     p.add_argument("--force", action="store_true", help="replace an existing key file")
     p.set_defaults(func=_cmd_keygen)
 
     from .link.messages_gen import SIGN_CONSENT_PIN
 
     pin = f"D{SIGN_CONSENT_PIN}"
-    p = sub.add_parser("provision", help="store the link key on the rover, over its USB cable",
-                       description="Open PORT (the Uno's USB cable: opening it resets the board), wait for the "
-                                   "rover to boot, and send it the key in FILE (PROVISION, protocol/messages.toml). "
-                                   "The rover stores it in EEPROM and from then on takes only frames signed with "
-                                   "it. A rover with no key takes one only within 5 s of a reset, so a radio, "
-                                   "which cannot reset it, cannot give it one: over a port that does not reset the "
-                                   "rover nothing is sent. A rover that holds a key changes it, or erases it, only "
-                                   "with its owner's consent: the command signed with the key it holds "
-                                   f"(--current-key-file), or pin {pin} held to GND while it resets (a jumper from "
-                                   f"{pin} to GND while this opens the port; take it off afterwards). Without "
-                                   "either it refuses (exit 2). The rover's answer comes signed with the new key, "
-                                   "which confirms it.")
-    p.add_argument("--port", required=True, type=port_spec,
-                   help="the rover's USB serial port, e.g. /dev/ttyACM0 or COM3 (or PORT@BAUD)")
+    p = sub.add_parser(
+        "provision",
+        help="store the link key on the rover, over its USB cable",
+        description="Open PORT (the Uno's USB cable: opening it resets the board), wait for the "
+        "rover to boot, and send it the key in FILE (PROVISION, protocol/messages.toml). "
+        "The rover stores it in EEPROM and from then on takes only frames signed with "
+        "it. A rover with no key takes one only within 5 s of a reset, so a radio, "
+        "which cannot reset it, cannot give it one: over a port that does not reset the "
+        "rover nothing is sent. A rover that holds a key changes it, or erases it, only "
+        "with its owner's consent: the command signed with the key it holds "
+        f"(--current-key-file), or pin {pin} held to GND while it resets (a jumper from "
+        f"{pin} to GND while this opens the port; take it off afterwards). Without "
+        "either it refuses (exit 2). The rover's answer comes signed with the new key, "
+        "which confirms it.",
+    )
+    p.add_argument(
+        "--port",
+        required=True,
+        type=port_spec,
+        help="the rover's USB serial port, e.g. /dev/ttyACM0 or COM3 (or PORT@BAUD)",
+    )
     key_or_erase = p.add_mutually_exclusive_group(required=True)
-    key_or_erase.add_argument("--key-file", type=input_file, metavar="FILE",
-                              help="the key file `rovernav keygen` wrote")
-    key_or_erase.add_argument("--erase", action="store_true",
-                              help="forget the rover's key: it takes unsigned commands again")
-    p.add_argument("--current-key-file", type=input_file, metavar="FILE",
-                   help="the key file of the key the rover holds now: the new key (or --erase) is sent signed "
-                        "with it, the owner's consent a rover with a key needs (else: pin "
-                        f"{pin} held to GND at its reset). Checked against the rover's boot HELLO before "
-                        "anything is sent; a rover with no key does not need it")
-    p.add_argument("--boot-wait", type=seconds(60.0, positive=True), default=4.0, metavar="S",
-                   help="how long to wait for the rover's boot HELLO after opening the port, up to 60 s (default 4)")
+    key_or_erase.add_argument(
+        "--key-file", type=input_file, metavar="FILE", help="the key file `rovernav keygen` wrote"
+    )
+    key_or_erase.add_argument(
+        "--erase", action="store_true", help="forget the rover's key: it takes unsigned commands again"
+    )
+    p.add_argument(
+        "--current-key-file",
+        type=input_file,
+        metavar="FILE",
+        help="the key file of the key the rover holds now: the new key (or --erase) is sent signed "
+        "with it, the owner's consent a rover with a key needs (else: pin "
+        f"{pin} held to GND at its reset). Checked against the rover's boot HELLO before "
+        "anything is sent; a rover with no key does not need it",
+    )
+    p.add_argument(
+        "--boot-wait",
+        type=seconds(60.0, positive=True),
+        default=4.0,
+        metavar="S",
+        help="how long to wait for the rover's boot HELLO after opening the port, up to 60 s (default 4)",
+    )
     p.set_defaults(func=_cmd_provision)
 
-    p = sub.add_parser("demo", help="run the Uno firmware in an AVR simulator and talk to it",
-                       description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "
-                                   "port on a pseudo-terminal, and run link-check against it: the host and the "
-                                   "very firmware the Uno runs, with no hardware.")
-    p.add_argument("--seconds", type=seconds(3600.0), default=3.0,
-                   help="how long to listen after the HELLO, 0 to 3600 (default 3)")
+    p = sub.add_parser(
+        "demo",
+        help="run the Uno firmware in an AVR simulator and talk to it",
+        description="Build the Uno image with Debian's avr-gcc, boot it in simavr with its serial "
+        "port on a pseudo-terminal, and run link-check against it: the host and the "
+        "very firmware the Uno runs, with no hardware.",
+    )
+    p.add_argument(
+        "--seconds", type=seconds(3600.0), default=3.0, help="how long to listen after the HELLO, 0 to 3600 (default 3)"
+    )
     p.set_defaults(func=_cmd_demo)
     return parser
 
@@ -316,15 +440,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s"
+    )
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
     from .errors import MissionFailed, RovernavError
     from .validate import internal_error
 
-    if getattr(args, "what", None):   # a command with its own sub-commands: `rovernav calibrate camera`
+    if getattr(args, "what", None):  # a command with its own sub-commands: `rovernav calibrate camera`
         args.command = f"{args.command} {args.what}"
     try:
         return args.func(args)
@@ -338,14 +463,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rovernav {args.command}: interrupted", file=sys.stderr)
         return 130
     except MemoryError:
-        print(f"rovernav {args.command}: out of memory: the input asks for more than this machine has "
-              "(a smaller arena, a coarser resolution or a shorter run)", file=sys.stderr)
+        print(
+            f"rovernav {args.command}: out of memory: the input asks for more than this machine has "
+            "(a smaller arena, a coarser resolution or a shorter run)",
+            file=sys.stderr,
+        )
         return 2
-    except OSError as exc:   # a file or device the user named (the message names it)
+    except OSError as exc:  # a file or device the user named (the message names it)
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"rovernav {args.command}: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
-    except Exception as exc:   # noqa: BLE001 - the last line of defence: one line, not a traceback
+    except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, not a traceback
         return internal_error(args.command, exc, args.verbose)
 
 

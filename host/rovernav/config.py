@@ -14,6 +14,7 @@ Every section and key is optional; a missing one takes its default. An unknown s
 or a value of the wrong type or out of range, raises ConfigError naming it
 ("config.toml: [rover] drive_pwm = 300 is outside [0, 255]").
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -34,7 +35,7 @@ class ConfigError(InputError):
 
 @dataclasses.dataclass(frozen=True)
 class ArenaConfig:
-    width_m: float = vehicle.DEFAULT_ARENA_WIDTH_MM / 1000.0   # the seed's test area (protocol/vehicle.toml)
+    width_m: float = vehicle.DEFAULT_ARENA_WIDTH_MM / 1000.0  # the seed's test area (protocol/vehicle.toml)
     height_m: float = vehicle.DEFAULT_ARENA_HEIGHT_MM / 1000.0
 
 
@@ -42,7 +43,9 @@ class ArenaConfig:
 class LinkConfig:
     port: str = ""
     baud: int = vehicle.LINK_BAUD
-    key_file: str = ""   # the link key for signed frames (`rovernav keygen`, stored on the rover by `rovernav provision`)
+    key_file: str = (
+        ""  # the link key for signed frames (`rovernav keygen`, stored on the rover by `rovernav provision`)
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,21 +56,22 @@ class CameraConfig:
 
 @dataclasses.dataclass(frozen=True)
 class MissionConfig:
-    trips: int = 0             # 0: as the scenario says
+    trips: int = 0  # 0: as the scenario says
     heartbeat_hz: float = 5.0
-    fix_sd_mm: int = 3         # one-sigma of a camera fix, sent in FIX
-    map: str = ""              # a learned map to load at the start and save at the end
+    fix_sd_mm: int = 3  # one-sigma of a camera fix, sent in FIX
+    map: str = ""  # a learned map to load at the start and save at the end
 
 
 @dataclasses.dataclass(frozen=True)
 class RadioConfig:
     """The simulated radio (rovernav.radio's model): `rovernav sim` only; hardware has its own."""
-    loss_pct: float = 0.0        # mean share of bytes lost [%]
-    ber_pct: float = 0.0         # mean share of bytes arriving with one bit flipped [%]
-    burst_mean_s: float = 0.0    # mean burst length [s]; 0: no bursts
-    burst_share: float = 0.0     # share of time in bursts, in (0, 1) with bursts
-    jitter_ms: float = 0.0       # mean extra delay per frame [ms] (exponential)
-    half_duplex: bool = False    # both ends share one medium: bytes sent at once collide
+
+    loss_pct: float = 0.0  # mean share of bytes lost [%]
+    ber_pct: float = 0.0  # mean share of bytes arriving with one bit flipped [%]
+    burst_mean_s: float = 0.0  # mean burst length [s]; 0: no bursts
+    burst_share: float = 0.0  # share of time in bursts, in (0, 1) with bursts
+    jitter_ms: float = 0.0  # mean extra delay per frame [ms] (exponential)
+    half_duplex: bool = False  # both ends share one medium: bytes sent at once collide
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,8 +80,8 @@ class Config:
     link: LinkConfig = LinkConfig()
     camera: CameraConfig = CameraConfig()
     mission: MissionConfig = MissionConfig()
-    vision: Any = None    # VisionConfig
-    planner: Any = None   # PlannerConfig
+    vision: Any = None  # VisionConfig
+    planner: Any = None  # PlannerConfig
     rover: dict = dataclasses.field(default_factory=dict)  # Param -> int
     radio: RadioConfig = RadioConfig()
 
@@ -114,7 +118,9 @@ def _section(cls, section: str, table: Any, where: str, limits: dict | None = No
         rule = (limits or {}).get(key)
         if isinstance(rule, (set, frozenset)):
             if kwargs[key] not in rule:
-                raise ConfigError(f"{where}[{section}] {key} = {value!r} must be one of {', '.join(map(str, sorted(rule)))}")
+                raise ConfigError(
+                    f"{where}[{section}] {key} = {value!r} must be one of {', '.join(map(str, sorted(rule)))}"
+                )
         elif rule is not None:
             lo, hi, lo_open = rule
             try:
@@ -131,27 +137,41 @@ def config_from_dict(data: dict, where: str = "") -> Config:
 
     known = {"arena", "link", "camera", "vision", "planner", "mission", "rover", "radio"}
     for name in data:
-        if name == "sonar":   # where the ranger sits is the planner's (and the rover's) geometry
-            raise ConfigError(f"{where}[sonar] is gone: the ranger's offset is [planner] sonar_offset_m (metres), "
-                              "which the host plans with and sends to the rover")
+        if name == "sonar":  # where the ranger sits is the planner's (and the rover's) geometry
+            raise ConfigError(
+                f"{where}[sonar] is gone: the ranger's offset is [planner] sonar_offset_m (metres), "
+                "which the host plans with and sends to the rover"
+            )
         if name not in known:
             raise ConfigError(f"{where}unknown section [{name}] (known: {', '.join(sorted(known))})")
-    arena = _section(ArenaConfig, "arena", data.get("arena", {}), where,
-                     {"width_m": (0.0, MAX_ARENA_M, True), "height_m": (0.0, MAX_ARENA_M, True)})
-    link = _section(LinkConfig, "link", data.get("link", {}), where,
-                    {"baud": frozenset((9600, 19200, 38400, 57600, 115200))})
+    arena = _section(
+        ArenaConfig,
+        "arena",
+        data.get("arena", {}),
+        where,
+        {"width_m": (0.0, MAX_ARENA_M, True), "height_m": (0.0, MAX_ARENA_M, True)},
+    )
+    link = _section(
+        LinkConfig, "link", data.get("link", {}), where, {"baud": frozenset((9600, 19200, 38400, 57600, 115200))}
+    )
     camera = _section(CameraConfig, "camera", data.get("camera", {}), where, {"fps": (0.0, 120.0, True)})
-    mission = _section(MissionConfig, "mission", data.get("mission", {}), where,
-                       {"trips": (0, MAX_TRIPS, False), "heartbeat_hz": (0.0, 50.0, True),
-                        "fix_sd_mm": (1, 255, False)})
+    mission = _section(
+        MissionConfig,
+        "mission",
+        data.get("mission", {}),
+        where,
+        {"trips": (0, MAX_TRIPS, False), "heartbeat_hz": (0.0, 50.0, True), "fix_sd_mm": (1, 255, False)},
+    )
     try:
         vision = VisionConfig.from_dict(data.get("vision", {}))
     except ValueError as exc:
         raise ConfigError(f"{where}[vision] {exc}") from None
     if isinstance(data.get("planner"), dict) and "sonar_max_range_m" in data["planner"]:
-        raise ConfigError(f"{where}[planner] sonar_max_range_m is gone: the sensor's range is the protocol's "
-                          f"(protocol/vehicle.toml: sonar_max_range_mm = {vehicle.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
-                          "far the rover reports")
+        raise ConfigError(
+            f"{where}[planner] sonar_max_range_m is gone: the sensor's range is the protocol's "
+            f"(protocol/vehicle.toml: sonar_max_range_mm = {vehicle.SONAR_MAX_RANGE_MM}); [rover] sonar_report_mm says how "
+            "far the rover reports"
+        )
     try:
         planner = PlannerConfig.from_dict(data.get("planner", {}))
     except ValueError as exc:
@@ -180,10 +200,19 @@ def _radio(table: Any, where: str) -> RadioConfig:
     checks them (bursts need both keys; the loss inside bursts cannot pass 100 %)."""
     from .radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, radio_config
 
-    radio = _section(RadioConfig, "radio", table, where,
-                     {"loss_pct": (0.0, 100.0, False), "ber_pct": (0.0, 100.0, False),
-                      "burst_mean_s": (0.0, MAX_BURST_MEAN_S, False), "burst_share": (0.0, 1.0, False),
-                      "jitter_ms": (0.0, MAX_JITTER_MS, False)})
+    radio = _section(
+        RadioConfig,
+        "radio",
+        table,
+        where,
+        {
+            "loss_pct": (0.0, 100.0, False),
+            "ber_pct": (0.0, 100.0, False),
+            "burst_mean_s": (0.0, MAX_BURST_MEAN_S, False),
+            "burst_share": (0.0, 1.0, False),
+            "jitter_ms": (0.0, MAX_JITTER_MS, False),
+        },
+    )
     try:
         radio_config(**dataclasses.asdict(radio), names={k: f"{where}[radio] {k}" for k in dataclasses.asdict(radio)})
     except InputError as exc:
@@ -203,8 +232,10 @@ def _check_pose_gains(rover: dict, where: str) -> None:
     try:
         PoseGains(k_rho=k_rho, k_alpha=k_alpha, k_beta=k_beta)
     except ValueError as exc:
-        raise ConfigError(f"{where}[rover] pose_k_rho_x1000, pose_k_alpha_x1000, pose_k_beta_x1000 "
-                          f"({k_rho:g}, {k_alpha:g}, {k_beta:g}): {exc}") from None
+        raise ConfigError(
+            f"{where}[rover] pose_k_rho_x1000, pose_k_alpha_x1000, pose_k_beta_x1000 "
+            f"({k_rho:g}, {k_alpha:g}, {k_beta:g}): {exc}"
+        ) from None
 
 
 def load_config(path: str | Path | None) -> Config:

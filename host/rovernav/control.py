@@ -9,6 +9,7 @@ Kρ > 0, Kβ < 0 and Kα − Kρ > 0; `PoseGains` refuses gains that break one o
 condition Kα + 5/3·Kβ − 2/π·Kρ > 0 (α never leaves (−π/2, π/2], so the rover never reverses)
 is checked only on request (`check(strong=True)`) and reported as `strongly_stable`.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -19,7 +20,7 @@ import math
 class PoseGains:
     """The law's three proportional gains: v = Kρ·ρ [m/s], ω = Kα·α + Kβ·β [rad/s]."""
 
-    k_rho: float = 0.100     # the seed report's Table 1 (rovernav.study)
+    k_rho: float = 0.100  # the seed report's Table 1 (rovernav.study)
     k_alpha: float = 0.145
     k_beta: float = -0.190
 
@@ -47,8 +48,11 @@ class PoseGains:
         if not self.k_beta < 0:
             raise ValueError(f"unstable gains: K_beta < 0 required, got K_beta = {self.k_beta:g}")
         if not self.k_alpha - self.k_rho > 0:
-            raise ValueError(f"unstable gains: K_alpha - K_rho > 0 required, got "
-                             f"{self.k_alpha:g} - {self.k_rho:g} = {self.k_alpha - self.k_rho:g}")
+            raise ValueError(
+                f"unstable gains: K_alpha - K_rho > 0 required, got "
+                f"{self.k_alpha:g} - {self.k_rho:g} = {self.k_alpha - self.k_rho:g}"
+            )
         if strong and not self.strongly_stable:
-            raise ValueError(f"gains not strongly stable: K_alpha + 5/3 K_beta - 2/pi K_rho > 0 required, "
-                             f"got {self.strong_margin:g}")
+            raise ValueError(
+                f"gains not strongly stable: K_alpha + 5/3 K_beta - 2/pi K_rho > 0 required, got {self.strong_margin:g}"
+            )

@@ -9,6 +9,7 @@ What it needs is checked first, and each lack is one line (exit 2) saying what t
 the checkout, the AVR toolchain (tools/build_uno.py --check-tools), make, and simavr (the
 bridge's build or start). A failed build says its last line; `rovernav -v demo` logs the rest.
 """
+
 from __future__ import annotations
 
 import logging
@@ -66,24 +67,35 @@ def check_tools() -> None:
     if not (ROOT / "tools" / "build_uno.py").is_file():
         raise DemoError(f"the demo needs a checkout of rovernav (no tools/build_uno.py under {ROOT})")
     try:
-        check = subprocess.run([sys.executable, "tools/build_uno.py", "--check-tools"], cwd=ROOT,
-                               capture_output=True, text=True, errors="replace", timeout=60)
+        check = subprocess.run(
+            [sys.executable, "tools/build_uno.py", "--check-tools"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            errors="replace",
+            timeout=60,
+        )
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise DemoError(f"cannot check the AVR toolchain (tools/build_uno.py --check-tools): {exc}") from None
     if check.returncode != 0:
         lines = [line.strip() for line in check.stdout.splitlines() if line.strip()]
         missing = "; ".join(line for line in lines if line.startswith("missing ")) or _last_line(
-            check.stdout + check.stderr)
+            check.stdout + check.stderr
+        )
         install = next((line for line in lines if line.startswith("install with")), "")
-        raise DemoError(f"the demo needs the AVR toolchain, and it is incomplete: {missing}"
-                        f"{'; ' + install if install else ''}")
+        raise DemoError(
+            f"the demo needs the AVR toolchain, and it is incomplete: {missing}{'; ' + install if install else ''}"
+        )
     if shutil.which("make") is None:
-        raise DemoError("the demo builds the simavr bridge with make, which is not installed "
-                        "(sudo apt-get install make)")
+        raise DemoError(
+            "the demo builds the simavr bridge with make, which is not installed (sudo apt-get install make)"
+        )
     bridge = ROOT / "build" / "avrsim" / "rovernav_avrsim"
     if not SIMAVR_HEADER.is_file() and not bridge.is_file():
-        raise DemoError(f"the demo needs simavr, and it is not installed (no {SIMAVR_HEADER}): "
-                        "sudo apt-get install simavr libsimavr-dev")
+        raise DemoError(
+            f"the demo needs simavr, and it is not installed (no {SIMAVR_HEADER}): "
+            "sudo apt-get install simavr libsimavr-dev"
+        )
 
 
 def start_avrsim(elf: Path, speed: float = 1.0, seconds: float | None = None) -> tuple[subprocess.Popen, str]:
@@ -92,8 +104,9 @@ def start_avrsim(elf: Path, speed: float = 1.0, seconds: float | None = None) ->
     if seconds is not None:
         cmd += ["--seconds", str(seconds)]
     try:
-        proc = subprocess.Popen(cmd + [str(elf)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                errors="replace")
+        proc = subprocess.Popen(
+            cmd + [str(elf)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace"
+        )
     except OSError as exc:
         raise DemoError(f"cannot start the AVR simulator {cmd[0]}: {exc.strerror or exc}") from None
     assert proc.stdout is not None

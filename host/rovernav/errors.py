@@ -17,6 +17,7 @@
 The command line turns MissionFailed into exit status 1 and every other RovernavError into 2, with
 its message on one line.
 """
+
 from __future__ import annotations
 
 

@@ -1,4 +1,5 @@
 """Writing results so that a reader never sees half a file or a stale one mixed with a new one."""
+
 from __future__ import annotations
 
 import json
@@ -18,7 +19,7 @@ def write_atomic(path: Path, data: str | bytes) -> None:
             f.write(data.encode("utf-8") if isinstance(data, str) else data)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)   # as an ordinary new file (mkstemp makes it 0600)
+        os.chmod(tmp, 0o666 & ~umask)  # as an ordinary new file (mkstemp makes it 0600)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -36,7 +37,7 @@ def strict_json_value(value: Any) -> Any:
         return {k: strict_json_value(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [strict_json_value(v) for v in value]
-    if hasattr(value, "tolist") and callable(value.tolist):   # numpy scalar or array
+    if hasattr(value, "tolist") and callable(value.tolist):  # numpy scalar or array
         return strict_json_value(value.tolist())
     if isinstance(value, float) and not math.isfinite(value):
         return None

@@ -11,6 +11,7 @@ opened, so a bad one ends the command with a one-line error naming the file and 
 and touches no device. Ctrl-C stops the rover, saves the map (atomically: the file on disk is
 the old map or the new one, never half of either) and exits with status 130.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,10 +49,11 @@ def camera_source(source: object) -> int | str:
         raise InputError(f"camera source {text!r}: control characters in it")
     stripped = text.strip()
     if stripped.isascii() and stripped.isdigit():
-        if len(stripped.lstrip("0")) > 3 or int(stripped) > MAX_CAMERA_INDEX:   # a few digits: int() is cheap
+        if len(stripped.lstrip("0")) > 3 or int(stripped) > MAX_CAMERA_INDEX:  # a few digits: int() is cheap
             shown = f"{text[:12]!r}{'...' if len(text) > 12 else ''}"
-            raise InputError(f"camera index {shown} is past {MAX_CAMERA_INDEX}: give a camera index such as 0, "
-                             "or a video file")
+            raise InputError(
+                f"camera index {shown} is past {MAX_CAMERA_INDEX}: give a camera index such as 0, or a video file"
+            )
         return int(stripped)
     path = Path(text)
     if not path.exists():
@@ -65,7 +67,7 @@ def open_camera(source: str | int):
     import cv2
 
     src = camera_source(source) if isinstance(source, str) else source
-    try:   # OpenCV's own warnings about a missing device would add lines to our one-line error
+    try:  # OpenCV's own warnings about a missing device would add lines to our one-line error
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
     except AttributeError:
         pass
@@ -139,9 +141,17 @@ def default_log_path() -> Path:
     raise InputError(f"{stem}-*.mcap: a thousand run logs of this second already; give --log")
 
 
-def run_hardware(port: str, camera: str, config_path: str | None, scenario_path: str | None,
-                 map_path: str | None = None, max_time_s: float = 1800.0, log_path: str | Path | None = None,
-                 live_port: int | None = None, log_image_hz: float = 2.0) -> int:
+def run_hardware(
+    port: str,
+    camera: str,
+    config_path: str | None,
+    scenario_path: str | None,
+    map_path: str | None = None,
+    max_time_s: float = 1800.0,
+    log_path: str | Path | None = None,
+    live_port: int | None = None,
+    log_image_hz: float = 2.0,
+) -> int:
     """A mission on the real rover. `log_path`: the run log (MCAP; None: none); `live_port`:
     serve it live on 127.0.0.1 (rovernav.runlog)."""
     from .mission.spec import MissionSpec
@@ -157,10 +167,14 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
     name, baud = _serial_port(port, cfg, config_path)
     source = camera_source(camera or cfg.camera.source)
     scenario = load_scenario(scenario_path) if scenario_path else None
-    arena_w, arena_h = (scenario.arena.width_m, scenario.arena.height_m) if scenario else \
-        (cfg.arena.width_m, cfg.arena.height_m)
-    grid = OccupancyGrid.from_scenario(scenario, cfg.planner) if scenario is not None else \
-        OccupancyGrid(arena_w, arena_h, cfg.planner)
+    arena_w, arena_h = (
+        (scenario.arena.width_m, scenario.arena.height_m) if scenario else (cfg.arena.width_m, cfg.arena.height_m)
+    )
+    grid = (
+        OccupancyGrid.from_scenario(scenario, cfg.planner)
+        if scenario is not None
+        else OccupancyGrid(arena_w, arena_h, cfg.planner)
+    )
     map_file = map_path or cfg.mission.map or None
     readings = None
     if map_file:
@@ -195,15 +209,26 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
             raise CameraError(f"the camera does not see the rover: {first.reason if first else 'no frame'}")
         if scenario is None and first.target is None:
             raise CameraError("no target marker in view and no --scenario to say where to go")
-        spec = MissionSpec.for_run(scenario, cfg, start_xy=None if scenario else first.rover[:2],
-                                   target_xy=None if scenario else first.target,
-                                   host_boot_id=int.from_bytes(os.urandom(4), "little"))
+        spec = MissionSpec.for_run(
+            scenario,
+            cfg,
+            start_xy=None if scenario else first.rover[:2],
+            target_xy=None if scenario else first.target,
+            host_boot_id=int.from_bytes(os.urandom(4), "little"),
+        )
         if log_path is not None or live_port is not None:
             meta = {"port": name, "camera": str(source), "scenario": scenario.name if scenario else ""}
             if readings is not None:
                 meta["initial_map"] = [dataclasses.asdict(r) for r in readings]
-            runlog = RunLog(log_path, spec, source="hardware", scenario=scenario, live_port=live_port,
-                            image_hz=log_image_hz, meta=meta)
+            runlog = RunLog(
+                log_path,
+                spec,
+                source="hardware",
+                scenario=scenario,
+                live_port=live_port,
+                image_hz=log_image_hz,
+                meta=meta,
+            )
             if runlog.live_port is not None:
                 say(0.0, f"live view: open Foxglove and connect to ws://localhost:{runlog.live_port}")
         link = Link(transport if runlog is None else RecordingTransport(transport, runlog), key=key)
@@ -227,20 +252,22 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
                     else:
                         mission.on_detection(Detection(now, None, None, None, det.reason), now)
                 mission.tick(now)
-                if now >= next_status_s:   # the status line: where the mission is, and the radio both ways
+                if now >= next_status_s:  # the status line: where the mission is, and the radio both ways
                     next_status_s = now + STATUS_LINE_S
                     say(now, mission.status_line())
                 if mission.phase is Phase.HELLO and now > 5.0:
-                    raise LinkError(f"no HELLO from the rover on {name}: is it powered, flashed, and on this port "
-                                    f"at {baud} baud?")
+                    raise LinkError(
+                        f"no HELLO from the rover on {name}: is it powered, flashed, and on this port at {baud} baud?"
+                    )
         except KeyboardInterrupt:
             interrupted = True
             say(time.monotonic() - t0, "interrupted: stopping the rover")
     finally:
-        ending_with = sys.exc_info()[1]   # an error already on its way out is the one to report
+        ending_with = sys.exc_info()[1]  # an error already on its way out is the one to report
         try:
             if link is not None:
                 from .link import messages_gen as mg
+
                 try:
                     link.send(mg.Stop(reason=mg.StopReason.OPERATOR))
                 except LinkError:
@@ -254,8 +281,12 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
                 if transport is not None:
                     transport.close()
                 if runlog is not None:
-                    runlog.close({"host_outcome": mission.outcome.value if mission else "not started",
-                                  "interrupted": interrupted or ending_with is not None})
+                    runlog.close(
+                        {
+                            "host_outcome": mission.outcome.value if mission else "not started",
+                            "interrupted": interrupted or ending_with is not None,
+                        }
+                    )
                     if log_path is not None:
                         print(f"run log: {log_path} (`rovernav replay {log_path}`)", file=sys.stderr)
     if interrupted:
@@ -263,7 +294,7 @@ def run_hardware(port: str, camera: str, config_path: str | None, scenario_path:
         raise KeyboardInterrupt
     if mission.phase is Phase.FAILED:
         if mission.cause is not None:
-            raise mission.cause   # the rover cannot be used (e.g. another protocol definition): exit 2
+            raise mission.cause  # the rover cannot be used (e.g. another protocol definition): exit 2
         raise MissionFailed(mission.error or "mission failed", mission.failure)
     _summary(mission)
     return 0 if mission.phase is Phase.DONE else 1
@@ -285,5 +316,8 @@ def _save_map(mission: Mission, map_file: str, quiet: bool) -> None:
 
 def _summary(mission: Mission) -> None:
     done = sum(1 for t in mission.legs if t.reached)
-    print(f"{done} of {mission.legs_asked} legs reached; {mission.replans} replans; "
-          f"{len(mission.echoes)} sonar echoes folded into the map", file=sys.stderr)
+    print(
+        f"{done} of {mission.legs_asked} legs reached; {mission.replans} replans; "
+        f"{len(mission.echoes)} sonar echoes folded into the map",
+        file=sys.stderr,
+    )

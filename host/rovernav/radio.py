@@ -35,6 +35,7 @@ half_duplex both directions share one 57,600-baud medium (sim/channel.py's `Medi
             were made full duplex (two independent 57,600-baud directions), and the default
             keeps them comparable.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -45,24 +46,24 @@ from .vehicle_gen import LINK_BAUD
 
 #: Limits of what a user may set (flags and the [radio] table).
 MAX_BURST_MEAN_S = 3600.0
-MIN_BURST_MEAN_S = 0.001      # a burst shorter than a few bytes is just independent loss
+MIN_BURST_MEAN_S = 0.001  # a burst shorter than a few bytes is just independent loss
 MAX_JITTER_MS = 5000.0
 
 
 @dataclasses.dataclass(frozen=True)
 class ChannelConfig:
-    baud: int = LINK_BAUD           # protocol/vehicle.toml
-    delay_s: float = 0.015          # radio modem latency, one way
-    byte_loss: float = 0.0          # long-run mean share of the bytes sent that are lost
-    bit_error: float = 0.0          # long-run mean share of the bytes sent that arrive with one bit flipped
-    burst_mean_s: float = 0.0       # mean burst length [s]; 0: no bursts (loss and bit errors independent)
-    burst_share: float = 0.0        # long-run share of time in bursts, in (0, 1) with bursts
-    jitter_s: float = 0.0           # mean extra delay per frame [s] (exponential); 0: none
-    half_duplex: bool = False       # both directions share one medium: simultaneous bytes collide
+    baud: int = LINK_BAUD  # protocol/vehicle.toml
+    delay_s: float = 0.015  # radio modem latency, one way
+    byte_loss: float = 0.0  # long-run mean share of the bytes sent that are lost
+    bit_error: float = 0.0  # long-run mean share of the bytes sent that arrive with one bit flipped
+    burst_mean_s: float = 0.0  # mean burst length [s]; 0: no bursts (loss and bit errors independent)
+    burst_share: float = 0.0  # long-run share of time in bursts, in (0, 1) with bursts
+    jitter_s: float = 0.0  # mean extra delay per frame [s] (exponential); 0: none
+    half_duplex: bool = False  # both directions share one medium: simultaneous bytes collide
 
     @property
     def bytes_per_s(self) -> float:
-        return self.baud / 10.0      # 8N1: ten bits a byte
+        return self.baud / 10.0  # 8N1: ten bits a byte
 
     @property
     def bursts(self) -> bool:
@@ -71,34 +72,56 @@ class ChannelConfig:
 
     def settings(self) -> dict:
         """The settings in the units users give them (report.json, the run log, trials.json)."""
-        def pct(v: float) -> float:   # percent, without float noise
+
+        def pct(v: float) -> float:  # percent, without float noise
             return round(v * 100, 9)
 
         burst = None
         if self.burst_mean_s > 0 and self.burst_share > 0:
-            burst = {"mean_s": self.burst_mean_s, "share": self.burst_share,
-                     "loss_in_burst_pct": pct(self.byte_loss / self.burst_share),
-                     "ber_in_burst_pct": pct(self.bit_error / self.burst_share),
-                     "bit_errors": "in bursts only, as losses",
-                     "process": "one Gilbert-Elliott process shared by both directions"}
-        return {"baud": self.baud, "delay_ms": round(self.delay_s * 1000, 9),
-                "loss_pct": pct(self.byte_loss), "ber_pct": pct(self.bit_error), "burst": burst,
-                "jitter_ms": round(self.jitter_s * 1000, 9),
-                "jitter": "exponential per frame, order kept" if self.jitter_s > 0 else None,
-                "half_duplex": self.half_duplex}
+            burst = {
+                "mean_s": self.burst_mean_s,
+                "share": self.burst_share,
+                "loss_in_burst_pct": pct(self.byte_loss / self.burst_share),
+                "ber_in_burst_pct": pct(self.bit_error / self.burst_share),
+                "bit_errors": "in bursts only, as losses",
+                "process": "one Gilbert-Elliott process shared by both directions",
+            }
+        return {
+            "baud": self.baud,
+            "delay_ms": round(self.delay_s * 1000, 9),
+            "loss_pct": pct(self.byte_loss),
+            "ber_pct": pct(self.bit_error),
+            "burst": burst,
+            "jitter_ms": round(self.jitter_s * 1000, 9),
+            "jitter": "exponential per frame, order kept" if self.jitter_s > 0 else None,
+            "half_duplex": self.half_duplex,
+        }
 
 
 # ---------------------------------------------------------------- what users set
 
 #: The names of the settings as `rovernav sim` and `rovernav trials` take them.
-FLAG_NAMES = {"loss_pct": "--radio-loss", "ber_pct": "--radio-ber", "burst_mean_s": "--radio-burst MEAN_S",
-              "burst_share": "--radio-burst SHARE", "jitter_ms": "--radio-jitter-ms",
-              "half_duplex": "--radio-half-duplex"}
+FLAG_NAMES = {
+    "loss_pct": "--radio-loss",
+    "ber_pct": "--radio-ber",
+    "burst_mean_s": "--radio-burst MEAN_S",
+    "burst_share": "--radio-burst SHARE",
+    "jitter_ms": "--radio-jitter-ms",
+    "half_duplex": "--radio-half-duplex",
+}
 
 
-def radio_config(loss_pct: float = 0.0, ber_pct: float = 0.0, burst_mean_s: float = 0.0, burst_share: float = 0.0,
-                 jitter_ms: float = 0.0, half_duplex: bool = False, *, names: dict | None = None,
-                 base: ChannelConfig = ChannelConfig()) -> ChannelConfig:
+def radio_config(
+    loss_pct: float = 0.0,
+    ber_pct: float = 0.0,
+    burst_mean_s: float = 0.0,
+    burst_share: float = 0.0,
+    jitter_ms: float = 0.0,
+    half_duplex: bool = False,
+    *,
+    names: dict | None = None,
+    base: ChannelConfig = ChannelConfig(),
+) -> ChannelConfig:
     """A ChannelConfig from the settings in users' units, or InputError (one line) naming what is
     wrong by `names` (setting -> its flag or key; the flags by default). Each value is checked on
     its own (finite, in range) and together: bursts need a mean > 0 and a share in (0, 1), and the
@@ -106,8 +129,12 @@ def radio_config(loss_pct: float = 0.0, ber_pct: float = 0.0, burst_mean_s: floa
     n = FLAG_NAMES | (names or {})
 
     def finite(key: str, value: float, lo: float, hi: float, what: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                or not lo <= value <= hi:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+            or not lo <= value <= hi
+        ):
             raise InputError(f"{n[key]}: {what} must be a number from {lo:g} to {hi:g}, got {value!r}")
         return float(value)
 
@@ -116,22 +143,36 @@ def radio_config(loss_pct: float = 0.0, ber_pct: float = 0.0, burst_mean_s: floa
     jitter = finite("jitter_ms", jitter_ms, 0.0, MAX_JITTER_MS, "the mean extra delay per frame (ms)")
     mean = finite("burst_mean_s", burst_mean_s, 0.0, MAX_BURST_MEAN_S, "the mean burst length (s)")
     share = finite("burst_share", burst_share, 0.0, 1.0, "the share of time in bursts")
-    if mean or share:   # bursts: both set
+    if mean or share:  # bursts: both set
         if not MIN_BURST_MEAN_S <= mean:
-            raise InputError(f"{n['burst_mean_s']}: with bursts, the mean burst length must be from "
-                             f"{MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g} s, got {mean:g}")
+            raise InputError(
+                f"{n['burst_mean_s']}: with bursts, the mean burst length must be from "
+                f"{MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g} s, got {mean:g}"
+            )
         if not 0.0 < share < 1.0:
-            raise InputError(f"{n['burst_share']}: with bursts, the share of time in them must be above 0 and "
-                             f"below 1, got {share:g}")
+            raise InputError(
+                f"{n['burst_share']}: with bursts, the share of time in them must be above 0 and below 1, got {share:g}"
+            )
     if loss + ber > 100.0 + 1e-9:
-        raise InputError(f"{n['loss_pct']} {loss:g} % and {n['ber_pct']} {ber:g} %: a byte is lost or corrupted, "
-                         f"not both, so together they cannot pass 100 %")
+        raise InputError(
+            f"{n['loss_pct']} {loss:g} % and {n['ber_pct']} {ber:g} %: a byte is lost or corrupted, "
+            f"not both, so together they cannot pass 100 %"
+        )
     if share and (loss + ber) / 100.0 > share * (1 + 1e-12):
         what = " and ".join(f"{n[k]} {v:g} %" for k, v in (("loss_pct", loss), ("ber_pct", ber)) if v)
-        raise InputError(f"{what} with {n['burst_share']} {share:g}: bytes are lost or corrupted only inside "
-                         f"bursts, at {(loss + ber) / share:g} % there, more than 100 %; with bursts "
-                         f"{100 * share:g} % of the time, loss and bit errors can be at most {100 * share:g} % in all")
+        raise InputError(
+            f"{what} with {n['burst_share']} {share:g}: bytes are lost or corrupted only inside "
+            f"bursts, at {(loss + ber) / share:g} % there, more than 100 %; with bursts "
+            f"{100 * share:g} % of the time, loss and bit errors can be at most {100 * share:g} % in all"
+        )
     if not isinstance(half_duplex, bool):
         raise InputError(f"{n['half_duplex']}: true or false, got {half_duplex!r}")
-    return dataclasses.replace(base, byte_loss=loss / 100.0, bit_error=ber / 100.0, burst_mean_s=mean,
-                               burst_share=share, jitter_s=jitter / 1000.0, half_duplex=half_duplex)
+    return dataclasses.replace(
+        base,
+        byte_loss=loss / 100.0,
+        bit_error=ber / 100.0,
+        burst_mean_s=mean,
+        burst_share=share,
+        jitter_s=jitter / 1000.0,
+        half_duplex=half_duplex,
+    )

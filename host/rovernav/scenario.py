@@ -40,6 +40,7 @@ It is exposed as `Scenario.generated`, a plain dict of the same keys (None witho
 The shared scenarios live in `../shared/scenarios/` beside the repository (override with the
 environment variable ROVERNAV_SCENARIO_DIR); `load_scenario` takes their name or any path.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -152,8 +153,10 @@ class Wall:
     def corners(self) -> tuple[tuple[float, float], ...]:
         """The rectangle's 4 corners [m], in order round it."""
         cx, cy, ux, uy, a, b = self.frame()
-        return tuple((cx + s * a * ux - t * b * uy, cy + s * a * uy + t * b * ux)
-                     for s, t in ((1, 1), (1, -1), (-1, -1), (-1, 1)))
+        return tuple(
+            (cx + s * a * ux - t * b * uy, cy + s * a * uy + t * b * ux)
+            for s, t in ((1, 1), (1, -1), (-1, -1), (-1, 1))
+        )
 
     def distance_m(self, x_m: float, y_m: float) -> float:
         """Distance from the point to the wall's rectangle (0 inside it)."""
@@ -163,8 +166,10 @@ class Wall:
         return math.hypot(max(abs(along) - a, 0.0), max(abs(across) - b, 0.0))
 
     def describe(self) -> str:
-        return (f"from ({self.x0_m:.2f}, {self.y0_m:.2f}) to ({self.x1_m:.2f}, {self.y1_m:.2f}) m, "
-                f"{self.thickness_m:.2f} m thick")
+        return (
+            f"from ({self.x0_m:.2f}, {self.y0_m:.2f}) to ({self.x1_m:.2f}, {self.y1_m:.2f}) m, "
+            f"{self.thickness_m:.2f} m thick"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -257,7 +262,7 @@ def resolve_scenario(name_or_path: str | os.PathLike[str]) -> Path:
     candidate = Path(name_or_path)
     try:
         if candidate.exists() and not candidate.is_dir():
-            return candidate   # a file, or a device or pipe that read_text_file refuses by name
+            return candidate  # a file, or a device or pipe that read_text_file refuses by name
     except (OSError, ValueError) as exc:
         raise ScenarioError(f"{show(candidate)}: {getattr(exc, 'strerror', None) or exc}") from None
     text = str(name_or_path)
@@ -289,6 +294,7 @@ def default_scenario() -> Scenario:
 
 # --- parsing -------------------------------------------------------------------------------
 
+
 class _Reader:
     def __init__(self, source: str):
         self.source = source
@@ -311,8 +317,9 @@ class _Reader:
             if key not in allowed:
                 raise self.fail(f"{prefix}{key}", f"is not a known key (known here: {', '.join(allowed)})")
 
-    def number(self, table: dict[str, Any], prefix: str, key: str, default: float | None = None,
-               positive: bool = False) -> float:
+    def number(
+        self, table: dict[str, Any], prefix: str, key: str, default: float | None = None, positive: bool = False
+    ) -> float:
         name = f"{prefix}{key}"
         if key not in table:
             if default is None:
@@ -349,8 +356,23 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML: {exc}") from exc
-    r.only(doc, "", ("name", "version", "description", "arena", "start", "target", "mission", "obstacles",
-                     "walls", "posts", "generated"))
+    r.only(
+        doc,
+        "",
+        (
+            "name",
+            "version",
+            "description",
+            "arena",
+            "start",
+            "target",
+            "mission",
+            "obstacles",
+            "walls",
+            "posts",
+            "generated",
+        ),
+    )
 
     if "version" not in doc:
         raise r.fail("version", f"is missing (this reader understands version {FORMAT_VERSION})")
@@ -366,8 +388,9 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
 
     arena_t = r.table(doc, "arena")
     r.only(arena_t, "arena.", ("width_m", "height_m"))
-    arena = Arena(r.number(arena_t, "arena.", "width_m", positive=True),
-                  r.number(arena_t, "arena.", "height_m", positive=True))
+    arena = Arena(
+        r.number(arena_t, "arena.", "width_m", positive=True), r.number(arena_t, "arena.", "height_m", positive=True)
+    )
     for key, side in (("width_m", arena.width_m), ("height_m", arena.height_m)):
         if side > MAX_ARENA_M:
             raise r.fail(f"arena.{key}", f"= {side:g} m: an arena's side is at most {MAX_ARENA_M:g} m")
@@ -401,28 +424,48 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
 
     obstacles = []
     for prefix, o, known in r.array(doc, "obstacles", ("x_m", "y_m", "w_m", "h_m", "known")):
-        obstacles.append(Obstacle(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
-                                  r.number(o, prefix, "w_m", positive=True),
-                                  r.number(o, prefix, "h_m", positive=True), known))
+        obstacles.append(
+            Obstacle(
+                r.number(o, prefix, "x_m"),
+                r.number(o, prefix, "y_m"),
+                r.number(o, prefix, "w_m", positive=True),
+                r.number(o, prefix, "h_m", positive=True),
+                known,
+            )
+        )
     walls = []
     for prefix, o, known in r.array(doc, "walls", ("x0_m", "y0_m", "x1_m", "y1_m", "thickness_m", "known")):
-        wall = Wall(*(r.number(o, prefix, k) for k in ("x0_m", "y0_m", "x1_m", "y1_m")),
-                    r.number(o, prefix, "thickness_m", positive=True), known)
+        wall = Wall(
+            *(r.number(o, prefix, k) for k in ("x0_m", "y0_m", "x1_m", "y1_m")),
+            r.number(o, prefix, "thickness_m", positive=True),
+            known,
+        )
         if not wall.length_m > 0:
-            raise r.fail(prefix[:-1], f"has no length: both ends at ({wall.x0_m}, {wall.y0_m}) "
-                                      "(x0_m, y0_m and x1_m, y1_m must differ)")
+            raise r.fail(
+                prefix[:-1],
+                f"has no length: both ends at ({wall.x0_m}, {wall.y0_m}) (x0_m, y0_m and x1_m, y1_m must differ)",
+            )
         walls.append(wall)
     posts = []
     for prefix, o, known in r.array(doc, "posts", ("x_m", "y_m", "radius_m", "known")):
-        posts.append(Post(r.number(o, prefix, "x_m"), r.number(o, prefix, "y_m"),
-                          r.number(o, prefix, "radius_m", positive=True), known))
+        posts.append(
+            Post(
+                r.number(o, prefix, "x_m"),
+                r.number(o, prefix, "y_m"),
+                r.number(o, prefix, "radius_m", positive=True),
+                known,
+            )
+        )
 
     # Every shape on the arena (its centre, a wall's ends); the start and the target in the open.
     def within(prefix: str, points) -> None:
         for x, y in points:
             if not (-_EDGE_M <= x <= arena.width_m + _EDGE_M and -_EDGE_M <= y <= arena.height_m + _EDGE_M):
-                raise r.fail(prefix, f"lies outside the arena ({x:g}, {y:g} m; the arena is "
-                                     f"{arena.width_m:g} x {arena.height_m:g} m)")
+                raise r.fail(
+                    prefix,
+                    f"lies outside the arena ({x:g}, {y:g} m; the arena is {arena.width_m:g} x {arena.height_m:g} m)",
+                )
+
     for i, o in enumerate(obstacles):
         within(f"obstacles[{i}]", [(o.x_m, o.y_m)])
     for i, w in enumerate(walls):
@@ -438,9 +481,20 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
     generated = _generated(r, doc) if "generated" in doc else None
 
     path = Path(source) if not str(source).startswith("<") else None
-    return Scenario(name=name, arena=arena, start=start, target=target, mission=mission,
-                    obstacles=tuple(obstacles), description=description, version=version, path=path,
-                    walls=tuple(walls), posts=tuple(posts), generated=generated)
+    return Scenario(
+        name=name,
+        arena=arena,
+        start=start,
+        target=target,
+        mission=mission,
+        obstacles=tuple(obstacles),
+        description=description,
+        version=version,
+        path=path,
+        walls=tuple(walls),
+        posts=tuple(posts),
+        generated=generated,
+    )
 
 
 def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:
@@ -469,8 +523,13 @@ def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:
 
     prefix = "generated.difficulty."
     d = r.table(g, "difficulty")
-    numbers = ("closest_obstacle_m", "mean_clearance_m", "dispersion", "characteristic_dimension_m",
-               "narrowest_dimension_m")
+    numbers = (
+        "closest_obstacle_m",
+        "mean_clearance_m",
+        "dispersion",
+        "characteristic_dimension_m",
+        "narrowest_dimension_m",
+    )
     optional = ("optimal_length_m", "detour_ratio")
     r.only(d, prefix, (*numbers, *optional, "known_path_blocked", "score", "band"))
     difficulty: dict[str, Any] = {}
@@ -498,23 +557,40 @@ def _generated(r: _Reader, doc: dict[str, Any]) -> dict[str, Any]:
 
 # --- writing -------------------------------------------------------------------------------
 
+
 def scenario_toml(scenario: Scenario) -> str:
     """The scenario as a version-1 file: `parse_scenario` of it gives the same Scenario (every
     number written exactly, the [generated] table and the path left out). A run log keeps this."""
+
     def num(v: float) -> str:
         return repr(float(v))
 
     def text(s: str) -> str:
-        return json.dumps(s, ensure_ascii=False)   # a TOML basic string is a JSON string
+        return json.dumps(s, ensure_ascii=False)  # a TOML basic string is a JSON string
 
     lines = [f"name = {text(scenario.name)}", f"version = {FORMAT_VERSION}"]
     if scenario.description:
         lines.append(f"description = {text(scenario.description)}")
     a, s, t, m = scenario.arena, scenario.start, scenario.target, scenario.mission
-    lines += ["", "[arena]", f"width_m = {num(a.width_m)}", f"height_m = {num(a.height_m)}",
-              "", "[start]", f"x_m = {num(s.x_m)}", f"y_m = {num(s.y_m)}", f"heading_deg = {num(s.heading_deg)}",
-              "", "[target]", f"x_m = {num(t.x_m)}", f"y_m = {num(t.y_m)}",
-              "", "[mission]", f"kind = {text(m.kind)}", f"trips = {int(m.trips)}"]
+    lines += [
+        "",
+        "[arena]",
+        f"width_m = {num(a.width_m)}",
+        f"height_m = {num(a.height_m)}",
+        "",
+        "[start]",
+        f"x_m = {num(s.x_m)}",
+        f"y_m = {num(s.y_m)}",
+        f"heading_deg = {num(s.heading_deg)}",
+        "",
+        "[target]",
+        f"x_m = {num(t.x_m)}",
+        f"y_m = {num(t.y_m)}",
+        "",
+        "[mission]",
+        f"kind = {text(m.kind)}",
+        f"trips = {int(m.trips)}",
+    ]
     for key, shapes in (("obstacles", scenario.obstacles), ("walls", scenario.walls), ("posts", scenario.posts)):
         for shape in shapes:
             lines += ["", f"[[{key}]]"]

@@ -14,6 +14,7 @@ with status 2:
 The argparse types below raise argparse.ArgumentTypeError (argparse names the flag); the
 check_* functions raise InputError with the name they are given.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,11 +30,11 @@ EXIT_CODES = """exit status: 0 success; 1 the run did not reach its goal; 2 unus
 value, named in a one-line error); 3 an internal error (rerun with -v for the traceback); 130 interrupted."""
 
 # Limits on the work a request may ask for: checked before anything is allocated.
-MAX_GRID_CELLS = 4_000_000        # an occupancy grid: 2,000 x 2,000 cells (60 x 60 m at 0.03 m), ~100 MB of planner arrays
-MAX_ARENA_M = 100.0               # an arena's side
-MAX_SIM_TIME_S = 24 * 3600.0      # a simulated mission
-MAX_SIM_STEPS = 2_000_000         # steps of a fixed-step simulation (pose: duration / dt)
-MAX_TRIPS = 1000                  # round trips of one mission
+MAX_GRID_CELLS = 4_000_000  # an occupancy grid: 2,000 x 2,000 cells (60 x 60 m at 0.03 m), ~100 MB of planner arrays
+MAX_ARENA_M = 100.0  # an arena's side
+MAX_SIM_TIME_S = 24 * 3600.0  # a simulated mission
+MAX_SIM_STEPS = 2_000_000  # steps of a fixed-step simulation (pose: duration / dt)
+MAX_TRIPS = 1000  # round trips of one mission
 
 
 class ArgParser(argparse.ArgumentParser):
@@ -45,7 +46,7 @@ class ArgParser(argparse.ArgumentParser):
         epilog = kwargs.get("epilog")
         if not epilog:
             kwargs["epilog"] = EXIT_CODES
-        elif "exit status" not in epilog.lower():   # a command that states its own says them once
+        elif "exit status" not in epilog.lower():  # a command that states its own says them once
             kwargs["epilog"] = f"{epilog}\n\n{EXIT_CODES}"
         super().__init__(*args, **kwargs)
 
@@ -62,7 +63,7 @@ def show(text: object) -> str:
 
 
 def _kind(path: Path) -> str:
-    """"dir", "file" or "missing"; a name the system refuses (too long, a NUL) is refused here."""
+    """ "dir", "file" or "missing"; a name the system refuses (too long, a NUL) is refused here."""
     try:
         if path.is_dir():
             return "dir"
@@ -86,8 +87,15 @@ def _describe(lo: float | None, hi: float | None, lo_open: bool, integer: bool) 
     return f"a finite {kind[2:] if integer else 'number'}"
 
 
-def check_number(name: str, value: object, lo: float | None = None, hi: float | None = None, *,
-                 lo_open: bool = False, integer: bool = False) -> float | int:
+def check_number(
+    name: str,
+    value: object,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    integer: bool = False,
+) -> float | int:
     """`value` as a finite number within [lo, hi] (lo excluded when lo_open), or InputError naming it."""
     want = _describe(lo, hi, lo_open, integer)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -105,9 +113,11 @@ def check_number(name: str, value: object, lo: float | None = None, hi: float | 
     return value
 
 
-def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
-           integer: bool = False) -> Callable[[str], float | int]:
+def number(
+    lo: float | None = None, hi: float | None = None, *, lo_open: bool = False, integer: bool = False
+) -> Callable[[str], float | int]:
     """An argparse type: a finite number (or integer) within [lo, hi]; NaN and infinities refused."""
+
     def parse(text: str) -> float | int:
         try:
             value: float | int = int(text) if integer else float(text)
@@ -117,7 +127,8 @@ def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = 
             return check_number("the value", value, lo, hi, lo_open=lo_open, integer=integer)
         except InputError as exc:
             raise argparse.ArgumentTypeError(f"{text!r}: {exc}".replace("the value ", "")) from None
-    parse.__name__ = "integer" if integer else "number"   # argparse names the type in some messages
+
+    parse.__name__ = "integer" if integer else "number"  # argparse names the type in some messages
     return parse
 
 
@@ -135,10 +146,16 @@ def time_window(text: str) -> tuple[float, float]:
         start, duration = float(parts[0]), float(parts[1])
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: expected START:DURATION in seconds, e.g. 20:10") from None
-    if not (math.isfinite(start) and math.isfinite(duration)) or start < 0 or duration <= 0 \
-            or start > MAX_SIM_TIME_S or duration > MAX_SIM_TIME_S:
-        raise argparse.ArgumentTypeError(f"{text!r}: START must be >= 0 and DURATION > 0, both finite seconds "
-                                         f"up to {MAX_SIM_TIME_S:g}")
+    if (
+        not (math.isfinite(start) and math.isfinite(duration))
+        or start < 0
+        or duration <= 0
+        or start > MAX_SIM_TIME_S
+        or duration > MAX_SIM_TIME_S
+    ):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: START must be >= 0 and DURATION > 0, both finite seconds up to {MAX_SIM_TIME_S:g}"
+        )
     return start, duration
 
 
@@ -155,16 +172,19 @@ def out_dir(text: str) -> Path:
 def output_file(*suffixes: str) -> Callable[[str], Path]:
     """An argparse type: a file to write, ending in one of `suffixes`, not a folder, in a folder
     that exists."""
+
     def parse(text: str) -> Path:
         path = Path(text)
         if not text.strip() or text.endswith(("/", "\\")) or _kind(path) == "dir":
-            raise argparse.ArgumentTypeError(f"{text!r}: a file name is needed (e.g. out/name{suffixes[0]}), "
-                                             "not a folder")
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: a file name is needed (e.g. out/name{suffixes[0]}), not a folder"
+            )
         if suffixes and path.suffix.lower() not in suffixes:
             raise argparse.ArgumentTypeError(f"{text!r}: the file name must end in {' or '.join(suffixes)}")
         if _kind(path.parent) != "dir":
             raise argparse.ArgumentTypeError(f"{text!r}: no folder {str(path.parent)!r} to write it in")
         return path
+
     return parse
 
 
@@ -186,8 +206,9 @@ def input_file(text: str) -> Path:
 def port_spec(text: str) -> str:
     """An argparse type: a serial port or transport spec (a name, loop://, pty://), not blank."""
     if not text.strip():
-        raise argparse.ArgumentTypeError("an empty port: give a serial port such as /dev/ttyUSB0 or COM4, "
-                                         "or loop:// or pty://")
+        raise argparse.ArgumentTypeError(
+            "an empty port: give a serial port such as /dev/ttyUSB0 or COM4, or loop:// or pty://"
+        )
     if any(ord(c) < 32 for c in text):
         raise argparse.ArgumentTypeError(f"{text!r}: control characters in a port name")
     return text
@@ -216,20 +237,22 @@ def read_text_file(path: Path, what: str, max_bytes: int = 10_000_000) -> str:
         raise InputError(f"{show(path)}: is a folder, not a {what}") from None
     except UnicodeDecodeError as exc:
         raise InputError(f"{show(path)}: not a UTF-8 text file (byte {exc.start}): not a {what}") from None
-    except (OSError, ValueError) as exc:   # ValueError: a NUL in the name
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
         raise InputError(f"{show(path)}: cannot read the {what}: {getattr(exc, 'strerror', None) or exc}") from None
 
 
 def check_grid(width_m: float, height_m: float, resolution_m: float, what: str = "the arena") -> int:
     """The cell count of a width x height grid at `resolution_m`, or InputError with the figure
     when it passes MAX_GRID_CELLS (checked before anything is allocated)."""
-    check_number(f"{what}'s width (m)", width_m, 0.0, None, lo_open=True)   # the side's own limit is the
+    check_number(f"{what}'s width (m)", width_m, 0.0, None, lo_open=True)  # the side's own limit is the
     check_number(f"{what}'s height (m)", height_m, 0.0, None, lo_open=True)  # caller's (a crater map is 50 km)
     check_number("the grid resolution (m)", resolution_m, 0.0, None, lo_open=True)
     cells = math.ceil(width_m / resolution_m) * math.ceil(height_m / resolution_m)
     if cells > MAX_GRID_CELLS:
-        raise InputError(f"{what}, {width_m:g} x {height_m:g} m at {resolution_m:g} m, is {cells:,} grid cells; "
-                         f"the limit is {MAX_GRID_CELLS:,} (a coarser resolution or a smaller arena)")
+        raise InputError(
+            f"{what}, {width_m:g} x {height_m:g} m at {resolution_m:g} m, is {cells:,} grid cells; "
+            f"the limit is {MAX_GRID_CELLS:,} (a coarser resolution or a smaller arena)"
+        )
     return cells
 
 
@@ -237,8 +260,12 @@ def internal_error(command: str, exc: BaseException, verbose: bool) -> int:
     """Report an unexpected exception in one line (the traceback with -v); exit status 3."""
     if verbose:
         import traceback
+
         traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
     text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    print(f"rovernav {command}: internal error: {type(exc).__name__}{': ' + text if text else ''} "
-          "(a bug; rerun with -v for the traceback)", file=sys.stderr)
+    print(
+        f"rovernav {command}: internal error: {type(exc).__name__}{': ' + text if text else ''} "
+        "(a bug; rerun with -v for the traceback)",
+        file=sys.stderr,
+    )
     return 3

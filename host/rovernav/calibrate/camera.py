@@ -23,6 +23,7 @@ the new ranges, must find the rover in every frame, and nothing else.
 Every refusal is one line naming what to change: no arena, a frame too dark, a marker cut by
 the frame's edge, no rover pair, a colour that was asked for and not seen.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -37,7 +38,7 @@ from ..vision.colour_markers import hue_name
 from ..vision.config import VisionConfig
 from ..vision.marks import COLOUR_BANDS, CORNER_DICTIONARY, CORNER_INSET_M, CORNER_TAG_IDS
 
-MARKER_SIZE_M = 0.05                  # the colour squares on the rover (RoverLook.marker_size_m)
+MARKER_SIZE_M = 0.05  # the colour squares on the rover (RoverLook.marker_size_m)
 TARGET_SIZE_M = 0.06
 
 #: "Clearly coloured": at least this saturation and brightness (OpenCV units, 0-255).
@@ -77,15 +78,15 @@ class Candidate:
 
 @dataclasses.dataclass
 class CameraCalibration:
-    corners_px: tuple[tuple[float, float], ...]      # the arena's corners in the frame (BL, BR, TR, TL)
+    corners_px: tuple[tuple[float, float], ...]  # the arena's corners in the frame (BL, BR, TR, TL)
     arena_w_m: float
     arena_h_m: float
-    how: str                                         # "corner tags" or "points given"
+    how: str  # "corner tags" or "points given"
     hsv: dict[str, tuple[tuple[int, int, int], tuple[int, int, int]]]
-    markers: dict[str, list[Candidate]]              # each role's blob in every frame
-    found: int = 0                                   # frames the locator then found the rover in
+    markers: dict[str, list[Candidate]]  # each role's blob in every frame
+    found: int = 0  # frames the locator then found the rover in
     frames: int = 0
-    poses: list = dataclasses.field(default_factory=list)   # the locator's RoverPose per frame (None: none)
+    poses: list = dataclasses.field(default_factory=list)  # the locator's RoverPose per frame (None: none)
 
     @property
     def calibration(self) -> Calibration:
@@ -96,8 +97,11 @@ class CameraCalibration:
         d = (base or VisionConfig()).to_dict()
         d["markers"] = "colour"
         d["hsv"] = {name: [list(lo), list(hi)] for name, (lo, hi) in self.hsv.items()}
-        d["calibration"] = {"corners_px": [[round(u, 2), round(v, 2)] for u, v in self.corners_px],
-                            "width_m": self.arena_w_m, "height_m": self.arena_h_m}
+        d["calibration"] = {
+            "corners_px": [[round(u, 2), round(v, 2)] for u, v in self.corners_px],
+            "width_m": self.arena_w_m,
+            "height_m": self.arena_h_m,
+        }
         return VisionConfig.from_dict(d)
 
     def colour_words(self) -> dict[str, str]:
@@ -106,14 +110,21 @@ class CameraCalibration:
 
 # ---------------------------------------------------------------- the arena
 
-def arena_from_tags(frame_bgr: np.ndarray, arena_w_m: float, arena_h_m: float, *,
-                    tag_ids: tuple[int, int, int, int] = CORNER_TAG_IDS, dictionary: str = CORNER_DICTIONARY,
-                    inset_m: float = CORNER_INSET_M) -> tuple[tuple[float, float], ...]:
+
+def arena_from_tags(
+    frame_bgr: np.ndarray,
+    arena_w_m: float,
+    arena_h_m: float,
+    *,
+    tag_ids: tuple[int, int, int, int] = CORNER_TAG_IDS,
+    dictionary: str = CORNER_DICTIONARY,
+    inset_m: float = CORNER_INSET_M,
+) -> tuple[tuple[float, float], ...]:
     """The arena's corners (pixels; bottom-left, bottom-right, top-right, top-left) from its four
     corner tags, or CalibrationFailed naming the tags not seen."""
     gray = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY)
     params = cv2.aruco.DetectorParameters()
-    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX   # the corners to a tenth of a pixel
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX  # the corners to a tenth of a pixel
     detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
     seen: dict[int, list[np.ndarray]] = {}
     # A far corner's tag can be a few pixels a cell: looked for again in a copy twice the size.
@@ -129,8 +140,10 @@ def arena_from_tags(frame_bgr: np.ndarray, arena_w_m: float, arena_h_m: float, *
     names = ("bottom-left", "bottom-right", "top-right", "top-left")
     missing = [f"{tid} ({name})" for tid, name in zip(tag_ids, names) if tid not in seen]
     if missing:
-        raise CalibrationFailed(f"corner tag{'s' if len(missing) > 1 else ''} {', '.join(missing)} not seen "
-                                f"({dictionary}; give the arena's corners with --corners instead)")
+        raise CalibrationFailed(
+            f"corner tag{'s' if len(missing) > 1 else ''} {', '.join(missing)} not seen "
+            f"({dictionary}; give the arena's corners with --corners instead)"
+        )
     twice = [str(tid) for tid in tag_ids if len(seen[tid]) > 1]
     if twice:
         raise CalibrationFailed(f"corner tag {', '.join(twice)} seen more than once: which is the corner?")
@@ -152,12 +165,14 @@ def check_corners(corners_px, frame_shape: tuple[int, ...]) -> tuple[tuple[float
     h, w = frame_shape[:2]
     inside = sum(-0.5 <= u <= w - 0.5 and -0.5 <= v <= h - 0.5 for u, v in pts)
     if inside < 3:
-        raise CalibrationFailed(f"only {inside} of the four corners lie in the {w} x {h} frame: the camera "
-                                "does not see the arena")
+        raise CalibrationFailed(
+            f"only {inside} of the four corners lie in the {w} x {h} frame: the camera does not see the arena"
+        )
     return pts
 
 
 # ---------------------------------------------------------------- the markers
+
 
 def _circular_median_hue(h: np.ndarray) -> float:
     """A robust centre of OpenCV hues (0-179, circular): the median of the hues turned so that
@@ -189,7 +204,7 @@ def find_candidates(frame_bgr: np.ndarray, cal: Calibration, index: int = 0) -> 
     blob of that size cut by the frame's edge."""
     hsv = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2HSV)
     mask = cv2.inRange(hsv, np.array([0, MIN_SATURATION, MIN_VALUE], np.uint8), np.array([179, 255, 255], np.uint8))
-    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))   # odd: a subset of the mask
+    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))  # odd: a subset of the mask
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
     fh, fw = mask.shape
     out: list[Candidate] = []
@@ -207,12 +222,11 @@ def find_candidates(frame_bgr: np.ndarray, cal: Calibration, index: int = 0) -> 
             if area < 0.1 * lo:
                 continue
             hue = int(_circular_median_hue(hsv[labels == k][:, 0]))
-            cut.append(f"a {hue_name(hue, hue)} blob at pixel "
-                       f"({u:.0f}, {v:.0f}) touches the frame's edge")
+            cut.append(f"a {hue_name(hue, hue)} blob at pixel ({u:.0f}, {v:.0f}) touches the frame's edge")
             continue
         if area < lo:
             continue
-        pix = hsv[labels == k]   # the whole blob: its edge pixels are less saturated, still above the floor's
+        pix = hsv[labels == k]  # the whole blob: its edge pixels are less saturated, still above the floor's
         out.append(Candidate(index, u, v, xm, ym, float(area), _circular_median_hue(pix[:, 0]), pix))
     return out, cut
 
@@ -235,13 +249,21 @@ def _range_centre(rng) -> float:
     return (lo + hi) / 2.0
 
 
-def assign_roles(cands: list[Candidate], cal: Calibration, marker_distance_m: float, tolerance_m: float,
-                 words: dict[str, str] | None, base: VisionConfig) -> dict[str, Candidate]:
+def assign_roles(
+    cands: list[Candidate],
+    cal: Calibration,
+    marker_distance_m: float,
+    tolerance_m: float,
+    words: dict[str, str] | None,
+    base: VisionConfig,
+) -> dict[str, Candidate]:
     """Which candidate is the rover's front, its back and the target in one frame, or
     CalibrationFailed. The front and back must be marker_distance_m (+- tolerance_m) apart."""
     if len(cands) < 3:
-        raise CalibrationFailed(f"{len(cands)} coloured marker{'s' if len(cands) != 1 else ''} of a marker's size "
-                                "in view, 3 needed (the rover's front and back, the target)")
+        raise CalibrationFailed(
+            f"{len(cands)} coloured marker{'s' if len(cands) != 1 else ''} of a marker's size "
+            "in view, 3 needed (the rover's front and back, the target)"
+        )
 
     def cost(role: str, c: Candidate) -> float:
         if words and role in words:
@@ -249,9 +271,11 @@ def assign_roles(cands: list[Candidate], cal: Calibration, marker_distance_m: fl
         return hue_distance(c.hue, _range_centre(getattr(base.hsv, role))) / 10.0
 
     best, best_cost = None, math.inf
-    pairs = [(f, b) for f, b in itertools.permutations(range(len(cands)), 2)
-             if abs(math.hypot(cands[f].x_m - cands[b].x_m, cands[f].y_m - cands[b].y_m) - marker_distance_m)
-             <= tolerance_m]
+    pairs = [
+        (f, b)
+        for f, b in itertools.permutations(range(len(cands)), 2)
+        if abs(math.hypot(cands[f].x_m - cands[b].x_m, cands[f].y_m - cands[b].y_m) - marker_distance_m) <= tolerance_m
+    ]
     for f, b in pairs:
         for t in range(len(cands)):
             if t in (f, b):
@@ -261,17 +285,24 @@ def assign_roles(cands: list[Candidate], cal: Calibration, marker_distance_m: fl
             if total < best_cost:
                 best, best_cost = (cf, cb, ct), total
     if best is None:
-        raise CalibrationFailed(f"no two coloured markers {marker_distance_m * 100:.0f} cm apart (+-"
-                                f"{tolerance_m * 100:.0f}): is the rover in view, its markers uncovered?")
+        raise CalibrationFailed(
+            f"no two coloured markers {marker_distance_m * 100:.0f} cm apart (+-"
+            f"{tolerance_m * 100:.0f}): is the rover in view, its markers uncovered?"
+        )
     chosen = dict(zip(ROLES, best))
     # A role without the user's word for its colour is taken only near the configured range: a
     # guess between, say, a blue and a magenta square could turn the rover round.
-    far = [role for role, c in chosen.items()
-           if not (words and role in words) and _range_gap(c.hue, getattr(base.hsv, role)) > 10]
+    far = [
+        role
+        for role, c in chosen.items()
+        if not (words and role in words) and _range_gap(c.hue, getattr(base.hsv, role)) > 10
+    ]
     if far:
         seen = ", ".join(f"{hue_name(int(c.hue), int(c.hue))}" for c in best)
-        raise CalibrationFailed(f"the markers seen ({seen}) are not the configuration's colours: say which is "
-                                "which with --front COLOUR --back COLOUR --target COLOUR")
+        raise CalibrationFailed(
+            f"the markers seen ({seen}) are not the configuration's colours: say which is "
+            "which with --front COLOUR --back COLOUR --target COLOUR"
+        )
     if words:
         for role, word in words.items():
             c = chosen[role]
@@ -293,8 +324,10 @@ def propose_ranges(markers: dict[str, list[Candidate]]) -> dict[str, tuple[tuple
         rel = ((pix[:, 0].astype(np.float64) - centre + 90.0) % 180.0) - 90.0
         lo_h, hi_h = centre + float(np.percentile(rel, 1)), centre + float(np.percentile(rel, 99))
         if lo_h < 0 or hi_h > 179:
-            raise CalibrationFailed(f"the {role.replace('_', ' ')} marker is red (its hues run across 0 and 179, "
-                                    "which one HSV range cannot hold): use another colour, or ArUco tags")
+            raise CalibrationFailed(
+                f"the {role.replace('_', ' ')} marker is red (its hues run across 0 and 179, "
+                "which one HSV range cannot hold): use another colour, or ArUco tags"
+            )
         # The margin stops at the ends of the hue scale (an orange at H 10 keeps its range).
         spans[role] = [max(0.0, lo_h - HUE_MARGIN), min(179.0, hi_h + HUE_MARGIN), centre]
         s_lo = max(SV_FLOOR, int(SV_FRACTION * float(np.percentile(pix[:, 1], 1))))
@@ -303,11 +336,13 @@ def propose_ranges(markers: dict[str, list[Candidate]]) -> dict[str, tuple[tuple
     # Ranges that meet are cut apart at a hue strictly between the two markers' own, every pair.
     roles = sorted(spans, key=lambda r: spans[r][2])
     for i, a in enumerate(roles):
-        for b in roles[i + 1:]:
+        for b in roles[i + 1 :]:
             ca, cb = spans[a][2], spans[b][2]
             if cb - ca < 2 * HUE_MARGIN:
-                raise CalibrationFailed(f"the {a.replace('_', ' ')} and {b.replace('_', ' ')} markers are the same "
-                                        f"colour (hues {ca:.0f} and {cb:.0f}): use distinct colours")
+                raise CalibrationFailed(
+                    f"the {a.replace('_', ' ')} and {b.replace('_', ' ')} markers are the same "
+                    f"colour (hues {ca:.0f} and {cb:.0f}): use distinct colours"
+                )
             if spans[a][1] >= spans[b][0]:
                 cut = min(max((spans[a][1] + spans[b][0]) / 2, ca + 1.0), cb - 1.0)
                 spans[a][1] = min(spans[a][1], cut - 0.5)
@@ -316,17 +351,28 @@ def propose_ranges(markers: dict[str, list[Candidate]]) -> dict[str, tuple[tuple
         out[role][0][0], out[role][1][0] = int(math.ceil(lo_h)), int(math.floor(hi_h))
         others = [spans[r][2] for r in spans if r != role]
         if out[role][0][0] > out[role][1][0] or any(out[role][0][0] <= c <= out[role][1][0] for c in others):
-            raise CalibrationFailed(f"the {role.replace('_', ' ')} marker's hues cannot be kept apart from the "
-                                    "others' (a sticker of mixed colour, or light of another colour on it)")
+            raise CalibrationFailed(
+                f"the {role.replace('_', ' ')} marker's hues cannot be kept apart from the "
+                "others' (a sticker of mixed colour, or light of another colour on it)"
+            )
     return {role: (tuple(lo), tuple(hi)) for role, (lo, hi) in out.items()}  # type: ignore[misc]
 
 
 # ---------------------------------------------------------------- all of it
 
-def calibrate_camera(frames: list[np.ndarray], arena_w_m: float, arena_h_m: float, *,
-                     corners_px=None, words: dict[str, str] | None = None, base: VisionConfig | None = None,
-                     tag_ids: tuple[int, int, int, int] = CORNER_TAG_IDS, dictionary: str = CORNER_DICTIONARY,
-                     inset_m: float = CORNER_INSET_M) -> CameraCalibration:
+
+def calibrate_camera(
+    frames: list[np.ndarray],
+    arena_w_m: float,
+    arena_h_m: float,
+    *,
+    corners_px=None,
+    words: dict[str, str] | None = None,
+    base: VisionConfig | None = None,
+    tag_ids: tuple[int, int, int, int] = CORNER_TAG_IDS,
+    dictionary: str = CORNER_DICTIONARY,
+    inset_m: float = CORNER_INSET_M,
+) -> CameraCalibration:
     """Calibrate from frames of a still scene (the rover and the target in view), or
     CalibrationFailed with the reason (naming the frame when there are several)."""
     from ..vision.locator import Locator
@@ -349,7 +395,9 @@ def calibrate_camera(frames: list[np.ndarray], arena_w_m: float, arena_h_m: floa
         found, last = None, None
         for f in frames:
             try:
-                found = arena_from_tags(f, arena_w_m, arena_h_m, tag_ids=tag_ids, dictionary=dictionary, inset_m=inset_m)
+                found = arena_from_tags(
+                    f, arena_w_m, arena_h_m, tag_ids=tag_ids, dictionary=dictionary, inset_m=inset_m
+                )
                 break
             except CalibrationFailed as exc:
                 last = exc
@@ -378,13 +426,16 @@ def calibrate_camera(frames: list[np.ndarray], arena_w_m: float, arena_h_m: floa
         if d.rover is not None and d.target is not None:
             result.found += 1
         else:
-            raise CalibrationFailed(where(i) + "with the ranges found the locator still sees no "
-                                    f"{'rover' if d.rover is None else 'target'}: "
-                                    f"{d.reason or d.target_reason} (another marker colour close to these?)")
+            raise CalibrationFailed(
+                where(i) + "with the ranges found the locator still sees no "
+                f"{'rover' if d.rover is None else 'target'}: "
+                f"{d.reason or d.target_reason} (another marker colour close to these?)"
+            )
     return result
 
 
 # ---------------------------------------------------------------- the check picture
+
 
 def check_picture(frame_bgr: np.ndarray, result: CameraCalibration, grid_m: float = 0.25) -> np.ndarray:
     """The frame with the arena's outline and a grid every grid_m metres drawn through the
@@ -396,8 +447,9 @@ def check_picture(frame_bgr: np.ndarray, result: CameraCalibration, grid_m: floa
 
     def line(p, q, colour, thick=1):
         a, b = cal.to_pixels(np.array([p, q], dtype=np.float64))
-        cv2.line(img, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), colour, thick,
-                 cv2.LINE_AA)
+        cv2.line(
+            img, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), colour, thick, cv2.LINE_AA
+        )
 
     for x in np.arange(grid_m, w, grid_m):
         line((x, 0.0), (x, h), (200, 200, 60))
@@ -410,15 +462,38 @@ def check_picture(frame_bgr: np.ndarray, result: CameraCalibration, grid_m: floa
         c = cands[0]
         r = max(6, int(math.sqrt(c.area_px)))
         cv2.circle(img, (int(round(c.u_px)), int(round(c.v_px))), r, (255, 255, 255), 1, cv2.LINE_AA)
-        cv2.putText(img, labels[role], (int(c.u_px) + r + 2, int(c.v_px) + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    (255, 255, 255), 1, cv2.LINE_AA)
+        cv2.putText(
+            img,
+            labels[role],
+            (int(c.u_px) + r + 2, int(c.v_px) + 4),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.4,
+            (255, 255, 255),
+            1,
+            cv2.LINE_AA,
+        )
     pose = result.poses[0] if result.poses else None
     if pose is not None:
         hd = math.radians(pose.heading_deg)
         tip = (pose.x_m + 0.15 * math.sin(hd), pose.y_m + 0.15 * math.cos(hd))
         a, b = cal.to_pixels(np.array([[pose.x_m, pose.y_m], tip]))
-        cv2.arrowedLine(img, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))),
-                        (0, 0, 255), 2, cv2.LINE_AA, tipLength=0.25)
-        cv2.putText(img, f"({pose.x_m:.2f}, {pose.y_m:.2f}) m {pose.heading_deg:.0f} deg",
-                    (int(a[0]) + 8, int(a[1]) - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1, cv2.LINE_AA)
+        cv2.arrowedLine(
+            img,
+            (int(round(a[0])), int(round(a[1]))),
+            (int(round(b[0])), int(round(b[1]))),
+            (0, 0, 255),
+            2,
+            cv2.LINE_AA,
+            tipLength=0.25,
+        )
+        cv2.putText(
+            img,
+            f"({pose.x_m:.2f}, {pose.y_m:.2f}) m {pose.heading_deg:.0f} deg",
+            (int(a[0]) + 8, int(a[1]) - 8),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.45,
+            (0, 0, 255),
+            1,
+            cv2.LINE_AA,
+        )
     return img

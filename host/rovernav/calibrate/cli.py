@@ -1,5 +1,6 @@
 """`rovernav calibrate camera` (the camera's calibration from a still, a video or a live camera)
 and `rovernav calibrate rover` (the motors' figures from runs the camera watches)."""
+
 from __future__ import annotations
 
 import argparse
@@ -30,9 +31,11 @@ Several frames (of a video, or --frames from a live camera) make the ranges hold
 flicker of the light; the rover need not move. A picture (--picture) shows the arena's grid, the
 markers found and the pose: if the grid does not lie on the floor's edges, it is wrong."""
 
-EPILOG = ("exit status: 0 calibrated and checked; 1 it could not be done (the reason, in one line: no arena, too dark, "
-          "a marker cut by the frame's edge, no rover pair, a colour not seen); 2 unusable input (a flag, file or "
-          "value, named in a one-line error); 3 an internal error (rerun with -v for the traceback); 130 interrupted.")
+EPILOG = (
+    "exit status: 0 calibrated and checked; 1 it could not be done (the reason, in one line: no arena, too dark, "
+    "a marker cut by the frame's edge, no rover pair, a colour not seen); 2 unusable input (a flag, file or "
+    "value, named in a one-line error); 3 an internal error (rerun with -v for the traceback); 130 interrupted."
+)
 
 ROVER_HELP = """\
 Fit the rover's motor figures from three straight runs of 0.5 m the camera watches: ahead the
@@ -59,74 +62,146 @@ metres) and stand the rover facing it square, its ranger 0.15-0.5 m from it, 0.8
 behind. The first and third runs then begin with a sweep, and the runs go away from the wall.
 The simulator's bench (--sim) has such a wall."""
 
-ROVER_EPILOG = ("exit status: 0 fitted (and written with --write); 1 the runs gave no fit (the reason, in one line: "
-                "the rover did not drive, the camera lost it, the speeds do not rise with the command); 2 unusable "
-                "input (a flag, file or value, named in a one-line error; no room ahead of the rover; the rover not "
-                "facing the --wall near it); 3 an internal "
-                "error (rerun with -v for the traceback); 130 interrupted.")
+ROVER_EPILOG = (
+    "exit status: 0 fitted (and written with --write); 1 the runs gave no fit (the reason, in one line: "
+    "the rover did not drive, the camera lost it, the speeds do not rise with the command); 2 unusable "
+    "input (a flag, file or value, named in a one-line error; no room ahead of the rover; the rover not "
+    "facing the --wall near it); 3 an internal "
+    "error (rerun with -v for the traceback); 130 interrupted."
+)
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 
 
 def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
-    p = subparsers.add_parser("calibrate", help="calibrate the camera (arena corners, marker colours) and the rover (motor figures) from what the camera sees",
-                              description="Calibrate the set-up from what the camera sees.", epilog=EPILOG)
+    p = subparsers.add_parser(
+        "calibrate",
+        help="calibrate the camera (arena corners, marker colours) and the rover (motor figures) from what the camera sees",
+        description="Calibrate the set-up from what the camera sees.",
+        epilog=EPILOG,
+    )
     sub = p.add_subparsers(dest="what", metavar="WHAT", parser_class=type(p))
-    c = sub.add_parser("camera", help="the arena's corners and the markers' HSV ranges, into [vision]",
-                       formatter_class=argparse.RawDescriptionHelpFormatter, description=HELP, epilog=EPILOG)
-    c.add_argument("source", nargs="*", metavar="SOURCE",
-                   help="image files (PNG, JPEG, ...) or one video file; none with --camera")
-    c.add_argument("--camera", type=number(0, 63, integer=True), metavar="INDEX",
-                   help="a live camera, by its index (0 is the first), instead of files")
-    c.add_argument("--frames", type=number(1, 100, integer=True), default=5, metavar="N",
-                   help="frames taken from a video or a live camera, 1 to 100 (default 5)")
-    c.add_argument("--corners", nargs=4, metavar="U,V",
-                   help="the arena's corners in the frame, in pixels (bottom-left, bottom-right, top-right, top-left), "
-                        "instead of corner tags")
-    c.add_argument("--arena-size", nargs=2, type=number(0.0, 100.0, lo_open=True), metavar=("W", "H"),
-                   help="arena width and height in metres (default: the configuration's [arena], else "
-                        f"{DEFAULT_ARENA_WIDTH_MM / 1000:g} {DEFAULT_ARENA_HEIGHT_MM / 1000:g})")
+    c = sub.add_parser(
+        "camera",
+        help="the arena's corners and the markers' HSV ranges, into [vision]",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=HELP,
+        epilog=EPILOG,
+    )
+    c.add_argument(
+        "source", nargs="*", metavar="SOURCE", help="image files (PNG, JPEG, ...) or one video file; none with --camera"
+    )
+    c.add_argument(
+        "--camera",
+        type=number(0, 63, integer=True),
+        metavar="INDEX",
+        help="a live camera, by its index (0 is the first), instead of files",
+    )
+    c.add_argument(
+        "--frames",
+        type=number(1, 100, integer=True),
+        default=5,
+        metavar="N",
+        help="frames taken from a video or a live camera, 1 to 100 (default 5)",
+    )
+    c.add_argument(
+        "--corners",
+        nargs=4,
+        metavar="U,V",
+        help="the arena's corners in the frame, in pixels (bottom-left, bottom-right, top-right, top-left), "
+        "instead of corner tags",
+    )
+    c.add_argument(
+        "--arena-size",
+        nargs=2,
+        type=number(0.0, 100.0, lo_open=True),
+        metavar=("W", "H"),
+        help="arena width and height in metres (default: the configuration's [arena], else "
+        f"{DEFAULT_ARENA_WIDTH_MM / 1000:g} {DEFAULT_ARENA_HEIGHT_MM / 1000:g})",
+    )
     words = sorted(marks.COLOUR_BANDS)
     for flag, role in (("--front", "rover's front"), ("--back", "rover's back"), ("--target", "target")):
-        c.add_argument(flag, choices=words, metavar="COLOUR",
-                       help=f"the {role} marker's colour ({', '.join(words)}); default: as the configuration's "
-                            "ranges say")
-    c.add_argument("--config", type=Path, metavar="FILE",
-                   help="the configuration to start from (its [arena] and the rest of its [vision])")
-    c.add_argument("--write", type=output_file(".toml"), metavar="FILE",
-                   help="write the result into FILE's [vision] table (made if missing; every other table and key "
-                        "kept); without it the table is printed")
-    c.add_argument("--picture", type=output_file(".png", ".jpg"), default=Path("calibration-check.png"), metavar="FILE",
-                   help="the check picture (default calibration-check.png)")
+        c.add_argument(
+            flag,
+            choices=words,
+            metavar="COLOUR",
+            help=f"the {role} marker's colour ({', '.join(words)}); default: as the configuration's ranges say",
+        )
+    c.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="the configuration to start from (its [arena] and the rest of its [vision])",
+    )
+    c.add_argument(
+        "--write",
+        type=output_file(".toml"),
+        metavar="FILE",
+        help="write the result into FILE's [vision] table (made if missing; every other table and key "
+        "kept); without it the table is printed",
+    )
+    c.add_argument(
+        "--picture",
+        type=output_file(".png", ".jpg"),
+        default=Path("calibration-check.png"),
+        metavar="FILE",
+        help="the check picture (default calibration-check.png)",
+    )
     c.add_argument("--json", action="store_true", help="print the result as one JSON object")
     c.set_defaults(func=_cmd_camera)
-    r = sub.add_parser("rover", help="the motors' dead band, speed per PWM and balance, from runs the camera watches",
-                       formatter_class=argparse.RawDescriptionHelpFormatter, description=ROVER_HELP,
-                       epilog=ROVER_EPILOG)
+    r = sub.add_parser(
+        "rover",
+        help="the motors' dead band, speed per PWM and balance, from runs the camera watches",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=ROVER_HELP,
+        epilog=ROVER_EPILOG,
+    )
     where = r.add_mutually_exclusive_group()
     where.add_argument("--port", metavar="PORT", help="the rover's serial port (its radio), as for rovernav run")
     where.add_argument("--sim", action="store_true", help="calibrate the simulated rover instead")
-    r.add_argument("--camera", metavar="SOURCE", help="with --port: the camera (index or video/URL; default: the "
-                                                      "configuration's [camera] source)")
-    r.add_argument("--setup", type=number(0, 2**31 - 1, integer=True), metavar="SEED",
-                   help="with --sim: a simulated set-up (marker colours, light, camera pose, plant) by its seed; "
-                        "give the --config its camera was calibrated into")
-    r.add_argument("--config", type=Path, metavar="FILE",
-                   help="the configuration (its [vision], [link] and [rover]); default: the built-in one")
-    r.add_argument("--write", type=output_file(".toml"), metavar="FILE",
-                   help="write the fitted parameters into FILE's [rover] table, and the sonar's offset into its "
-                        "[planner] (made if missing; every other table and key kept); without it they are printed")
-    r.add_argument("--wall", type=wall_face, metavar="X0,Y0,X1,Y1",
-                   help="with --port: the face of a straight wall the rover stands facing (arena metres, its two "
-                        "ends), to measure the sonar's offset from")
+    r.add_argument(
+        "--camera",
+        metavar="SOURCE",
+        help="with --port: the camera (index or video/URL; default: the configuration's [camera] source)",
+    )
+    r.add_argument(
+        "--setup",
+        type=number(0, 2**31 - 1, integer=True),
+        metavar="SEED",
+        help="with --sim: a simulated set-up (marker colours, light, camera pose, plant) by its seed; "
+        "give the --config its camera was calibrated into",
+    )
+    r.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="the configuration (its [vision], [link] and [rover]); default: the built-in one",
+    )
+    r.add_argument(
+        "--write",
+        type=output_file(".toml"),
+        metavar="FILE",
+        help="write the fitted parameters into FILE's [rover] table, and the sonar's offset into its "
+        "[planner] (made if missing; every other table and key kept); without it they are printed",
+    )
+    r.add_argument(
+        "--wall",
+        type=wall_face,
+        metavar="X0,Y0,X1,Y1",
+        help="with --port: the face of a straight wall the rover stands facing (arena metres, its two "
+        "ends), to measure the sonar's offset from",
+    )
     r.add_argument("--json", action="store_true", help="print the result as one JSON object")
     r.set_defaults(func=_cmd_rover)
-    t = sub.add_parser("tags", help="draw the four corner tags to print",
-                       description="Write the four ArUco corner tags (DICT_4X4_50 ids 10-13) as PNG files to print "
-                                   "at 300 dots per inch, each 10 cm across its black square with a white margin, "
-                                   "named by the corner it goes to.",
-                       epilog="exit status: 0 written; 2 unusable input (the folder cannot be made or written); 3 an "
-                              "internal error (rerun with -v for the traceback); 130 interrupted.")
+    t = sub.add_parser(
+        "tags",
+        help="draw the four corner tags to print",
+        description="Write the four ArUco corner tags (DICT_4X4_50 ids 10-13) as PNG files to print "
+        "at 300 dots per inch, each 10 cm across its black square with a white margin, "
+        "named by the corner it goes to.",
+        epilog="exit status: 0 written; 2 unusable input (the folder cannot be made or written); 3 an "
+        "internal error (rerun with -v for the traceback); 130 interrupted.",
+    )
     t.add_argument("out", type=Path, metavar="DIR", help="the folder to write them in (made if missing)")
     t.set_defaults(func=_cmd_tags)
     p.set_defaults(func=lambda args: _no_what(p))
@@ -147,9 +222,16 @@ def _cmd_tags(args) -> int:
         img = cv2.aruco.generateImageMarker(d, tag, side_px)
         margin = side_px // 6
         page = np.full((side_px + 2 * margin + 60, side_px + 2 * margin), 255, np.uint8)
-        page[margin:margin + side_px, margin:margin + side_px] = img
-        cv2.putText(page, f"rovernav corner tag {tag}: {name}, centre {marks.CORNER_INSET_M * 100:.0f} cm in from "
-                          "both walls", (margin, side_px + 2 * margin + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, 0, 2)
+        page[margin : margin + side_px, margin : margin + side_px] = img
+        cv2.putText(
+            page,
+            f"rovernav corner tag {tag}: {name}, centre {marks.CORNER_INSET_M * 100:.0f} cm in from both walls",
+            (margin, side_px + 2 * margin + 30),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.8,
+            0,
+            2,
+        )
         path = args.out / f"corner-tag-{tag}-{name}.png"
         if not cv2.imwrite(str(path), page):
             raise InputError(f"{path}: could not be written")
@@ -182,7 +264,7 @@ def read_frames(args) -> list:
 
     from ..vision.cli import _UsageError, read_image
 
-    try:   # OpenCV's own warnings (no device, a broken video) would add lines to a one-line error
+    try:  # OpenCV's own warnings (no device, a broken video) would add lines to a one-line error
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     except AttributeError:
         pass
@@ -194,7 +276,7 @@ def read_frames(args) -> list:
             raise InputError(f"--camera {args.camera}: no camera there (is it plugged in, or used by another program?)")
         frames = []
         try:
-            for _ in range(10):          # let the exposure settle
+            for _ in range(10):  # let the exposure settle
                 cap.read()
             while len(frames) < args.frames:
                 ok, f = cap.read()
@@ -224,7 +306,7 @@ def read_frames(args) -> list:
         try:
             while want is None or k <= want[-1]:
                 if want is not None and k not in want:
-                    if not cap.grab():    # skipped frames are not decoded
+                    if not cap.grab():  # skipped frames are not decoded
                         break
                 else:
                     ok, f = cap.read()
@@ -239,8 +321,11 @@ def read_frames(args) -> list:
         if not frames:
             raise InputError(f"{videos[0]}: no frame could be read")
         if len(frames) < args.frames:
-            print(f"{videos[0]}: {len(frames)} frames read of the {args.frames} asked (the video ends sooner than "
-                  "it says)", file=sys.stderr)
+            print(
+                f"{videos[0]}: {len(frames)} frames read of the {args.frames} asked (the video ends sooner than "
+                "it says)",
+                file=sys.stderr,
+            )
         return frames
     frames = []
     for s in args.source:
@@ -273,10 +358,15 @@ def write_vision(path: Path, vision_dict: dict, arena: tuple[float, float]) -> N
             raise InputError(f"{path}: [{name}] is not a table, so it cannot be updated")
     if "arena" not in doc:
         doc["arena"] = {"width_m": arena[0], "height_m": arena[1]}
-    have = (doc["arena"].get("width_m", DEFAULT_ARENA_WIDTH_MM / 1000.0), doc["arena"].get("height_m", DEFAULT_ARENA_HEIGHT_MM / 1000.0))
+    have = (
+        doc["arena"].get("width_m", DEFAULT_ARENA_WIDTH_MM / 1000.0),
+        doc["arena"].get("height_m", DEFAULT_ARENA_HEIGHT_MM / 1000.0),
+    )
     if any(abs(float(a) - b) > 1e-3 for a, b in zip(have, arena)):
-        raise InputError(f"{path}: its [arena] is {have[0]} x {have[1]} m, the calibration's {arena[0]:g} x "
-                         f"{arena[1]:g} m: give the same --arena-size, or change [arena] first")
+        raise InputError(
+            f"{path}: its [arena] is {have[0]} x {have[1]} m, the calibration's {arena[0]:g} x "
+            f"{arena[1]:g} m: give the same --arena-size, or change [arena] first"
+        )
     vision = table_for_update(path, doc, "vision")
     for key in ("markers", "hsv", "calibration"):
         vision[key] = vision_dict[key]
@@ -290,17 +380,25 @@ def _cmd_camera(args) -> int:
 
     if args.config is not None and not args.config.is_file():
         raise InputError(f"{args.config}: no such configuration file")
-    cfg = load_config(args.config)   # ConfigError (exit 2) names the file and key
+    cfg = load_config(args.config)  # ConfigError (exit 2) names the file and key
     w, h = tuple(args.arena_size) if args.arena_size else (cfg.arena.width_m, cfg.arena.height_m)
     corners = _corners(args.corners) if args.corners else None
     if corners is None and min(w, h) < 2 * marks.CORNER_INSET_M + 0.1:
-        raise InputError(f"a {w:g} x {h:g} m arena has no room for the corner tags ({marks.CORNER_INSET_M * 100:.0f} cm in "
-                         "from each wall): give its corners with --corners")
-    words = {role: getattr(args, flag) for role, flag in (("rover_front", "front"), ("rover_back", "back"),
-                                                          ("target", "target")) if getattr(args, flag)}
+        raise InputError(
+            f"a {w:g} x {h:g} m arena has no room for the corner tags ({marks.CORNER_INSET_M * 100:.0f} cm in "
+            "from each wall): give its corners with --corners"
+        )
+    words = {
+        role: getattr(args, flag)
+        for role, flag in (("rover_front", "front"), ("rover_back", "back"), ("target", "target"))
+        if getattr(args, flag)
+    }
     frames = read_frames(args)
-    print(f"calibrating from {len(frames)} frame{'s' if len(frames) > 1 else ''} of "
-          f"{frames[0].shape[1]} x {frames[0].shape[0]} pixels ...", file=sys.stderr)
+    print(
+        f"calibrating from {len(frames)} frame{'s' if len(frames) > 1 else ''} of "
+        f"{frames[0].shape[1]} x {frames[0].shape[0]} pixels ...",
+        file=sys.stderr,
+    )
     if corners is not None:
         try:
             corners = cc.check_corners(corners, frames[0].shape)
@@ -319,24 +417,46 @@ def _cmd_camera(args) -> int:
         write_vision(args.write, table, (w, h))
     pose = result.poses[0]
     if args.json:
-        print(json.dumps({"arena": {"how": result.how, "corners_px": [list(c) for c in result.corners_px],
-                                    "width_m": w, "height_m": h},
-                          "hsv": {k: [list(lo), list(hi)] for k, (lo, hi) in result.hsv.items()},
-                          "colours": result.colour_words(), "frames": result.frames, "found": result.found,
-                          "rover": {"x_m": round(pose.x_m, 4), "y_m": round(pose.y_m, 4),
-                                    "heading_deg": round(pose.heading_deg, 2)},
-                          "picture": str(args.picture), "written": str(args.write) if args.write else None}))
+        print(
+            json.dumps(
+                {
+                    "arena": {
+                        "how": result.how,
+                        "corners_px": [list(c) for c in result.corners_px],
+                        "width_m": w,
+                        "height_m": h,
+                    },
+                    "hsv": {k: [list(lo), list(hi)] for k, (lo, hi) in result.hsv.items()},
+                    "colours": result.colour_words(),
+                    "frames": result.frames,
+                    "found": result.found,
+                    "rover": {
+                        "x_m": round(pose.x_m, 4),
+                        "y_m": round(pose.y_m, 4),
+                        "heading_deg": round(pose.heading_deg, 2),
+                    },
+                    "picture": str(args.picture),
+                    "written": str(args.write) if args.write else None,
+                }
+            )
+        )
         return 0
     cal = result.calibration
     ppm = cal.pixels_per_metre(w / 2, h / 2)
-    print(f"arena    {result.how}: {w:g} x {h:g} m, corners at "
-          + ", ".join(f"({u:.1f}, {v:.1f})" for u, v in result.corners_px) + f" px; {ppm:.0f} px/m at its centre")
+    print(
+        f"arena    {result.how}: {w:g} x {h:g} m, corners at "
+        + ", ".join(f"({u:.1f}, {v:.1f})" for u, v in result.corners_px)
+        + f" px; {ppm:.0f} px/m at its centre"
+    )
     names = {"rover_front": "rover front", "rover_back": "rover back", "target": "target"}
     for role, (lo, hi) in result.hsv.items():
-        print(f"marker   {names[role]:<11} {result.colour_words()[role]:<8} H {lo[0]}-{hi[0]}, S >= {lo[1]}, "
-              f"V >= {lo[2]}")
-    print(f"check    the locator with these finds the rover in {result.found}/{result.frames} frames: "
-          f"({pose.x_m:.3f}, {pose.y_m:.3f}) m, heading {(pose.heading_deg + 0.05) % 360 - 0.05:.1f} deg")
+        print(
+            f"marker   {names[role]:<11} {result.colour_words()[role]:<8} H {lo[0]}-{hi[0]}, S >= {lo[1]}, V >= {lo[2]}"
+        )
+    print(
+        f"check    the locator with these finds the rover in {result.found}/{result.frames} frames: "
+        f"({pose.x_m:.3f}, {pose.y_m:.3f}) m, heading {(pose.heading_deg + 0.05) % 360 - 0.05:.1f} deg"
+    )
     print(f"picture  {args.picture} (the grid must lie on the floor, the arrow along the rover)")
     if args.write:
         print(f"wrote    [vision] markers, hsv and calibration of {args.write}")
@@ -383,24 +503,31 @@ def _cmd_rover(args) -> int:
     def progress(done: int, total: int) -> None:
         print(f"  run {done}/{total} done", file=sys.stderr)
 
-    print(f"calibrating the rover's motors: {len(cr.LEVELS_PWM)} runs of {cr.RUN_M} m at "
-          f"{', '.join(str(v) for v in cr.LEVELS_PWM)} PWM ...", file=sys.stderr)
+    print(
+        f"calibrating the rover's motors: {len(cr.LEVELS_PWM)} runs of {cr.RUN_M} m at "
+        f"{', '.join(str(v) for v in cr.LEVELS_PWM)} PWM ...",
+        file=sys.stderr,
+    )
     try:
         if args.sim:
             from ..sim.setup import Setup
 
             if args.setup is not None and args.config is None:
-                print("rovernav calibrate rover: --setup without --config: the default configuration does not see "
-                      "that set-up's markers (calibrate the camera first: rovernav sim --setup SEED "
-                      "--calibration-frames DIR)", file=sys.stderr)
+                print(
+                    "rovernav calibrate rover: --setup without --config: the default configuration does not see "
+                    "that set-up's markers (calibrate the camera first: rovernav sim --setup SEED "
+                    "--calibration-frames DIR)",
+                    file=sys.stderr,
+                )
 
             setup = Setup.random(args.setup) if args.setup is not None else None
             wall = cr.sim_bench(cfg)[2]
             runs = cr.runs_sim(cfg, setup=setup, progress=progress)
         else:
             wall = args.wall
-            runs = cr.runs_hardware(args.port, args.camera, None if args.config is None else str(args.config),
-                                    progress=progress, wall=wall)
+            runs = cr.runs_hardware(
+                args.port, args.camera, None if args.config is None else str(args.config), progress=progress, wall=wall
+            )
         result = cr.fit(runs, wall, cfg.planner.sonar_cone_deg)
     except cr.CalibrationFailed as exc:
         print(f"rovernav calibrate rover: could not calibrate: {exc}", file=sys.stderr)
@@ -413,58 +540,84 @@ def _cmd_rover(args) -> int:
     planner_before = {k: getattr(cfg.planner, k) for k in planner}
     bias, sonar = result.gyro_bias, result.sonar
     if args.json:
-        print(json.dumps({"mm_s_per_pwm": round(result.mm_s_per_pwm, 4), "deadband_pwm": round(result.deadband_pwm, 2),
-                          "right_gain": round(result.right_gain, 4), "residual_mm_s": round(result.residual_mm_s, 2),
-                          "right_gain_spread": round(result.gain_spread, 4),
-                          "gyro_scale": None if result.gyro_scale is None else round(result.gyro_scale, 4),
-                          "gyro_turns": result.gyro_turns,
-                          "gyro_bias_dps": round(bias[0], 4) if isinstance(bias, tuple) else None,
-                          "gyro_bias_se_dps": round(bias[1], 4) if isinstance(bias, tuple) else None,
-                          "gyro_bias_not_measured": bias if isinstance(bias, str) else None,
-                          "sonar_offset_m": round(sonar[0], 4) if isinstance(sonar, tuple) else None,
-                          "sonar_offset_spread_m": round(sonar[1], 4) if isinstance(sonar, tuple) else None,
-                          "sonar_echoes": sonar[2] if isinstance(sonar, tuple) else 0,
-                          "sonar_not_measured": sonar if isinstance(sonar, str) else None,
-                          "runs": [{"level_pwm": lv, "speed_m_s": round(v, 4), "left_pwm": round(lp, 2),
-                                    "right_pwm": round(rp, 2)} for lv, v, lp, rp in result.runs],
-                          "params": {mg.PARAMS[p].name: v for p, v in params.items()},
-                          "before": {mg.PARAMS[p].name: v for p, v in before.items()},
-                          "planner": planner, "planner_before": planner_before,
-                          "written": str(args.write) if args.write else None}))
+        print(
+            json.dumps(
+                {
+                    "mm_s_per_pwm": round(result.mm_s_per_pwm, 4),
+                    "deadband_pwm": round(result.deadband_pwm, 2),
+                    "right_gain": round(result.right_gain, 4),
+                    "residual_mm_s": round(result.residual_mm_s, 2),
+                    "right_gain_spread": round(result.gain_spread, 4),
+                    "gyro_scale": None if result.gyro_scale is None else round(result.gyro_scale, 4),
+                    "gyro_turns": result.gyro_turns,
+                    "gyro_bias_dps": round(bias[0], 4) if isinstance(bias, tuple) else None,
+                    "gyro_bias_se_dps": round(bias[1], 4) if isinstance(bias, tuple) else None,
+                    "gyro_bias_not_measured": bias if isinstance(bias, str) else None,
+                    "sonar_offset_m": round(sonar[0], 4) if isinstance(sonar, tuple) else None,
+                    "sonar_offset_spread_m": round(sonar[1], 4) if isinstance(sonar, tuple) else None,
+                    "sonar_echoes": sonar[2] if isinstance(sonar, tuple) else 0,
+                    "sonar_not_measured": sonar if isinstance(sonar, str) else None,
+                    "runs": [
+                        {"level_pwm": lv, "speed_m_s": round(v, 4), "left_pwm": round(lp, 2), "right_pwm": round(rp, 2)}
+                        for lv, v, lp, rp in result.runs
+                    ],
+                    "params": {mg.PARAMS[p].name: v for p, v in params.items()},
+                    "before": {mg.PARAMS[p].name: v for p, v in before.items()},
+                    "planner": planner,
+                    "planner_before": planner_before,
+                    "written": str(args.write) if args.write else None,
+                }
+            )
+        )
         return 0
     for lv, v, lp, rp in result.runs:
         print(f"run      {lv:>3} PWM: {100 * v:5.1f} cm/s, commands left {lp:.1f} right {rp:.1f}")
-    print(f"fit      speed {result.mm_s_per_pwm:.3f} mm/s per PWM above a dead band of {result.deadband_pwm:.1f} PWM "
-          f"(line residual {result.residual_mm_s:.1f} mm/s); right motor {result.right_gain:.3f} x the left "
-          f"(spread {result.gain_spread:.3f} over the runs)")
+    print(
+        f"fit      speed {result.mm_s_per_pwm:.3f} mm/s per PWM above a dead band of {result.deadband_pwm:.1f} PWM "
+        f"(line residual {result.residual_mm_s:.1f} mm/s); right motor {result.right_gain:.3f} x the left "
+        f"(spread {result.gain_spread:.3f} over the runs)"
+    )
     if result.gyro_scale is None:
-        print("gyro     scale not measured: no turn round was seen whole (the camera lost the rover, or a run "
-              "ended early)")
+        print(
+            "gyro     scale not measured: no turn round was seen whole (the camera lost the rover, or a run "
+            "ended early)"
+        )
     else:
         off = 100 * (result.gyro_scale - 1)
-        advice = ("" if abs(off) <= 5 else ": more than 5 % off: is the MPU6050 at its +-250 deg/s range, and "
-                  "mounted flat?")
-        print(f"gyro     reads {result.gyro_scale:.3f} x the camera's turn ({off:+.1f} %, over {result.gyro_turns} "
-              f"turns, no fixes sent while it turned){advice}; no parameter takes it: the camera's fixes correct "
-              "the heading")
+        advice = (
+            "" if abs(off) <= 5 else ": more than 5 % off: is the MPU6050 at its +-250 deg/s range, and mounted flat?"
+        )
+        print(
+            f"gyro     reads {result.gyro_scale:.3f} x the camera's turn ({off:+.1f} %, over {result.gyro_turns} "
+            f"turns, no fixes sent while it turned){advice}; no parameter takes it: the camera's fixes correct "
+            "the heading"
+        )
     if bias is None:
-        print(f"gyro     bias not measured: the still {cr.STILL_S:g} s before the first run was not seen (did it "
-              "start?)")
+        print(
+            f"gyro     bias not measured: the still {cr.STILL_S:g} s before the first run was not seen (did it start?)"
+        )
     elif isinstance(bias, str):
         print(f"gyro     bias not measured: {bias}")
     else:
-        advice = ("" if abs(bias[0]) <= cr.BIAS_WARN_DPS else
-                  f": more than {cr.BIAS_WARN_DPS} deg/s: was the rover moved in its first second? Power it up still; "
-                  "if it stays, the gyro drifts")
-        print(f"gyro     bias left after its start-up measure {bias[0]:+.3f} deg/s (+-{bias[1]:.3f}, still "
-              f"{cr.STILL_S:g} s, no fix sent){advice}; no parameter takes it: the rover measures it at every start")
+        advice = (
+            ""
+            if abs(bias[0]) <= cr.BIAS_WARN_DPS
+            else f": more than {cr.BIAS_WARN_DPS} deg/s: was the rover moved in its first second? Power it up still; "
+            "if it stays, the gyro drifts"
+        )
+        print(
+            f"gyro     bias left after its start-up measure {bias[0]:+.3f} deg/s (+-{bias[1]:.3f}, still "
+            f"{cr.STILL_S:g} s, no fix sent){advice}; no parameter takes it: the rover measures it at every start"
+        )
     if sonar is None:
         print("sonar    offset not measured: give --wall (a wall the rover stands facing) to measure it")
     elif isinstance(sonar, str):
         print(f"sonar    offset not measured: {sonar}")
     else:
-        print(f"sonar    {1000 * sonar[0]:.0f} mm ahead of the rover's centre, from {sonar[2]} echoes square to the "
-              f"wall (spread {1000 * sonar[1]:.0f} mm)")
+        print(
+            f"sonar    {1000 * sonar[0]:.0f} mm ahead of the rover's centre, from {sonar[2]} echoes square to the "
+            f"wall (spread {1000 * sonar[1]:.0f} mm)"
+        )
     for p, v in params.items():
         change = "unchanged" if v == before[p] else f"was {before[p]}"
         print(f"param    {mg.PARAMS[p].name} = {v} ({change})")
@@ -472,8 +625,11 @@ def _cmd_rover(args) -> int:
         change = "unchanged" if v == round(planner_before[k], 3) else f"was {planner_before[k]:g}"
         print(f"param    [planner] {k} = {v:g} ({change})")
     if args.write:
-        print(f"wrote    [rover] {', '.join(mg.PARAMS[p].name for p in params)}"
-              + (f" and [planner] {', '.join(planner)}" if planner else "") + f" of {args.write}")
+        print(
+            f"wrote    [rover] {', '.join(mg.PARAMS[p].name for p in params)}"
+            + (f" and [planner] {', '.join(planner)}" if planner else "")
+            + f" of {args.write}"
+        )
     else:
         print("\n# for your configuration's [rover] table (or run again with --write FILE):")
         for p, v in params.items():

@@ -1,5 +1,6 @@
 """Reading a configuration file to update some of its tables, and writing it back checked: one
 copy for `calibrate camera --write` ([vision]) and `calibrate rover --write` ([rover])."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,7 +23,7 @@ def load_for_update(path: Path, comment: str):
         raise InputError(f"{path}: cannot read it to update it: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         return tomlkit.parse(text)
-    except Exception as exc:   # noqa: BLE001 - tomlkit's parse errors have no common base we can rely on
+    except Exception as exc:  # noqa: BLE001 - tomlkit's parse errors have no common base we can rely on
         raise InputError(f"{path}: not a TOML file this can update ({str(exc).splitlines()[0]})") from None
 
 

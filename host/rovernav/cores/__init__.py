@@ -9,6 +9,7 @@
 
 `rovernav.cores.uno` is imported only when the Uno is asked for.
 """
+
 from .native import NativeCore
 from .protocol import FirmwareBuildError, Probe, RoverCore, StepOut
 

@@ -4,6 +4,7 @@ and its symbol table (which function each flash word belongs to, for the profile
 Plain `struct` reading of a 32-bit little-endian ELF (avr-gcc's output); names are demangled
 with avr-c++filt (or c++filt) when one is installed.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -22,14 +23,14 @@ def _elf_sections(elf: Path) -> tuple[bytes, list[tuple[str, tuple]]]:
     data = elf.read_bytes()
     if data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
         raise UnoSetupError(f"{elf} is not a 32-bit little-endian ELF (an AVR image?)")
-    shoff, = struct.unpack_from("<I", data, 0x20)
+    (shoff,) = struct.unpack_from("<I", data, 0x20)
     shentsize, shnum, shstrndx = struct.unpack_from("<HHH", data, 0x2E)
     sections = [struct.unpack_from("<IIIIIIIIII", data, shoff + i * shentsize) for i in range(shnum)]
     names_off = sections[shstrndx][4]
 
     def name(sec) -> str:
         start = names_off + sec[0]
-        return data[start:data.index(b"\0", start)].decode("ascii", "replace")
+        return data[start : data.index(b"\0", start)].decode("ascii", "replace")
 
     return data, [(name(sec), sec) for sec in sections]
 
@@ -46,28 +47,51 @@ def static_ram_end(elf: Path) -> int:
     return end
 
 
-
 # ---------------------------------------------------------------------------- the symbol map
 
 NO_SYMBOL = "(no symbol)"
 
 # ATmega328P interrupt vectors (datasheet table 12-6), by number; 0 is RESET.
-VECTORS_328P = ("RESET", "INT0", "INT1", "PCINT0", "PCINT1", "PCINT2", "WDT", "TIMER2_COMPA", "TIMER2_COMPB",
-                "TIMER2_OVF", "TIMER1_CAPT", "TIMER1_COMPA", "TIMER1_COMPB", "TIMER1_OVF", "TIMER0_COMPA",
-                "TIMER0_COMPB", "TIMER0_OVF", "SPI_STC", "USART_RX", "USART_UDRE", "USART_TX", "ADC", "EE_READY",
-                "ANALOG_COMP", "TWI", "SPM_READY")
+VECTORS_328P = (
+    "RESET",
+    "INT0",
+    "INT1",
+    "PCINT0",
+    "PCINT1",
+    "PCINT2",
+    "WDT",
+    "TIMER2_COMPA",
+    "TIMER2_COMPB",
+    "TIMER2_OVF",
+    "TIMER1_CAPT",
+    "TIMER1_COMPA",
+    "TIMER1_COMPB",
+    "TIMER1_OVF",
+    "TIMER0_COMPA",
+    "TIMER0_COMPB",
+    "TIMER0_OVF",
+    "SPI_STC",
+    "USART_RX",
+    "USART_UDRE",
+    "USART_TX",
+    "ADC",
+    "EE_READY",
+    "ANALOG_COMP",
+    "TWI",
+    "SPM_READY",
+)
 
 
 @dataclasses.dataclass(frozen=True)
 class FunctionMap:
     """Which function each flash word of the image belongs to, from its symbol table."""
 
-    names: list[str]           # demangled; the last one is NO_SYMBOL
-    raw_names: list[str]       # as in the symbol table (the first of several entry points)
-    starts: list[int]          # first byte address (0xFFFFFFFF for NO_SYMBOL)
-    func_of_word: list[int]    # index into names, for each flash word of .text
-    entry_words: list[int]     # 1 where a function's symbol (or another entry point of it) starts
-    vector_handlers: dict[int, str]   # vector number -> the name of the function it jumps to
+    names: list[str]  # demangled; the last one is NO_SYMBOL
+    raw_names: list[str]  # as in the symbol table (the first of several entry points)
+    starts: list[int]  # first byte address (0xFFFFFFFF for NO_SYMBOL)
+    func_of_word: list[int]  # index into names, for each flash word of .text
+    entry_words: list[int]  # 1 where a function's symbol (or another entry point of it) starts
+    vector_handlers: dict[int, str]  # vector number -> the name of the function it jumps to
 
     @property
     def no_symbol(self) -> int:
@@ -80,8 +104,9 @@ def _demangle(names: list[str]) -> list[str]:
         if path is None:
             continue
         try:
-            out = subprocess.run([path], input="\n".join(names) + "\n", capture_output=True, text=True,
-                                 timeout=30, check=True).stdout.splitlines()
+            out = subprocess.run(
+                [path], input="\n".join(names) + "\n", capture_output=True, text=True, timeout=30, check=True
+            ).stdout.splitlines()
         except (OSError, subprocess.SubprocessError):
             continue
         if len(out) == len(names):
@@ -110,7 +135,7 @@ def function_map(elf: Path) -> FunctionMap:
     With LTO, a function inlined into another has no symbol: its cycles are its caller's."""
     data, sections = _elf_sections(elf)
     text_idx = next((i for i, (name, _) in enumerate(sections) if name == ".text"), None)
-    symtab = next((sec for name, sec in sections if sec[1] == 2), None)   # SHT_SYMTAB
+    symtab = next((sec for name, sec in sections if sec[1] == 2), None)  # SHT_SYMTAB
     if text_idx is None or symtab is None:
         raise UnoSetupError(f"{elf} has no .text or no symbol table: cannot profile it (was it stripped?)")
     text = sections[text_idx][1]
@@ -123,11 +148,11 @@ def function_map(elf: Path) -> FunctionMap:
             continue
         kind, bind = info & 0xF, info >> 4
         start = strtab[4] + st_name
-        name = data[start:data.index(b"\0", start)].decode("ascii", "replace")
+        name = data[start : data.index(b"\0", start)].decode("ascii", "replace")
         if not name:
             continue
         boundaries.add(value)
-        if kind in (0, 2):   # NOTYPE, FUNC; OBJECT (tables in flash) only bounds the labels
+        if kind in (0, 2):  # NOTYPE, FUNC; OBJECT (tables in flash) only bounds the labels
             rank = (size > 0, bind == 1, bind == 2, not name.startswith("."), other & 3 == 0)
             syms.append((value, size, rank, name))
     best: dict[int, tuple] = {}
@@ -148,17 +173,17 @@ def function_map(elf: Path) -> FunctionMap:
                 if owner[w] < 0:
                     owner[w] = i
     entry_words = [0] * nwords
-    alias_of: dict[int, list[str]] = {}   # chosen index of a function -> its other entry points
+    alias_of: dict[int, list[str]] = {}  # chosen index of a function -> its other entry points
     for i, (value, size, rank, name) in enumerate(chosen):
         if size > 0:
             continue
         w = value // 2
         host = owner[w] if w < nwords else -1
         if host >= 0 and chosen[host][0] != value and rank[1] and rank[3] and rank[4]:
-            alias_of.setdefault(host, []).append(name)   # another entry point: code of its host
+            alias_of.setdefault(host, []).append(name)  # another entry point: code of its host
             entry_words[w] = 1
         elif name.startswith(".") and w > 0 and owner[w - 1] >= 0:
-            host = owner[w - 1]                          # a local label goes on its function
+            host = owner[w - 1]  # a local label goes on its function
         else:
             host = i
         end = next(b for b in starts_sorted if b > value)
@@ -204,4 +229,3 @@ def short_name(name: str) -> str:
                     n = n[:i]
                 break
     return re.sub(r"^rovernav::", "", n)
-

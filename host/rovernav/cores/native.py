@@ -6,6 +6,7 @@ tick of sensor readings and received bytes in, and returns the motor commands, t
 angle, whether to ping, and the bytes the rover sends. `build_library()` compiles the shared
 library from the checkout's firmware sources with CMake when it is missing or stale.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -32,7 +33,7 @@ FIRMWARE = ROOT / "firmware"
 BUILD_DIR = ROOT / "build" / "native"
 LIBRARY = BUILD_DIR / "librovernav_rover.so"
 ABI_VERSION = ROVER_ABI_VERSION
-TX_PER_STEP = ROVER_TX_PER_STEP   # a step hands the shell at most one UART buffer (rover_abi.cpp asserts it)
+TX_PER_STEP = ROVER_TX_PER_STEP  # a step hands the shell at most one UART buffer (rover_abi.cpp asserts it)
 
 
 #: rover_abi.h's structs, generated with it from firmware/abi/abi.toml (firmware/abi/generate.py).
@@ -55,26 +56,34 @@ def check_layout(lib, structs=STRUCTS) -> None:
     n = 64
     buf = (ctypes.c_uint32 * n)()
     count = lib.rover_abi_layout(buf, n)
-    theirs, ours = list(buf[:min(count, n)]), python_layout(structs)
+    theirs, ours = list(buf[: min(count, n)]), python_layout(structs)
     if theirs == ours:
         return
     c_name = [getattr(st, "_c_name_", st.__name__) for st in structs]
-    names = [f"sizeof({n})" for n in c_name] + list(ROVER_ABI_CONSTANTS) + \
-        [f"{n}.{name}" for n, st in zip(c_name, structs) for name, _type in st._fields_]
+    names = (
+        [f"sizeof({n})" for n in c_name]
+        + list(ROVER_ABI_CONSTANTS)
+        + [f"{n}.{name}" for n, st in zip(c_name, structs) for name, _type in st._fields_]
+    )
     for i, (a, b) in enumerate(zip(theirs, ours)):
         if a != b:
-            raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: "
-                                     f"{names[i]} is {a} there, {b} here (rebuild the library, or run "
-                                     "python3 firmware/abi/generate.py)")
-    raise FirmwareBuildError(f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: {count} layout "
-                             f"words there, {len(ours)} here (a field added on one side only)")
+            raise FirmwareBuildError(
+                f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: "
+                f"{names[i]} is {a} there, {b} here (rebuild the library, or run "
+                "python3 firmware/abi/generate.py)"
+            )
+    raise FirmwareBuildError(
+        f"the library's rover_abi.h and host/rovernav/cores/abi_gen.py disagree: {count} layout "
+        f"words there, {len(ours)} here (a field added on one side only)"
+    )
 
 
 def _sources() -> list[Path]:
     """What the library is built from: a newer one (or a new file: CMake globs the directories
     with CONFIGURE_DEPENDS) rebuilds it."""
     return [FIRMWARE / "CMakeLists.txt"] + [
-        p for d in ("lib/core", "lib/link", "abi") for p in (FIRMWARE / d).glob("*") if p.suffix in (".cpp", ".h")]
+        p for d in ("lib/core", "lib/link", "abi") for p in (FIRMWARE / d).glob("*") if p.suffix in (".cpp", ".h")
+    ]
 
 
 def build_library(force: bool = False) -> Path:
@@ -119,11 +128,13 @@ def load_library() -> ctypes.CDLL:
     lib.rover_new.restype = ctypes.c_void_p
     lib.rover_new.argtypes = [ctypes.c_uint32, ctypes.c_uint16]
     lib.rover_new_keyed.restype = ctypes.c_void_p
-    lib.rover_new_keyed.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint64,
-                                    ctypes.c_uint64]
+    lib.rover_new_keyed.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint64, ctypes.c_uint64]
     lib.rover_take_persist.restype = ctypes.c_int
-    lib.rover_take_persist.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint64),
-                                       ctypes.POINTER(ctypes.c_uint64)]
+    lib.rover_take_persist.argtypes = [
+        ctypes.c_void_p,
+        ctypes.POINTER(ctypes.c_uint64),
+        ctypes.POINTER(ctypes.c_uint64),
+    ]
     lib.rover_take_key_change.restype = ctypes.c_int
     lib.rover_take_key_change.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
     lib.rover_auth_counters.restype = None
@@ -140,9 +151,12 @@ def load_library() -> ctypes.CDLL:
     lib.rover_abi_layout.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
     check_layout(lib)
     from ..link.messages_gen import SCHEMA_HASH
+
     if lib.rover_schema_hash() != SCHEMA_HASH:
-        raise FirmwareBuildError(f"{LIBRARY} was built from another protocol definition "
-                                 f"(0x{lib.rover_schema_hash():08X}, ours 0x{SCHEMA_HASH:08X}): rebuild it")
+        raise FirmwareBuildError(
+            f"{LIBRARY} was built from another protocol definition "
+            f"(0x{lib.rover_schema_hash():08X}, ours 0x{SCHEMA_HASH:08X}): rebuild it"
+        )
     _lib = lib
     return lib
 
@@ -151,10 +165,11 @@ class NativeCore:
     """One rover: the firmware core behind its C ABI (a `RoverCore`). Not thread-safe; step it
     from one thread."""
 
-    RX_HELD_MAX = 255   # bytes held for the core, like the Uno's buffers: more are dropped
+    RX_HELD_MAX = 255  # bytes held for the core, like the Uno's buffers: more are dropped
 
-    def __init__(self, boot_id: int = 1, reset_cause: int = 0, *, key: bytes | None = None,
-                 counters: tuple[int, int] = (0, 0)):
+    def __init__(
+        self, boot_id: int = 1, reset_cause: int = 0, *, key: bytes | None = None, counters: tuple[int, int] = (0, 0)
+    ):
         """key: the 16-byte link key in the rover's store (None: none, the link unsigned);
         counters: its stored signing counters (tx, rx), as `take_persist` last gave them."""
         self._lib = load_library()
@@ -163,13 +178,14 @@ class NativeCore:
         else:
             if key is not None and len(key) != 16:
                 raise ValueError(f"a link key is 16 bytes, got {len(key)}")
-            self._handle = self._lib.rover_new_keyed(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key,
-                                                     counters[0], counters[1])
+            self._handle = self._lib.rover_new_keyed(
+                boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key, counters[0], counters[1]
+            )
         self._in = RoverInputs()
         self._out = RoverOutputs()
         self._rx = (ctypes.c_uint8 * 255)()
-        self._held = b""          # bytes the core has not taken yet (one signed frame a step)
-        self.rx_dropped = 0       # bytes that found the buffer full
+        self._held = b""  # bytes the core has not taken yet (one signed frame a step)
+        self.rx_dropped = 0  # bytes that found the buffer full
 
     def take_persist(self) -> tuple[int, int] | None:
         """The signing counters (tx, rx) the rover asks its store to keep now, else None."""
@@ -190,9 +206,16 @@ class NativeCore:
         self._lib.rover_auth_counters(self._handle, out)
         return dict(zip(("bad_tag", "replayed", "not_signed", "unverified"), out))
 
-    def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
-             rx: bytes = b"", tx_room: int = TX_PER_STEP,
-             wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+    def step(
+        self,
+        now_ms: int,
+        *,
+        gyro_rate_mdps: int | None,
+        sonar_range_mm: int | None = None,
+        rx: bytes = b"",
+        tx_room: int = TX_PER_STEP,
+        wheel_ticks: tuple[int, int] | None = None,
+    ) -> StepOut:
         """One tick. gyro_rate_mdps None = no gyro sample; sonar_range_mm None = no ping result
         this tick (0 = a ping with no echo); rx: the bytes received since the last step, given
         to the core after any it left last time (a core with a key takes one signed frame a
@@ -215,14 +238,25 @@ class NativeCore:
         i.tx_room = max(0, min(255, tx_room))
         self._lib.rover_step(self._handle, ctypes.byref(i), ctypes.byref(self._out))
         o = self._out
-        self._held = rx[o.rx_used:]
-        return StepOut(o.left_pwm, o.right_pwm, o.servo_cdeg, bool(o.fire_sonar), bytes(o.tx[:o.tx_len]))
+        self._held = rx[o.rx_used :]
+        return StepOut(o.left_pwm, o.right_pwm, o.servo_cdeg, bool(o.fire_sonar), bytes(o.tx[: o.tx_len]))
 
     def probe(self) -> Probe:
         p = RoverProbe()
         self._lib.rover_probe_state(self._handle, ctypes.byref(p))
-        return Probe(p.state, p.fault, p.flags, p.waypoint_index, p.waypoint_count, p.x_mm, p.y_mm,
-                     p.heading_rad, p.position_sd_mm, p.speed_scale, p.dr_distance_mm)
+        return Probe(
+            p.state,
+            p.fault,
+            p.flags,
+            p.waypoint_index,
+            p.waypoint_count,
+            p.x_mm,
+            p.y_mm,
+            p.heading_rad,
+            p.position_sd_mm,
+            p.speed_scale,
+            p.dr_distance_mm,
+        )
 
     def close(self) -> None:
         if self._handle:

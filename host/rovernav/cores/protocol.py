@@ -10,6 +10,7 @@ Two implementations step the same firmware:
 Both take one tick of sensor readings and received bytes and give back what the rover asked
 for (`StepOut`), and both offer the core's internal state for reports (`Probe`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -62,8 +63,16 @@ class RoverCore(Protocol):
     - `close()` frees the core; it may be called more than once. A closed core is not stepped again.
     """
 
-    def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
-             rx: bytes = b"", tx_room: int = ..., wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+    def step(
+        self,
+        now_ms: int,
+        *,
+        gyro_rate_mdps: int | None,
+        sonar_range_mm: int | None = None,
+        rx: bytes = b"",
+        tx_room: int = ...,
+        wheel_ticks: tuple[int, int] | None = None,
+    ) -> StepOut:
         """One tick at `now_ms` (ms since the caller's start, wrapped to 32 bits by the core).
 
         gyro_rate_mdps: the gyro's yaw rate, clockwise [mdeg/s]; None: no sample this tick (the

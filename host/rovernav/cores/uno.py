@@ -29,6 +29,7 @@ Time: the AVR's cycle 0 is the simulated time the core was made at; step(now_ms)
 (now_ms - start_ms) * 16,000 cycles, so its outputs at `now` are what its pins showed at `now`,
 and the plant moves under them for the next 10 ms, as with the native core.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -72,6 +73,7 @@ class UnoCrashError(RuntimeError):
 
 # ---------------------------------------------------------------------------- the image
 
+
 @dataclasses.dataclass(frozen=True)
 class Board:
     """The board.h constants the harness needs to read the pins the way the firmware drives them."""
@@ -84,7 +86,7 @@ class Board:
     mpu_address: int
     serial_baud: int
     eeprom_link_addr: int
-    pin_consent: int          # held to GND at a reset: the owner's consent to a new link key
+    pin_consent: int  # held to GND at a reset: the owner's consent to a new link key
 
 
 def uno_pin_port(pin: int) -> tuple[str, int]:
@@ -113,18 +115,27 @@ def board_constants(path: Path = BOARD_H) -> Board:
             return value(m.group(1), depth + 1)
         return int(m.group(1), 0)
 
-    return Board(value("kServoPulseMinUs"), value("kServoPulseMaxUs"), value("kServoCentreTrimCdeg"),
-                 value("kServoClockwiseSign"), value("kGyroZToClockwiseSign"), value("kMpuAddress"),
-                 value("kSerialBaud"), value("kEepromLinkAddr"), value("kPinConsent"))
+    return Board(
+        value("kServoPulseMinUs"),
+        value("kServoPulseMaxUs"),
+        value("kServoCentreTrimCdeg"),
+        value("kServoClockwiseSign"),
+        value("kGyroZToClockwiseSign"),
+        value("kMpuAddress"),
+        value("kSerialBaud"),
+        value("kEepromLinkAddr"),
+        value("kPinConsent"),
+    )
 
 
 def link_key_record(key: bytes) -> bytes:
     """The key record firmware/lib/hal/link_store.h keeps in EEPROM: 0xA5, the key, its CRC-16."""
-    rec = b"\xA5" + bytes(key)
+    rec = b"\xa5" + bytes(key)
     return rec + crc16(rec).to_bytes(2, "little")
 
 
 # ---------------------------------------------------------------------------- statistics
+
 
 def _percentile(sorted_values: list[float], q: float) -> float:
     """Nearest-rank percentile of an ascending list (q in 0..100)."""
@@ -140,8 +151,12 @@ def _summary(values_us: list[float]) -> dict:
         return {"count": 0, "median_us": None, "p99_us": None, "max_us": None}
     n = len(v)
     median = v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
-    return {"count": n, "median_us": round(median, 1), "p99_us": round(_percentile(v, 99), 1),
-            "max_us": round(v[-1], 1)}
+    return {
+        "count": n,
+        "median_us": round(median, 1),
+        "p99_us": round(_percentile(v, 99), 1),
+        "max_us": round(v[-1], 1),
+    }
 
 
 def _state_name(state: int) -> str:
@@ -155,31 +170,47 @@ def _flag_names(desc: int) -> list[str]:
     return [name for name, bit in DESC_FLAGS.items() if desc & bit]
 
 
-
 # ---------------------------------------------------------------------------- the core
+
 
 class UnoCore:
     """The Uno image in simavr, a `RoverCore`. Not thread-safe."""
 
-    def __init__(self, boot_id: int = 1, reset_cause: int = 1, *, sonar: Callable[[], int] | None = None,
-                 start_ms: int = 0, elf: Path | None = None, fast_forward: bool | None = None,
-                 profile: bool = False, key: bytes | None = None):
+    def __init__(
+        self,
+        boot_id: int = 1,
+        reset_cause: int = 1,
+        *,
+        sonar: Callable[[], int] | None = None,
+        start_ms: int = 0,
+        elf: Path | None = None,
+        fast_forward: bool | None = None,
+        profile: bool = False,
+        key: bytes | None = None,
+    ):
         self.elf, _ = ensure_built(elf or ELF)
         self._lib = load_library()
         self.board = board_constants()
         self.static_end = static_ram_end(self.elf)
         err = ctypes.create_string_buffer(256)
-        handle = self._lib.unocore_new(str(self.elf).encode(), self.static_end, (boot_id - 1) & 0xFFFF,
-                                       reset_cause & 0xFF, self.board.mpu_address, self.board.serial_baud,
-                                       err, len(err))
+        handle = self._lib.unocore_new(
+            str(self.elf).encode(),
+            self.static_end,
+            (boot_id - 1) & 0xFFFF,
+            reset_cause & 0xFF,
+            self.board.mpu_address,
+            self.board.serial_baud,
+            err,
+            len(err),
+        )
         if not handle:
             raise UnoSetupError(f"simavr: {err.value.decode(errors='replace')}")
         self._h = handle
         self._sonar = sonar
         self._sonar_error: BaseException | None = None
-        self._sonar_cb = _SONAR_FN(self._on_trigger)   # kept: C holds the pointer
+        self._sonar_cb = _SONAR_FN(self._on_trigger)  # kept: C holds the pointer
         self._lib.unocore_set_sonar(handle, self._sonar_cb, None)
-        if fast_forward is None:   # ROVERNAV_UNO_FAST_FORWARD=0 turns it off (to check it changes nothing)
+        if fast_forward is None:  # ROVERNAV_UNO_FAST_FORWARD=0 turns it off (to check it changes nothing)
             fast_forward = os.environ.get("ROVERNAV_UNO_FAST_FORWARD", "1") not in ("0", "no", "off")
         self._lib.unocore_set_fast_forward(handle, int(fast_forward))
         self.start_ms = start_ms
@@ -196,8 +227,8 @@ class UnoCore:
         if key is not None:
             self.eeprom(self.board.eeprom_link_addr, link_key_record(key))
         self.sonar_ranges: list[int] = []
-        self.wall_s = 0.0             # spent inside the AVR simulation
-        self._records: list[tuple[int, int, int, int, int]] = []   # rise, fall, desc, has_desc, boot
+        self.wall_s = 0.0  # spent inside the AVR simulation
+        self._records: list[tuple[int, int, int, int, int]] = []  # rise, fall, desc, has_desc, boot
         self.crashed = False
         self._fmap: FunctionMap | None = None
         self._final_profile: dict | None = None
@@ -224,8 +255,16 @@ class UnoCore:
 
     # -------------------------------------------------------------- RoverCore's interface
 
-    def step(self, now_ms: int, *, gyro_rate_mdps: int | None, sonar_range_mm: int | None = None,
-             rx: bytes = b"", tx_room: int = mg.UART_BUFFER_BYTES, wheel_ticks: tuple[int, int] | None = None) -> StepOut:
+    def step(
+        self,
+        now_ms: int,
+        *,
+        gyro_rate_mdps: int | None,
+        sonar_range_mm: int | None = None,
+        rx: bytes = b"",
+        tx_room: int = mg.UART_BUFFER_BYTES,
+        wheel_ticks: tuple[int, int] | None = None,
+    ) -> StepOut:
         """Runs the AVR up to now_ms with the gyro reading gyro_rate_mdps (clockwise, None = the
         chip stops answering) and rx queued for its UART; returns what its pins show at now_ms.
         sonar_range_mm, tx_room and wheel_ticks are not used (see the module's docstring)."""
@@ -247,9 +286,11 @@ class UnoCore:
         if stopped:
             self.crashed = True
             st = self._stats()
-            raise UnoCrashError(f"simavr stopped the AVR at {now_ms / 1000:.3f} s (state {st.cpu_state}, "
-                                f"pc 0x{st.crash_pc:04x}, word 0x{st.crash_pc // 2:04x}); "
-                                f"disassemble with avr-objdump -d {self.elf}")
+            raise UnoCrashError(
+                f"simavr stopped the AVR at {now_ms / 1000:.3f} s (state {st.cpu_state}, "
+                f"pc 0x{st.crash_pc:04x}, word 0x{st.crash_pc // 2:04x}); "
+                f"disassemble with avr-objdump -d {self.elf}"
+            )
         n = lib.unocore_tx(h, self._txbuf, len(self._txbuf))
         tx = ctypes.string_at(self._txbuf, n)
         if tx:
@@ -276,8 +317,19 @@ class UnoCore:
         a, d = float(s.sd_x_mm) ** 2, float(s.sd_y_mm) ** 2
         b = s.corr_xy_permille / 1000.0 * s.sd_x_mm * s.sd_y_mm
         sd = math.sqrt(max(0.0, 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)))
-        return Probe(state, s.fault, s.flags, s.waypoint_index, 0, float(s.x_mm), float(s.y_mm),
-                     math.radians(s.heading_cdeg / 100.0), sd, 0.0, float(s.dr_distance_mm))
+        return Probe(
+            state,
+            s.fault,
+            s.flags,
+            s.waypoint_index,
+            0,
+            float(s.x_mm),
+            float(s.y_mm),
+            math.radians(s.heading_cdeg / 100.0),
+            sd,
+            0.0,
+            float(s.dr_distance_mm),
+        )
 
     def hold_consent_pin(self, held: bool = True) -> None:
         """A jumper from the consent pin (board.h kPinConsent, D7) to GND, on (held) or off: the image
@@ -315,15 +367,16 @@ class UnoCore:
     def _motors(r: _Regs) -> tuple[int, int]:
         """Signed PWM per side, as motors.cpp drives the L298N inputs: an input's duty is its
         OCR value while the timer drives the pin (COMxx1), else 255 or 0 from the port bit."""
+
         def duty(tccr: int, com1: int, ocr: int, port: int, ddr: int, bit: int) -> int:
             if tccr & com1:
                 return ocr
             return 255 if (ddr & bit) and (port & bit) else 0
 
-        left_back = duty(r.tccr2a, 0x20, r.ocr2b, r.portd, r.ddrd, 1 << 3)    # pin 3, OC2B
-        left_fwd = duty(r.tccr0a, 0x20, r.ocr0b, r.portd, r.ddrd, 1 << 5)     # pin 5, OC0B
-        right_back = duty(r.tccr0a, 0x80, r.ocr0a, r.portd, r.ddrd, 1 << 6)   # pin 6, OC0A
-        right_fwd = duty(r.tccr2a, 0x80, r.ocr2a, r.portb, r.ddrb, 1 << 3)    # pin 11, OC2A
+        left_back = duty(r.tccr2a, 0x20, r.ocr2b, r.portd, r.ddrd, 1 << 3)  # pin 3, OC2B
+        left_fwd = duty(r.tccr0a, 0x20, r.ocr0b, r.portd, r.ddrd, 1 << 5)  # pin 5, OC0B
+        right_back = duty(r.tccr0a, 0x80, r.ocr0a, r.portd, r.ddrd, 1 << 6)  # pin 6, OC0A
+        right_fwd = duty(r.tccr2a, 0x80, r.ocr2a, r.portb, r.ddrb, 1 << 3)  # pin 11, OC2A
         return left_fwd - left_back, right_fwd - right_back
 
     def _servo(self, r: _Regs) -> int:
@@ -397,19 +450,25 @@ class UnoCore:
         worst = None
         if records:
             w = max(records, key=lambda r: r[1] - r[0])
-            worst = {"us": round((w[1] - w[0]) * us, 1), "t_s": round(self.start_ms / 1000 + w[0] / CLOCK_HZ, 4),
-                     "state": _state_name(w[2] & DESC_STATE_MASK) if w[3] else None,
-                     "flags": _flag_names(w[2]) if w[3] else None}
+            worst = {
+                "us": round((w[1] - w[0]) * us, 1),
+                "t_s": round(self.start_ms / 1000 + w[0] / CLOCK_HZ, 4),
+                "state": _state_name(w[2] & DESC_STATE_MASK) if w[3] else None,
+                "flags": _flag_names(w[2]) if w[3] else None,
+            }
         periods = [(b[0] - a[0]) * us for a, b in zip(records, records[1:]) if a[4] == b[4]]
         jitter = sorted(abs(p - STEP_US) for p in periods)
         simulated_s = s.cycle / CLOCK_HZ
         lowest = s.stack_lowest
         painted = s.paint_start and s.paint_start <= s.ramend
-        stack = {"ram_end": f"0x{s.ramend:04X}", "static_end": f"0x{s.paint_start:04X}",
-                 "static_bytes": s.paint_start - 0x100,
-                 "used_bytes": (s.ramend + 1 - lowest) if painted else None,
-                 "margin_bytes": (lowest - s.paint_start) if painted else None,
-                 "lowest_address": f"0x{lowest:04X}" if painted else None}
+        stack = {
+            "ram_end": f"0x{s.ramend:04X}",
+            "static_end": f"0x{s.paint_start:04X}",
+            "static_bytes": s.paint_start - 0x100,
+            "used_bytes": (s.ramend + 1 - lowest) if painted else None,
+            "margin_bytes": (lowest - s.paint_start) if painted else None,
+            "lowest_address": f"0x{lowest:04X}" if painted else None,
+        }
         return {
             "image": str(self.elf.relative_to(ROOT) if self.elf.is_relative_to(ROOT) else self.elf),
             "clock_hz": CLOCK_HZ,
@@ -419,22 +478,33 @@ class UnoCore:
             "by_state": {k: _summary(v) for k, v in sorted(by_state.items())},
             "by_flag": {k: _summary(v) for k, v in by_flag.items()},
             "worst_step": worst,
-            "period_jitter": {"periods": len(periods),
-                              "mean_period_us": round(sum(periods) / len(periods), 1) if periods else None,
-                              "max_abs_us": round(jitter[-1], 1) if jitter else None,
-                              "p99_abs_us": round(_percentile(jitter, 99), 1) if jitter else None},
+            "period_jitter": {
+                "periods": len(periods),
+                "mean_period_us": round(sum(periods) / len(periods), 1) if periods else None,
+                "max_abs_us": round(jitter[-1], 1) if jitter else None,
+                "p99_abs_us": round(_percentile(jitter, 99), 1) if jitter else None,
+            },
             "stack": stack,
-            "gyro": {"addressed": s.twi_addressed, "whoami_reads": s.twi_whoami_reads,
-                     "gyro_reads": s.twi_gyro_reads, "nacked": s.twi_nacked,
-                     "workarounds": {"sla_w_status_fixed": s.twi_status_fixed,
-                                     "twint_cleared": s.twi_twint_cleared,
-                                     "twsto_cleared": s.twi_twsto_cleared}},
+            "gyro": {
+                "addressed": s.twi_addressed,
+                "whoami_reads": s.twi_whoami_reads,
+                "gyro_reads": s.twi_gyro_reads,
+                "nacked": s.twi_nacked,
+                "workarounds": {
+                    "sla_w_status_fixed": s.twi_status_fixed,
+                    "twint_cleared": s.twi_twint_cleared,
+                    "twsto_cleared": s.twi_twsto_cleared,
+                },
+            },
             "sonar": {"pings": s.pings, "echoes": s.echoes, "ignored_while_busy": s.pings_ignored},
             "uart": {"bytes_in": s.uart_bytes_in, "bytes_out": s.uart_bytes_out, "xoff": s.uart_xoffs},
             "resets": s.resets,
-            "speed": {"simulated_s": round(simulated_s, 3), "avr_wall_s": round(self.wall_s, 3),
-                      "avr_x_real_time": round(simulated_s / self.wall_s, 2) if self.wall_s > 0 else None,
-                      "idle_fast_forward_share": round(s.skipped_cycles / s.cycle, 3) if s.cycle else None},
+            "speed": {
+                "simulated_s": round(simulated_s, 3),
+                "avr_wall_s": round(self.wall_s, 3),
+                "avr_x_real_time": round(simulated_s / self.wall_s, 2) if self.wall_s > 0 else None,
+                "idle_fast_forward_share": round(s.skipped_cycles / s.cycle, 3) if s.cycle else None,
+            },
             **({"profile": self.profile()} if self._fmap is not None else {}),
         }
 

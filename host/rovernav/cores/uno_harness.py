@@ -10,6 +10,7 @@ build/avrsim/libunocore.so and loaded with ctypes, and the image it runs (build/
 
 Used by rovernav.cores.uno (`UnoCore`), rovernav.cores.elf and rovernav.cores.profile.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -41,13 +42,13 @@ ELF = ROOT / "build" / "uno" / "firmware.elf"
 LIBRARY = ROOT / "build" / "avrsim" / "libunocore.so"
 HARNESS_SRC = ROOT / "tools" / "avrsim" / "unocore.c"
 BOARD_H = FIRMWARE / "lib" / "hal" / "board.h"
-VEHICLE_H = FIRMWARE / "lib" / "link" / "vehicle_gen.h"   # included by board.h
+VEHICLE_H = FIRMWARE / "lib" / "link" / "vehicle_gen.h"  # included by board.h
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 CLOCK_HZ = 16_000_000
 CYCLES_PER_MS = CLOCK_HZ // 1000
 ABI_VERSION = UNOCORE_ABI_VERSION
-STEP_US = STEP_PERIOD_MS * 1000   # the image's step period (main.cpp's, from vehicle_gen.h)
+STEP_US = STEP_PERIOD_MS * 1000  # the image's step period (main.cpp's, from vehicle_gen.h)
 
 # Step descriptor (GPIOR0) bits, written by main.cpp at the end of each step.
 DESC_STATE_MASK = 0x0F
@@ -65,7 +66,7 @@ class UnoSetupError(FirmwareBuildError):
 # (The short names are the ones uno.py, profile.py and the tests use.)
 _Step, _Regs, _Stats = UnocoreStep, UnocoreRegs, UnocoreStats
 _ProfInfo, _ProfEntry, _ProfStep = UnocoreProfInfo, UnocoreProfEntry, UnocoreProfStep
-PROF_KINDS = PROF_KINDS_NAMES   # unocore.c's order
+PROF_KINDS = PROF_KINDS_NAMES  # unocore.c's order
 
 #: The harness's structs, in unocore_struct_sizes()'s order (checked when the library loads).
 HARNESS_STRUCTS = UNOCORE_ABI_STRUCTS
@@ -74,11 +75,11 @@ _SONAR_FN = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p)
 
 # ---------------------------------------------------------------------------- building
 
+
 def missing_packages() -> dict[str, str]:
     """Debian package -> what of it is missing, for the image and the harness."""
     missing: dict[str, str] = {}
-    for tool, package in (("avr-gcc", "gcc-avr"), ("avr-objcopy", "binutils-avr"), ("gcc", "gcc"),
-                          ("make", "make")):
+    for tool, package in (("avr-gcc", "gcc-avr"), ("avr-objcopy", "binutils-avr"), ("gcc", "gcc"), ("make", "make")):
         if shutil.which(tool) is None:
             missing[package] = tool
     if not Path("/usr/lib/avr/include/avr/io.h").is_file():
@@ -93,8 +94,9 @@ def _newest_mtime(paths) -> float:
 
 
 def _firmware_sources() -> list[Path]:
-    return [p for d in ("src", "lib") for p in (FIRMWARE / d).rglob("*")
-            if p.suffix in (".c", ".cpp", ".h", ".S", ".json")]
+    return [
+        p for d in ("src", "lib") for p in (FIRMWARE / d).rglob("*") if p.suffix in (".c", ".cpp", ".h", ".S", ".json")
+    ]
 
 
 def _run(cmd: list[str], what: str) -> None:
@@ -120,18 +122,21 @@ def _ensure_built(elf: Path) -> tuple[Path, Path]:
     need_elf = not elf.is_file()
     need_lib = not LIBRARY.is_file()
     if missing and (need_elf or need_lib):
-        raise UnoSetupError("`--rover uno` needs these Debian packages: " +
-                            ", ".join(f"{pkg} ({what})" for pkg, what in sorted(missing.items())) +
-                            f"; install with: sudo apt-get install {' '.join(sorted(missing))}")
+        raise UnoSetupError(
+            "`--rover uno` needs these Debian packages: "
+            + ", ".join(f"{pkg} ({what})" for pkg, what in sorted(missing.items()))
+            + f"; install with: sudo apt-get install {' '.join(sorted(missing))}"
+        )
     if elf == ELF and FIRMWARE.is_dir() and (need_elf or _newest_mtime(_firmware_sources()) > elf.stat().st_mtime):
         try:
             _run([sys.executable, str(ROOT / "tools" / "build_uno.py")], "building the Uno image")
         except UnoSetupError:
             if need_elf:
                 raise
-            log.warning("the Uno image is older than the firmware sources and does not rebuild; "
-                        "running the old %s", elf)
-    harness = [*HARNESS_SRC.parent.glob("*.[ch]"), HARNESS_SRC.parent / "Makefile"]   # tools/avrsim
+            log.warning(
+                "the Uno image is older than the firmware sources and does not rebuild; running the old %s", elf
+            )
+    harness = [*HARNESS_SRC.parent.glob("*.[ch]"), HARNESS_SRC.parent / "Makefile"]  # tools/avrsim
     if need_lib or _newest_mtime(harness) > LIBRARY.stat().st_mtime:
         _run(["make", "-s", "-C", str(ROOT / "tools" / "avrsim"), "unocore"], "building the simavr harness")
     return elf, LIBRARY
@@ -147,13 +152,22 @@ def load_library() -> ctypes.CDLL:
     try:
         lib = ctypes.CDLL(str(LIBRARY))
     except OSError as exc:
-        raise UnoSetupError(f"cannot load {LIBRARY}: {exc} (is libsimavr2 installed? "
-                            "sudo apt-get install libsimavr-dev)") from exc
+        raise UnoSetupError(
+            f"cannot load {LIBRARY}: {exc} (is libsimavr2 installed? sudo apt-get install libsimavr-dev)"
+        ) from exc
     P = ctypes.c_void_p
     lib.unocore_abi_version.restype = ctypes.c_uint32
     lib.unocore_new.restype = P
-    lib.unocore_new.argtypes = [ctypes.c_char_p, ctypes.c_uint16, ctypes.c_uint16, ctypes.c_uint8,
-                                ctypes.c_uint8, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_uint32]
+    lib.unocore_new.argtypes = [
+        ctypes.c_char_p,
+        ctypes.c_uint16,
+        ctypes.c_uint16,
+        ctypes.c_uint8,
+        ctypes.c_uint8,
+        ctypes.c_uint32,
+        ctypes.c_char_p,
+        ctypes.c_uint32,
+    ]
     lib.unocore_free.argtypes = [P]
     lib.unocore_free.restype = None
     lib.unocore_set_sonar.argtypes = [P, _SONAR_FN, P]
@@ -185,29 +199,43 @@ def load_library() -> ctypes.CDLL:
     lib.unocore_pc.argtypes = [P]
     lib.unocore_pc.restype = ctypes.c_uint32
     U64P = ctypes.POINTER(ctypes.c_uint64)
-    lib.unocore_profile_start.argtypes = [P, ctypes.POINTER(ctypes.c_uint16), ctypes.c_uint32,
-                                          ctypes.POINTER(ctypes.c_uint8), ctypes.c_uint32, ctypes.c_uint32]
+    lib.unocore_profile_start.argtypes = [
+        P,
+        ctypes.POINTER(ctypes.c_uint16),
+        ctypes.c_uint32,
+        ctypes.POINTER(ctypes.c_uint8),
+        ctypes.c_uint32,
+        ctypes.c_uint32,
+    ]
     lib.unocore_profile_start.restype = ctypes.c_int
     lib.unocore_profile_info.argtypes = [P, ctypes.POINTER(_ProfInfo)]
     lib.unocore_profile_info.restype = None
     lib.unocore_profile_read.argtypes = [P, ctypes.c_uint32, U64P, U64P, U64P, ctypes.c_uint32]
     lib.unocore_profile_read.restype = ctypes.c_uint32
-    lib.unocore_profile_worst.argtypes = [P, ctypes.c_uint32, ctypes.POINTER(_ProfStep),
-                                          ctypes.POINTER(_ProfEntry), ctypes.c_uint32]
+    lib.unocore_profile_worst.argtypes = [
+        P,
+        ctypes.c_uint32,
+        ctypes.POINTER(_ProfStep),
+        ctypes.POINTER(_ProfEntry),
+        ctypes.c_uint32,
+    ]
     lib.unocore_profile_worst.restype = ctypes.c_uint32
     if lib.unocore_abi_version() != ABI_VERSION:
-        raise UnoSetupError(f"{LIBRARY} has ABI version {lib.unocore_abi_version()}, expected {ABI_VERSION}: "
-                            "rebuild it (make -C tools/avrsim unocore)")
+        raise UnoSetupError(
+            f"{LIBRARY} has ABI version {lib.unocore_abi_version()}, expected {ABI_VERSION}: "
+            "rebuild it (make -C tools/avrsim unocore)"
+        )
     lib.unocore_struct_sizes.restype = ctypes.c_uint32
     lib.unocore_struct_sizes.argtypes = [ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32]
     sizes = (ctypes.c_uint32 * 16)()
     count = lib.unocore_struct_sizes(sizes, 16)
     for st, size in zip(HARNESS_STRUCTS, sizes[:count]):
         if ctypes.sizeof(st) != size:
-            raise UnoSetupError(f"tools/avrsim/unocore.c and host/rovernav/cores/abi_gen.py disagree: "
-                                f"{st._c_name_} is {size} bytes there, {ctypes.sizeof(st)} here")
+            raise UnoSetupError(
+                f"tools/avrsim/unocore.c and host/rovernav/cores/abi_gen.py disagree: "
+                f"{st._c_name_} is {size} bytes there, {ctypes.sizeof(st)} here"
+            )
     if count != len(HARNESS_STRUCTS):
         raise UnoSetupError(f"unocore.c names {count} structs, cores/abi_gen.py {len(HARNESS_STRUCTS)}")
     _lib = lib
     return lib
-

@@ -1,5 +1,6 @@
 """The runs of a benchmark: the arenas (all, or a sample that covers the families), one job per
 arena, strategy and seed, and one run in the simulator (run_trial)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -32,7 +33,7 @@ class TrialJob:
     max_time_s: float
     run_timeout_s: float | None
     meta: dict | None = None
-    radio: tuple = ()     # the simulated radio's settings, (name, value) pairs for radio_config (): defaults
+    radio: tuple = ()  # the simulated radio's settings, (name, value) pairs for radio_config (): defaults
 
     @property
     def arena(self) -> str:
@@ -45,12 +46,12 @@ class TrialJob:
     @property
     def args(self) -> tuple:
         """run_trial's arguments, plain values that pickle to any worker."""
-        args = (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s,
-                self.run_timeout_s)
+        args = (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s, self.run_timeout_s)
         return args + (dict(self.radio),) if self.radio else args
 
 
 # ---------------------------------------------------------------- arenas and jobs
+
 
 def find_arenas(arenas_dir: Path) -> list[tuple[Path, dict | None]]:
     """The arenas of `arenas_dir` (its *.toml files, sorted by name), each with its [generated]
@@ -78,7 +79,7 @@ def sample_arenas(arenas: list[tuple[Path, dict | None]], count: int) -> list[tu
     they first appear) take turns for one more arena each until `count` are chosen, and each
     family's arenas are then taken evenly spaced through its own list. Returned in the given
     (name) order. With one family (e.g. unlabelled arenas), simply evenly spaced."""
-    families: dict[str, list[int]] = {}   # family -> positions in `arenas`
+    families: dict[str, list[int]] = {}  # family -> positions in `arenas`
     for i, (_, meta) in enumerate(arenas):
         families.setdefault((meta or {}).get("family", UNLABELLED), []).append(i)
     quota = dict.fromkeys(families, 0)
@@ -90,21 +91,48 @@ def sample_arenas(arenas: list[tuple[Path, dict | None]], count: int) -> list[tu
     return [arenas[i] for i in chosen]
 
 
-def make_jobs(arenas: list[tuple[Path, dict | None]], strategies: Iterable[str], seeds: Iterable[int],
-              out_dir: Path, max_time_s: float, run_timeout_s: float | None, radio: dict | None = None) -> list[TrialJob]:
+def make_jobs(
+    arenas: list[tuple[Path, dict | None]],
+    strategies: Iterable[str],
+    seeds: Iterable[int],
+    out_dir: Path,
+    max_time_s: float,
+    run_timeout_s: float | None,
+    radio: dict | None = None,
+) -> list[TrialJob]:
     """One job per arena, strategy and seed; runs go to out_dir/runs/<strategy>/<arena>-s<seed>/.
     `radio`: radio_config's settings for the simulated radio (None: its defaults)."""
     runs = Path(out_dir).resolve() / "runs"
     radio_items = tuple(sorted((radio or {}).items()))
-    return [TrialJob(path.resolve(), strategy, seed, runs / strategy / f"{path.stem}-s{seed}", max_time_s,
-                     run_timeout_s, meta, radio_items)
-            for path, meta in arenas for strategy in strategies for seed in seeds]
+    return [
+        TrialJob(
+            path.resolve(),
+            strategy,
+            seed,
+            runs / strategy / f"{path.stem}-s{seed}",
+            max_time_s,
+            run_timeout_s,
+            meta,
+            radio_items,
+        )
+        for path, meta in arenas
+        for strategy in strategies
+        for seed in seeds
+    ]
 
 
 # ---------------------------------------------------------------- one run
 
-def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_time_s: float,
-              run_timeout_s: float | None = None, radio: dict | None = None) -> dict:
+
+def run_trial(
+    scenario_path: str,
+    strategy: str,
+    seed: int,
+    out_dir: str,
+    max_time_s: float,
+    run_timeout_s: float | None = None,
+    radio: dict | None = None,
+) -> dict:
     """Simulate one mission headless and return its row (ROW_FIELDS).
 
     Writes out_dir/report.json (strict JSON) and out_dir/summary.png, each atomically. The
@@ -124,14 +152,18 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
 
     def guard(t_s: float, text: str | None) -> None:
         if deadline is not None and time.monotonic() > deadline:
-            raise _WallClockExceeded(f"stopped after {run_timeout_s:g} s of wall time (--run-timeout) "
-                                     f"at {t_s:.1f} s simulated")
+            raise _WallClockExceeded(
+                f"stopped after {run_timeout_s:g} s of wall time (--run-timeout) at {t_s:.1f} s simulated"
+            )
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     channel = radio_config(**radio) if radio else ChannelConfig()
-    sim = Simulation(load_scenario(scenario_path),
-                     SimOptions(seed=seed, strategy=strategy, max_time_s=max_time_s, channel=channel), progress=guard)
+    sim = Simulation(
+        load_scenario(scenario_path),
+        SimOptions(seed=seed, strategy=strategy, max_time_s=max_time_s, channel=channel),
+        progress=guard,
+    )
     stopped = None
     try:
         sim.run()
@@ -142,7 +174,7 @@ def run_trial(scenario_path: str, strategy: str, seed: int, out_dir: str, max_ti
         report["outcome"] = "hung"
         report["error"] = stopped
     write_report(report, out / "report.json")
-    summary_picture(sim, report, out / "summary.png")   # written atomically
+    summary_picture(sim, report, out / "summary.png")  # written atomically
     row = row_from_report(report, Path(scenario_path).stem)
     row["wall_time_s"] = round(time.monotonic() - started, 2)
     row["report"] = str(out / "report.json")

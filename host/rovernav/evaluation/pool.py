@@ -1,5 +1,6 @@
 """Running the jobs: `rovernav trials`' in this process, or on a dask.distributed cluster with hung
 runs cancelled (run_jobs); the benchmarks' (benchmarks/*.py) in a pool of local processes (map_runs)."""
+
 from __future__ import annotations
 
 import collections
@@ -17,15 +18,22 @@ from .jobs import TrialJob, TrialsError, failure_row, run_trial
 
 log = logging.getLogger("rovernav.evaluation.trials")
 
-HANG_GRACE_S = 60.0        # past --run-timeout, how long a run may take to stop itself before it is killed
-POLL_S = 2.0               # how often the dask loop looks for hung runs while none completes
+HANG_GRACE_S = 60.0  # past --run-timeout, how long a run may take to stop itself before it is killed
+POLL_S = 2.0  # how often the dask loop looks for hung runs while none completes
 
 
 # ---------------------------------------------------------------- running the jobs
 
-def run_jobs(jobs: list[TrialJob], workers: int, scheduler: str | None = None,
-             on_start: Callable[[], None] | None = None, on_result: Callable[[int, int, dict], None] | None = None,
-             trial: Callable[..., dict] = run_trial, hang_grace_s: float = HANG_GRACE_S) -> list[dict]:
+
+def run_jobs(
+    jobs: list[TrialJob],
+    workers: int,
+    scheduler: str | None = None,
+    on_start: Callable[[], None] | None = None,
+    on_result: Callable[[int, int, dict], None] | None = None,
+    trial: Callable[..., dict] = run_trial,
+    hang_grace_s: float = HANG_GRACE_S,
+) -> list[dict]:
     """Run every job and return one row per job, in completion order.
 
     workers = 0 and no scheduler: in this process, one after another. Otherwise on a dask
@@ -53,7 +61,7 @@ def run_jobs(jobs: list[TrialJob], workers: int, scheduler: str | None = None,
 def _call(trial: Callable[..., dict], job: TrialJob) -> dict:
     try:
         return trial(*job.args)
-    except Exception as exc:   # a run that raises is a result to record, not the end of the benchmark
+    except Exception as exc:  # a run that raises is a result to record, not the end of the benchmark
         return _error_row(job, exc)
 
 
@@ -79,26 +87,39 @@ def _dask_client(workers: int, scheduler: str | None):
         if scheduler is not None:
             try:
                 client = Client(scheduler)
-            except (OSError, ValueError, TypeError) as exc:   # refused, timed out, or not an address
+            except (OSError, ValueError, TypeError) as exc:  # refused, timed out, or not an address
                 raise TrialsError(f"cannot use the dask scheduler at {scheduler!r}: {exc}") from None
             with client:
                 yield client
         else:
-            with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                              silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+            with (
+                LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    silence_logs=logging.CRITICAL,
+                ) as cluster,
+                Client(cluster) as client,
+            ):
                 yield client
     finally:
         dask_log.setLevel(level)
 
 
-def _run_on_client(client, jobs: list[TrialJob], trial: Callable[..., dict], hang_grace_s: float,
-                   notify: Callable[[int, int, dict], None]) -> list[dict]:
+def _run_on_client(
+    client,
+    jobs: list[TrialJob],
+    trial: Callable[..., dict],
+    hang_grace_s: float,
+    notify: Callable[[int, int, dict], None],
+) -> list[dict]:
     """Keep no more jobs in flight than the cluster has threads, so that a job starts when it is
     submitted and its wall time can be watched from here."""
     from distributed import wait
 
     queue = collections.deque(jobs)
-    in_flight: dict = {}   # future -> (job, monotonic time submitted)
+    in_flight: dict = {}  # future -> (job, monotonic time submitted)
     rows: list[dict] = []
 
     def done(row: dict) -> None:
@@ -120,7 +141,7 @@ def _run_on_client(client, jobs: list[TrialJob], trial: Callable[..., dict], han
             job, _ = in_flight.pop(future)
             try:
                 row = future.result()
-            except Exception as exc:   # the run raised, or its worker died under it
+            except Exception as exc:  # the run raised, or its worker died under it
                 row = _error_row(job, exc)
             done(row)
         now = time.monotonic()
@@ -128,8 +149,14 @@ def _run_on_client(client, jobs: list[TrialJob], trial: Callable[..., dict], han
             if job.run_timeout_s is not None and now - submitted > job.run_timeout_s + hang_grace_s:
                 del in_flight[future]
                 _kill(client, future)
-                done(failure_row(job, "hung", f"still running {now - submitted:.0f} s after it started "
-                                              f"(--run-timeout {job.run_timeout_s:g} s); its worker was restarted"))
+                done(
+                    failure_row(
+                        job,
+                        "hung",
+                        f"still running {now - submitted:.0f} s after it started "
+                        f"(--run-timeout {job.run_timeout_s:g} s); its worker was restarted",
+                    )
+                )
     return rows
 
 
@@ -145,8 +172,10 @@ def _kill(client, future) -> None:
 
 # ---------------------------------------------------------------- the benchmarks' runs
 
-def map_runs(run: Callable[..., Any], items: Iterable[Any], workers: int, *, ordered: bool = True,
-             star: bool = False) -> Iterator[tuple[Any, Any]]:
+
+def map_runs(
+    run: Callable[..., Any], items: Iterable[Any], workers: int, *, ordered: bool = True, star: bool = False
+) -> Iterator[tuple[Any, Any]]:
     """Call `run(item)` (`run(*item)` with star) for every item in a pool of `workers` local
     processes, and yield (item, result) pairs: in the items' order (ordered, as Executor.map
     does) or as each run ends. The caller prints its progress as the pairs come.
@@ -159,7 +188,7 @@ def map_runs(run: Callable[..., Any], items: Iterable[Any], workers: int, *, ord
     with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {(pool.submit(run, *item) if star else pool.submit(run, item)): item for item in items}
         try:
-            for future in (futures if ordered else concurrent.futures.as_completed(futures)):
+            for future in futures if ordered else concurrent.futures.as_completed(futures):
                 yield futures[future], future.result()
         except BaseException:
             for future in futures:

@@ -1,5 +1,6 @@
 """A run's row (ROW_FIELDS) from its report, the judgements on it (success, the verdicts, the
 BARN and time scores, failed and why) and the headline figures of many rows, with the gate."""
+
 from __future__ import annotations
 
 import collections
@@ -9,17 +10,44 @@ from collections.abc import Iterable
 STRATEGIES = ("rovernav", "seed")
 GATED_STRATEGY = "rovernav"
 UNLABELLED = "unlabelled"
-BARN_CLIP_LOW = 4.0        # BARN: actual time clipped to [4 OT, 8 OT]
+BARN_CLIP_LOW = 4.0  # BARN: actual time clipped to [4 OT, 8 OT]
 BARN_CLIP_HIGH = 8.0
 
 ROW_FIELDS = (
-    "arena", "family", "band", "difficulty", "solvable", "strategy", "seed",
-    "outcome", "reached", "success", "failed", "reason",
-    "crashed", "crash_against", "crash_t_s", "collisions",
-    "verdict_unreachable", "correct_unreachable", "false_unreachable", "timed_out",
-    "mission_time_s", "optimal_time_s", "time_ratio", "barn_score", "time_score",
-    "spl", "path_length_m", "optimal_length_m", "min_clearance_m", "replans", "max_dr_error_m",
-    "wall_time_s", "error", "report",
+    "arena",
+    "family",
+    "band",
+    "difficulty",
+    "solvable",
+    "strategy",
+    "seed",
+    "outcome",
+    "reached",
+    "success",
+    "failed",
+    "reason",
+    "crashed",
+    "crash_against",
+    "crash_t_s",
+    "collisions",
+    "verdict_unreachable",
+    "correct_unreachable",
+    "false_unreachable",
+    "timed_out",
+    "mission_time_s",
+    "optimal_time_s",
+    "time_ratio",
+    "barn_score",
+    "time_score",
+    "spl",
+    "path_length_m",
+    "optimal_length_m",
+    "min_clearance_m",
+    "replans",
+    "max_dr_error_m",
+    "wall_time_s",
+    "error",
+    "report",
 )
 
 
@@ -27,9 +55,19 @@ def _blank_row(arena: str, strategy: str, seed: int, meta: dict | None) -> dict:
     meta = meta or {}
     difficulty = meta.get("difficulty") or {}
     row = dict.fromkeys(ROW_FIELDS)
-    row.update(arena=arena, strategy=strategy, seed=seed, family=meta.get("family") or UNLABELLED,
-               band=difficulty.get("band"), difficulty=difficulty.get("score"), solvable=meta.get("solvable"),
-               reached=False, crashed=False, timed_out=False, collisions=0)
+    row.update(
+        arena=arena,
+        strategy=strategy,
+        seed=seed,
+        family=meta.get("family") or UNLABELLED,
+        band=difficulty.get("band"),
+        difficulty=difficulty.get("score"),
+        solvable=meta.get("solvable"),
+        reached=False,
+        crashed=False,
+        timed_out=False,
+        collisions=0,
+    )
     return row
 
 
@@ -38,21 +76,32 @@ def row_from_report(report: dict, arena: str) -> dict:
     table as its scenario_meta)."""
     row = _blank_row(arena, report["strategy"], report["seed"], report["scenario_meta"])
     crash = report["crash"] or {}
-    if row["solvable"] is None:   # an unlabelled arena: the clairvoyant planner decides
+    if row["solvable"] is None:  # an unlabelled arena: the clairvoyant planner decides
         row["solvable"] = report["optimal_length_m"] is not None
     row.update(
-        outcome=report["outcome"], reached=report["reached"],
+        outcome=report["outcome"],
+        reached=report["reached"],
         crashed=report["crashed"] or report["collisions"] > 0,
-        crash_against=crash.get("against"), crash_t_s=crash.get("t_s"),
-        collisions=report["collisions"], timed_out=report["timed_out"],
-        mission_time_s=report["mission_time_s"], optimal_time_s=report["optimal_time_s"],
-        spl=report["spl"], path_length_m=report["path_length_m"], optimal_length_m=report["optimal_length_m"],
-        min_clearance_m=report["min_clearance_m"], replans=report["replans"],
-        max_dr_error_m=report["faults"]["max_dr_error_m"], wall_time_s=report["wall_time_s"], error=report["error"])
+        crash_against=crash.get("against"),
+        crash_t_s=crash.get("t_s"),
+        collisions=report["collisions"],
+        timed_out=report["timed_out"],
+        mission_time_s=report["mission_time_s"],
+        optimal_time_s=report["optimal_time_s"],
+        spl=report["spl"],
+        path_length_m=report["path_length_m"],
+        optimal_length_m=report["optimal_length_m"],
+        min_clearance_m=report["min_clearance_m"],
+        replans=report["replans"],
+        max_dr_error_m=report["faults"]["max_dr_error_m"],
+        wall_time_s=report["wall_time_s"],
+        error=report["error"],
+    )
     return derive(row)
 
 
 # ---------------------------------------------------------------- scores
+
 
 def barn_score(success: bool, optimal_time_s: float | None, actual_time_s: float | None) -> float | None:
     """BARN Challenge score (Xiao et al., 2022): success x OT / clip(AT, 4 OT, 8 OT).
@@ -81,11 +130,14 @@ def derive(row: dict) -> dict:
     success = row["reached"] and row["collisions"] == 0 and not row["crashed"]
     verdict = row["outcome"] == "no_path"
     ot, at = row["optimal_time_s"], row["mission_time_s"]
-    row.update(success=success, verdict_unreachable=verdict,
-               correct_unreachable=verdict and row["solvable"] is False,
-               false_unreachable=verdict and row["solvable"] is True,
-               time_ratio=round(at / ot, 3) if ot and at is not None else None)
-    if row["solvable"] is False:   # no time to beat: scores do not apply
+    row.update(
+        success=success,
+        verdict_unreachable=verdict,
+        correct_unreachable=verdict and row["solvable"] is False,
+        false_unreachable=verdict and row["solvable"] is True,
+        time_ratio=round(at / ot, 3) if ot and at is not None else None,
+    )
+    if row["solvable"] is False:  # no time to beat: scores do not apply
         row.update(barn_score=None, time_score=None)
     else:
         row.update(barn_score=_round(barn_score(success, ot, at), 4), time_score=_round(time_score(success, ot, at), 4))
@@ -101,10 +153,13 @@ def failure_reason(row: dict) -> str | None:
     error = row["error"] or "no reason given"
     if row["crashed"]:
         where = f" at {row['crash_t_s']:.1f} s" if row["crash_t_s"] is not None else ""
-        return (f"crashed into {row['crash_against']}{where}" if row["crash_against"]
-                else f"touched an obstacle ({row['collisions']} contacts)")
+        return (
+            f"crashed into {row['crash_against']}{where}"
+            if row["crash_against"]
+            else f"touched an obstacle ({row['collisions']} contacts)"
+        )
     outcome = row["outcome"]
-    if outcome == "no_path":   # on a solvable arena: an unsolvable one returned above
+    if outcome == "no_path":  # on a solvable arena: an unsolvable one returned above
         return f"false 'unreachable': {error}"
     if outcome == "reached":
         return "reached a target labelled unreachable"
@@ -125,6 +180,7 @@ def _round(value: float | None, digits: int) -> float | None:
 
 # ---------------------------------------------------------------- figures
 
+
 def _rate(count: int, total: int) -> float | None:
     return count / total if total else None
 
@@ -144,10 +200,15 @@ def headline(rows: list[dict]) -> dict:
     correct_unreachable = sum(r["correct_unreachable"] for r in unsolvable)
     ratios = [r["time_ratio"] for r in successes if r["time_ratio"] is not None]
     return {
-        "runs": len(rows), "solvable_runs": len(solvable), "unsolvable_runs": len(unsolvable),
-        "successes": len(successes), "success_rate": _rate(len(successes), len(solvable)),
-        "crashes": crashes, "crash_rate": _rate(crashes, len(rows)),
-        "false_unreachable": false_unreachable, "false_unreachable_rate": _rate(false_unreachable, len(solvable)),
+        "runs": len(rows),
+        "solvable_runs": len(solvable),
+        "unsolvable_runs": len(unsolvable),
+        "successes": len(successes),
+        "success_rate": _rate(len(successes), len(solvable)),
+        "crashes": crashes,
+        "crash_rate": _rate(crashes, len(rows)),
+        "false_unreachable": false_unreachable,
+        "false_unreachable_rate": _rate(false_unreachable, len(solvable)),
         "correct_unreachable": correct_unreachable,
         "correct_unreachable_rate": _rate(correct_unreachable, len(unsolvable)),
         "timeouts": sum(r["outcome"] == "timeout" for r in rows),
@@ -194,9 +255,13 @@ def gate_violations(rows: list[dict], fail_on: Iterable[str]) -> list[dict]:
         "error": lambda r: r["outcome"] == "error",
         "failure": lambda r: r["failed"],
     }
-    return [{"run": f"{r['arena']} {r['strategy']} s{r['seed']}", "category": category, "reason": r["reason"]}
-            for r in sorted(rows, key=_row_order) if r["strategy"] == GATED_STRATEGY
-            for category in fail_on if checks[category](r)]
+    return [
+        {"run": f"{r['arena']} {r['strategy']} s{r['seed']}", "category": category, "reason": r["reason"]}
+        for r in sorted(rows, key=_row_order)
+        if r["strategy"] == GATED_STRATEGY
+        for category in fail_on
+        if checks[category](r)
+    ]
 
 
 def _row_order(row: dict) -> tuple:

@@ -1,5 +1,6 @@
 """What a benchmark writes: trials.csv, trials.json, trials.md (the Markdown tables) and the
 gallery of failed runs."""
+
 from __future__ import annotations
 
 import contextlib
@@ -17,6 +18,7 @@ from ..files import strict_json_value, write_atomic
 from .scoring import GATED_STRATEGY, ROW_FIELDS, _row_order, gate_violations, headline, headlines_by, strategies_of
 
 # ---------------------------------------------------------------- outputs
+
 
 def _frac(count: int, total: int) -> str:
     return f"{count}/{total} ({100 * count / total:.0f} %)" if total else "-"
@@ -44,8 +46,10 @@ TABLE_COLUMNS: tuple[tuple[str, Callable[[dict], str]], ...] = (
 
 def markdown_table(first_column: str, groups: dict[str, dict]) -> str:
     """A Markdown table: one line per group (name -> headline), the columns of TABLE_COLUMNS."""
-    lines = ["| " + " | ".join([first_column] + [name for name, _ in TABLE_COLUMNS]) + " |",
-             "|" + "---|" * (len(TABLE_COLUMNS) + 1)]
+    lines = [
+        "| " + " | ".join([first_column] + [name for name, _ in TABLE_COLUMNS]) + " |",
+        "|" + "---|" * (len(TABLE_COLUMNS) + 1),
+    ]
     for group, h in groups.items():
         lines.append("| " + " | ".join([group] + [cell(h) for _, cell in TABLE_COLUMNS]) + " |")
     return "\n".join(lines)
@@ -70,24 +74,34 @@ def render_markdown(summary: dict) -> str:
     s = summary
     gate = s["gate"]
     verdict = "passed" if gate["passed"] else f"FAILED ({len(gate['violations'])} violations)"
-    parts = [f"# Trials: {s['settings']['arenas']} arenas of {s['settings']['arenas_dir']}",
-             "",
-             f"`{s['command']}`",
-             "",
-             f"{s['started_utc']}, {s['wall_time_s']:.0f} s wall, {s['settings']['runner']}; "
-             f"rovernav {s['versions']['rovernav']}.",
-             "",
-             f"Radio: {radio_text(s['settings'].get('radio'))}.",
-             "",
-             "## Headline",
-             "",
-             markdown_table("strategy", s["headline"]),
-             "",
-             f"Gate ({GATED_STRATEGY} runs; fails on {', '.join(gate['fail_on']) or 'nothing'}): {verdict}."]
+    parts = [
+        f"# Trials: {s['settings']['arenas']} arenas of {s['settings']['arenas_dir']}",
+        "",
+        f"`{s['command']}`",
+        "",
+        f"{s['started_utc']}, {s['wall_time_s']:.0f} s wall, {s['settings']['runner']}; "
+        f"rovernav {s['versions']['rovernav']}.",
+        "",
+        f"Radio: {radio_text(s['settings'].get('radio'))}.",
+        "",
+        "## Headline",
+        "",
+        markdown_table("strategy", s["headline"]),
+        "",
+        f"Gate ({GATED_STRATEGY} runs; fails on {', '.join(gate['fail_on']) or 'nothing'}): {verdict}.",
+    ]
     parts += [f"- {v['run']}: {v['category']} ({v['reason']})" for v in gate["violations"]]
     for strategy in s["headline"]:
-        parts += ["", f"## {strategy} by family", "", markdown_table("family", s["by_family"][strategy]),
-                  "", f"## {strategy} by difficulty band", "", markdown_table("band", s["by_band"][strategy])]
+        parts += [
+            "",
+            f"## {strategy} by family",
+            "",
+            markdown_table("family", s["by_family"][strategy]),
+            "",
+            f"## {strategy} by difficulty band",
+            "",
+            markdown_table("band", s["by_band"][strategy]),
+        ]
     parts += ["", "## Definitions", "", DEFINITIONS, ""]
     return "\n".join(parts)
 
@@ -130,7 +144,8 @@ def write_outputs(out_dir: Path, rows: list[dict], context: dict, fail_on: Itera
         gate={"strategy": GATED_STRATEGY, "fail_on": fail_on, "passed": not violations, "violations": violations},
         headline={st: headline([r for r in rows if r["strategy"] == st]) for st in strategies_of(rows)},
         by_family=headlines_by(rows, "family"),
-        by_band=headlines_by(rows, "band"))
+        by_band=headlines_by(rows, "band"),
+    )
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=ROW_FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -150,24 +165,38 @@ def versions() -> dict:
 
     commit = None
     with contextlib.suppress(OSError, subprocess.SubprocessError):
-        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                              text=True, timeout=5)
+        done = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True, timeout=5
+        )
         if done.returncode == 0:
             commit = done.stdout.strip() or None
-    return {"rovernav": __version__, "git_commit": commit, "python": platform.python_version(),
-            "numpy": numpy.__version__, "dask": dask.__version__, "distributed": distributed.__version__,
-            "platform": platform.platform()}
+    return {
+        "rovernav": __version__,
+        "git_commit": commit,
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+        "dask": dask.__version__,
+        "distributed": distributed.__version__,
+        "platform": platform.platform(),
+    }
 
 
 def radio_text(st: dict | None) -> str:
     """The radio's settings in a few words (trials.md)."""
     if not st:
         return "the simulator's default"
-    parts = [f"{st['baud']:,} baud", f"{st['delay_ms']:g} ms latency", f"byte loss {st['loss_pct']:g} %",
-             f"bit errors {st['ber_pct']:g} % of bytes"]
+    parts = [
+        f"{st['baud']:,} baud",
+        f"{st['delay_ms']:g} ms latency",
+        f"byte loss {st['loss_pct']:g} %",
+        f"bit errors {st['ber_pct']:g} % of bytes",
+    ]
     burst = st["burst"]
-    parts.append(f"in bursts of {burst['mean_s']:g} s mean, {100 * burst['share']:g} % of the time, one process "
-                 "both ways" if burst else "independent, no bursts")
+    parts.append(
+        f"in bursts of {burst['mean_s']:g} s mean, {100 * burst['share']:g} % of the time, one process both ways"
+        if burst
+        else "independent, no bursts"
+    )
     parts.append(f"jitter {st['jitter_ms']:g} ms mean per frame" if st["jitter_ms"] else "no jitter")
     parts.append("half duplex (collisions)" if st["half_duplex"] else "full duplex")
     return ", ".join(parts)

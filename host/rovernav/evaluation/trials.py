@@ -54,6 +54,7 @@ the simulator's next event or 30-second mark, and is recorded as hung with its r
 a dask cluster, one that does not stop within HANG_GRACE_S more (a loop that never returns to the
 simulator) is cancelled and its worker restarted. A run that raises is recorded as an error
 (the traceback in its folder's error.txt) and the others go on."""
+
 from __future__ import annotations
 
 import argparse
@@ -97,13 +98,45 @@ from .tables import (
 # The public names of the command's parts (jobs, scoring, pool, tables) are importable from here too,
 # as they were from rovernav.sim.trials.
 __all__ = [
-    "STRATEGIES", "GATED_STRATEGY", "FAIL_ON_CHOICES", "DEFAULT_FAIL_ON", "DEFAULT_MAX_TIME_S",
-    "DEFAULT_RUN_TIMEOUT_S", "HANG_GRACE_S", "POLL_S", "UNLABELLED", "BARN_CLIP_LOW", "BARN_CLIP_HIGH",
-    "ROW_FIELDS", "TrialsError", "TrialJob", "find_arenas", "sample_arenas", "make_jobs", "run_trial",
-    "row_from_report", "failure_row", "barn_score", "time_score", "derive", "failure_reason", "run_jobs",
-    "headline", "strategies_of", "headlines_by", "gate_violations", "TABLE_COLUMNS", "markdown_table",
-    "DEFINITIONS", "render_markdown", "write_gallery", "write_outputs", "versions", "add_trials_parser",
-    "radio_text", "cmd_trials",
+    "STRATEGIES",
+    "GATED_STRATEGY",
+    "FAIL_ON_CHOICES",
+    "DEFAULT_FAIL_ON",
+    "DEFAULT_MAX_TIME_S",
+    "DEFAULT_RUN_TIMEOUT_S",
+    "HANG_GRACE_S",
+    "POLL_S",
+    "UNLABELLED",
+    "BARN_CLIP_LOW",
+    "BARN_CLIP_HIGH",
+    "ROW_FIELDS",
+    "TrialsError",
+    "TrialJob",
+    "find_arenas",
+    "sample_arenas",
+    "make_jobs",
+    "run_trial",
+    "row_from_report",
+    "failure_row",
+    "barn_score",
+    "time_score",
+    "derive",
+    "failure_reason",
+    "run_jobs",
+    "headline",
+    "strategies_of",
+    "headlines_by",
+    "gate_violations",
+    "TABLE_COLUMNS",
+    "markdown_table",
+    "DEFINITIONS",
+    "render_markdown",
+    "write_gallery",
+    "write_outputs",
+    "versions",
+    "add_trials_parser",
+    "radio_text",
+    "cmd_trials",
 ]
 
 
@@ -115,25 +148,29 @@ DEFAULT_RUN_TIMEOUT_S = 600.0
 
 # ---------------------------------------------------------------- the command
 
+
 def _fail_on(text: str) -> list[str]:
     if text.strip().lower() == "none":
         return []
     wanted = [w.strip() for w in text.split(",") if w.strip()]
     unknown = [w for w in wanted if w not in FAIL_ON_CHOICES]
     if unknown:
-        raise TrialsError(f"--fail-on: unknown {', '.join(unknown)} (choose from {', '.join(FAIL_ON_CHOICES)}, or none)")
+        raise TrialsError(
+            f"--fail-on: unknown {', '.join(unknown)} (choose from {', '.join(FAIL_ON_CHOICES)}, or none)"
+        )
     return wanted
 
 
 def add_trials_parser(sub) -> None:
     p = sub.add_parser(
-        "trials", help="a benchmark: many missions on many arenas, in parallel (dask)",
+        "trials",
+        help="a benchmark: many missions on many arenas, in parallel (dask)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Run every arena of ARENAS_DIR (*.toml, e.g. from `rovernav arenas`) with each strategy and "
-                    "seeds 1..K in the simulator, in parallel on dask.distributed (a local cluster by default), "
-                    "and write trials.csv, trials.json, trials.md (headline, per family, per difficulty band), "
-                    "runs/<strategy>/<arena>-s<seed>/{report.json,summary.png} and a gallery of the failed runs "
-                    "(gallery/, gallery.md).",
+        "seeds 1..K in the simulator, in parallel on dask.distributed (a local cluster by default), "
+        "and write trials.csv, trials.json, trials.md (headline, per family, per difficulty band), "
+        "runs/<strategy>/<arena>-s<seed>/{report.json,summary.png} and a gallery of the failed runs "
+        "(gallery/, gallery.md).",
         epilog="""\
 per run:
   success         every leg reached with no contact (reached, 0 collisions, not crashed)
@@ -150,34 +187,72 @@ no scheduler), 3 an internal error (rerun with -v for the traceback), 130 interr
 --fail-on categories: crash, false_unreachable, timeout (the simulated
 --max-time, or hung past --run-timeout), error (the run raised), failure (any failed run).
 
-CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2 --out out/trials""")
+CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2 --out out/trials""",
+    )
     p.add_argument("arenas_dir", type=Path, metavar="ARENAS_DIR", help="a folder of arena files (*.toml)")
-    p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav",
-                   help="which strategy to run (default rovernav)")
-    p.add_argument("--seeds", type=number(1, 1000, integer=True), default=1, metavar="K",
-                   help="simulator seeds 1..K per arena, K from 1 to 1000 (default 1)")
-    p.add_argument("--sample", type=number(1, 100_000, integer=True), metavar="K",
-                   help="only K arenas, a fixed choice: the families take turns for one more arena each "
-                        "until K are chosen, and each family's arenas are taken evenly spaced through their "
-                        "sorted names (positions floor(i*n/k))")
-    p.add_argument("--out", type=out_dir, default=Path("out/trials"), metavar="DIR", help="output folder (default out/trials)")
+    p.add_argument(
+        "--strategy",
+        choices=("rovernav", "seed", "both"),
+        default="rovernav",
+        help="which strategy to run (default rovernav)",
+    )
+    p.add_argument(
+        "--seeds",
+        type=number(1, 1000, integer=True),
+        default=1,
+        metavar="K",
+        help="simulator seeds 1..K per arena, K from 1 to 1000 (default 1)",
+    )
+    p.add_argument(
+        "--sample",
+        type=number(1, 100_000, integer=True),
+        metavar="K",
+        help="only K arenas, a fixed choice: the families take turns for one more arena each "
+        "until K are chosen, and each family's arenas are taken evenly spaced through their "
+        "sorted names (positions floor(i*n/k))",
+    )
+    p.add_argument(
+        "--out", type=out_dir, default=Path("out/trials"), metavar="DIR", help="output folder (default out/trials)"
+    )
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=number(0, 256, integer=True), default=os.cpu_count() or 1, metavar="N",
-                       help="local dask worker processes (default: one per CPU, here %(default)s); 0 = --serial")
+    where.add_argument(
+        "--workers",
+        type=number(0, 256, integer=True),
+        default=os.cpu_count() or 1,
+        metavar="N",
+        help="local dask worker processes (default: one per CPU, here %(default)s); 0 = --serial",
+    )
     where.add_argument("--serial", action="store_true", help="run in this process, one run after another (no dask)")
-    where.add_argument("--scheduler", metavar="ADDRESS",
-                       help="use the dask cluster at ADDRESS (e.g. tcp://10.0.0.5:8786); its workers must see "
-                            "ARENAS_DIR and --out at the same paths")
-    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=DEFAULT_MAX_TIME_S, metavar="S",
-                   help=f"simulated seconds before a run is stopped as a timeout (default {DEFAULT_MAX_TIME_S:g})")
-    p.add_argument("--run-timeout", type=seconds(MAX_SIM_TIME_S, positive=True), default=DEFAULT_RUN_TIMEOUT_S, metavar="S",
-                   help=f"wall-clock seconds before a run is stopped as hung (default {DEFAULT_RUN_TIMEOUT_S:g})")
-    p.add_argument("--fail-on", default=",".join(DEFAULT_FAIL_ON), metavar="LIST",
-                   help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
-                        f"(default {','.join(DEFAULT_FAIL_ON)})")
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use the dask cluster at ADDRESS (e.g. tcp://10.0.0.5:8786); its workers must see "
+        "ARENAS_DIR and --out at the same paths",
+    )
+    p.add_argument(
+        "--max-time",
+        type=seconds(MAX_SIM_TIME_S, positive=True),
+        default=DEFAULT_MAX_TIME_S,
+        metavar="S",
+        help=f"simulated seconds before a run is stopped as a timeout (default {DEFAULT_MAX_TIME_S:g})",
+    )
+    p.add_argument(
+        "--run-timeout",
+        type=seconds(MAX_SIM_TIME_S, positive=True),
+        default=DEFAULT_RUN_TIMEOUT_S,
+        metavar="S",
+        help=f"wall-clock seconds before a run is stopped as hung (default {DEFAULT_RUN_TIMEOUT_S:g})",
+    )
+    p.add_argument(
+        "--fail-on",
+        default=",".join(DEFAULT_FAIL_ON),
+        metavar="LIST",
+        help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
+        f"(default {','.join(DEFAULT_FAIL_ON)})",
+    )
     from ..sim.cli import add_radio_flags
 
-    add_radio_flags(p, config=False)   # every run's radio; trials.json's settings.radio says what it was
+    add_radio_flags(p, config=False)  # every run's radio; trials.json's settings.radio says what it was
     p.set_defaults(func=cmd_trials)
 
 
@@ -185,10 +260,22 @@ def _command_line(args: argparse.Namespace, runner_flag: str) -> str:
     parts = ["rovernav", "trials", str(args.arenas_dir), "--strategy", args.strategy, "--seeds", str(args.seeds)]
     if args.sample is not None:
         parts += ["--sample", str(args.sample)]
-    parts += ["--out", str(args.out), *runner_flag.split(), "--max-time", f"{args.max_time:g}",
-              "--run-timeout", f"{args.run_timeout:g}", "--fail-on", args.fail_on]
-    for flag, value in (("--radio-loss", args.radio_loss), ("--radio-ber", args.radio_ber),
-                        ("--radio-jitter-ms", args.radio_jitter_ms)):
+    parts += [
+        "--out",
+        str(args.out),
+        *runner_flag.split(),
+        "--max-time",
+        f"{args.max_time:g}",
+        "--run-timeout",
+        f"{args.run_timeout:g}",
+        "--fail-on",
+        args.fail_on,
+    ]
+    for flag, value in (
+        ("--radio-loss", args.radio_loss),
+        ("--radio-ber", args.radio_ber),
+        ("--radio-jitter-ms", args.radio_jitter_ms),
+    ):
         if value is not None:
             parts += [flag, f"{value:g}"]
     if args.radio_burst is not None:
@@ -224,8 +311,8 @@ def cmd_trials(args: argparse.Namespace) -> int:
     from ..sim.cli import radio_values
 
     values, names = radio_values(args)
-    channel = radio_config(**values, names=names)   # refused here (one line, exit 2), before any run
-    radio = None if channel == ChannelConfig() else values   # as given: each run makes the same ChannelConfig
+    channel = radio_config(**values, names=names)  # refused here (one line, exit 2), before any run
+    radio = None if channel == ChannelConfig() else values  # as given: each run makes the same ChannelConfig
     arenas = find_arenas(args.arenas_dir)
     if args.sample is not None:
         arenas = sample_arenas(arenas, args.sample)
@@ -241,18 +328,23 @@ def cmd_trials(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
 
     def start() -> None:
-        print(f"trials: {len(arenas)} arenas x {len(strategies)} strategies x {args.seeds} seeds = {len(jobs)} runs, "
-              f"{runner}", flush=True)
+        print(
+            f"trials: {len(arenas)} arenas x {len(strategies)} strategies x {args.seeds} seeds = {len(jobs)} runs, "
+            f"{runner}",
+            flush=True,
+        )
 
-    tally: dict[str, list[int]] = {s: [0, 0] for s in strategies}   # strategy -> [ok, done]
+    tally: dict[str, list[int]] = {s: [0, 0] for s in strategies}  # strategy -> [ok, done]
 
     def progress(done: int, total: int, row: dict) -> None:
         counts = tally[row["strategy"]]
         counts[0] += not row["failed"]
         counts[1] += 1
         so_far = ", ".join(f"{s} {ok}/{n} ok" for s, (ok, n) in tally.items())
-        print(f"[{done}/{total}] {row['arena']} {row['strategy']} s{row['seed']}: {_describe(row)}   ({so_far})",
-              flush=True)
+        print(
+            f"[{done}/{total}] {row['arena']} {row['strategy']} s{row['seed']}: {_describe(row)}   ({so_far})",
+            flush=True,
+        )
 
     started_utc = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     started = time.monotonic()
@@ -263,17 +355,30 @@ def cmd_trials(args: argparse.Namespace) -> int:
         if row["report"]:
             row["report"] = os.path.relpath(row["report"], out)
     context = {
-        "command": _command_line(args, runner_flag), "versions": versions(), "started_utc": started_utc,
+        "command": _command_line(args, runner_flag),
+        "versions": versions(),
+        "started_utc": started_utc,
         "wall_time_s": round(wall_time_s, 1),
-        "settings": {"arenas_dir": str(args.arenas_dir), "arenas": len(arenas), "sample": args.sample,
-                     "strategies": strategies, "seeds": list(range(1, args.seeds + 1)), "max_time_s": args.max_time,
-                     "run_timeout_s": args.run_timeout, "runner": runner, "radio": channel.settings()}}
+        "settings": {
+            "arenas_dir": str(args.arenas_dir),
+            "arenas": len(arenas),
+            "sample": args.sample,
+            "strategies": strategies,
+            "seeds": list(range(1, args.seeds + 1)),
+            "max_time_s": args.max_time,
+            "run_timeout_s": args.run_timeout,
+            "runner": runner,
+            "radio": channel.settings(),
+        },
+    }
     summary = write_outputs(args.out, rows, context, fail_on)
     print()
     print(markdown_table("strategy", summary["headline"]))
     failed = sum(r["failed"] for r in rows)
-    print(f"\nwrote {args.out}/trials.csv, trials.json, trials.md, runs/; {failed} failed runs in "
-          f"{args.out}/gallery.md; {wall_time_s:.0f} s wall")
+    print(
+        f"\nwrote {args.out}/trials.csv, trials.json, trials.md, runs/; {failed} failed runs in "
+        f"{args.out}/gallery.md; {wall_time_s:.0f} s wall"
+    )
     gate = summary["gate"]
     if gate["passed"]:
         print(f"gate passed ({GATED_STRATEGY} runs; fail on {', '.join(fail_on) or 'nothing'})")

@@ -1,4 +1,5 @@
 """The link's exceptions: catch LinkError for anything the radio or the rover did wrong."""
+
 from __future__ import annotations
 
 from ..errors import InputError, RovernavError
@@ -38,7 +39,8 @@ class SchemaMismatch(ProtocolError):
         super().__init__(
             f"the {who} was built from another protocol definition: its schema hash is 0x{theirs:08X}, "
             f"ours is 0x{ours:08X}. Rebuild and flash the firmware from this checkout "
-            f"(pio run -e uno -t upload), or run the host version that matches it.")
+            f"(pio run -e uno -t upload), or run the host version that matches it."
+        )
 
 
 class SigningMismatch(ProtocolError):
@@ -51,6 +53,7 @@ class Nacked(ProtocolError):
 
     def __init__(self, message_name: str, reason: int, detail: int):
         from .messages_gen import NackReason
+
         self.reason, self.detail = reason, detail
         try:
             rname = NackReason(reason).name.lower()

@@ -27,6 +27,7 @@ counts what it refuses, in this order:
     unverified  a signed frame and no key to check it with (a HELLO is still read, unchecked: it
                 tells a host without the key what it lacks)
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -111,7 +112,7 @@ def cobs_decode(data: bytes) -> bytes | None:
         code = data[i]
         if code == 0 or i + code > n:
             return None
-        block = data[i + 1:i + code]
+        block = data[i + 1 : i + code]
         if 0 in block:
             return None
         out += block
@@ -192,8 +193,16 @@ class DecoderCounters:
 
     @property
     def dropped(self) -> int:
-        return (self.bad_crc + self.overlong + self.unknown_id + self.malformed + self.bad_tag + self.replayed
-                + self.not_signed + self.unverified)
+        return (
+            self.bad_crc
+            + self.overlong
+            + self.unknown_id
+            + self.malformed
+            + self.bad_tag
+            + self.replayed
+            + self.not_signed
+            + self.unverified
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,7 +213,7 @@ class Frame:
     seq: int
     payload: bytes
     message: Message
-    counter: int | None = None   # a signed frame's counter (its tag checked), else None
+    counter: int | None = None  # a signed frame's counter (its tag checked), else None
 
 
 class FrameDecoder:
@@ -259,8 +268,12 @@ class FrameDecoder:
             return None
         version, msg_id, seq = raw[0], raw[1], raw[2]
         signed = version == PROTOCOL_VERSION | SIGN_FLAG
-        payload = raw[HEADER_BYTES:-CRC_BYTES - (SIGNATURE_BYTES if signed else 0)]
-        if version != PROTOCOL_VERSION and not signed or len(raw) < HEADER_BYTES + CRC_BYTES + (SIGNATURE_BYTES if signed else 0):
+        payload = raw[HEADER_BYTES : -CRC_BYTES - (SIGNATURE_BYTES if signed else 0)]
+        if (
+            version != PROTOCOL_VERSION
+            and not signed
+            or len(raw) < HEADER_BYTES + CRC_BYTES + (SIGNATURE_BYTES if signed else 0)
+        ):
             self.counters.malformed += 1
             return None
         cls = MESSAGES.get(msg_id)
@@ -273,13 +286,13 @@ class FrameDecoder:
         counter = None
         v = self.verifier
         if signed and v is None and msg_id in SIGN_UNSIGNED_IDS:
-            pass   # a keyed rover's HELLO, read unchecked: it tells a host without the key what it lacks
+            pass  # a keyed rover's HELLO, read unchecked: it tells a host without the key what it lacks
         elif signed:
             if v is None:
                 self.counters.unverified += 1
                 return None
             end = len(raw) - CRC_BYTES
-            signed_part, tag = raw[:end - SIGN_TAG_BYTES], raw[end - SIGN_TAG_BYTES:end]
+            signed_part, tag = raw[: end - SIGN_TAG_BYTES], raw[end - SIGN_TAG_BYTES : end]
             # The counter first, as the rover checks it: a replay costs no tag.
             counter = int.from_bytes(signed_part[-SIGN_COUNTER_BYTES:], "little")
             if counter <= v.last_counter:

@@ -4,6 +4,7 @@ A key file holds 32 hexadecimal digits and a newline. It is written with mode 06
 over an existing file unless asked; a key file that others can read, or that is not 32 hex
 digits, is refused with a message naming it (the way ssh refuses a private key others can read).
 """
+
 from __future__ import annotations
 
 import os
@@ -32,10 +33,11 @@ def write_key_file(path: Path, force: bool = False) -> bytes:
     try:
         fd = os.open(path, flags, 0o600)
     except FileExistsError:
-        raise KeyFileError(f"{show(path)}: exists; a new key would lock out the rover that has the old one "
-                           "(--force to replace it)") from None
+        raise KeyFileError(
+            f"{show(path)}: exists; a new key would lock out the rover that has the old one (--force to replace it)"
+        ) from None
     with os.fdopen(fd, "w") as f:
-        os.fchmod(f.fileno(), 0o600)   # also when --force replaced a file with other permissions
+        os.fchmod(f.fileno(), 0o600)  # also when --force replaced a file with other permissions
         f.write(key.hex() + "\n")
     return key
 
@@ -53,8 +55,9 @@ def load_key_file(path: Path) -> bytes:
     if not stat.S_ISREG(st.st_mode):
         raise KeyFileError(f"{show(path)}: not a regular file, so not a key file")
     if st.st_mode & 0o077:
-        raise KeyFileError(f"{show(path)}: others can read it (mode {stat.S_IMODE(st.st_mode):04o}); "
-                           f"chmod 600 {show(path)}")
+        raise KeyFileError(
+            f"{show(path)}: others can read it (mode {stat.S_IMODE(st.st_mode):04o}); chmod 600 {show(path)}"
+        )
     if st.st_size > 256:
         raise KeyFileError(f"{show(path)}: {st.st_size} bytes is not a key file (32 hex digits)")
     text = path.read_bytes().decode("ascii", errors="replace").strip()

@@ -22,6 +22,7 @@ Threads: send() may be called from any thread (e.g. a thread streaming fixes). T
 calls (recv, messages, request, handshake) serialise on one lock, so a recv() in another
 thread cannot take the ACK that request() is waiting for.
 """
+
 from __future__ import annotations
 
 import collections
@@ -70,8 +71,13 @@ def version_word(version: str) -> int:
 
 def host_hello(boot_id: int) -> Hello:
     """The host's HELLO: role host, our schema hash and version, `boot_id` (new at every host start)."""
-    return Hello(schema_hash=SCHEMA_HASH, boot_id=boot_id & 0xFFFFFFFF, firmware_version=version_word(__version__),
-                 role=Role.HOST, max_waypoints=0)
+    return Hello(
+        schema_hash=SCHEMA_HASH,
+        boot_id=boot_id & 0xFFFFFFFF,
+        firmware_version=version_word(__version__),
+        role=Role.HOST,
+        max_waypoints=0,
+    )
 
 
 class Link:
@@ -202,11 +208,19 @@ class Link:
                     return reply
                 if tracker.exhausted(pending):
                     break
-                log.warning("no answer to %s on %s within %.3g s; resending (%d of %d)",
-                            message.NAME.upper(), self.transport, timeout_s, pending.tries, retries)
+                log.warning(
+                    "no answer to %s on %s within %.3g s; resending (%d of %d)",
+                    message.NAME.upper(),
+                    self.transport,
+                    timeout_s,
+                    pending.tries,
+                    retries,
+                )
                 tracker.resent(pending, self.send(message), time.monotonic())
-        raise LinkTimeout(f"no ACK or NACK for {message.NAME.upper()} from the rover on {self.transport} "
-                          f"after {retries + 1} attempts of {timeout_s:g} s")
+        raise LinkTimeout(
+            f"no ACK or NACK for {message.NAME.upper()} from the rover on {self.transport} "
+            f"after {retries + 1} attempts of {timeout_s:g} s"
+        )
 
     def handshake(self, boot_id: int, timeout_s: float = 2.0) -> Hello:
         """Exchange HELLOs with the rover and check it was built from our protocol definition.
@@ -236,23 +250,35 @@ class Link:
                 reply = self._await(is_rover_hello, resend_at)
                 if reply is None and time.monotonic() >= deadline:
                     baud = getattr(self.transport, "baud", DEFAULT_BAUD)
-                    raise LinkTimeout(f"no HELLO from the rover on {self.transport}: is it powered, "
-                                      f"flashed, and on this port at {baud} baud?")
+                    raise LinkTimeout(
+                        f"no HELLO from the rover on {self.transport}: is it powered, "
+                        f"flashed, and on this port at {baud} baud?"
+                    )
         theirs: Hello = reply.message  # type: ignore[assignment]
         if theirs.schema_hash != SCHEMA_HASH:
             raise SchemaMismatch(SCHEMA_HASH, theirs.schema_hash)
         rover_signs = bool(theirs.signing & 1)
         if self.signer is not None and not rover_signs:
-            raise SigningMismatch("the rover says it holds no link key: it would take anyone's commands. "
-                                  "Provision it with this host's key, or remove [link] key_file to run unsigned")
+            raise SigningMismatch(
+                "the rover says it holds no link key: it would take anyone's commands. "
+                "Provision it with this host's key, or remove [link] key_file to run unsigned"
+            )
         if self.signer is None and rover_signs:
-            raise SigningMismatch("the rover holds a link key and refuses unsigned commands: give this host "
-                                  "the same key ([link] key_file)")
+            raise SigningMismatch(
+                "the rover holds a link key and refuses unsigned commands: give this host "
+                "the same key ([link] key_file)"
+            )
         self._follow_rover_counter(reply)
         self.peer_hello = theirs
-        log.info("rover on %s: schema 0x%08X, firmware %d.%d, boot id 0x%08X, holds %d waypoints",
-                 self.transport, theirs.schema_hash, theirs.firmware_version >> 8,
-                 theirs.firmware_version & 0xFF, theirs.boot_id, theirs.max_waypoints)
+        log.info(
+            "rover on %s: schema 0x%08X, firmware %d.%d, boot id 0x%08X, holds %d waypoints",
+            self.transport,
+            theirs.schema_hash,
+            theirs.firmware_version >> 8,
+            theirs.firmware_version & 0xFF,
+            theirs.boot_id,
+            theirs.max_waypoints,
+        )
         return theirs
 
     # ------------------------------------------------------------ lifetime
@@ -264,12 +290,15 @@ class Link:
     def __enter__(self) -> Link:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
     def __repr__(self) -> str:
-        return f"<Link on {self.transport} tx={self._tx_frames} rx={self.counters.frames_ok} pending={len(self._pending)}>"
+        return (
+            f"<Link on {self.transport} tx={self._tx_frames} rx={self.counters.frames_ok} pending={len(self._pending)}>"
+        )
 
     # ------------------------------------------------------------ internals
 
@@ -285,8 +314,11 @@ class Link:
         if len(self._pending) >= MAX_PENDING_FRAMES:
             self._pending.popleft()
             if self._pending_dropped == 0:
-                log.warning("%d frames from %s are waiting unread; dropping the oldest from now on",
-                            MAX_PENDING_FRAMES, self.transport)
+                log.warning(
+                    "%d frames from %s are waiting unread; dropping the oldest from now on",
+                    MAX_PENDING_FRAMES,
+                    self.transport,
+                )
             self._pending_dropped += 1
         self._pending.append(frame)
 
@@ -338,6 +370,11 @@ class Link:
         next: after a reset that is past anything it took before, so a recording cannot be played
         back to it. Our counter jumps past it. Only a HELLO whose tag we checked moves it."""
         m = frame.message
-        if (self.signer is not None and frame.counter is not None and isinstance(m, Hello)
-                and m.role == Role.ROVER and m.signing & 1):
+        if (
+            self.signer is not None
+            and frame.counter is not None
+            and isinstance(m, Hello)
+            and m.role == Role.ROVER
+            and m.signing & 1
+        ):
             self.signer.jump_past((m.min_counter_hi << 32 | m.min_counter_lo) - 1)

@@ -22,6 +22,7 @@ It never sends anything and reads no clock: the caller sends what `due()` return
 under which sequence number and when (`sent`), and hands it each ACK or NACK (`answer`). Shared
 by the mission and `rovernav link-check --soak`.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -38,21 +39,21 @@ CHUNK_SPACING_S = 0.03
 class Answer(enum.Enum):
     """What an ACK or NACK meant to the upload."""
 
-    NOT_OURS = "not_ours"          # answers no chunk of this upload
-    TAKEN = "taken"                # an ACK: the rover holds the chunks up to this one
-    RESUME = "resume"              # a NACK out_of_order: re-sending from where the rover stopped
-    REFUSED = "refused"            # a NACK for another reason: the path itself is wrong
+    NOT_OURS = "not_ours"  # answers no chunk of this upload
+    TAKEN = "taken"  # an ACK: the rover holds the chunks up to this one
+    RESUME = "resume"  # a NACK out_of_order: re-sending from where the rover stopped
+    REFUSED = "refused"  # a NACK for another reason: the path itself is wrong
 
 
 @dataclasses.dataclass
 class _Chunk:
     message: mg.Path
     taken: bool = False
-    sent_s: float | None = None    # when it last went out (None: due now)
-    tries: int = 0                 # attempts that went unanswered so far
-    sends: int = 0                 # times it went out
-    resumed: bool = False          # made due by a NACK (not by its resend time) ...
-    sent_by_nack: bool = False     # ... and its last attempt was that one
+    sent_s: float | None = None  # when it last went out (None: due now)
+    tries: int = 0  # attempts that went unanswered so far
+    sends: int = 0  # times it went out
+    resumed: bool = False  # made due by a NACK (not by its resend time) ...
+    sent_by_nack: bool = False  # ... and its last attempt was that one
 
 
 def path_chunks(path_id: int, waypoints_mm: list[tuple[int, int]], back_out: int = 0) -> list[mg.Path]:
@@ -66,11 +67,20 @@ def path_chunks(path_id: int, waypoints_mm: list[tuple[int, int]], back_out: int
     n = mg.WAYPOINTS_PER_CHUNK
     out = []
     for first in range(0, len(waypoints_mm), n):
-        chunk = waypoints_mm[first:first + n]
+        chunk = waypoints_mm[first : first + n]
         xs = tuple(x for x, _ in chunk) + (0,) * (n - len(chunk))
         ys = tuple(y for _, y in chunk) + (0,) * (n - len(chunk))
-        out.append(mg.Path(path_id=path_id, total=len(waypoints_mm), first_index=first, count=len(chunk),
-                           back_out=back_out, x_mm=xs, y_mm=ys))
+        out.append(
+            mg.Path(
+                path_id=path_id,
+                total=len(waypoints_mm),
+                first_index=first,
+                count=len(chunk),
+                back_out=back_out,
+                x_mm=xs,
+                y_mm=ys,
+            )
+        )
     return out
 
 
@@ -83,7 +93,7 @@ class PathUpload:
         self.path_id = path_id
         self.resend_s = resend_s
         self._chunks = [_Chunk(m) for m in path_chunks(path_id, waypoints_mm, back_out)]
-        self._attempts: dict[int, tuple[int, float]] = {}   # seq -> (chunk index, when sent)
+        self._attempts: dict[int, tuple[int, float]] = {}  # seq -> (chunk index, when sent)
         self.frames_sent = 0
         self.frames_resent = 0
         self.refusal: mg.Nack | None = None
@@ -109,8 +119,9 @@ class PathUpload:
     def due(self, now_s: float) -> list[mg.Path]:
         """The chunks to send now, in order: those never sent, those made due by a NACK, and those
         unanswered for resend_s."""
-        return [c.message for c in self._chunks
-                if not c.taken and (c.sent_s is None or now_s - c.sent_s >= self.resend_s)]
+        return [
+            c.message for c in self._chunks if not c.taken and (c.sent_s is None or now_s - c.sent_s >= self.resend_s)
+        ]
 
     def sent(self, message: mg.Path, seq: int, now_s: float, count: bool = True) -> None:
         """`message` (one of ours, from `due`) went out under `seq` at `now_s`; `count=False` does
@@ -141,7 +152,7 @@ class PathUpload:
             return Answer.NOT_OURS
         index, sent_s = attempt
         if isinstance(reply, mg.Ack):
-            for c in self._chunks[:index + 1]:
+            for c in self._chunks[: index + 1]:
                 c.taken = True
             return Answer.TAKEN
         if reply.reason != mg.NackReason.OUT_OF_ORDER:
@@ -149,13 +160,13 @@ class PathUpload:
             return Answer.REFUSED
         expected = reply.detail // mg.WAYPOINTS_PER_CHUNK if reply.detail % mg.WAYPOINTS_PER_CHUNK == 0 else None
         if expected is None or expected > len(self._chunks):
-            self.refusal = reply   # a place no chunk of ours starts at: not this path's upload
+            self.refusal = reply  # a place no chunk of ours starts at: not this path's upload
             return Answer.REFUSED
         for i, c in enumerate(self._chunks):
             if i < expected:
                 c.taken = True
             elif expected == 0:
-                c.taken = False   # the rover holds none of it (it restarted, or took another path)
+                c.taken = False  # the rover holds none of it (it restarted, or took another path)
         if expected < len(self._chunks):
             head = self._chunks[expected]
             if (head.sent_s is None or head.sent_s <= sent_s) and not head.sent_by_nack:

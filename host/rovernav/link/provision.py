@@ -14,6 +14,7 @@ first, so a wrong key file is named before anything is sent), or the consent pin
 ([signing].consent_pin, D7) held to GND while it reset. Without either it answers NACK
 needs_consent, and this says the two ways in one line (NeedsConsent).
 """
+
 from __future__ import annotations
 
 import time
@@ -64,7 +65,8 @@ class NeedsConsent(ProvisionError):
         super().__init__(
             f"the rover holds a link key and changes it only with its owner's consent: give the key it holds "
             f"with --current-key-file FILE, or hold pin D{pin} to GND (a jumper to a GND pin) while the rover "
-            f"resets and run this again (opening the port resets it; take the jumper off afterwards)")
+            f"resets and run this again (opening the port resets it; take the jumper off afterwards)"
+        )
 
 
 class WrongCurrentKey(ProvisionError):
@@ -87,18 +89,32 @@ class _Refusals:
         nacks = []
         for body in bodies:
             raw = cobs_decode(body) if body else None
-            if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES or crc16(raw[:-CRC_BYTES]) != int.from_bytes(raw[-CRC_BYTES:], "little"):
+            if (
+                raw is None
+                or len(raw) < HEADER_BYTES + CRC_BYTES
+                or crc16(raw[:-CRC_BYTES]) != int.from_bytes(raw[-CRC_BYTES:], "little")
+            ):
                 continue
             end = len(raw) - CRC_BYTES - (SIGNATURE_BYTES if raw[0] == PROTOCOL_VERSION | SIGN_FLAG else 0)
-            if raw[0] in (PROTOCOL_VERSION, PROTOCOL_VERSION | SIGN_FLAG) and raw[1] == Nack.ID \
-                    and end - HEADER_BYTES == Nack.STRUCT.size:
+            if (
+                raw[0] in (PROTOCOL_VERSION, PROTOCOL_VERSION | SIGN_FLAG)
+                and raw[1] == Nack.ID
+                and end - HEADER_BYTES == Nack.STRUCT.size
+            ):
                 nacks.append(Nack.unpack(raw[HEADER_BYTES:end]))
         return nacks
 
 
-def provision(transport: Transport, key: bytes | None, boot_wait_s: float = 4.0,
-              answer_wait_s: float = 2.0, clock=time.monotonic, *, current_key: bytes | None = None,
-              wall_clock=time.time) -> str:
+def provision(
+    transport: Transport,
+    key: bytes | None,
+    boot_wait_s: float = 4.0,
+    answer_wait_s: float = 2.0,
+    clock=time.monotonic,
+    *,
+    current_key: bytes | None = None,
+    wall_clock=time.time,
+) -> str:
     """Store `key` (16 bytes; None erases the rover's key) on the rover behind `transport`, which
     must have just reset it. `current_key`: the key the rover holds, to sign the PROVISION with
     (its owner's consent; ignored by a rover that holds none). `wall_clock` drives the signing
@@ -106,7 +122,7 @@ def provision(transport: Transport, key: bytes | None, boot_wait_s: float = 4.0,
     for name, k in (("link key", key), ("current link key", current_key)):
         if k is not None and len(k) != 16:
             raise InputError(f"a {name} is 16 bytes, got {len(k)}")
-    plain = FrameDecoder()   # a keyed rover's HELLO is readable unchecked: enough to see it boot
+    plain = FrameDecoder()  # a keyed rover's HELLO is readable unchecked: enough to see it boot
     # ... and checked with the current key, when one is given: a wrong key file is named here
     checked = FrameDecoder(Verifier(current_key, SIGN_ROVER_TO_HOST, require=False)) if current_key else None
     deadline = clock() + boot_wait_s
@@ -115,8 +131,10 @@ def provision(transport: Transport, key: bytes | None, boot_wait_s: float = 4.0,
     while hello is None and clock() < deadline:
         data = transport.read(256, timeout_s=0.05)
         if checked is not None:
-            hello_signed_by_current |= any(isinstance(f.message, Hello) and f.message.role == Role.ROVER
-                                           and f.counter is not None for f in checked.feed(data))
+            hello_signed_by_current |= any(
+                isinstance(f.message, Hello) and f.message.role == Role.ROVER and f.counter is not None
+                for f in checked.feed(data)
+            )
         for frame in plain.feed(data):
             if isinstance(frame.message, Hello) and frame.message.role == Role.ROVER:
                 hello = frame.message
@@ -125,15 +143,18 @@ def provision(transport: Transport, key: bytes | None, boot_wait_s: float = 4.0,
             f"no rover booted on {transport} within {boot_wait_s:g} s of opening it, so the key was not sent. "
             "Provisioning needs the USB cable, whose opening resets the Uno; a radio cannot reset the rover. "
             "Plug the cable in (or press the rover's reset button just after starting this command) and run "
-            "it again.")
+            "it again."
+        )
     booted_at = clock()
     keyed = bool(hello.signing & 1)
     signer = None
     if keyed and current_key is not None:
         if not hello_signed_by_current:
-            raise WrongCurrentKey("the rover holds a link key, but not the one given with --current-key-file: "
-                                  "its boot HELLO is not signed with it. Give the key file the rover was "
-                                  "provisioned with")
+            raise WrongCurrentKey(
+                "the rover holds a link key, but not the one given with --current-key-file: "
+                "its boot HELLO is not signed with it. Give the key file the rover was "
+                "provisioned with"
+            )
         signer = Signer(current_key, SIGN_HOST_TO_ROVER, clock=wall_clock)
         signer.jump_past((hello.min_counter_hi << 32 | hello.min_counter_lo) - 1)
     message = Provision(key=tuple(key) if key is not None else (0,) * 16, erase=int(key is None))
@@ -148,26 +169,35 @@ def provision(transport: Transport, key: bytes | None, boot_wait_s: float = 4.0,
         for ack in acks:
             if key is not None and ack.counter is None:
                 raise ProvisionError("the rover acknowledged the key unsigned: it does not hold it as sent")
-            how = (" with its current key's signature" if signer is not None else
-                   f" with the consent pin (D{SIGN_CONSENT_PIN}) held at its reset: take the jumper off"
-                   if keyed else "")
+            how = (
+                " with its current key's signature"
+                if signer is not None
+                else f" with the consent pin (D{SIGN_CONSENT_PIN}) held at its reset: take the jumper off"
+                if keyed
+                else ""
+            )
             if key is None:
                 return f"the rover's link key is erased{how}: it takes unsigned commands again"
-            return (f"stored the key on the rover (boot id {hello.boot_id}){how}; its answer is signed with it. "
-                    "The host that commands it needs the same key file ([link] key_file)")
+            return (
+                f"stored the key on the rover (boot id {hello.boot_id}){how}; its answer is signed with it. "
+                "The host that commands it needs the same key file ([link] key_file)"
+            )
         for m in refusals.feed(data):
             if m.msg_id != Provision.ID:
                 continue
             if m.reason == NackReason.NEEDS_CONSENT:
                 raise NeedsConsent(m.detail)
             if m.reason == NackReason.NOT_NOW:
-                raise ProvisionError(f"the rover refused: PROVISION came {m.detail} s after its reset, past its "
-                                     f"{SIGN_PROVISION_WINDOW_MS / 1000:g} s window. Run the command again")
+                raise ProvisionError(
+                    f"the rover refused: PROVISION came {m.detail} s after its reset, past its "
+                    f"{SIGN_PROVISION_WINDOW_MS / 1000:g} s window. Run the command again"
+                )
             try:
                 reason = NackReason(m.reason).name.lower()
             except ValueError:
                 reason = f"reason {m.reason}"
             raise ProvisionError(f"the rover refused the key ({reason})")
     waited = clock() - booted_at
-    raise ProvisionError(f"the rover booted but did not answer PROVISION within {waited:.1f} s "
-                         "(a firmware without signing?)")
+    raise ProvisionError(
+        f"the rover booted but did not answer PROVISION within {waited:.1f} s (a firmware without signing?)"
+    )

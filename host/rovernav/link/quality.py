@@ -12,6 +12,7 @@ A gap longer than `max_gap_s` between two rover frames is an outage, not loss th
 numbers can count (they wrap after 256 frames): it is left out of the rate, and the outage is
 what the mission reports instead.
 """
+
 from __future__ import annotations
 
 import collections
@@ -43,13 +44,13 @@ class LinkQuality:
     def __init__(self, window_s: float = 10.0, max_gap_s: float = 5.0) -> None:
         self.window_s = window_s
         self.max_gap_s = max_gap_s
-        self.to_rover = Direction()     # the whole run
+        self.to_rover = Direction()  # the whole run
         self.to_host = Direction()
-        self.rover_broken = 0           # frames the rover received broken (bad CRC, malformed, overlong)
+        self.rover_broken = 0  # frames the rover received broken (bad CRC, malformed, overlong)
         self._recent: collections.deque[tuple[float, str, int, int]] = collections.deque()
         self._last_seq: int | None = None
         self._last_rx_s: float | None = None
-        self._last_status: tuple[int, int, int] | None = None    # rover rx_ok, rover broken, host sent
+        self._last_status: tuple[int, int, int] | None = None  # rover rx_ok, rover broken, host sent
 
     def restart(self) -> None:
         """The rover restarted: its sequence numbers and counters start again."""
@@ -94,14 +95,24 @@ class LinkQuality:
 
     def summary(self) -> dict:
         """For report.json and the run log."""
+
         def one(d: Direction) -> dict:
-            return {"frames_sent": d.sent, "frames_arrived": d.arrived,
-                    "success": None if d.rate is None else round(d.rate, 4)}
-        return {"host_to_rover": one(self.to_rover), "rover_to_host": one(self.to_host),
-                "rover_received_broken": self.rover_broken}
+            return {
+                "frames_sent": d.sent,
+                "frames_arrived": d.arrived,
+                "success": None if d.rate is None else round(d.rate, 4),
+            }
+
+        return {
+            "host_to_rover": one(self.to_rover),
+            "rover_to_host": one(self.to_host),
+            "rover_received_broken": self.rover_broken,
+        }
 
     def line(self) -> str:
         """For a status line: 'link up 98.7 % down 99.1 %' over the recent window."""
+
         def pct(v: float | None) -> str:
             return "-" if v is None else f"{100 * v:.1f} %"
+
         return f"frames through: to rover {pct(self.recent('to_rover'))}, from rover {pct(self.recent('to_host'))}"

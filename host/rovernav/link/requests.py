@@ -6,6 +6,7 @@ attempt still answers it. The tracker never sends anything itself and reads no c
 caller says what it sent and when (`sent`, `resent`), hands it each ACK/NACK (`answer`) and
 asks which requests are due again (`due`).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,10 +21,10 @@ class Pending:
     """One request awaiting its answer."""
 
     message: Message
-    seqs: list[int]          # every sequence number it went out under, oldest first
+    seqs: list[int]  # every sequence number it went out under, oldest first
     first_sent_s: float
     last_sent_s: float
-    tries: int = 1           # attempts counted against the limit (see RequestTracker.resent)
+    tries: int = 1  # attempts counted against the limit (see RequestTracker.resent)
 
 
 class RequestTracker:

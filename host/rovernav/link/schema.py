@@ -3,6 +3,7 @@
 The generated module only declares fields; packing, range checks and unpacking live
 here, once, so the generator stays small.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -11,9 +12,12 @@ from typing import Any, ClassVar
 
 # type -> (min, max)
 _RANGES = {
-    "u8": (0, 0xFF), "i8": (-0x80, 0x7F),
-    "u16": (0, 0xFFFF), "i16": (-0x8000, 0x7FFF),
-    "u32": (0, 0xFFFFFFFF), "i32": (-0x80000000, 0x7FFFFFFF),
+    "u8": (0, 0xFF),
+    "i8": (-0x80, 0x7F),
+    "u16": (0, 0xFFFF),
+    "i16": (-0x8000, 0x7FFF),
+    "u32": (0, 0xFFFFFFFF),
+    "i32": (-0x80000000, 0x7FFFFFFF),
 }
 
 
@@ -84,7 +88,9 @@ class Message:
             lo, hi = f.limits
             for item in items:
                 if not isinstance(item, int) or isinstance(item, bool) or not lo <= item <= hi:
-                    raise ValueError(f"{self.NAME}.{f.name}: {item!r} is not an integer in [{lo}, {hi}] ({f.unit or f.type})")
+                    raise ValueError(
+                        f"{self.NAME}.{f.name}: {item!r} is not an integer in [{lo}, {hi}] ({f.unit or f.type})"
+                    )
             out.extend(items)
         return out
 
@@ -102,7 +108,7 @@ class Message:
         i = 0
         for f in cls.FIELDS:
             if f.count:
-                kwargs[f.name] = tuple(flat[i:i + f.count])
+                kwargs[f.name] = tuple(flat[i : i + f.count])
                 i += f.count
             else:
                 kwargs[f.name] = flat[i]

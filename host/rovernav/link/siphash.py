@@ -1,6 +1,7 @@
 """SipHash-2-4 (Aumasson and Bernstein, 2012): a keyed 64-bit MAC with a 128-bit key, made for
 short messages; the host's twin of firmware/lib/link/siphash.cpp (both are checked against the
 paper's reference vectors, and against each other)."""
+
 from __future__ import annotations
 
 KEY_BYTES = 16
@@ -39,7 +40,7 @@ def siphash24(key: bytes, data: bytes) -> int:
 
     whole = len(data) - len(data) % 8
     for i in range(0, whole, 8):
-        absorb(int.from_bytes(data[i:i + 8], "little"))
+        absorb(int.from_bytes(data[i : i + 8], "little"))
     absorb(((len(data) & 0xFF) << 56) | int.from_bytes(data[whole:], "little"))
     v[2] ^= 0xFF
     for _ in range(4):

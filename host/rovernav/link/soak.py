@@ -43,6 +43,7 @@ byte damage under which independent loss would lose the frames measured.
 Nothing here reads a clock of its own: `Soak` is given one (time.monotonic on a real radio; a
 simulated one in the tests) and how long one wait for the rover may last.
 """
+
 from __future__ import annotations
 
 import array
@@ -65,15 +66,15 @@ from .quality import LinkQuality
 PROBE_PARAM = 0
 assert PROBE_PARAM not in {int(p) for p in mg.PARAMS}, "the probe must name no parameter"
 PROBE_HZ = 5.0
-PROBE_TIMEOUT_S = 2.0       # a probe unanswered this long is lost
-HEARTBEAT_S = 0.2           # as link-check
+PROBE_TIMEOUT_S = 2.0  # a probe unanswered this long is lost
+HEARTBEAT_S = 0.2  # as link-check
 PATH_WAYPOINTS = 32
-PATH_EVERY_S = 5.0          # a path load starts this long after the last one ended
-PATH_FIRST_S = 1.0          # ... and the first this long into the soak (after a STATUS)
-PATH_RESEND_S = 0.4         # the mission's RESEND_S (rovernav.mission.phases)
-PATH_GIVE_UP_S = 30.0       # a load not complete after this long is given up (and counted)
-PROGRESS_S = 5.0            # a progress line this often
-SILENT_S = 1.0              # no frame from the rover this long: a silence (the mission's SILENT_S)
+PATH_EVERY_S = 5.0  # a path load starts this long after the last one ended
+PATH_FIRST_S = 1.0  # ... and the first this long into the soak (after a STATUS)
+PATH_RESEND_S = 0.4  # the mission's RESEND_S (rovernav.mission.phases)
+PATH_GIVE_UP_S = 30.0  # a load not complete after this long is given up (and counted)
+PROGRESS_S = 5.0  # a progress line this often
+SILENT_S = 1.0  # no frame from the rover this long: a silence (the mission's SILENT_S)
 MIN_SOAK_S, MAX_SOAK_S = 1.0, 86_400.0
 #: Missions reach their target at 1 % of bytes lost and 0.1 % corrupted (lossy-radio benchmark) ...
 TOLERATED_BYTE_DAMAGE = 0.011
@@ -88,6 +89,7 @@ WAYS = {"host_to_rover": "host -> rover", "rover_to_host": "rover -> host"}
 
 
 # ------------------------------------------------------------------ frames and byte loss
+
 
 def wire_bytes(payload_bytes: int, signed: bool) -> int:
     """Bytes a frame with this payload takes on the wire: header, payload, signature, CRC, COBS's
@@ -120,7 +122,7 @@ def byte_damage_for(frame_loss: float | None, lengths: dict[int, int], received:
         return hi
     for _ in range(60):
         mid = (lo + hi) / 2
-        if frame_loss_at(mid, lengths, received) < frame_loss:   # type: ignore[operator]
+        if frame_loss_at(mid, lengths, received) < frame_loss:  # type: ignore[operator]
             lo = mid
         else:
             hi = mid
@@ -133,8 +135,11 @@ def typical_thresholds(signed: bool = False) -> dict[str, tuple[int, float, floa
     out = {}
     for cls in (mg.Heartbeat, mg.Fix, mg.Path, mg.Status):
         n = wire_bytes(cls.STRUCT.size, signed)
-        out[cls.NAME.upper()] = (n, frame_loss_at(TOLERATED_BYTE_DAMAGE, {n: 1}, False),
-                                 frame_loss_at(FAILING_BYTE_LOSS, {n: 1}, False))
+        out[cls.NAME.upper()] = (
+            n,
+            frame_loss_at(TOLERATED_BYTE_DAMAGE, {n: 1}, False),
+            frame_loss_at(FAILING_BYTE_LOSS, {n: 1}, False),
+        )
     return out
 
 
@@ -142,14 +147,16 @@ def wrap(text: str, indent: str = "", width: int = 100) -> str:
     """`text` wrapped for --help (the parser keeps the line breaks given)."""
     import textwrap
 
-    return textwrap.fill(text, width=width, initial_indent=indent, subsequent_indent=" " * len(indent),
-                         break_on_hyphens=False)
+    return textwrap.fill(
+        text, width=width, initial_indent=indent, subsequent_indent=" " * len(indent), break_on_hyphens=False
+    )
 
 
 def help_text() -> str:
     """What --soak measures and how, for `rovernav link-check --help`."""
-    typical = "; ".join(f"{name} ({n} B) {100 * ok:.0f} % / {100 * bad:.0f} %"
-                        for name, (n, ok, bad) in typical_thresholds().items())
+    typical = "; ".join(
+        f"{name} ({n} B) {100 * ok:.0f} % / {100 * bad:.0f} %" for name, (n, ok, bad) in typical_thresholds().items()
+    )
     items = [
         "frames lost host -> rover (the rover's STATUS counts the valid frames it received, rx_ok, and "
         "the broken ones: against the frames the host sent between two STATUS) and rover -> host (gaps in the "
@@ -169,14 +176,21 @@ def help_text() -> str:
         f"way; e.g. {typical} (lost at 1.1 % / at 5 %; signed frames are 12 B longer). The report also gives "
         "the byte loss that would explain the frames lost.",
     ]
-    return "\n".join([wrap("--soak SECONDS measures the radio instead, for that long, and reports:")]
-                     + [wrap(item, "  - ") for item in items]
-                     + [wrap(f"Also heartbeats every {HEARTBEAT_S:g} s. A progress line goes to stderr every "
-                             f"{PROGRESS_S:g} s; Ctrl-C ends the soak early and still prints the report (exit 130); "
-                             "--json FILE writes the figures. Signed with --key-file, as the rest of link-check.")])
+    return "\n".join(
+        [wrap("--soak SECONDS measures the radio instead, for that long, and reports:")]
+        + [wrap(item, "  - ") for item in items]
+        + [
+            wrap(
+                f"Also heartbeats every {HEARTBEAT_S:g} s. A progress line goes to stderr every "
+                f"{PROGRESS_S:g} s; Ctrl-C ends the soak early and still prints the report (exit 130); "
+                "--json FILE writes the figures. Signed with --key-file, as the rest of link-check."
+            )
+        ]
+    )
 
 
 # ------------------------------------------------------------------ the soak
+
 
 def soak_waypoints(index: int) -> list[tuple[int, int]]:
     """The `index`-th soak path: PATH_WAYPOINTS points inside the arena (non-negative mm), a new
@@ -203,13 +217,21 @@ def _median(sorted_values) -> float | None:
 class Soak:
     """Frames with the rover for a while, and what they show. `link` has made its handshake."""
 
-    def __init__(self, link, clock: Callable[[], float] = time.monotonic, poll_s: float = 0.02,
-                 host_boot_id: int | None = None, probe_hz: float = PROBE_HZ, path_every_s: float = PATH_EVERY_S,
-                 progress: Callable[[str], None] | None = None, progress_s: float = PROGRESS_S) -> None:
+    def __init__(
+        self,
+        link,
+        clock: Callable[[], float] = time.monotonic,
+        poll_s: float = 0.02,
+        host_boot_id: int | None = None,
+        probe_hz: float = PROBE_HZ,
+        path_every_s: float = PATH_EVERY_S,
+        progress: Callable[[str], None] | None = None,
+        progress_s: float = PROGRESS_S,
+    ) -> None:
         """clock: seconds, for every figure; poll_s: the longest wait for the rover in one go (0:
         only poll, for a simulated rover that moves on as it is read)."""
         self.link, self.clock, self.poll_s = link, clock, poll_s
-        self._chunk_at = -1e9   # when the last PATH chunk went out
+        self._chunk_at = -1e9  # when the last PATH chunk went out
         self.probe_every_s = 1.0 / probe_hz
         self.path_every_s = path_every_s
         self.progress, self.progress_s = progress, progress_s
@@ -220,7 +242,7 @@ class Soak:
         self.tx_lengths: collections.Counter[int] = collections.Counter()
         self.rx_lengths: collections.Counter[int] = collections.Counter()
         # round trips
-        self._probes: dict[int, float] = {}           # seq -> when sent
+        self._probes: dict[int, float] = {}  # seq -> when sent
         self.probes_sent = 0
         self.round_trips = array.array("d")
         # path loads
@@ -231,7 +253,7 @@ class Soak:
         self.load_times = array.array("d")
         self.loads_given_up = 0
         self.loads_refused: list[str] = []
-        self.loads_skipped = 0                        # the rover was running a mission
+        self.loads_skipped = 0  # the rover was running a mission
         self.chunks_sent = 0
         self.chunks_resent = 0
         # silences
@@ -241,7 +263,7 @@ class Soak:
         self.last_status: mg.Status | None = None
         self.elapsed_s = 0.0
         self.seconds = 0.0
-        self.ended_by: str | None = None              # None: ran its time; else why it ended early
+        self.ended_by: str | None = None  # None: ran its time; else why it ended early
 
     # ---------------------------------------------------------------- sending
 
@@ -324,8 +346,7 @@ class Soak:
         try:
             while (now := clock()) < end:
                 if now >= next_heartbeat:
-                    self._send(mg.Heartbeat(host_time_ms=int(now * 1000) & 0xFFFFFFFF,
-                                            camera=mg.CameraState.NO_FRAMES))
+                    self._send(mg.Heartbeat(host_time_ms=int(now * 1000) & 0xFFFFFFFF, camera=mg.CameraState.NO_FRAMES))
                     next_heartbeat = max(next_heartbeat + HEARTBEAT_S, now)
                 if now >= next_probe:
                     self._probes[self._send(mg.Config(param=PROBE_PARAM, value=0))] = now
@@ -354,7 +375,7 @@ class Soak:
             if now < self._next_path or self.last_status is None:
                 return
             if self.last_status.flags & mg.StatusFlag.MISSION_ACTIVE:
-                self.loads_skipped += 1              # a running rover would follow it at once
+                self.loads_skipped += 1  # a running rover would follow it at once
                 self._next_path = now + self.path_every_s
                 return
             self._start_load(now)
@@ -364,7 +385,7 @@ class Soak:
             return
         up = self._upload
         assert up is not None
-        if now - self._chunk_at >= CHUNK_SPACING_S:   # one at a time, as a mission sends them
+        if now - self._chunk_at >= CHUNK_SPACING_S:  # one at a time, as a mission sends them
             for message in up.due(now)[:1]:
                 self._chunk_at = now
                 up.sent(message, self._send(message), now)
@@ -377,12 +398,15 @@ class Soak:
         lengths = dict(self.rx_lengths if received else self.tx_lengths)
         lost = None if d.rate is None else 1.0 - d.rate
         frames = sum(lengths.values())
-        out = {"frames_sent": d.sent, "frames_arrived": min(d.arrived, d.sent),
-               "lost_share": None if lost is None else round(lost, 5),
-               "byte_damage_equivalent": _round(byte_damage_for(lost, lengths, received), 5),
-               "tolerated_lost_share": _round(frame_loss_at(TOLERATED_BYTE_DAMAGE, lengths, received), 4),
-               "failing_lost_share": _round(frame_loss_at(FAILING_BYTE_LOSS, lengths, received), 4),
-               "mean_frame_bytes": round(sum(n * c for n, c in lengths.items()) / frames, 1) if frames else None}
+        out = {
+            "frames_sent": d.sent,
+            "frames_arrived": min(d.arrived, d.sent),
+            "lost_share": None if lost is None else round(lost, 5),
+            "byte_damage_equivalent": _round(byte_damage_for(lost, lengths, received), 5),
+            "tolerated_lost_share": _round(frame_loss_at(TOLERATED_BYTE_DAMAGE, lengths, received), 4),
+            "failing_lost_share": _round(frame_loss_at(FAILING_BYTE_LOSS, lengths, received), 4),
+            "mean_frame_bytes": round(sum(n * c for n, c in lengths.items()) / frames, 1) if frames else None,
+        }
         if not received:
             out["rover_received_broken"] = self.quality.rover_broken
         return out
@@ -393,32 +417,46 @@ class Soak:
         ways = {w: self._way(w) for w in WAYS}
         unmeasured = [WAYS[w] for w, f in ways.items() if f["lost_share"] is None or f["tolerated_lost_share"] is None]
         if unmeasured:
-            why = ("the rover sent no two STATUS to count by" if "host -> rover" in unmeasured
-                   else "too few frames came from the rover")
+            why = (
+                "the rover sent no two STATUS to count by"
+                if "host -> rover" in unmeasured
+                else "too few frames came from the rover"
+            )
             return "unknown", f"advice: frames lost {' and '.join(unmeasured)} not measured ({why}): soak longer"
+
         def pct(v: float) -> str:
             return f"{100 * v:.1f} %"
+
         worst = max(ways, key=lambda w: ways[w]["lost_share"] / max(ways[w]["tolerated_lost_share"], 1e-9))
         f = ways[worst]
         few = [WAYS[w] for w, g in ways.items() if g["frames_sent"] < FEW_FRAMES]
         rough = f" (few frames {' and '.join(few)}: a longer soak measures more closely)" if few else ""
-        fix = ("move the radio (higher, in sight of the rover, away from the motors and the Uno's wires), "
-               "change the channel, check both antennas and that both radios use the same air rate, then soak again")
+        fix = (
+            "move the radio (higher, in sight of the rover, away from the motors and the Uno's wires), "
+            "change the channel, check both antennas and that both radios use the same air rate, then soak again"
+        )
         failing = [w for w, g in ways.items() if g["lost_share"] > g["failing_lost_share"]]
         if failing:
-            what = " and ".join(f"{pct(ways[w]['lost_share'])} of frames lost {WAYS[w]}, above the "
-                                f"{pct(ways[w]['failing_lost_share'])}" for w in failing)
-            return "failing", (f"advice: {what} at which missions fail (5 % of bytes lost, for these frames): "
-                               f"{fix}{rough}")
+            what = " and ".join(
+                f"{pct(ways[w]['lost_share'])} of frames lost {WAYS[w]}, above the {pct(ways[w]['failing_lost_share'])}"
+                for w in failing
+            )
+            return "failing", (
+                f"advice: {what} at which missions fail (5 % of bytes lost, for these frames): {fix}{rough}"
+            )
         if f["lost_share"] > f["tolerated_lost_share"]:
-            return "beyond", (f"advice: {pct(f['lost_share'])} of frames lost {WAYS[worst]}, beyond the "
-                              f"{pct(f['tolerated_lost_share'])} missions are shown to tolerate (1 % of bytes lost "
-                              f"and 0.1 % corrupted, for these frames; they fail from "
-                              f"{pct(f['failing_lost_share'])}): missions may run slow or fail; {fix}{rough}")
+            return "beyond", (
+                f"advice: {pct(f['lost_share'])} of frames lost {WAYS[worst]}, beyond the "
+                f"{pct(f['tolerated_lost_share'])} missions are shown to tolerate (1 % of bytes lost "
+                f"and 0.1 % corrupted, for these frames; they fail from "
+                f"{pct(f['failing_lost_share'])}): missions may run slow or fail; {fix}{rough}"
+            )
         t = {w: pct(g["tolerated_lost_share"]) for w, g in ways.items()}
-        return "ok", (f"verdict: within what missions are shown to tolerate (up to {t['host_to_rover']} of "
-                      f"frames lost host -> rover and {t['rover_to_host']} rover -> host: 1 % of bytes lost "
-                      f"and 0.1 % corrupted, for these frames){rough}")
+        return "ok", (
+            f"verdict: within what missions are shown to tolerate (up to {t['host_to_rover']} of "
+            f"frames lost host -> rover and {t['rover_to_host']} rover -> host: 1 % of bytes lost "
+            f"and 0.1 % corrupted, for these frames){rough}"
+        )
 
     def summary(self) -> dict:
         """Every figure, for --json (seconds in seconds, shares in [0, 1], None where not measured)."""
@@ -427,22 +465,42 @@ class Soak:
         kind, line = self.verdict()
         hello = self.link.peer_hello
         return {
-            "seconds_asked": self.seconds, "seconds_run": round(self.elapsed_s, 3), "ended_by": self.ended_by,
+            "seconds_asked": self.seconds,
+            "seconds_run": round(self.elapsed_s, 3),
+            "ended_by": self.ended_by,
             "signed": self.link.signer is not None,
-            "rover": {"boot_id": self.rover_boot_id, "restarts": self.restarts, "firmware": None if hello is None
-                      else f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}"},
+            "rover": {
+                "boot_id": self.rover_boot_id,
+                "restarts": self.restarts,
+                "firmware": None if hello is None else f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}",
+            },
             **{w: self._way(w) for w in WAYS},
-            "round_trip_s": {"probe": f"CONFIG of parameter {PROBE_PARAM} (none) -> NACK unknown_param",
-                             "sent": self.probes_sent, "answered": len(rt), "unanswered": self._unanswered(),
-                             "median": _round(_median(rt), 4), "p99": _round(_percentile(rt, 99), 4),
-                             "worst": _round(rt[-1] if rt else None, 4)},
-            "path_load_s": {"waypoints": PATH_WAYPOINTS, "started": self.loads_started, "completed": len(loads),
-                            "given_up": self.loads_given_up, "refused": len(self.loads_refused),
-                            "skipped_mission_running": self.loads_skipped,
-                            "median": _round(_median(loads), 3), "worst": _round(loads[-1] if loads else None, 3),
-                            "chunks_sent": self.chunks_sent, "chunks_sent_again": self.chunks_resent},
-            "longest_silence_s": round(self.longest_silence_s, 3), "silences_over_1s": self.silences,
-            "verdict": kind, "advice": line if line.startswith("advice:") else None, "verdict_line": line,
+            "round_trip_s": {
+                "probe": f"CONFIG of parameter {PROBE_PARAM} (none) -> NACK unknown_param",
+                "sent": self.probes_sent,
+                "answered": len(rt),
+                "unanswered": self._unanswered(),
+                "median": _round(_median(rt), 4),
+                "p99": _round(_percentile(rt, 99), 4),
+                "worst": _round(rt[-1] if rt else None, 4),
+            },
+            "path_load_s": {
+                "waypoints": PATH_WAYPOINTS,
+                "started": self.loads_started,
+                "completed": len(loads),
+                "given_up": self.loads_given_up,
+                "refused": len(self.loads_refused),
+                "skipped_mission_running": self.loads_skipped,
+                "median": _round(_median(loads), 3),
+                "worst": _round(loads[-1] if loads else None, 3),
+                "chunks_sent": self.chunks_sent,
+                "chunks_sent_again": self.chunks_resent,
+            },
+            "longest_silence_s": round(self.longest_silence_s, 3),
+            "silences_over_1s": self.silences,
+            "verdict": kind,
+            "advice": line if line.startswith("advice:") else None,
+            "verdict_line": line,
         }
 
     def _unanswered(self) -> int:
@@ -453,52 +511,79 @@ class Soak:
         rt = sorted(self.round_trips)
         med = _median(rt)
         loads = len(self.load_times)
-        return (f"soak {self.elapsed_s:.0f}/{self.seconds:g} s: {self.quality.line()} (last 10 s); round trip "
-                f"{'-' if med is None else f'{1000 * med:.0f} ms'} median of {len(rt)}; {loads} path"
-                f"{'' if loads == 1 else 's'} loaded")
+        return (
+            f"soak {self.elapsed_s:.0f}/{self.seconds:g} s: {self.quality.line()} (last 10 s); round trip "
+            f"{'-' if med is None else f'{1000 * med:.0f} ms'} median of {len(rt)}; {loads} path"
+            f"{'' if loads == 1 else 's'} loaded"
+        )
 
     def report_lines(self) -> list[str]:
         s = self.summary()
         out = []
         ended = "" if s["ended_by"] is None else f", ended early ({s['ended_by']})"
-        out.append(f"soak: {s['seconds_run']:.1f} of {s['seconds_asked']:g} s{ended}; "
-                   f"{'signed' if s['signed'] else 'unsigned'} frames"
-                   + (f"; the rover restarted {self.restarts} time{'s' if self.restarts != 1 else ''}" if self.restarts
-                      else ""))
+        out.append(
+            f"soak: {s['seconds_run']:.1f} of {s['seconds_asked']:g} s{ended}; "
+            f"{'signed' if s['signed'] else 'unsigned'} frames"
+            + (
+                f"; the rover restarted {self.restarts} time{'s' if self.restarts != 1 else ''}"
+                if self.restarts
+                else ""
+            )
+        )
         for w, name in WAYS.items():
             f = s[w]
             if f["lost_share"] is None:
                 out.append(f"  frames lost {name}: not measured")
                 continue
-            how = ("by the rover's STATUS rx_ok against the frames sent"
-                   + (f"; it counted {f['rover_received_broken']} arriving broken" if f.get("rover_received_broken")
-                      else "") if w == "host_to_rover" else "by gaps in the rover's sequence numbers")
-            out.append(f"  frames lost {name}: {100 * f['lost_share']:.2f} % "
-                       f"({f['frames_sent'] - f['frames_arrived']:,} of {f['frames_sent']:,}, {how}); as if "
-                       f"{100 * f['byte_damage_equivalent']:.2f} % of bytes were lost (frames of "
-                       f"{f['mean_frame_bytes']:g} bytes on average)")
+            how = (
+                "by the rover's STATUS rx_ok against the frames sent"
+                + (
+                    f"; it counted {f['rover_received_broken']} arriving broken"
+                    if f.get("rover_received_broken")
+                    else ""
+                )
+                if w == "host_to_rover"
+                else "by gaps in the rover's sequence numbers"
+            )
+            out.append(
+                f"  frames lost {name}: {100 * f['lost_share']:.2f} % "
+                f"({f['frames_sent'] - f['frames_arrived']:,} of {f['frames_sent']:,}, {how}); as if "
+                f"{100 * f['byte_damage_equivalent']:.2f} % of bytes were lost (frames of "
+                f"{f['mean_frame_bytes']:g} bytes on average)"
+            )
         r = s["round_trip_s"]
         if r["answered"]:
-            out.append(f"  round trip (CONFIG probe -> NACK, {PROBE_HZ:g} a second): median {1000 * r['median']:.0f} ms, "
-                       f"99th percentile {1000 * r['p99']:.0f} ms, worst {1000 * r['worst']:.0f} ms; "
-                       f"{r['answered']:,} of {r['sent']:,} answered, {r['unanswered']:,} lost one way or the other")
+            out.append(
+                f"  round trip (CONFIG probe -> NACK, {PROBE_HZ:g} a second): median {1000 * r['median']:.0f} ms, "
+                f"99th percentile {1000 * r['p99']:.0f} ms, worst {1000 * r['worst']:.0f} ms; "
+                f"{r['answered']:,} of {r['sent']:,} answered, {r['unanswered']:,} lost one way or the other"
+            )
         else:
             out.append(f"  round trip: none of {r['sent']:,} probes answered")
         p = s["path_load_s"]
         if p["completed"]:
-            out.append(f"  {PATH_WAYPOINTS}-waypoint path load: median {p['median']:.2f} s, worst {p['worst']:.2f} s "
-                       f"over {p['completed']} loads; {p['chunks_sent_again']} of {p['chunks_sent']} chunks sent again"
-                       + (f"; {p['given_up']} given up after {PATH_GIVE_UP_S:g} s" if p["given_up"] else "")
-                       + (f"; {p['refused']} refused ({self.loads_refused[0]})" if p["refused"] else "")
-                       + (f"; {p['skipped_mission_running']} not sent while the rover was running a mission"
-                          if p["skipped_mission_running"] else ""))
+            out.append(
+                f"  {PATH_WAYPOINTS}-waypoint path load: median {p['median']:.2f} s, worst {p['worst']:.2f} s "
+                f"over {p['completed']} loads; {p['chunks_sent_again']} of {p['chunks_sent']} chunks sent again"
+                + (f"; {p['given_up']} given up after {PATH_GIVE_UP_S:g} s" if p["given_up"] else "")
+                + (f"; {p['refused']} refused ({self.loads_refused[0]})" if p["refused"] else "")
+                + (
+                    f"; {p['skipped_mission_running']} not sent while the rover was running a mission"
+                    if p["skipped_mission_running"]
+                    else ""
+                )
+            )
         elif p["skipped_mission_running"]:
             out.append("  path load: not measured: the rover is running a mission (it would follow a path sent now)")
         else:
-            out.append(f"  {PATH_WAYPOINTS}-waypoint path load: none completed ({p['started']} started, "
-                       f"{p['given_up']} given up after {PATH_GIVE_UP_S:g} s, {p['refused']} refused)")
-        out.append(f"  longest silence from the rover: {s['longest_silence_s']:.2f} s"
-                   + (f" ({s['silences_over_1s']} of {SILENT_S:g} s or more)" if s["silences_over_1s"] else ""))
+            out.append(
+                f"  {PATH_WAYPOINTS}-waypoint path load: none completed ({p['started']} started, "
+                f"{p['given_up']} given up after {PATH_GIVE_UP_S:g} s, {p['refused']} refused)"
+            )
+        out.append(
+            f"  longest silence from the rover: {s['longest_silence_s']:.2f} s"
+            + (f" ({s['silences_over_1s']} of {SILENT_S:g} s or more)" if s["silences_over_1s"] else "")
+        )
         out.append(s["verdict_line"])
         return out
 
@@ -514,9 +599,16 @@ def _nack_text(nack: mg.Nack | None) -> str:
     return f"NACK {reason} detail {nack.detail}"
 
 
-def soak_rover(link, seconds: float, hello_timeout_s: float, json_path=None, *,
-               clock: Callable[[], float] = time.monotonic, poll_s: float = 0.02,
-               progress_s: float = PROGRESS_S) -> int:
+def soak_rover(
+    link,
+    seconds: float,
+    hello_timeout_s: float,
+    json_path=None,
+    *,
+    clock: Callable[[], float] = time.monotonic,
+    poll_s: float = 0.02,
+    progress_s: float = PROGRESS_S,
+) -> int:
     """`rovernav link-check --soak`: HELLO, the soak with a progress line on stderr every
     `progress_s`, the report on stdout, the figures to `json_path`. Returns the exit status: 0, or
     130 after Ctrl-C (the report still printed and written); a link that failed mid-soak (a port
@@ -530,9 +622,12 @@ def soak_rover(link, seconds: float, hello_timeout_s: float, json_path=None, *,
     seconds = check_number("--soak (seconds)", seconds, MIN_SOAK_S, MAX_SOAK_S)
     boot_id = int.from_bytes(os.urandom(4), "little")
     greet(link, hello_timeout_s, boot_id=boot_id)
-    print(f"soaking for {seconds:g} s: heartbeats, {PROBE_HZ:g} round-trip probes a second, a "
-          f"{PATH_WAYPOINTS}-waypoint path loaded every {PATH_EVERY_S:g} s (no START: the rover does not move); "
-          f"Ctrl-C ends it early", flush=True)
+    print(
+        f"soaking for {seconds:g} s: heartbeats, {PROBE_HZ:g} round-trip probes a second, a "
+        f"{PATH_WAYPOINTS}-waypoint path loaded every {PATH_EVERY_S:g} s (no START: the rover does not move); "
+        f"Ctrl-C ends it early",
+        flush=True,
+    )
 
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)

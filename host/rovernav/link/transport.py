@@ -31,6 +31,7 @@ Nothing here grows without bound: a read returns at most MAX_READ_BYTES, and the
 queues hold at most QUEUE_CAPACITY_BYTES (a writer then waits for the reader, as on a pty,
 and raises LinkTimeout if nobody reads).
 """
+
 from __future__ import annotations
 
 import abc
@@ -69,7 +70,7 @@ def check_timeout(name: str, timeout_s: float | None, hi: float = MAX_TIMEOUT_S)
     """`timeout_s` if it is None or a finite number of seconds in [0, hi]; else InputError naming it."""
     if timeout_s is None:
         return None
-    if type(timeout_s) in (int, float) and 0 <= timeout_s <= hi:   # the common case, cheaply
+    if type(timeout_s) in (int, float) and 0 <= timeout_s <= hi:  # the common case, cheaply
         return timeout_s
     return check_number(f"{name} (seconds)", timeout_s, 0.0, hi)
 
@@ -120,8 +121,9 @@ class Transport(abc.ABC):
     def __enter__(self) -> Transport:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
     def __str__(self) -> str:
@@ -146,6 +148,7 @@ class Transport(abc.ABC):
 
 
 # ------------------------------------------------------------------ in-process transports
+
 
 class _ByteQueue:
     """A thread-safe byte buffer of at most `capacity` bytes that one side writes and the other reads.
@@ -194,7 +197,7 @@ class _ByteQueue:
             if self._buf:
                 out = bytes(self._buf[:max_bytes])
                 del self._buf[:max_bytes]
-                self._cond.notify_all()   # a writer may be waiting for room
+                self._cond.notify_all()  # a writer may be waiting for room
                 return out
             return None if self.shut else b""
 
@@ -226,8 +229,10 @@ class _QueueTransport(Transport):
         if left is None:
             raise LinkClosed(f"{self.name}: the other end is closed")
         if left:
-            raise LinkTimeout(f"{self.name}: nobody is reading the other end; {left} bytes not written after "
-                              f"{self._write_timeout_s:g} s ({self._tx.capacity} bytes are buffered)")
+            raise LinkTimeout(
+                f"{self.name}: nobody is reading the other end; {left} bytes not written after "
+                f"{self._write_timeout_s:g} s ({self._tx.capacity} bytes are buffered)"
+            )
 
     def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
         data = self._rx.take(max_bytes, timeout_s, lambda: self._closed)
@@ -260,13 +265,13 @@ class PipeTransport(_QueueTransport):
     """
 
     @classmethod
-    def pair(cls, name: str = "pipe", capacity_bytes: int = QUEUE_CAPACITY_BYTES,
-             write_timeout_s: float = 1.0) -> tuple[PipeTransport, PipeTransport]:
+    def pair(
+        cls, name: str = "pipe", capacity_bytes: int = QUEUE_CAPACITY_BYTES, write_timeout_s: float = 1.0
+    ) -> tuple[PipeTransport, PipeTransport]:
         """Two connected ends: bytes written to a are read from b, and the other way round."""
         capacity_bytes = _check_capacity(capacity_bytes)
         a_to_b, b_to_a = _ByteQueue(capacity_bytes), _ByteQueue(capacity_bytes)
-        return (cls(f"{name}:a", b_to_a, a_to_b, write_timeout_s),
-                cls(f"{name}:b", a_to_b, b_to_a, write_timeout_s))
+        return (cls(f"{name}:a", b_to_a, a_to_b, write_timeout_s), cls(f"{name}:b", a_to_b, b_to_a, write_timeout_s))
 
 
 def _check_capacity(capacity_bytes: int) -> int:
@@ -274,6 +279,7 @@ def _check_capacity(capacity_bytes: int) -> int:
 
 
 # ------------------------------------------------------------------ pseudo-terminal
+
 
 class PtyTransport(Transport):
     """The master side of a pseudo-terminal pair in raw mode (POSIX only).
@@ -321,7 +327,7 @@ class PtyTransport(Transport):
             deadline = time.monotonic() + self._write_timeout_s
             while view:
                 try:
-                    view = view[os.write(self._master, view):]
+                    view = view[os.write(self._master, view) :]
                     continue
                 except BlockingIOError:
                     pass
@@ -329,8 +335,10 @@ class PtyTransport(Transport):
                     raise LinkClosed(f"{self.name}: write failed: {exc}") from exc
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise LinkTimeout(f"{self.name}: nobody is reading the other end; "
-                                      f"{len(view)} bytes not written after {self._write_timeout_s} s")
+                    raise LinkTimeout(
+                        f"{self.name}: nobody is reading the other end; "
+                        f"{len(view)} bytes not written after {self._write_timeout_s} s"
+                    )
                 select.select([self._wake_r], [self._master], [], left)
                 if self._closed:
                     raise LinkClosed(f"{self.name} was closed while writing")
@@ -385,9 +393,11 @@ class PtyTransport(Transport):
 
 # ------------------------------------------------------------------ real serial port
 
+
 def available_ports() -> list[str]:
     """Device names of the serial ports this machine reports (may be empty)."""
     from serial.tools import list_ports
+
     try:
         return sorted(p.device for p in list_ports.comports())
     except Exception:  # listing is a courtesy in error messages; never let it mask the real error
@@ -412,6 +422,7 @@ class SerialTransport(Transport):
 
     def __init__(self, port: str, baud: int = DEFAULT_BAUD, write_timeout_s: float = 1.0) -> None:
         import serial
+
         if not isinstance(port, str) or not port.strip():
             raise PortSpecError(f"serial port name must be a non-empty string, got {port!r}")
         _check_characters(port, port)
@@ -422,9 +433,15 @@ class SerialTransport(Transport):
         self._read_timeout_s: float | None = 0.0
         try:
             self._serial = serial.Serial(
-                port=port, baudrate=baud, bytesize=serial.EIGHTBITS, parity=serial.PARITY_NONE,
-                stopbits=serial.STOPBITS_ONE, timeout=self._read_timeout_s,
-                write_timeout=write_timeout_s, exclusive=True)
+                port=port,
+                baudrate=baud,
+                bytesize=serial.EIGHTBITS,
+                parity=serial.PARITY_NONE,
+                stopbits=serial.STOPBITS_ONE,
+                timeout=self._read_timeout_s,
+                write_timeout=write_timeout_s,
+                exclusive=True,
+            )
         except serial.SerialException as exc:
             self._closed = True
             raise PortError(f"cannot open serial port {port!r}: {_why(exc)}. {_describe_ports()}") from None
@@ -439,6 +456,7 @@ class SerialTransport(Transport):
 
     def _write(self, data: bytes) -> None:
         import serial
+
         try:
             self._serial.write(data)
         except serial.SerialTimeoutException as exc:
@@ -501,8 +519,9 @@ _SPEC_HELP = f"give loop://, pty:// or a serial port such as /dev/ttyUSB0, /dev/
 
 def _check_characters(text: str, spec: str) -> None:
     if len(text) > MAX_SPEC_CHARS:
-        raise PortSpecError(f"transport spec of {len(text):,} characters ({spec[:40]!r}...): "
-                            f"at most {MAX_SPEC_CHARS} are accepted")
+        raise PortSpecError(
+            f"transport spec of {len(text):,} characters ({spec[:40]!r}...): at most {MAX_SPEC_CHARS} are accepted"
+        )
     bad = next((c for c in text if ord(c) < 32 or ord(c) == 127), None)
     if bad is not None:
         raise PortSpecError(f"control character {bad!r} in transport spec {spec!r}: {_SPEC_HELP}")
@@ -523,19 +542,25 @@ def parse_serial_spec(spec: str) -> tuple[str, int]:
     """Split "PORT" or "PORT@BAUD" into (port, baud); PortSpecError (a ValueError) naming a bad spec."""
     spec = check_spec(spec)
     if "://" in spec:
-        raise PortSpecError(f"{spec!r} is not a serial port: give one such as /dev/ttyUSB0, /dev/ttyUSB0@{DEFAULT_BAUD} or COM4")
+        raise PortSpecError(
+            f"{spec!r} is not a serial port: give one such as /dev/ttyUSB0, /dev/ttyUSB0@{DEFAULT_BAUD} or COM4"
+        )
     port, sep, baud_text = spec.rpartition("@")
     if not sep:
         return spec, DEFAULT_BAUD
     if not port.strip():
         raise PortSpecError(f"no port name before '@' in transport spec {spec!r}: {_SPEC_HELP}")
     if not (baud_text.isascii() and baud_text.isdigit()) or len(baud_text) > 9:
-        raise PortSpecError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: "
-                            f"want PORT@BAUD with BAUD an integer from {MIN_BAUD} to {MAX_BAUD:,}")
+        raise PortSpecError(
+            f"bad baud rate {baud_text!r} in transport spec {spec!r}: "
+            f"want PORT@BAUD with BAUD an integer from {MIN_BAUD} to {MAX_BAUD:,}"
+        )
     baud = int(baud_text, 10)
     if not MIN_BAUD <= baud <= MAX_BAUD:
-        raise PortSpecError(f"bad baud rate {baud_text!r} in transport spec {spec!r}: must be from {MIN_BAUD} "
-                            f"to {MAX_BAUD:,} (a port whose name has '@' in it needs its baud added: NAME@{DEFAULT_BAUD})")
+        raise PortSpecError(
+            f"bad baud rate {baud_text!r} in transport spec {spec!r}: must be from {MIN_BAUD} "
+            f"to {MAX_BAUD:,} (a port whose name has '@' in it needs its baud added: NAME@{DEFAULT_BAUD})"
+        )
     return port, baud
 
 

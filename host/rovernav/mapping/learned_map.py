@@ -31,6 +31,7 @@ readings, each value a finite number within what the link can carry (positions w
 +-360 degrees; ranges in (0, 4] m; sd_m in [0, 65.535] m), and no more replay work than
 MAX_REPLAY_CELLS (readings x grid cells).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -92,13 +93,25 @@ class LearnedMap:
         self.grid = grid
         cfg = grid.config
         # The cone the configuration sends the rover (sonar_cone_deg), not a fixed one.
-        self.sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m,
-                              model=SensorModel(cone_deg=cfg.sonar_cone_deg), known=grid.raw)
-        self.open_sonar = SonarMap(grid.width_m, grid.height_m, grid.resolution_m, cfg.sonar_offset_m,
-                                   model=SensorModel(cone_deg=cfg.sonar_cone_deg, clear_cut_cells=True), known=grid.raw)
+        self.sonar = SonarMap(
+            grid.width_m,
+            grid.height_m,
+            grid.resolution_m,
+            cfg.sonar_offset_m,
+            model=SensorModel(cone_deg=cfg.sonar_cone_deg),
+            known=grid.raw,
+        )
+        self.open_sonar = SonarMap(
+            grid.width_m,
+            grid.height_m,
+            grid.resolution_m,
+            cfg.sonar_offset_m,
+            model=SensorModel(cone_deg=cfg.sonar_cone_deg, clear_cut_cells=True),
+            known=grid.raw,
+        )
         self._base_raw = grid.raw.copy()
         self._base_inflated = grid.inflated.copy()
-        self.known_grid = grid.copy()   # the known obstacles alone, inflated as the planner's grid is
+        self.known_grid = grid.copy()  # the known obstacles alone, inflated as the planner's grid is
 
     @property
     def readings(self) -> list[SonarReading]:
@@ -106,8 +119,11 @@ class LearnedMap:
 
     @property
     def echoes(self) -> list[Echo]:
-        return [Echo(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m) for r in self.sonar.readings
-                if r.range_m is not None]
+        return [
+            Echo(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m)
+            for r in self.sonar.readings
+            if r.range_m is not None
+        ]
 
     def add(self, reading: SonarReading) -> bool:
         self.open_sonar.update(reading)
@@ -133,8 +149,10 @@ class LearnedMap:
         nothing open that the careful map does not."""
         if not (self.sonar.occupied & ~self.open_sonar.occupied).any():
             return []
-        return [self._sonar_grid(self.open_sonar, self.grid.config.inflation_m, always=True),
-                self._sonar_grid(self.open_sonar, self.grid.config.robot_radius_m, always=True)]
+        return [
+            self._sonar_grid(self.open_sonar, self.grid.config.inflation_m, always=True),
+            self._sonar_grid(self.open_sonar, self.grid.config.robot_radius_m, always=True),
+        ]
 
     def _sonar_grid(self, sonar: SonarMap, radius_m: float, always: bool = False) -> OccupancyGrid | None:
         occupied = sonar.occupied
@@ -151,8 +169,11 @@ class LearnedMap:
     # ------------------------------------------------------------ files
 
     def to_json(self) -> dict:
-        return {"format": MAP_FORMAT, "version": MAP_VERSION,
-                "readings": [dataclasses.asdict(r) for r in self.sonar.readings]}
+        return {
+            "format": MAP_FORMAT,
+            "version": MAP_VERSION,
+            "readings": [dataclasses.asdict(r) for r in self.sonar.readings],
+        }
 
     def save(self, path: str | Path) -> None:
         """Write the map (atomically: a reader never sees half a file)."""
@@ -200,13 +221,15 @@ def check_map_path(path: str | Path) -> Path:
     if not folder.is_dir():
         raise MapFileError(f"{name}: no folder {_shown(folder)} to save the learned map in")
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise MapFileError(f"{name}: the folder {_shown(folder)} cannot be written to, so the learned map "
-                           "could not be saved")
+        raise MapFileError(
+            f"{name}: the folder {_shown(folder)} cannot be written to, so the learned map could not be saved"
+        )
     return path
 
 
 def _read_bounded(path: Path, name: str) -> str:
     """The text of a regular UTF-8 file of at most MAX_MAP_BYTES (size checked before reading)."""
+
     def cannot(exc: Exception) -> MapFileError:
         if isinstance(exc, FileNotFoundError):
             return MapFileError(f"{name}: no such map file")
@@ -224,14 +247,15 @@ def _read_bounded(path: Path, name: str) -> str:
     if not stat.S_ISREG(st.st_mode):
         raise MapFileError(f"{name}: not a regular file (a device or a pipe), so not a map file")
     if st.st_size > MAX_MAP_BYTES:
-        raise MapFileError(f"{name}: {st.st_size:,} bytes; a map file is at most {MAX_MAP_BYTES:,} "
-                           f"({MAX_MAP_READINGS:,} readings)")
+        raise MapFileError(
+            f"{name}: {st.st_size:,} bytes; a map file is at most {MAX_MAP_BYTES:,} ({MAX_MAP_READINGS:,} readings)"
+        )
     try:
         with open(path, "rb") as f:
             data = f.read(MAX_MAP_BYTES + 1)
     except (OSError, ValueError) as exc:
         raise cannot(exc) from None
-    if len(data) > MAX_MAP_BYTES:   # it grew while we looked
+    if len(data) > MAX_MAP_BYTES:  # it grew while we looked
         raise MapFileError(f"{name}: more than {MAX_MAP_BYTES:,} bytes; a map file is at most that")
     try:
         return data.decode("utf-8")
@@ -248,26 +272,29 @@ def read_map_file(path: str | Path, grid: OccupancyGrid | None = None) -> list[S
     if not text.strip():
         raise MapFileError(f"{name}: is empty, not a rovernav map")
     try:
-        data = json.loads(text)   # NaN and Infinity parse, and are refused below where they stand
+        data = json.loads(text)  # NaN and Infinity parse, and are refused below where they stand
     except RecursionError:
         raise MapFileError(f"{name}: not a rovernav map: JSON nested too deeply") from None
-    except ValueError as exc:   # JSONDecodeError, or an integer of thousands of digits
+    except ValueError as exc:  # JSONDecodeError, or an integer of thousands of digits
         why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if "digits" in why and not isinstance(exc, json.JSONDecodeError):
             why = "a number with thousands of digits"
         raise MapFileError(f"{name}: not a rovernav map: not valid JSON ({why})") from None
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
-        raise MapFileError(f"{name} is not a rovernav map (want a JSON object with \"format\": {MAP_FORMAT!r}, "
-                           f"\"version\": 1 or 2)")
+        raise MapFileError(
+            f'{name} is not a rovernav map (want a JSON object with "format": {MAP_FORMAT!r}, "version": 1 or 2)'
+        )
     version = data.get("version")
     if isinstance(version, bool) or version not in (1, 2):
         raise MapFileError(f"{name}: a rovernav map of version {_short(version)}; this rovernav reads versions 1 and 2")
     key = "echoes" if version == 1 else "readings"
     extra = sorted(str(k) for k in data if k not in ("format", "version", key))
     if extra:
-        raise MapFileError(f"{name}: unknown key{'s' if len(extra) > 1 else ''} "
-                           f"{', '.join(_short(k) for k in extra[:5])} in a version {version} map "
-                           f"(it has format, version and {key})")
+        raise MapFileError(
+            f"{name}: unknown key{'s' if len(extra) > 1 else ''} "
+            f"{', '.join(_short(k) for k in extra[:5])} in a version {version} map "
+            f"(it has format, version and {key})"
+        )
     if key not in data:
         raise MapFileError(f"{name}: no {key!r} list in a version {version} map")
     raw = data[key]
@@ -278,16 +305,17 @@ def read_map_file(path: str | Path, grid: OccupancyGrid | None = None) -> list[S
     if grid is not None:
         cells = int(grid.raw.size)
         if len(raw) * cells > MAX_REPLAY_CELLS:
-            raise MapFileError(f"{name}: {len(raw):,} {key} on a grid of {cells:,} cells is more replay work than "
-                               f"allowed; at most {MAX_REPLAY_CELLS // cells:,} on this arena")
+            raise MapFileError(
+                f"{name}: {len(raw):,} {key} on a grid of {cells:,} cells is more replay work than "
+                f"allowed; at most {MAX_REPLAY_CELLS // cells:,} on this arena"
+            )
     names = [f.name for f in dataclasses.fields(SonarReading)]
     wanted = names if version == 2 else names[:5]
     out = []
     for i, e in enumerate(raw):
         where = f"{name}: {key}[{i}]"
         if not isinstance(e, dict):
-            raise MapFileError(f"{where} must be an object with the keys {', '.join(wanted)}, "
-                               f"got {type(e).__name__}")
+            raise MapFileError(f"{where} must be an object with the keys {', '.join(wanted)}, got {type(e).__name__}")
         if sorted(e) != sorted(wanted):
             raise MapFileError(f"{where} must have exactly the keys {', '.join(wanted)}")
         v: dict[str, float | None] = {}
@@ -308,22 +336,26 @@ def read_map_file(path: str | Path, grid: OccupancyGrid | None = None) -> list[S
         if version == 1:
             v["max_range_m"], v["sd_m"] = 0.4, 0.0
         for k in ("x_m", "y_m"):
-            if abs(v[k]) > MAX_POSITION_M:   # type: ignore[arg-type]
+            if abs(v[k]) > MAX_POSITION_M:  # type: ignore[arg-type]
                 raise MapFileError(f"{where}.{k} must be within +-{MAX_POSITION_M} m, got {_short(e[k])}")
         for k in ("heading_deg", "bearing_deg"):
-            if abs(v[k]) > MAX_ANGLE_DEG:   # type: ignore[arg-type]
+            if abs(v[k]) > MAX_ANGLE_DEG:  # type: ignore[arg-type]
                 raise MapFileError(f"{where}.{k} must be within +-{MAX_ANGLE_DEG:g} degrees, got {_short(e[k])}")
         if v["range_m"] is not None and not 0 < v["range_m"] <= MAX_RANGE_M:
             raise MapFileError(f"{where}.range_m must be in (0, {MAX_RANGE_M:g}] m or null, got {_short(e['range_m'])}")
-        if not 0 < v["max_range_m"] <= MAX_RANGE_M:   # type: ignore[operator]
+        if not 0 < v["max_range_m"] <= MAX_RANGE_M:  # type: ignore[operator]
             raise MapFileError(f"{where}.max_range_m must be in (0, {MAX_RANGE_M:g}] m, got {_short(e['max_range_m'])}")
-        if not 0 <= v["sd_m"] <= MAX_SD_M:   # type: ignore[operator]
+        if not 0 <= v["sd_m"] <= MAX_SD_M:  # type: ignore[operator]
             raise MapFileError(f"{where}.sd_m must be in [0, {MAX_SD_M}] m, got {_short(e['sd_m'])}")
         if grid is not None:
             x, y = v["x_m"], v["y_m"]
-            if not (-ARENA_MARGIN_M <= x <= grid.width_m + ARENA_MARGIN_M      # type: ignore[operator]
-                    and -ARENA_MARGIN_M <= y <= grid.height_m + ARENA_MARGIN_M):   # type: ignore[operator]
-                raise MapFileError(f"{where}: the rover at ({x:g}, {y:g}) m is more than {ARENA_MARGIN_M:g} m outside "
-                                   f"the {grid.width_m:g} x {grid.height_m:g} m arena: a map of another arena?")
-        out.append(SonarReading(**v))   # type: ignore[arg-type]
+            if not (
+                -ARENA_MARGIN_M <= x <= grid.width_m + ARENA_MARGIN_M  # type: ignore[operator]
+                and -ARENA_MARGIN_M <= y <= grid.height_m + ARENA_MARGIN_M
+            ):  # type: ignore[operator]
+                raise MapFileError(
+                    f"{where}: the rover at ({x:g}, {y:g}) m is more than {ARENA_MARGIN_M:g} m outside "
+                    f"the {grid.width_m:g} x {grid.height_m:g} m arena: a map of another arena?"
+                )
+        out.append(SonarReading(**v))  # type: ignore[arg-type]
     return out

@@ -34,6 +34,7 @@ sonar margin): `apply(grid)` writes it into an OccupancyGrid.
 The cell layout is the planner's (rovernav.planning.grid): arrays [iy, ix], cell centres at
 ((ix + 0.5)·res, (iy + 0.5)·res) metres.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -60,8 +61,9 @@ def sonar_origin(x_m: float, y_m: float, heading_deg: float, offset_m: float) ->
     return x_m + offset_m * math.sin(h), y_m + offset_m * math.cos(h)
 
 
-def echo_point(x_m: float, y_m: float, heading_deg: float, bearing_deg: float, range_m: float,
-               offset_m: float) -> tuple[float, float]:
+def echo_point(
+    x_m: float, y_m: float, heading_deg: float, bearing_deg: float, range_m: float, offset_m: float
+) -> tuple[float, float]:
     """Where an echo lies [m]: on the beam's axis (heading + the servo's bearing, clockwise), at
     `range_m` from the ranger. The obstacle may stand anywhere across the cone at that range:
     the map marks the whole arc; pictures and logs show this point."""
@@ -74,14 +76,14 @@ def echo_point(x_m: float, y_m: float, heading_deg: float, bearing_deg: float, r
 class SensorModel:
     """The inverse sensor model's numbers (log-odds are dimensionless, lengths in metres)."""
 
-    cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0   # the beam's width (HC-SR04: 15)
-    occupied_logodds: float = 1.0     # added on the arc of an echo (p 0.5 -> 0.73)
-    free_logodds: float = -0.5        # added inside the cone before the arc (p 0.5 -> 0.38)
-    occupied_threshold: float = 0.6   # believed occupied at or above this (p >= 0.65)
-    clamp_logodds: float = 4.0        # |L| never exceeds this, so a change of world can be learned
-    band_m: float = 0.03              # half-thickness of the arc, plus the reading's position sd
-    body_radius_m: float = BODY_WIDTH_MM / 2000.0   # cells within this of the rover's centre are free (half its width)
-    clear_cut_cells: bool = False     # silence clears cells the cone's edge only cuts too (the open map)
+    cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0  # the beam's width (HC-SR04: 15)
+    occupied_logodds: float = 1.0  # added on the arc of an echo (p 0.5 -> 0.73)
+    free_logodds: float = -0.5  # added inside the cone before the arc (p 0.5 -> 0.38)
+    occupied_threshold: float = 0.6  # believed occupied at or above this (p >= 0.65)
+    clamp_logodds: float = 4.0  # |L| never exceeds this, so a change of world can be learned
+    band_m: float = 0.03  # half-thickness of the arc, plus the reading's position sd
+    body_radius_m: float = BODY_WIDTH_MM / 2000.0  # cells within this of the rover's centre are free (half its width)
+    clear_cut_cells: bool = False  # silence clears cells the cone's edge only cuts too (the open map)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,8 +106,15 @@ class SonarMap:
     `sonar_offset_m`: the sensor sits this far ahead of the rover's centre.
     """
 
-    def __init__(self, width_m: float, height_m: float, resolution_m: float, sonar_offset_m: float,
-                 model: SensorModel = SensorModel(), known: np.ndarray | None = None):
+    def __init__(
+        self,
+        width_m: float,
+        height_m: float,
+        resolution_m: float,
+        sonar_offset_m: float,
+        model: SensorModel = SensorModel(),
+        known: np.ndarray | None = None,
+    ):
         self.width_m, self.height_m, self.resolution_m = float(width_m), float(height_m), float(resolution_m)
         check_grid(self.width_m, self.height_m, self.resolution_m, "the sonar map's arena")
         self.nx = max(1, int(math.ceil(self.width_m / resolution_m - 1e-9)))
@@ -192,6 +201,6 @@ class SonarMap:
         if not occ.any():
             return np.zeros_like(occ, dtype=bool)
         k = int(math.floor(radius_m / self.resolution_m + 1e-9))
-        yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
-        kernel = ((xx * xx + yy * yy) * self.resolution_m ** 2 <= radius_m ** 2 + 1e-12).astype(np.uint8)
+        yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+        kernel = ((xx * xx + yy * yy) * self.resolution_m**2 <= radius_m**2 + 1e-12).astype(np.uint8)
         return cv2.dilate(occ, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)

@@ -13,6 +13,7 @@
 Requests and their resends are the link's (rovernav.link.requests), shared with Link.request;
 the learned map (the sonar's echoes folded into the planner's grid) is rovernav.mapping's.
 """
+
 from ..errors import MissionFailed
 from .core import Mission
 from .interface import MissionView, Strategy
@@ -20,5 +21,21 @@ from .legs import Deadlines, Leg, leg_goal, leg_origin, legs_per_trip
 from .phases import Detection, Failure, Outcome, Phase
 from .strategies import RovernavStrategy, SeedStrategy, make_strategy
 
-__all__ = ["Deadlines", "Detection", "Failure", "Leg", "Mission", "MissionFailed", "MissionView", "Outcome", "Phase",
-           "RovernavStrategy", "SeedStrategy", "Strategy", "leg_goal", "leg_origin", "legs_per_trip", "make_strategy"]
+__all__ = [
+    "Deadlines",
+    "Detection",
+    "Failure",
+    "Leg",
+    "Mission",
+    "MissionFailed",
+    "MissionView",
+    "Outcome",
+    "Phase",
+    "RovernavStrategy",
+    "SeedStrategy",
+    "Strategy",
+    "leg_goal",
+    "leg_origin",
+    "legs_per_trip",
+    "make_strategy",
+]

@@ -16,6 +16,7 @@ paths, STOP). Apart: what the rover says (rover_frames.py, a base class of Missi
 path (leg_plan.py), the phases and timings (phases.py), the run log's interface (recorder.py),
 and what a strategy may see of the mission (interface.py).
 """
+
 from __future__ import annotations
 
 import logging
@@ -64,13 +65,26 @@ class Mission(RoverFrames):
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
     and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
 
-    def __init__(self, link, grid: OccupancyGrid, start_xy: tuple[float, float], target_xy: tuple[float, float],
-                 legs: int = 1, rover_params: list | None = None, planner: str = "astar",
-                 fix_sd_mm: int = 3, heartbeat_hz: float = 5.0, host_replan: bool = True,
-                 on_event: Callable[[float, str], None] | None = None, map_file: str | Path | None = None,
-                 state_file: str | Path | None = None, strategy: Strategy | None = None,
-                 deadlines: Deadlines = Deadlines(), host_boot_id: int | None = None,
-                 recorder: Recorder | None = None):
+    def __init__(
+        self,
+        link,
+        grid: OccupancyGrid,
+        start_xy: tuple[float, float],
+        target_xy: tuple[float, float],
+        legs: int = 1,
+        rover_params: list | None = None,
+        planner: str = "astar",
+        fix_sd_mm: int = 3,
+        heartbeat_hz: float = 5.0,
+        host_replan: bool = True,
+        on_event: Callable[[float, str], None] | None = None,
+        map_file: str | Path | None = None,
+        state_file: str | Path | None = None,
+        strategy: Strategy | None = None,
+        deadlines: Deadlines = Deadlines(),
+        host_boot_id: int | None = None,
+        recorder: Recorder | None = None,
+    ):
         self.link = link
         self.recorder = recorder or Recorder()
         self.map = LearnedMap(grid)
@@ -91,19 +105,20 @@ class Mission(RoverFrames):
         def on_event_recorded(t: float, text: str) -> None:
             self.recorder.host_event(t, text)
             say(t, text)
+
         self.on_event = on_event_recorded
-        self.map_file = Path(map_file) if map_file else None   # kept up to date: a restarted host reloads it
+        self.map_file = Path(map_file) if map_file else None  # kept up to date: a restarted host reloads it
         self.record = LegRecord(state_file)
         self.host_boot_id = int.from_bytes(os.urandom(4), "little") if host_boot_id is None else host_boot_id
 
         self.phase = Phase.HELLO
         self.outcome = Outcome.RUNNING
         self.error: str | None = None
-        self.failure: Failure | None = None    # the kind of failure, with `error` in words
-        self.cause: Exception | None = None   # the link error behind a failure, when there is one
+        self.failure: Failure | None = None  # the kind of failure, with `error` in words
+        self.cause: Exception | None = None  # the link error behind a failure, when there is one
         self.legs: list[Leg] = []
-        self.path: list[tuple[float, float]] = []         # what the rover was last given
-        self.path_rest: list[tuple[float, float]] = []    # the rest of a path longer than the rover holds
+        self.path: list[tuple[float, float]] = []  # what the rover was last given
+        self.path_rest: list[tuple[float, float]] = []  # the rest of a path longer than the rover holds
         # Path ids count up from a base drawn from this host's boot id: a restarted host's first
         # path must not carry the id of the path the rover holds from the host before it (the
         # rover takes a PATH chunk with the id and size of the one it holds as a repeat it has
@@ -116,25 +131,25 @@ class Mission(RoverFrames):
         self.fixes_sent = 0
         self.replans = 0
         self.requests = RequestTracker(RESEND_S, MAX_TRIES)
-        self.upload: PathUpload | None = None    # the path on its way to the rover
-        self.sent: dict[str, int] = {}           # frames sent, by message kind
+        self.upload: PathUpload | None = None  # the path on its way to the rover
+        self.sent: dict[str, int] = {}  # frames sent, by message kind
         self.frames_sent = 0
-        self.quality = LinkQuality()             # frames through, both ways (link/quality.py)
-        self.sent_again: dict[str, int] = {}     # ... of which re-sent for want of an answer
-        self.hellos_again = 0                    # HELLOs said again because the rover did not know this host
-        self._closed = False                     # the ended mission's STOP was ACKed (or given up on)
+        self.quality = LinkQuality()  # frames through, both ways (link/quality.py)
+        self.sent_again: dict[str, int] = {}  # ... of which re-sent for want of an answer
+        self.hellos_again = 0  # HELLOs said again because the rover did not know this host
+        self._closed = False  # the ended mission's STOP was ACKed (or given up on)
         self._done_at: float | None = None
         self._now = 0.0
-        self._phase_since: float | None = None   # set by the first tick: the mission's clock starts there
+        self._phase_since: float | None = None  # set by the first tick: the mission's clock starts there
         self._hello_at = -1e9
         self._heartbeat_at = -1e9
         self._last_detection: Detection | None = None
         self._last_frame_s: float | None = None
-        self._start_sent_for: int | None = None    # path id the last START was sent for
+        self._start_sent_for: int | None = None  # path id the last START was sent for
         # A caller's hold on START (now_s -> True: not yet), the path loaded meanwhile: calibrate
         # rover keeps the rover still for its gyro's bias before its first run.
         self.hold_start: Callable[[float], bool] | None = None
-        self._start_acked_for: int | None = None   # ... and acknowledged for
+        self._start_acked_for: int | None = None  # ... and acknowledged for
         self._accepted_path_id: int | None = None
         self._map_changed_at: float | None = None
         self._map_unsaved = False
@@ -143,16 +158,16 @@ class Mission(RoverFrames):
         # said in every HEARTBEAT (scan_heard): the rover trusts a path near its echoes only then.
         self._scan_latest: int | None = None
         self._scan_echoes_heard = 0
-        self._scan_echoes_seen: set[tuple] = set()   # its echoes as said (each is said three times): a copy is dropped
+        self._scan_echoes_seen: set[tuple] = set()  # its echoes as said (each is said three times): a copy is dropped
         self._scan_done_for: int | None = None
         self.scan_heard = 0
         self.scans_heard_whole = 0
         self.scans_heard_part = 0
         self._resume_leg = False
         self._last_heard_s = 0.0
-        self._heard_again_s = 0.0   # when the rover was last heard after a silence (a radio outage)
-        self._heard_any = False     # any valid frame from the rover yet
-        self._chunk_at = -1e9        # when the last PATH chunk went out
+        self._heard_again_s = 0.0  # when the rover was last heard after a silence (a radio outage)
+        self._heard_any = False  # any valid frame from the rover yet
+        self._chunk_at = -1e9  # when the last PATH chunk went out
         self._link_logged_at = -1e9
 
     # ---------------------------------------------------------------- views
@@ -198,8 +213,15 @@ class Mission(RoverFrames):
 
     def on_detection(self, detection: Detection, now_s: float) -> None:
         """A camera frame was processed; send its fix if the rover was seen."""
-        self.recorder.host_input("detection", now_s, taken_s=detection.t_s, x_m=detection.x_m, y_m=detection.y_m,
-                                 heading_deg=detection.heading_deg, reason=detection.reason)
+        self.recorder.host_input(
+            "detection",
+            now_s,
+            taken_s=detection.t_s,
+            x_m=detection.x_m,
+            y_m=detection.y_m,
+            heading_deg=detection.heading_deg,
+            reason=detection.reason,
+        )
         self._last_frame_s = now_s
         if self.done:
             return
@@ -210,9 +232,16 @@ class Mission(RoverFrames):
         if self.phase is Phase.HELLO:
             return
         age_ms = max(0, min(65535, round((now_s - detection.t_s) * 1000)))
-        self._send(mg.Fix(x_mm=_mm(detection.x_m), y_mm=_mm(detection.y_m),
-                          heading_cdeg=heading_cdeg(detection.heading_deg),
-                              age_ms=age_ms, sd_mm=self.fix_sd_mm, frame_seq=self.fixes_sent & 0xFFFF))
+        self._send(
+            mg.Fix(
+                x_mm=_mm(detection.x_m),
+                y_mm=_mm(detection.y_m),
+                heading_cdeg=heading_cdeg(detection.heading_deg),
+                age_ms=age_ms,
+                sd_mm=self.fix_sd_mm,
+                frame_seq=self.fixes_sent & 0xFFFF,
+            )
+        )
         self.fixes_sent += 1
 
     def tick(self, now_s: float) -> None:
@@ -221,8 +250,8 @@ class Mission(RoverFrames):
         self._now = now_s
         if self._phase_since is None:
             self._phase_since = self._last_heard_s = now_s
-            self.recorder.host_map(now_s, self.map)   # the map the mission starts from
-        for _ in range(MAX_FRAMES_PER_TICK):   # a flood cannot hold one tick forever
+            self.recorder.host_map(now_s, self.map)  # the map the mission starts from
+        for _ in range(MAX_FRAMES_PER_TICK):  # a flood cannot hold one tick forever
             if self.finished:
                 break
             frame = self.link.recv(timeout_s=0)
@@ -230,7 +259,7 @@ class Mission(RoverFrames):
                 break
             self.recorder.host_rx(now_s, frame)
             if self.done:
-                self._on_answer(frame.message)   # only the STOP's ACK matters now
+                self._on_answer(frame.message)  # only the STOP's ACK matters now
             else:
                 self._handle(frame)
         if self.done:
@@ -239,14 +268,24 @@ class Mission(RoverFrames):
         if now_s - self._link_logged_at >= LINK_LOG_S:
             self._link_logged_at = now_s
             q = self.quality
-            self.recorder.host_link(now_s, {
-                "to_rover_pct": None if q.recent("to_rover") is None else round(100 * q.recent("to_rover"), 2),
-                "to_host_pct": None if q.recent("to_host") is None else round(100 * q.recent("to_host"), 2),
-                **self.link_summary()})
+            self.recorder.host_link(
+                now_s,
+                {
+                    "to_rover_pct": None if q.recent("to_rover") is None else round(100 * q.recent("to_rover"), 2),
+                    "to_host_pct": None if q.recent("to_host") is None else round(100 * q.recent("to_host"), 2),
+                    **self.link_summary(),
+                },
+            )
         if now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
-            self._send(mg.Heartbeat(host_time_ms=int(now_s * 1000) & 0xFFFFFFFF, camera=self._camera_state(),
-                                    scan_heard=self.scan_heard, path_id=self.path_id & 0xFFFF))
+            self._send(
+                mg.Heartbeat(
+                    host_time_ms=int(now_s * 1000) & 0xFFFFFFFF,
+                    camera=self._camera_state(),
+                    scan_heard=self.scan_heard,
+                    path_id=self.path_id & 0xFFFF,
+                )
+            )
         if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
             self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s", Failure.SILENT)
             return
@@ -255,7 +294,7 @@ class Mission(RoverFrames):
             return
         if self._map_changed_at is not None and now_s - self._map_changed_at > MAP_CHECK_S:
             self._save_map()
-            self._map_changed()   # the SCAN_DONE event was lost
+            self._map_changed()  # the SCAN_DONE event was lost
         self._advance(now_s)
 
     def _advance(self, now_s: float) -> None:
@@ -267,9 +306,11 @@ class Mission(RoverFrames):
             # radio, not a dead one: it is given up to HELLO_ALIVE_FACTOR times the deadline.
             heard = self._heard_any and now_s - self._last_heard_s < HEARD_RECENTLY_S
             if in_phase_s > d.hello_s * (HELLO_ALIVE_FACTOR if heard else 1):
-                self._fail(f"no HELLO from the rover within {in_phase_s:.0f} s"
-                           + (" (other frames of its came through: the radio loses most frames)" if heard else ""),
-                           Failure.NO_HELLO)
+                self._fail(
+                    f"no HELLO from the rover within {in_phase_s:.0f} s"
+                    + (" (other frames of its came through: the radio loses most frames)" if heard else ""),
+                    Failure.NO_HELLO,
+                )
             elif now_s - self._hello_at >= HELLO_EVERY_S:
                 self._hello_at = now_s
                 self._send(host_hello(self.host_boot_id))
@@ -277,7 +318,9 @@ class Mission(RoverFrames):
             if not self.requests:
                 self._set_phase(Phase.LOCATE)
             elif self._waited_s(now_s) > d.configure_s and not self._silent():
-                self._fail(f"the rover did not take its parameters within {d.configure_s:.0f} s", Failure.NOT_CONFIGURED)
+                self._fail(
+                    f"the rover did not take its parameters within {d.configure_s:.0f} s", Failure.NOT_CONFIGURED
+                )
         if self.phase is Phase.LOCATE:
             if self._rover_seen():
                 if self._resume_leg:
@@ -307,12 +350,17 @@ class Mission(RoverFrames):
         if now_s <= leg.deadline_s:
             return
         if leg.recoveries >= self.deadlines.leg_recoveries:
-            self._fail(f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s "
-                       f"and {leg.recoveries} re-sends", Failure.LEG_LATE)
+            self._fail(
+                f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s and {leg.recoveries} re-sends",
+                Failure.LEG_LATE,
+            )
             return
         leg.recoveries += 1
-        self.on_event(now_s, f"leg {leg.index + 1} is late: re-planning from where the rover is "
-                             f"(recovery {leg.recoveries} of {self.deadlines.leg_recoveries})")
+        self.on_event(
+            now_s,
+            f"leg {leg.index + 1} is late: re-planning from where the rover is "
+            f"(recovery {leg.recoveries} of {self.deadlines.leg_recoveries})",
+        )
         self._resume()
 
     # ---------------------------------------------------------------- doing things
@@ -335,8 +383,11 @@ class Mission(RoverFrames):
         here = self.rover_xy()
         if math.dist(here, goal) <= self.arrival_radius_m:
             # Already there: a leg that is done at once is done (the rover would not move).
-            self.on_event(self._now, f"leg {index + 1}: the rover is already within "
-                                     f"{self.arrival_radius_m * 1000:.0f} mm of ({goal[0]:.2f}, {goal[1]:.2f}) m")
+            self.on_event(
+                self._now,
+                f"leg {index + 1}: the rover is already within "
+                f"{self.arrival_radius_m * 1000:.0f} mm of ({goal[0]:.2f}, {goal[1]:.2f}) m",
+            )
             self._leg_done()
             return
         path = self.strategy.leg_path(self, here, goal)
@@ -344,8 +395,11 @@ class Mission(RoverFrames):
             return
         leg.planned_length_m = path_length_m(path)
         leg.deadline_s = self._now + self.deadlines.leg_s(leg.planned_length_m)
-        self.on_event(self._now, f"leg {index + 1}{self.strategy.note}: {len(path)} waypoints, "
-                                 f"{leg.planned_length_m:.2f} m to ({goal[0]:.2f}, {goal[1]:.2f}) m")
+        self.on_event(
+            self._now,
+            f"leg {index + 1}{self.strategy.note}: {len(path)} waypoints, "
+            f"{leg.planned_length_m:.2f} m to ({goal[0]:.2f}, {goal[1]:.2f}) m",
+        )
         self.strategy.start_leg(self, path)
 
     def _resume(self) -> None:
@@ -363,7 +417,7 @@ class Mission(RoverFrames):
         The rover holds MAX_WAYPOINTS: a longer path goes in parts, the first MAX_WAYPOINTS now and
         the rest, from the last of them, when the rover says it has arrived there (`_arrived`)."""
         back_out = int(getattr(path, "back_out", False))
-        path, self.path_rest = list(path[:mg.MAX_WAYPOINTS]), list(path[mg.MAX_WAYPOINTS:])
+        path, self.path_rest = list(path[: mg.MAX_WAYPOINTS]), list(path[mg.MAX_WAYPOINTS :])
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
         self.recorder.host_path(self._now, self.path_id, path)
@@ -385,8 +439,9 @@ class Mission(RoverFrames):
             self._chunk_at = self._now
             self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
 
-    def replanned(self, path: list[tuple[float, float]], what: str,
-                  why: str = "the sonar found the path blocked") -> None:
+    def replanned(
+        self, path: list[tuple[float, float]], what: str, why: str = "the sonar found the path blocked"
+    ) -> None:
         """A strategy replanned the current leg (after the map changed, or `why`)."""
         self.replans += 1
         leg = self.current_leg
@@ -394,16 +449,24 @@ class Mission(RoverFrames):
         leg.deadline_s = max(leg.deadline_s, self._now + self.deadlines.leg_s(path_length_m(path)))
         self.on_event(self._now, f"{why}: replanned ({what}, {path_length_m(path):.2f} m)")
 
-    def plan_from(self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
-                  ) -> list[tuple[float, float]] | None:
+    def plan_from(
+        self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
+    ) -> list[tuple[float, float]] | None:
         """A* from `start` to `goal`, simplified (leg_plan.plan_leg: its fallbacks, its turns); None
         when there is none (the mission has then ended with the no-path verdict and the planner's
         reason, unless `verdict` is False: a check that may keep the path the rover has)."""
         # The turn at the start counts from the rover's heading when the path starts where it stands.
         heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
         refused = self.current_leg.refused_twice() if self.legs else []
-        path, reason = plan_leg(self.map, start, goal, planner=self.planner, heading=heading, refused=refused,
-                                say=lambda text: self.on_event(self._now, text))
+        path, reason = plan_leg(
+            self.map,
+            start,
+            goal,
+            planner=self.planner,
+            heading=heading,
+            refused=refused,
+            say=lambda text: self.on_event(self._now, text),
+        )
         if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return path
@@ -413,7 +476,7 @@ class Mission(RoverFrames):
         if not self.path:
             return []
         wp = self.last_status.waypoint_index if self.last_status else 0
-        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1):] + self.path_rest
+        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1) :] + self.path_rest
 
     def _send(self, message, again: bool = False) -> int:
         seq = self.link.send(message)
@@ -443,15 +506,19 @@ class Mission(RoverFrames):
         silent = self._silent()
         for pending in self.requests.due(now_s):
             if self.requests.exhausted(pending) and not silent:
-                self._fail(f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries",
-                           Failure.NOT_ANSWERED)
+                self._fail(
+                    f"the rover did not answer {pending.message.NAME.upper()} after {pending.tries} tries",
+                    Failure.NOT_ANSWERED,
+                )
                 return
             self.requests.resent(pending, self._send(pending.message, again=True), now_s, count=not silent)
         if self.upload is not None and not self.upload.complete:
             if self.upload.tries() >= MAX_TRIES and not silent:
-                self._fail(f"the rover did not take path {self.upload.path_id} after {self.upload.tries()} tries "
-                           f"of a chunk ({self.upload.taken} of {self.upload.chunks} chunks taken)",
-                           Failure.NOT_ANSWERED)
+                self._fail(
+                    f"the rover did not take path {self.upload.path_id} after {self.upload.tries()} tries "
+                    f"of a chunk ({self.upload.taken} of {self.upload.chunks} chunks taken)",
+                    Failure.NOT_ANSWERED,
+                )
                 return
             self._send_chunks(count=not silent)
 
@@ -467,7 +534,7 @@ class Mission(RoverFrames):
         try:
             self._end_with_stop(mg.StopReason.HOST_SHUTDOWN)
         except LinkError:
-            self._closed = True   # the link itself is what failed: nothing more to tell the rover
+            self._closed = True  # the link itself is what failed: nothing more to tell the rover
 
     def _end_with_stop(self, reason: int) -> None:
         """The mission has ended: STOP, re-sent until the rover ACKs it (see `_close`); nothing
@@ -509,9 +576,13 @@ class Mission(RoverFrames):
     def link_summary(self) -> dict:
         """What the link did, for report.json and the run log: frames through both ways, and the
         frames the host sent and sent again, per message kind."""
-        return {**self.quality.summary(), "host_sent": dict(sorted(self.sent.items())),
-                "host_sent_again": dict(sorted(self.sent_again.items())), "hellos_again": self.hellos_again,
-                "sweeps_heard": {"whole": self.scans_heard_whole, "part": self.scans_heard_part}}
+        return {
+            **self.quality.summary(),
+            "host_sent": dict(sorted(self.sent.items())),
+            "host_sent_again": dict(sorted(self.sent_again.items())),
+            "hellos_again": self.hellos_again,
+            "sweeps_heard": {"whole": self.scans_heard_whole, "part": self.scans_heard_part},
+        }
 
     @property
     def heard_any(self) -> bool:
@@ -553,8 +624,15 @@ class Mission(RoverFrames):
         state_file; the rover's HELLO and STATUS then say the rest). Returns the legs done."""
         done = min(self.record.load(), self.legs_asked)
         for i in range(done):
-            self.legs.append(Leg(index=i, goal=leg_goal(self.start_xy, self.target_xy, i), started_s=self._now,
-                                 finished_s=self._now, reached=True))
+            self.legs.append(
+                Leg(
+                    index=i,
+                    goal=leg_goal(self.start_xy, self.target_xy, i),
+                    started_s=self._now,
+                    finished_s=self._now,
+                    reached=True,
+                )
+            )
         return done
 
     def save_map(self, path: str | Path) -> None:

@@ -5,6 +5,7 @@ mission; a strategy (strategies.py) implements `Strategy`, what the mission asks
 leg starts, ends or meets a changed map. Both modules import this one; neither imports the other
 for its types (core.py imports strategies.py only for the default strategy).
 """
+
 from __future__ import annotations
 
 from typing import Protocol
@@ -19,7 +20,7 @@ Path = list[tuple[float, float]]
 class MissionView(Protocol):
     """The mission as a strategy sees it."""
 
-    planner: str                 # the planner's name (rovernav.planning.plan's `planner`)
+    planner: str  # the planner's name (rovernav.planning.plan's `planner`)
 
     @property
     def grid(self) -> OccupancyGrid:
@@ -55,7 +56,7 @@ class Strategy(Protocol):
     """How a leg is driven: what the mission asks of a strategy."""
 
     name: str
-    note: str          # said when a leg starts
+    note: str  # said when a leg starts
 
     def rover_params(self) -> list[tuple[mg.Param, int]]:
         """CONFIG parameters the strategy needs, sent before the mission's own."""

@@ -2,6 +2,7 @@
 open one, each with the full margin and then with the robot radius alone; the turns moved where
 the body can make them, and the first one checked from the heading the rover has where it stands.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,9 +28,16 @@ class PlannedPath(list):
         self.back_out = back_out
 
 
-def plan_leg(learned_map: LearnedMap, start: tuple[float, float], goal: tuple[float, float], *, planner: str,
-             heading: float | None, refused: list[tuple[float, float]], say: Callable[[str], None]
-             ) -> tuple[list[tuple[float, float]] | None, NoPathError | None]:
+def plan_leg(
+    learned_map: LearnedMap,
+    start: tuple[float, float],
+    goal: tuple[float, float],
+    *,
+    planner: str,
+    heading: float | None,
+    refused: list[tuple[float, float]],
+    say: Callable[[str], None],
+) -> tuple[list[tuple[float, float]] | None, NoPathError | None]:
     """(path, None), or (None, the planner's most telling reason) when there is no path.
 
     From the nearest free cell when the rover stands inside an inflated margin (close to what it
@@ -91,25 +99,27 @@ def plan_leg(learned_map: LearnedMap, start: tuple[float, float], goal: tuple[fl
                 elif grid is not careful:
                     say("planned on the open map (silence clears the cone's edges too)")
                 if end is not goal:
-                    say(f"the goal lies within an echo's arc: planned to "
-                        f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on")
+                    say(
+                        f"the goal lies within an echo's arc: planned to "
+                        f"{math.dist(end, goal) * 100:.0f} cm from it, then straight on"
+                    )
                 if moved or left:
-                    say(f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
-                        f"where the body can turn" + (f", {left} without room near" if left else ""))
+                    say(
+                        f"turns: moved {moved} waypoint{'s' if moved != 1 else ''} "
+                        f"where the body can turn" + (f", {left} without room near" if left else "")
+                    )
                 path = [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
                 path = path if origin is start else [start] + path
                 if heading is not None:
                     # The first turn, from the heading the rover has where it stands.
                     path, ahead = ahead_first(grid, path, heading, hidden)
                     if ahead > 0:
-                        say("no room to turn where the rover stands: "
-                            "it drives straight on to turn first")
+                        say("no room to turn where the rover stands: it drives straight on to turn first")
                     elif ahead < 0:
                         # Its own memory may have let go of what the map holds: the path
                         # asks it to back out the way it came before it turns (PATH back_out).
                         path = PlannedPath(path, back_out=True)
-                        say("no room to turn where the rover stands, none "
-                            "straight ahead: it backs out first")
+                        say("no room to turn where the rover stands, none straight ahead: it backs out first")
                 return path, None
     return None, reason
 
@@ -118,7 +128,7 @@ def nearest_free(xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.
     """A free point of `grid` within max_m of xy, nearest ring (a cell apart) first; None when xy
     is free itself, or nothing that near is."""
     if grid.is_free(*xy):
-        return None   # the start itself is free: nothing nearer to try
+        return None  # the start itself is free: nothing nearer to try
     step = grid.resolution_m
     for ring in range(1, int(max_m / step) + 1):
         r = ring * step

@@ -1,4 +1,5 @@
 """Legs, their goals and deadlines, and the record of legs done that a restarted host reads."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -37,16 +38,19 @@ class Leg:
     replans: int = 0
     planned_length_m: float = 0.0
     obstacles_found: int = 0
-    deadline_s: float = math.inf   # when the host steps in if the leg is still not done
-    recoveries: int = 0            # times the host re-sent the leg after its deadline
-    turns_refused_at: list[tuple[float, float]] = dataclasses.field(default_factory=list)   # TURN_REFUSED's spots [m]
+    deadline_s: float = math.inf  # when the host steps in if the leg is still not done
+    recoveries: int = 0  # times the host re-sent the leg after its deadline
+    turns_refused_at: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # TURN_REFUSED's spots [m]
 
     def refused_twice(self) -> list[tuple[float, float]]:
         """The spots where the rover refused a turn twice in this leg (within REFUSED_NEAR_M): a
         path that turns there again is no way for it (once may be a memory the next sweep clears)."""
         spots = self.turns_refused_at
-        return [p for i, p in enumerate(spots)
-                if any(math.dist(p, q) <= REFUSED_NEAR_M for j, q in enumerate(spots) if j != i)]
+        return [
+            p
+            for i, p in enumerate(spots)
+            if any(math.dist(p, q) <= REFUSED_NEAR_M for j, q in enumerate(spots) if j != i)
+        ]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,14 +63,14 @@ class Deadlines:
     when the recovery does not help.
     """
 
-    hello_s: float = 30.0          # no HELLO from the rover
-    configure_s: float = 30.0      # parameters not all acknowledged
-    locate_s: float = 60.0         # the camera does not see the rover
-    load_s: float = 30.0           # path and START not acknowledged (while the rover is heard)
-    leg_base_s: float = 90.0       # a leg: this much ...
-    leg_per_m_s: float = 60.0      # ... plus this per metre of planned path (the seed's pace is ~45 s/m)
-    leg_recoveries: int = 2        # re-plans and re-sends of a late leg before the mission fails
-    silent_s: float = 120.0        # no frame at all from the rover: the mission is over
+    hello_s: float = 30.0  # no HELLO from the rover
+    configure_s: float = 30.0  # parameters not all acknowledged
+    locate_s: float = 60.0  # the camera does not see the rover
+    load_s: float = 30.0  # path and START not acknowledged (while the rover is heard)
+    leg_base_s: float = 90.0  # a leg: this much ...
+    leg_per_m_s: float = 60.0  # ... plus this per metre of planned path (the seed's pace is ~45 s/m)
+    leg_recoveries: int = 2  # re-plans and re-sends of a late leg before the mission fails
+    silent_s: float = 120.0  # no frame at all from the rover: the mission is over
 
     def leg_s(self, planned_length_m: float) -> float:
         return self.leg_base_s + self.leg_per_m_s * max(0.0, planned_length_m)

@@ -1,4 +1,5 @@
 """What a mission tells a run log: the `Recorder` interface, here doing nothing."""
+
 from __future__ import annotations
 
 from ..mapping import LearnedMap, SonarReading

@@ -5,6 +5,7 @@ its STATUS, its sonar readings (OBSTACLE) and its EVENTs (an arrival, a finished
 change the mission's own state, and call the mission's means of acting (`_send`, `_request`,
 `_fail`, `_configure`, `load_path`, ...). It is not used on its own.
 """
+
 from __future__ import annotations
 
 from ..link import messages_gen as mg
@@ -25,7 +26,7 @@ class RoverFrames:
         self._heard_any = True
         m = frame.message
         if isinstance(m, mg.Hello) and m.role == mg.Role.ROVER and m.boot_id != self.rover_boot_id:
-            self.quality.restart()   # a rover that restarted numbers its frames from 0 again
+            self.quality.restart()  # a rover that restarted numbers its frames from 0 again
         self.quality.on_frame(frame.seq, self._now)
         if isinstance(m, mg.Hello):
             self._on_hello(m)
@@ -47,15 +48,17 @@ class RoverFrames:
             return
         if self.rover_boot_id is not None and m.boot_id != self.rover_boot_id and self.phase is not Phase.HELLO:
             # The rover restarted: it forgot its parameters and its path. Bring it back.
-            self.on_event(self._now, f"rover restarted (boot id {self.rover_boot_id} -> {m.boot_id}); "
-                                     "re-sending parameters and path")
+            self.on_event(
+                self._now,
+                f"rover restarted (boot id {self.rover_boot_id} -> {m.boot_id}); re-sending parameters and path",
+            )
             self.rover_boot_id = m.boot_id
             self.requests.clear()
             self.upload = None
             self._send(host_hello(self.host_boot_id))
             resume = self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
             self._configure()
-            self._resume_leg = resume   # once configured: the same leg again, from where the rover is
+            self._resume_leg = resume  # once configured: the same leg again, from where the rover is
             return
         if self.phase is Phase.HELLO:
             self.rover_boot_id = m.boot_id
@@ -64,15 +67,18 @@ class RoverFrames:
                 # starting): it takes no START until it has checked our schema, so say HELLO now.
                 self._hello_at = self._now
                 self._send(host_hello(self.host_boot_id))
-            self.on_event(self._now, f"rover HELLO: boot id {m.boot_id}, firmware "
-                                     f"{m.firmware_version >> 8}.{m.firmware_version & 0xFF}, schema ok")
+            self.on_event(
+                self._now,
+                f"rover HELLO: boot id {m.boot_id}, firmware "
+                f"{m.firmware_version >> 8}.{m.firmware_version & 0xFF}, schema ok",
+            )
             self._configure()
 
     def _on_answer(self, m) -> None:
         if self.upload is not None and not self.done:
             answer = self.upload.answer(m)
             if answer is Answer.RESUME:
-                self._send_chunks()   # from where the rover stopped, at once
+                self._send_chunks()  # from where the rover stopped, at once
                 return
             if answer is Answer.REFUSED:
                 self.nacks.append(m)
@@ -87,9 +93,10 @@ class RoverFrames:
         message = pending.message
         if isinstance(m, mg.Nack):
             if isinstance(message, mg.Start) and message.path_id != self.path_id:
-                return   # a START for a path since replaced: its answer no longer matters
-            if m.reason == mg.NackReason.SCHEMA_MISMATCH or (m.reason == mg.NackReason.NO_FIX
-                                                             and isinstance(message, mg.Start)):
+                return  # a START for a path since replaced: its answer no longer matters
+            if m.reason == mg.NackReason.SCHEMA_MISMATCH or (
+                m.reason == mg.NackReason.NO_FIX and isinstance(message, mg.Start)
+            ):
                 # The rover does not know this host (our HELLO was lost), or has not had a fix
                 # yet (FIXes were lost): say HELLO again, and ask again; the attempts still count.
                 if m.reason == mg.NackReason.SCHEMA_MISMATCH:
@@ -107,10 +114,9 @@ class RoverFrames:
     def _ask_again(self, pending) -> None:
         """A refused request goes again, with its attempt counted, once its resend time comes."""
         if self.requests.exhausted(pending):
-            self._fail(f"the rover refused {pending.message.NAME.upper()} {pending.tries} times",
-                       Failure.NOT_ANSWERED)
+            self._fail(f"the rover refused {pending.message.NAME.upper()} {pending.tries} times", Failure.NOT_ANSWERED)
             return
-        self.requests.again(pending)   # due RESEND_S after its last attempt (re-sent by _resend)
+        self.requests.again(pending)  # due RESEND_S after its last attempt (re-sent by _resend)
 
     def _say_hello_again(self) -> None:
         """The rover does not know this host (a NACK schema_mismatch, or STATUS without schema_ok):
@@ -121,8 +127,11 @@ class RoverFrames:
             self._send(host_hello(self.host_boot_id))
 
     def _on_status(self, m: mg.Status) -> None:
-        backed_out = (self.last_status is not None and self.last_status.state == mg.RoverState.BACK_OFF
-                      and m.state != mg.RoverState.BACK_OFF)
+        backed_out = (
+            self.last_status is not None
+            and self.last_status.state == mg.RoverState.BACK_OFF
+            and m.state != mg.RoverState.BACK_OFF
+        )
         self.last_status = m
         if backed_out and self.host_replan and self._leg_open():
             # The rover backed out to make room for a turn (TURN_REFUSED) and heads for its next
@@ -133,8 +142,12 @@ class RoverFrames:
             self._say_hello_again()
         # A STATUS after START was acknowledged that says the rover has arrived on this path:
         # the ARRIVED event itself was lost on the radio.
-        if (m.state == mg.RoverState.ARRIVED and m.path_id == self.path_id
-                and self._start_acked_for == self.path_id and self._leg_open()):
+        if (
+            m.state == mg.RoverState.ARRIVED
+            and m.path_id == self.path_id
+            and self._start_acked_for == self.path_id
+            and self._leg_open()
+        ):
             self._arrived()
 
     def _on_obstacle(self, m: mg.Obstacle) -> None:
@@ -147,8 +160,15 @@ class RoverFrames:
                 return
             self._scan_echoes_seen.add(said)
             self._scan_echoes_heard += 1
-        reading = SonarReading(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100, m.bearing_cdeg / 100,
-                               m.range_mm / 1000 if m.range_mm else None, self.sonar_report_m, m.sd_mm / 1000)
+        reading = SonarReading(
+            m.x_mm / 1000,
+            m.y_mm / 1000,
+            m.heading_cdeg / 100,
+            m.bearing_cdeg / 100,
+            m.range_mm / 1000 if m.range_mm else None,
+            self.sonar_report_m,
+            m.sd_mm / 1000,
+        )
         changed = self.map.add(reading)
         self.recorder.host_sonar(self._now, reading, changed)
         self._map_unsaved = True
@@ -167,7 +187,7 @@ class RoverFrames:
             if self._start_sent_for == self.path_id and self._leg_open():
                 self._arrived()
         elif kind is mg.EventKind.SCAN_DONE:
-            self._save_map()   # once a sweep, not once a reading: the file grows with the map
+            self._save_map()  # once a sweep, not once a reading: the file grows with the map
             self.recorder.host_map(self._now, self.map)
             if self._map_changed_at is not None:
                 self._map_changed()
@@ -175,10 +195,12 @@ class RoverFrames:
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
             if self.upload is not None and self.upload.path_id == m.arg:
-                self.upload.mark_complete()   # its last ACKs may be lost: this says it all
+                self.upload.mark_complete()  # its last ACKs may be lost: this says it all
         elif kind is mg.EventKind.FAULT:
-            self._fail(f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}",
-                       Failure.ROVER_FAULT)
+            self._fail(
+                f"rover fault: {mg.FaultCode(m.arg).name.lower() if m.arg in mg.FaultCode._value2member_map_ else m.arg}",
+                Failure.ROVER_FAULT,
+            )
         elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
             self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
             if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
@@ -189,7 +211,7 @@ class RoverFrames:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
 
     def _arrived(self) -> None:
-        if self.path_rest:   # the end of a part of a long path: the next part, from here
+        if self.path_rest:  # the end of a part of a long path: the next part, from here
             rest = self.path_rest
             self.on_event(self._now, f"part of the path done: the next {len(rest)} of its waypoints")
             self.load_path([self.path[-1]] + rest)
@@ -221,7 +243,7 @@ class RoverFrames:
         echo the sweep counted and the path was checked against them (_map_changed, just before).
         A host that does not replan gives its word too: it heard, and keeps its path."""
         if self._scan_latest is None or self._scan_latest == self._scan_done_for:
-            return   # a copy (the rover says SCAN_DONE three times), or a sweep none of whose readings came
+            return  # a copy (the rover says SCAN_DONE three times), or a sweep none of whose readings came
         self._scan_done_for = self._scan_latest
         if self._scan_echoes_heard == echoes:
             self.scans_heard_whole += 1

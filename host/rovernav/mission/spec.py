@@ -6,6 +6,7 @@ run log keeps it whole (`to_json`) and a replay builds the very same mission fro
 (`from_json`), with any planner setting changed (`with_planner`) to see what that would have
 decided differently.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -34,9 +35,9 @@ class MissionSpec:
     legs: int
     arena_w_m: float
     arena_h_m: float
-    scenario_toml: str | None          # the known obstacles come from it; None: an empty arena
-    planner: dict[str, float]          # PlannerConfig's fields
-    rover_params: tuple[tuple[int, int], ...]   # (Param, value) the caller adds to the planner's and the strategy's
+    scenario_toml: str | None  # the known obstacles come from it; None: an empty arena
+    planner: dict[str, float]  # PlannerConfig's fields
+    rover_params: tuple[tuple[int, int], ...]  # (Param, value) the caller adds to the planner's and the strategy's
     fix_sd_mm: int = 3
     heartbeat_hz: float = 5.0
     host_replan: bool = True
@@ -47,9 +48,18 @@ class MissionSpec:
     # ------------------------------------------------------------ making one
 
     @classmethod
-    def for_run(cls, scenario, cfg, *, strategy: str = "rovernav", host_replan: bool = True,
-                rover_params: list | None = None, start_xy: tuple[float, float] | None = None,
-                target_xy: tuple[float, float] | None = None, host_boot_id: int = 0) -> MissionSpec:
+    def for_run(
+        cls,
+        scenario,
+        cfg,
+        *,
+        strategy: str = "rovernav",
+        host_replan: bool = True,
+        rover_params: list | None = None,
+        start_xy: tuple[float, float] | None = None,
+        target_xy: tuple[float, float] | None = None,
+        host_boot_id: int = 0,
+    ) -> MissionSpec:
         """The spec of a run over `scenario` (None: an empty arena of the configuration's size,
         with `start_xy` and `target_xy` given, e.g. from the camera) under configuration `cfg`.
         Legs: the scenario's trips (or [mission] trips), two a trip out and back."""
@@ -66,14 +76,21 @@ class MissionSpec:
                 raise ValueError("a mission with no scenario needs its start and target")
             arena = (cfg.arena.width_m, cfg.arena.height_m)
         params = cfg.rover_params() if rover_params is None else rover_params
-        return cls(start_xy=(float(start_xy[0]), float(start_xy[1])),
-                   target_xy=(float(target_xy[0]), float(target_xy[1])),
-                   legs=trips * per_trip, arena_w_m=float(arena[0]), arena_h_m=float(arena[1]),
-                   scenario_toml=None if scenario is None else scenario_toml(scenario),
-                   planner=(cfg.planner or PlannerConfig()).to_dict(),
-                   rover_params=tuple((int(p), int(v)) for p, v in params),
-                   fix_sd_mm=cfg.mission.fix_sd_mm, heartbeat_hz=cfg.mission.heartbeat_hz,
-                   host_replan=host_replan, strategy=strategy, host_boot_id=host_boot_id & 0xFFFFFFFF)
+        return cls(
+            start_xy=(float(start_xy[0]), float(start_xy[1])),
+            target_xy=(float(target_xy[0]), float(target_xy[1])),
+            legs=trips * per_trip,
+            arena_w_m=float(arena[0]),
+            arena_h_m=float(arena[1]),
+            scenario_toml=None if scenario is None else scenario_toml(scenario),
+            planner=(cfg.planner or PlannerConfig()).to_dict(),
+            rover_params=tuple((int(p), int(v)) for p, v in params),
+            fix_sd_mm=cfg.mission.fix_sd_mm,
+            heartbeat_hz=cfg.mission.heartbeat_hz,
+            host_replan=host_replan,
+            strategy=strategy,
+            host_boot_id=host_boot_id & 0xFFFFFFFF,
+        )
 
     def with_planner(self, **changes: float) -> MissionSpec:
         """The same mission with planner settings changed (ValueError names a bad one)."""
@@ -94,16 +111,36 @@ class MissionSpec:
 
         return OccupancyGrid.from_scenario(parse_scenario(self.scenario_toml, "<run log scenario>"), config)
 
-    def build(self, link, *, on_event: Callable[[float, str], None] | None = None,
-              map_file: str | Path | None = None, state_file: str | Path | None = None,
-              deadlines: Deadlines = Deadlines(), recorder=None) -> Mission:
+    def build(
+        self,
+        link,
+        *,
+        on_event: Callable[[float, str], None] | None = None,
+        map_file: str | Path | None = None,
+        state_file: str | Path | None = None,
+        deadlines: Deadlines = Deadlines(),
+        recorder=None,
+    ) -> Mission:
         """The Mission this spec describes, over `link`."""
-        return Mission(link, self.grid(), self.start_xy, self.target_xy, legs=self.legs,
-                       rover_params=[(mg.Param(p), v) for p, v in self.rover_params], planner=self.planner_name,
-                       fix_sd_mm=self.fix_sd_mm, heartbeat_hz=self.heartbeat_hz, host_replan=self.host_replan,
-                       on_event=on_event, map_file=map_file, state_file=state_file,
-                       strategy=make_strategy(self.strategy), deadlines=deadlines, host_boot_id=self.host_boot_id,
-                       recorder=recorder)
+        return Mission(
+            link,
+            self.grid(),
+            self.start_xy,
+            self.target_xy,
+            legs=self.legs,
+            rover_params=[(mg.Param(p), v) for p, v in self.rover_params],
+            planner=self.planner_name,
+            fix_sd_mm=self.fix_sd_mm,
+            heartbeat_hz=self.heartbeat_hz,
+            host_replan=self.host_replan,
+            on_event=on_event,
+            map_file=map_file,
+            state_file=state_file,
+            strategy=make_strategy(self.strategy),
+            deadlines=deadlines,
+            host_boot_id=self.host_boot_id,
+            recorder=recorder,
+        )
 
     # ------------------------------------------------------------ files
 
@@ -143,15 +180,17 @@ MAP_FILE = "learned-map.json"
 STATE_FILE = "mission-state.json"
 
 
-def start_host(spec: MissionSpec, link, workdir: Path, *, on_event: Callable[[float, str], None] | None = None,
-               recorder=None) -> Mission:
+def start_host(
+    spec: MissionSpec, link, workdir: Path, *, on_event: Callable[[float, str], None] | None = None, recorder=None
+) -> Mission:
     """A host process starting on `spec`, keeping its learned map and the legs it has done in
     `workdir`: a host that restarts there reloads both (the simulator's --host-restart, and
     `rovernav replay` of such a run, go through here)."""
     map_file = Path(workdir) / MAP_FILE
-    mission = spec.build(link, on_event=on_event, map_file=map_file, state_file=Path(workdir) / STATE_FILE,
-                         recorder=recorder)
-    if map_file.exists():   # a restarted host: its learned map survived on disk
+    mission = spec.build(
+        link, on_event=on_event, map_file=map_file, state_file=Path(workdir) / STATE_FILE, recorder=recorder
+    )
+    if map_file.exists():  # a restarted host: its learned map survived on disk
         mission.load_map(map_file)
     mission.restore_state()
     return mission

@@ -14,6 +14,7 @@ only through `MissionView` and is a `Strategy` to it (both in interface.py).
   beyond the arrival radius) and START; sweeps are slowed to the seed's pace
   (sweep_step_ms = 750 gives 12 x 0.75 s = 9 s a sweep).
 """
+
 from __future__ import annotations
 
 import math
@@ -73,14 +74,19 @@ class SeedStrategy:
     def rover_params(self):
         # The seed's rover: 9-second sweeps, echoes within 0.4 m, no look before it first moves or
         # turns, no forward reflex.
-        return [(mg.Param.SWEEP_STEP_MS, 750), (mg.Param.SONAR_REPORT_MM, 400), (mg.Param.SWEEP_AT_START, 0),
-                (mg.Param.SWEEP_BEFORE_TURN_DEG, 0), (mg.Param.REFLEX_PING_MS, 0)]
+        return [
+            (mg.Param.SWEEP_STEP_MS, 750),
+            (mg.Param.SONAR_REPORT_MM, 400),
+            (mg.Param.SWEEP_AT_START, 0),
+            (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
+            (mg.Param.REFLEX_PING_MS, 0),
+        ]
 
     def _raw_path(self, m: MissionView, start, goal):
         try:
             result = plan(m.grid, start, goal, planner=m.planner)
         except NoPathError:
-            return m.plan_from(start, goal)   # its fallbacks (nearest free cell) and failure verdict
+            return m.plan_from(start, goal)  # its fallbacks (nearest free cell) and failure verdict
         return [m.grid.cell_to_world(int(ix), int(iy)) for ix, iy in result.cells] + [goal]
 
     def leg_path(self, m: MissionView, start, goal):
@@ -95,7 +101,7 @@ class SeedStrategy:
         radius_m = m.arrival_radius_m
         while self.next_cell < len(self.cells) - 1 and math.dist(here, self.cells[self.next_cell]) < radius_m:
             self.next_cell += 1
-        m.load_path([here, self.cells[self.next_cell]])   # each cell is a path of its own: path, then START
+        m.load_path([here, self.cells[self.next_cell]])  # each cell is a path of its own: path, then START
 
     def on_arrived(self, m: MissionView):
         if not self.cells or self.next_cell >= len(self.cells) - 1:
@@ -106,12 +112,12 @@ class SeedStrategy:
         return False
 
     def backed_out(self, m: MissionView):
-        pass   # the seed's rover goes one cell at a time: its next cell is a few centimetres on
+        pass  # the seed's rover goes one cell at a time: its next cell is a few centimetres on
 
     def map_changed(self, m: MissionView):
         if not self.cells:
             return
-        rest = [m.rover_xy()] + self.cells[self.next_cell:]
+        rest = [m.rover_xy()] + self.cells[self.next_cell :]
         if not m.grid.path_blocked(rest):
             return
         cells = self._raw_path(m, m.rover_xy(), m.current_leg.goal)

@@ -6,13 +6,19 @@
 A* runs the seed's 16-direction motion model and is optimal on its grid; the potential
 field is the seed's comparison planner (Table 4.2). Every failure is a NoPathError.
 """
+
 from .config import PlannerConfig
 from .errors import GoalBlocked, LocalMinimum, NoPathError, OutsideArena, StartBlocked, Unreachable
 
 # The grid and the planners compile with numba (about 0.2 s to import): loaded when first used,
 # so that a command that only parses its flags (`rovernav plan --help`, a refused flag) is quick.
-_LAZY = {"OccupancyGrid": ".grid", "PLANNERS": ".planner", "PlanResult": ".planner",
-         "plan": ".planner", "warm_up": ".planner"}
+_LAZY = {
+    "OccupancyGrid": ".grid",
+    "PLANNERS": ".planner",
+    "PlanResult": ".planner",
+    "plan": ".planner",
+    "warm_up": ".planner",
+}
 
 
 def __getattr__(name: str):
@@ -26,6 +32,16 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "PLANNERS", "GoalBlocked", "LocalMinimum", "NoPathError", "OccupancyGrid", "OutsideArena",
-    "PlanResult", "PlannerConfig", "StartBlocked", "Unreachable", "plan", "warm_up",
+    "PLANNERS",
+    "GoalBlocked",
+    "LocalMinimum",
+    "NoPathError",
+    "OccupancyGrid",
+    "OutsideArena",
+    "PlanResult",
+    "PlannerConfig",
+    "StartBlocked",
+    "Unreachable",
+    "plan",
+    "warm_up",
 ]

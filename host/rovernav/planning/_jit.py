@@ -5,6 +5,7 @@ numba compiles, and stay valid plain Python, so each has a `.py_func` either way
 compare the compiled and the plain versions). Compiled code is cached on disk beside the
 sources, so only the first run on a machine pays the compile time (about a second).
 """
+
 from __future__ import annotations
 
 import logging

@@ -10,6 +10,7 @@ Speed: the loop runs compiled (numba, see `_jit`) over flat arrays with an index
 heap (decrease-key, at most one entry per cell), checks each move's cells on the fly, and
 stops as soon as the goal leaves the open list. Measured in `benchmarks/bench_planning.py`.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -150,5 +151,3 @@ def path_cost(path: np.ndarray) -> float:
         return 0.0
     steps = np.diff(np.asarray(path, dtype=np.float64), axis=0)
     return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
-
-

@@ -1,12 +1,13 @@
 """Why a planner found no path: a small hierarchy under `NoPathError`.
 
-    NoPathError
-     ├── OutsideArena     the start or the target is off the arena
-     ├── StartBlocked     the start is inside an (inflated) obstacle or too close to the wall
-     ├── GoalBlocked      the same for the target
-     ├── Unreachable      both are free, but no route joins them
-     └── LocalMinimum     the potential-field planner stopped where no neighbour is lower
+NoPathError
+ ├── OutsideArena     the start or the target is off the arena
+ ├── StartBlocked     the start is inside an (inflated) obstacle or too close to the wall
+ ├── GoalBlocked      the same for the target
+ ├── Unreachable      both are free, but no route joins them
+ └── LocalMinimum     the potential-field planner stopped where no neighbour is lower
 """
+
 from __future__ import annotations
 
 from ..errors import PlanningError
@@ -37,8 +38,10 @@ class _Blocked(NoPathError):
     which = ""
 
     def __init__(self, xy: tuple[float, float], clearance_m: float, what: str = "robot radius + sonar margin"):
-        super().__init__(f"{self.which} {fmt_xy(xy)} is blocked: it lies within {clearance_m:.2f} m "
-                         f"({what}) of an obstacle or the arena wall")
+        super().__init__(
+            f"{self.which} {fmt_xy(xy)} is blocked: it lies within {clearance_m:.2f} m "
+            f"({what}) of an obstacle or the arena wall"
+        )
         self.xy = xy
 
 
@@ -58,8 +61,7 @@ class Unreachable(NoPathError):
     """Start and target are free, but obstacles separate them."""
 
     def __init__(self, start: tuple[float, float], goal: tuple[float, float]):
-        super().__init__(f"no path from start {fmt_xy(start)} to target {fmt_xy(goal)}: "
-                         f"obstacles enclose one of them")
+        super().__init__(f"no path from start {fmt_xy(start)} to target {fmt_xy(goal)}: obstacles enclose one of them")
         self.start = start
         self.goal = goal
 

@@ -22,6 +22,7 @@ Obstacles and layers
     (A disk dilation of the raw cells rounds each obstacle out by up to a cell, 0.03 m, and
     measured no faster: 0.06 to 0.1 ms for the seed's arena, 0.8 ms for 40 boxes on 400 × 400.)
 """
+
 from __future__ import annotations
 
 import math
@@ -45,20 +46,20 @@ class OccupancyGrid:
         if not (width_m > 0 and height_m > 0 and math.isfinite(width_m) and math.isfinite(height_m)):
             raise ValueError(f"arena size must be positive, got {width_m!r} × {height_m!r} m")
         self.config = config or PlannerConfig()
-        check_grid(width_m, height_m, self.config.resolution_m)   # before any array is allocated
+        check_grid(width_m, height_m, self.config.resolution_m)  # before any array is allocated
         self.width_m = float(width_m)
         self.height_m = float(height_m)
         self.resolution_m = self.config.resolution_m
         res = self.resolution_m
         self.nx = max(1, int(math.ceil(self.width_m / res - 1e-9)))
         self.ny = max(1, int(math.ceil(self.height_m / res - 1e-9)))
-        self.xs = (np.arange(self.nx) + 0.5) * res   # cell-centre x [m] of each column
-        self.ys = (np.arange(self.ny) + 0.5) * res   # cell-centre y [m] of each row
-        self.boxes: list[tuple[float, float, float, float]] = []   # (x, y, w, h) [m]
+        self.xs = (np.arange(self.nx) + 0.5) * res  # cell-centre x [m] of each column
+        self.ys = (np.arange(self.ny) + 0.5) * res  # cell-centre y [m] of each row
+        self.boxes: list[tuple[float, float, float, float]] = []  # (x, y, w, h) [m]
         # Oblique walls: (centre x, centre y, unit vector along x, y, half length, half thickness) [m]
         self.walls: list[tuple[float, float, float, float, float, float]] = []
-        self.posts: list[tuple[float, float, float]] = []   # (x, y, radius) [m]
-        self.disks: list[np.ndarray] = []   # groups of disks, each an (n, 3) array of (x, y, radius) [m]
+        self.posts: list[tuple[float, float, float]] = []  # (x, y, radius) [m]
+        self.disks: list[np.ndarray] = []  # groups of disks, each an (n, 3) array of (x, y, radius) [m]
         self.raw = np.zeros((self.ny, self.nx), dtype=np.bool_)
         self.inflated = self.wall_band(self.config.inflation_m)
         self.geometric = True  # the layers follow from boxes and disks (False: given by from_layers)
@@ -67,8 +68,9 @@ class OccupancyGrid:
     # --- construction --------------------------------------------------------------------
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario, config: PlannerConfig | None = None,
-                      all_obstacles: bool = False) -> OccupancyGrid:
+    def from_scenario(
+        cls, scenario: Scenario, config: PlannerConfig | None = None, all_obstacles: bool = False
+    ) -> OccupancyGrid:
         """The scenario's arena with its known obstacles (all of them when `all_obstacles`)."""
         grid = cls(scenario.arena.width_m, scenario.arena.height_m, config)
         for o in scenario.obstacles:
@@ -83,13 +85,17 @@ class OccupancyGrid:
         return grid
 
     @classmethod
-    def from_layers(cls, inflated: np.ndarray, resolution_m: float = 1.0,
-                    raw: np.ndarray | None = None) -> OccupancyGrid:
+    def from_layers(
+        cls, inflated: np.ndarray, resolution_m: float = 1.0, raw: np.ndarray | None = None
+    ) -> OccupancyGrid:
         """A grid whose inflated layer is given as is (no geometry, no wall band): for tests and tools."""
         inflated = np.ascontiguousarray(inflated, dtype=np.bool_)
         ny, nx = inflated.shape
-        grid = cls(nx * resolution_m, ny * resolution_m,
-                   PlannerConfig(resolution_m=resolution_m, robot_radius_m=0.0, sonar_margin_m=0.0))
+        grid = cls(
+            nx * resolution_m,
+            ny * resolution_m,
+            PlannerConfig(resolution_m=resolution_m, robot_radius_m=0.0, sonar_margin_m=0.0),
+        )
         grid.inflated = inflated.copy()
         grid.geometric = False
         grid.raw = inflated.copy() if raw is None else np.ascontiguousarray(raw, dtype=np.bool_).copy()
@@ -152,27 +158,30 @@ class OccupancyGrid:
         r1 = min(int(math.ceil((y1 + margin) / res - 0.5)) + 1, self.ny)
         return slice(r0, max(r1, r0)), slice(c0, max(c1, c0))
 
-    def _box_distance(self, box: tuple[float, float, float, float], reach: float
-                      ) -> tuple[tuple[slice, slice], np.ndarray]:
+    def _box_distance(
+        self, box: tuple[float, float, float, float], reach: float
+    ) -> tuple[tuple[slice, slice], np.ndarray]:
         x, y, w, h = box
         rows, cols = self._window(x - w / 2, y - h / 2, x + w / 2, y + h / 2, reach)
         dx = np.maximum(np.abs(self.xs[cols] - x) - w / 2, 0.0)
         dy = np.maximum(np.abs(self.ys[rows] - y) - h / 2, 0.0)
         return (rows, cols), np.sqrt(dx[None, :] ** 2 + dy[:, None] ** 2)
 
-    def _wall_local(self, wall: tuple[float, float, float, float, float, float], reach: float
-                    ) -> tuple[tuple[slice, slice], np.ndarray, np.ndarray]:
+    def _wall_local(
+        self, wall: tuple[float, float, float, float, float, float], reach: float
+    ) -> tuple[tuple[slice, slice], np.ndarray, np.ndarray]:
         """The window of cells round an oblique wall and their centres in the wall's frame:
         (window, |along| [m], |across| [m])."""
         cx, cy, ux, uy, a, b = wall
-        ex, ey = abs(ux) * a + abs(uy) * b, abs(uy) * a + abs(ux) * b   # half extents of the bounding box
+        ex, ey = abs(ux) * a + abs(uy) * b, abs(uy) * a + abs(ux) * b  # half extents of the bounding box
         rows, cols = self._window(cx - ex, cy - ey, cx + ex, cy + ey, reach)
         dx = self.xs[cols][None, :] - cx
         dy = self.ys[rows][:, None] - cy
         return (rows, cols), np.abs(dx * ux + dy * uy), np.abs(dy * ux - dx * uy)
 
-    def _wall_distance(self, wall: tuple[float, float, float, float, float, float], reach: float
-                       ) -> tuple[tuple[slice, slice], np.ndarray]:
+    def _wall_distance(
+        self, wall: tuple[float, float, float, float, float, float], reach: float
+    ) -> tuple[tuple[slice, slice], np.ndarray]:
         window, along, across = self._wall_local(wall, reach)
         a, b = wall[4], wall[5]
         return window, np.hypot(np.maximum(along - a, 0.0), np.maximum(across - b, 0.0))
@@ -189,7 +198,7 @@ class OccupancyGrid:
         rows, cols = self._window(lo[0], lo[1], hi[0], hi[1], reach + float(disks[:, 2].max()))
         dx = self.xs[cols][None, None, :] - disks[:, 0, None, None]
         dy = self.ys[rows][None, :, None] - disks[:, 1, None, None]
-        d = np.sqrt(dx ** 2 + dy ** 2) - disks[:, 2, None, None]
+        d = np.sqrt(dx**2 + dy**2) - disks[:, 2, None, None]
         return (rows, cols), np.maximum(d.min(axis=0), 0.0)
 
     def obstacle_distance(self, reach_m: float) -> np.ndarray:
@@ -236,7 +245,7 @@ class OccupancyGrid:
         res = self.resolution_m
         c0, c1 = max(int(math.floor((x_m - w_m / 2) / res)), 0), min(int(math.ceil((x_m + w_m / 2) / res)), self.nx)
         r0, r1 = max(int(math.floor((y_m - h_m / 2) / res)), 0), min(int(math.ceil((y_m + h_m / 2) / res)), self.ny)
-        self.raw[r0:max(r1, r0), c0:max(c1, c0)] = True
+        self.raw[r0 : max(r1, r0), c0 : max(c1, c0)] = True
         self.boxes.append(box)
         self.version += 1
         return self._grow(self._box_distance(box, self.config.inflation_m))
@@ -261,8 +270,14 @@ class OccupancyGrid:
         if y0_m == y1_m:
             return self.add_box((x0_m + x1_m) / 2, y0_m, abs(x1_m - x0_m), thickness_m)
         ux, uy = (x1_m - x0_m) / length, (y1_m - y0_m) / length
-        wall = (float((x0_m + x1_m) / 2), float((y0_m + y1_m) / 2), float(ux), float(uy), float(length / 2),
-                float(thickness_m / 2))
+        wall = (
+            float((x0_m + x1_m) / 2),
+            float((y0_m + y1_m) / 2),
+            float(ux),
+            float(uy),
+            float(length / 2),
+            float(thickness_m / 2),
+        )
         h = self.resolution_m / 2
         # A cell's square and the rectangle overlap unless an axis of either separates them: the
         # square's axes (x, y: within the rectangle's bounding box) or the rectangle's (along,
@@ -308,8 +323,13 @@ class OccupancyGrid:
         if not len(pts):
             return np.empty((0, 2), dtype=np.int64), 0
         res = self.resolution_m
-        cells = np.stack([np.minimum(np.floor(pts[:, 0] / res).astype(np.int64), self.nx - 1),
-                          np.minimum(np.floor(pts[:, 1] / res).astype(np.int64), self.ny - 1)], axis=1)
+        cells = np.stack(
+            [
+                np.minimum(np.floor(pts[:, 0] / res).astype(np.int64), self.nx - 1),
+                np.minimum(np.floor(pts[:, 1] / res).astype(np.int64), self.ny - 1),
+            ],
+            axis=1,
+        )
         cells = np.unique(cells, axis=0)
         new = cells[~self.raw[cells[:, 1], cells[:, 0]]]
         self.raw[cells[:, 1], cells[:, 0]] = True
@@ -337,5 +357,7 @@ class OccupancyGrid:
         return not bool(polyline_clear(self.inflated, self.to_cell_units(pts)))
 
     def __repr__(self) -> str:
-        return (f"OccupancyGrid({self.width_m} × {self.height_m} m, {self.nx} × {self.ny} cells of "
-                f"{self.resolution_m} m, {int(self.raw.sum())} raw / {int(self.inflated.sum())} inflated)")
+        return (
+            f"OccupancyGrid({self.width_m} × {self.height_m} m, {self.nx} × {self.ny} cells of "
+            f"{self.resolution_m} m, {int(self.raw.sum())} raw / {int(self.inflated.sum())} inflated)"
+        )

@@ -13,6 +13,7 @@ segment (cell centre to cell centre) touches is free:
 is free anyway). `segment.segment_clear` gives the same answer for every move, so a
 simplified path obeys the very rule the search did.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,9 +34,24 @@ def _mids(dx: int, dy: int) -> tuple[tuple[int, int], tuple[int, int]]:
     return (0, dy // 2), (dx, dy // 2)
 
 
-_MOVES = [(1, 0), (0, 1), (-1, 0), (0, -1),
-          (1, 1), (-1, 1), (-1, -1), (1, -1),
-          (2, 1), (1, 2), (-1, 2), (-2, 1), (-2, -1), (-1, -2), (1, -2), (2, -1)]
+_MOVES = [
+    (1, 0),
+    (0, 1),
+    (-1, 0),
+    (0, -1),
+    (1, 1),
+    (-1, 1),
+    (-1, -1),
+    (1, -1),
+    (2, 1),
+    (1, 2),
+    (-1, 2),
+    (-2, 1),
+    (-2, -1),
+    (-1, -2),
+    (1, -2),
+    (2, -1),
+]
 
 MOVE_DX = np.array([m[0] for m in _MOVES], dtype=np.int64)
 MOVE_DY = np.array([m[1] for m in _MOVES], dtype=np.int64)

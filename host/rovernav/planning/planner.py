@@ -1,4 +1,5 @@
 """`plan()`: from a start to a target on an occupancy grid, with A* or the potential field."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -59,8 +60,13 @@ def _polyline_length(points: np.ndarray) -> float:
     return float(np.hypot(d[:, 0], d[:, 1]).sum())
 
 
-def plan(grid: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float],
-         planner: str = "astar", simplify: bool = True) -> PlanResult:
+def plan(
+    grid: OccupancyGrid,
+    start_xy: Sequence[float],
+    goal_xy: Sequence[float],
+    planner: str = "astar",
+    simplify: bool = True,
+) -> PlanResult:
     """Plan a path [m] from `start_xy` to `goal_xy`.
 
     planner: "astar" (optimal on the 16-direction grid; its path touches no inflated cell) or
@@ -110,6 +116,12 @@ def plan(grid: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float
     if len(waypoints) == 1:
         waypoints = np.array([start, goal])
     elapsed = time.perf_counter() - t0
-    return PlanResult(planner=planner, waypoints=tuple((float(x), float(y)) for x, y in waypoints),
-                      cells=np.asarray(cells, dtype=np.int64), length_m=_polyline_length(waypoints),
-                      cost_m=float(cost) * res, time_s=elapsed, expansions=int(expansions))
+    return PlanResult(
+        planner=planner,
+        waypoints=tuple((float(x), float(y)) for x, y in waypoints),
+        cells=np.asarray(cells, dtype=np.int64),
+        length_m=_polyline_length(waypoints),
+        cost_m=float(cost) * res,
+        time_s=elapsed,
+        expansions=int(expansions),
+    )

@@ -24,6 +24,7 @@ inflated margin allows (its waypoints are simplified against the body layer too)
 full margin the seed's small obstacles (0.08 m, 0.28 to 0.35 m apart) merge into one wall
 from the bottom wall to near the top one, and no descent could reach the target there.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -55,8 +56,9 @@ def potential_map(grid: OccupancyGrid, goal_cell: tuple[int, int]) -> np.ndarray
     return u
 
 
-def potential_cells(grid: OccupancyGrid, start_cell: tuple[int, int], goal_cell: tuple[int, int],
-                    blocked: np.ndarray) -> tuple[np.ndarray, int]:
+def potential_cells(
+    grid: OccupancyGrid, start_cell: tuple[int, int], goal_cell: tuple[int, int], blocked: np.ndarray
+) -> tuple[np.ndarray, int]:
     """Descend U from start to goal cell over `blocked`: returns (cells (n, 2) of (ix, iy), moves examined).
 
     Raises LocalMinimum at the first cell with no lower allowed neighbour.

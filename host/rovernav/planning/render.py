@@ -1,4 +1,5 @@
 """Draw a grid, its obstacles and a path into a PNG (OpenCV), for `rovernav plan --plot`."""
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
@@ -22,12 +23,17 @@ _START = (40, 160, 40)
 _TARGET = (200, 90, 20)
 
 
-def render(grid: OccupancyGrid, path: Sequence[Sequence[float]] | None = None,
-           cells: np.ndarray | None = None, start: Sequence[float] | None = None,
-           goal: Sequence[float] | None = None,
-           unknown_boxes: Iterable[tuple[float, float, float, float]] = (),
-           partial: Sequence[Sequence[float]] | None = None, body: np.ndarray | None = None,
-           width_px: int = 800) -> np.ndarray:
+def render(
+    grid: OccupancyGrid,
+    path: Sequence[Sequence[float]] | None = None,
+    cells: np.ndarray | None = None,
+    start: Sequence[float] | None = None,
+    goal: Sequence[float] | None = None,
+    unknown_boxes: Iterable[tuple[float, float, float, float]] = (),
+    partial: Sequence[Sequence[float]] | None = None,
+    body: np.ndarray | None = None,
+    width_px: int = 800,
+) -> np.ndarray:
     """A BGR image of the grid: free white, inflated light red, raw obstacles dark; y up.
 
     body: a harder layer inside the inflated one (the potential field's robot-radius limit),

@@ -7,6 +7,7 @@ where the segment passes through a grid corner (within 1e-9 of the segment's len
 cells beside that corner count as touched. This is the supercover of the segment; for the
 16 moves of `moves` it touches exactly the cells `moves.move_allowed` checks.
 """
+
 from __future__ import annotations
 
 import math
@@ -91,4 +92,3 @@ def polyline_clear(blocked, points):
         if not segment_clear(blocked, points[i, 0], points[i, 1], points[i + 1, 0], points[i + 1, 1]):
             return False
     return True
-

@@ -6,6 +6,7 @@ first one whose segment fails `segment.segment_clear` on the inflated grid — s
 segment obeys the same conservative rule as the search, the start and the goal are kept, and
 the result is never longer than the input (each jump replaces a chain by its chord).
 """
+
 from __future__ import annotations
 
 import numpy as np

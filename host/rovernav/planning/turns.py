@@ -27,6 +27,7 @@ deep; its face was 19 cm from where the rover turned, its far side 11 cm).
 `body_clear` checks a straight drive against the same map with the body's half width: the line
 on from where a rover stopped backing out (rovernav.mission.strategies).
 """
+
 from __future__ import annotations
 
 import math
@@ -56,8 +57,9 @@ REFUSED_NEAR_M = 0.06
 HALF_SEEN_DEPTH_M = 0.08
 
 
-def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone_deg: float,
-              depth_m: float = HALF_SEEN_DEPTH_M) -> np.ndarray:
+def half_seen(
+    grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone_deg: float, depth_m: float = HALF_SEEN_DEPTH_M
+) -> np.ndarray:
     """Cells [ny, nx] within depth_m behind each occupied cell of an echo's arc, along the beam.
 
     echoes: anything with x_m, y_m, heading_deg, bearing_deg and range_m (rovernav.mapping.learned_map.Echo),
@@ -65,8 +67,11 @@ def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone
     holds an obstacle (an arc the sonar has since seen clear casts nothing).
     """
     mask = np.zeros((grid.ny, grid.nx), dtype=np.bool_)
-    rows = [(e.x_m, e.y_m, e.heading_deg + e.bearing_deg, e.range_m, e.heading_deg) for e in echoes
-            if e.range_m is not None and e.range_m > 0]
+    rows = [
+        (e.x_m, e.y_m, e.heading_deg + e.bearing_deg, e.range_m, e.heading_deg)
+        for e in echoes
+        if e.range_m is not None and e.range_m > 0
+    ]
     if not rows or depth_m <= 0:
         return mask
     a = np.asarray(rows, dtype=np.float64)
@@ -75,7 +80,7 @@ def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone
     sy = a[:, 1] + sonar_offset_m * np.cos(h)
     res = grid.resolution_m
     across = np.radians(np.linspace(-cone_deg / 2, cone_deg / 2, 5))
-    axis = np.radians(a[:, 2])[:, None] + across[None, :]          # [echo, ray]
+    axis = np.radians(a[:, 2])[:, None] + across[None, :]  # [echo, ray]
     ux, uy = np.sin(axis), np.cos(axis)
     r = a[:, 3][:, None]
     ix = np.floor((sx[:, None] + r * ux) / res).astype(np.int64)
@@ -87,7 +92,7 @@ def half_seen(grid: OccupancyGrid, echoes: Sequence, sonar_offset_m: float, cone
         return mask
     steps = np.arange(1, int(math.ceil(depth_m / (res / 2))) + 1) * min(res / 2, depth_m)
     e, k = np.nonzero(hit)
-    d = r[e, 0][:, None] + steps[None, :]                             # [hit, step]
+    d = r[e, 0][:, None] + steps[None, :]  # [hit, step]
     px = sx[e][:, None] + d * ux[e, k][:, None]
     py = sy[e][:, None] + d * uy[e, k][:, None]
     jx = np.floor(px / res).astype(np.int64).ravel()
@@ -105,7 +110,7 @@ def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0, hidden: np.ndarray 
     their centres less half a cell.
     """
     exact = grid.obstacle_distance(reach_m)
-    seen = grid.raw & (exact > grid.resolution_m * math.sqrt(0.5))   # no known obstacle explains them
+    seen = grid.raw & (exact > grid.resolution_m * math.sqrt(0.5))  # no known obstacle explains them
     if hidden is not None:
         seen = seen | (hidden & (exact > grid.resolution_m * math.sqrt(0.5)))
     if seen.any():
@@ -116,7 +121,7 @@ def clearance_map(grid: OccupancyGrid, reach_m: float = 1.0, hidden: np.ndarray 
 
 def turn_deg(a: Sequence[float], b: Sequence[float], c: Sequence[float]) -> float:
     """The turn [deg, 0..180] at b of the path a -> b -> c."""
-    h1 = math.atan2(b[0] - a[0], b[1] - a[1])   # headings: 0 up the arena, clockwise positive
+    h1 = math.atan2(b[0] - a[0], b[1] - a[1])  # headings: 0 up the arena, clockwise positive
     h2 = math.atan2(c[0] - b[0], c[1] - b[1])
     return abs(math.degrees(wrap_rad(h2 - h1)))
 
@@ -130,8 +135,9 @@ def _refused_near(p: Sequence[float], refused: Sequence[Sequence[float]]) -> boo
     return any(math.dist(p, r) <= REFUSED_NEAR_M for r in refused)
 
 
-def refused_turn(waypoints: Sequence[Sequence[float]], refused: Sequence[Sequence[float]]
-                 ) -> tuple[float, float] | None:
+def refused_turn(
+    waypoints: Sequence[Sequence[float]], refused: Sequence[Sequence[float]]
+) -> tuple[float, float] | None:
     """Where the path asks for a turn (of more than MIN_TURN_DEG, at a waypoint between its ends)
     near a spot where the rover refused one; None when it does not."""
     pts = [(float(x), float(y)) for x, y in waypoints]
@@ -141,9 +147,12 @@ def refused_turn(waypoints: Sequence[Sequence[float]], refused: Sequence[Sequenc
     return None
 
 
-def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
-             refused: Sequence[Sequence[float]] = (), hidden: np.ndarray | None = None
-             ) -> tuple[list[tuple[float, float]], int, int]:
+def turnable(
+    grid: OccupancyGrid,
+    waypoints: Sequence[Sequence[float]],
+    refused: Sequence[Sequence[float]] = (),
+    hidden: np.ndarray | None = None,
+) -> tuple[list[tuple[float, float]], int, int]:
     """The path with each waypoint whose turn the body cannot make moved where it can.
 
     A waypoint near a spot in `refused` (where the rover refused a turn) has no room either;
@@ -155,11 +164,12 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
         return pts, 0, 0
     need = SWING_M + SWING_MARGIN_M
     res = grid.resolution_m
-    clear = clearance_map(grid, reach_m=need + res, hidden=hidden)   # only whether there is room matters
+    clear = clearance_map(grid, reach_m=need + res, hidden=hidden)  # only whether there is room matters
     # Candidate offsets: every cell's step within SEARCH_M (tried for the least added length).
     k = int(SEARCH_M / res)
-    offs = [(dx * res, dy * res) for dx in range(-k, k + 1) for dy in range(-k, k + 1)
-            if 0 < dx * dx + dy * dy <= k * k]
+    offs = [
+        (dx * res, dy * res) for dx in range(-k, k + 1) for dy in range(-k, k + 1) if 0 < dx * dx + dy * dy <= k * k
+    ]
     moved = 0
     stuck: set[int] = set()
     # A moved waypoint changes the turn at the one before it: look again, until nothing moves.
@@ -183,8 +193,9 @@ def turnable(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]],
     return pts, moved, len(stuck)
 
 
-def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], heading_deg: float,
-                hidden: np.ndarray | None = None) -> tuple[list[tuple[float, float]], int]:
+def ahead_first(
+    grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], heading_deg: float, hidden: np.ndarray | None = None
+) -> tuple[list[tuple[float, float]], int]:
     """The turn at the path's first point, where the rover stands facing heading_deg.
 
     When that turn is more than MIN_TURN_DEG and the corners have no room there (the grid's
@@ -214,16 +225,23 @@ def ahead_first(grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], headi
         if not grid.contains(*q):
             break
         if _room(clear, grid, q) < side:
-            break   # the sides would scrape on the way: nothing further on is reached either
+            break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
         if _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
             return [p0, q] + pts[1:], 1
     return pts, -1
 
 
-def _nearest_room(grid: OccupancyGrid, clear: np.ndarray, need: float, offs: list[tuple[float, float]],
-                  a: tuple[float, float], b: tuple[float, float], c: tuple[float, float],
-                  refused: Sequence[Sequence[float]] = ()) -> tuple[float, float] | None:
+def _nearest_room(
+    grid: OccupancyGrid,
+    clear: np.ndarray,
+    need: float,
+    offs: list[tuple[float, float]],
+    a: tuple[float, float],
+    b: tuple[float, float],
+    c: tuple[float, float],
+    refused: Sequence[Sequence[float]] = (),
+) -> tuple[float, float] | None:
     """The point near b, for the least added length, with room to turn (or little turn to make)
     and clear legs from a and to c; None when there is none within SEARCH_M."""
     base = math.dist(a, b) + math.dist(b, c)

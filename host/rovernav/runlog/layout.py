@@ -18,6 +18,7 @@ from file, docs/foxglove-layout.json.
     |  frames from the rover (raw messages)                 |
     +-------------------------------------------------------+
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,41 +41,64 @@ def build_layout():
     topics = {}
     for c in CHANNELS:
         if c.schema == "foxglove.PoseInFrame":
-            topics[c.topic] = fl.BaseRendererPoseTopicSettings(visible=True, type="arrow",
-                                                               arrow_scale=(0.12, 0.02, 0.02),
-                                                               color=_POSE_COLOURS[c.topic])
+            topics[c.topic] = fl.BaseRendererPoseTopicSettings(
+                visible=True, type="arrow", arrow_scale=(0.12, 0.02, 0.02), color=_POSE_COLOURS[c.topic]
+            )
         elif c.schema == "foxglove.PosesInFrame":
             colour = _PATH_COLOURS[c.topic]
-            topics[c.topic] = fl.BaseRendererPosesTopicSettings(visible=True, type="line", line_width=0.01,
-                                                                gradient=colour)
+            topics[c.topic] = fl.BaseRendererPosesTopicSettings(
+                visible=True, type="line", line_width=0.01, gradient=colour
+            )
         elif c.schema == "foxglove.Grid":
-            topics[c.topic] = fl.BaseRendererGridTopicSettings(visible=True, color_mode="gradient",
-                                                               color_field="occupied_pct",
-                                                               gradient=("#ffffff00", "#202020ff"),
-                                                               min_value=0.0, max_value=100.0, draw_behind=True)
+            topics[c.topic] = fl.BaseRendererGridTopicSettings(
+                visible=True,
+                color_mode="gradient",
+                color_field="occupied_pct",
+                gradient=("#ffffff00", "#202020ff"),
+                min_value=0.0,
+                max_value=100.0,
+                draw_behind=True,
+            )
         elif c.schema == "foxglove.SceneUpdate":
             topics[c.topic] = fl.BaseRendererSceneUpdateTopicSettings(visible=True)
-    three_d = fl.ThreeDeePanel(title="arena", config=fl.ThreeDeeConfig(
-        follow_tf=ARENA_FRAME, fixed_frame=ARENA_FRAME, topics=topics))
-    image = fl.ImagePanel(title="camera", config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic="/camera/image")))
-    plot = fl.PlotPanel(title="the rover's position sd (mm)", config=fl.PlotConfig(paths=[
-        fl.PlotSeries(value="/rover/status.sd_x_mm"), fl.PlotSeries(value="/rover/status.sd_y_mm")]))
+    three_d = fl.ThreeDeePanel(
+        title="arena", config=fl.ThreeDeeConfig(follow_tf=ARENA_FRAME, fixed_frame=ARENA_FRAME, topics=topics)
+    )
+    image = fl.ImagePanel(
+        title="camera", config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic="/camera/image"))
+    )
+    plot = fl.PlotPanel(
+        title="the rover's position sd (mm)",
+        config=fl.PlotConfig(
+            paths=[fl.PlotSeries(value="/rover/status.sd_x_mm"), fl.PlotSeries(value="/rover/status.sd_y_mm")]
+        ),
+    )
     events = fl.LogPanel(title="events", config=fl.LogConfig(topic_to_render="/events"))
-    frames = fl.RawMessagesPanel(title="frames from the rover", config=fl.RawMessagesConfig(
-        topic_path="/link/rover_to_host"))
-    right = fl.SplitContainer(direction="column", items=[fl.SplitItem(proportion=2, content=image),
-                                                         fl.SplitItem(proportion=1, content=plot),
-                                                         fl.SplitItem(proportion=1, content=events)])
-    top = fl.SplitContainer(direction="row", items=[fl.SplitItem(proportion=2, content=three_d),
-                                                    fl.SplitItem(proportion=1, content=right)])
-    return fl.Layout(content=fl.SplitContainer(direction="column", items=[fl.SplitItem(proportion=3, content=top),
-                                                                         fl.SplitItem(proportion=1, content=frames)]))
+    frames = fl.RawMessagesPanel(
+        title="frames from the rover", config=fl.RawMessagesConfig(topic_path="/link/rover_to_host")
+    )
+    right = fl.SplitContainer(
+        direction="column",
+        items=[
+            fl.SplitItem(proportion=2, content=image),
+            fl.SplitItem(proportion=1, content=plot),
+            fl.SplitItem(proportion=1, content=events),
+        ],
+    )
+    top = fl.SplitContainer(
+        direction="row", items=[fl.SplitItem(proportion=2, content=three_d), fl.SplitItem(proportion=1, content=right)]
+    )
+    return fl.Layout(
+        content=fl.SplitContainer(
+            direction="column",
+            items=[fl.SplitItem(proportion=3, content=top), fl.SplitItem(proportion=1, content=frames)],
+        )
+    )
 
 
 def layout_text() -> str:
     data = json.loads(build_layout().to_json())
-    data = {"_generated": "by python -m rovernav.runlog.layout --write from host/rovernav/runlog/; do not edit",
-            **data}
+    data = {"_generated": "by python -m rovernav.runlog.layout --write from host/rovernav/runlog/; do not edit", **data}
     return json.dumps(data, indent=2, sort_keys=True) + "\n"
 
 

@@ -15,6 +15,7 @@ side by side. From that point on the recorded rover was answering the recorded h
 one: replay is open loop, so what follows the first difference says what the new host would
 have sent to that rover, not what a new run would do.
 """
+
 from __future__ import annotations
 
 import collections
@@ -47,8 +48,8 @@ class RecordedRun:
     source: str
     meta: dict[str, str]
     summary: dict
-    inputs: list[dict]      # host inputs and taken rover frames ("kind": "rx"), in the order they came
-    sent: list[dict]        # the frames the host sent
+    inputs: list[dict]  # host inputs and taken rover frames ("kind": "rx"), in the order they came
+    sent: list[dict]  # the frames the host sent
     truncated: bool = False  # the log's end is missing (a run cut off): read up to its last whole chunk
 
 
@@ -82,7 +83,7 @@ def _read_streamed(f) -> tuple[dict, list]:
                 metas[record.name] = dict(record.metadata)
             elif isinstance(record, Message) and topics.get(record.channel_id) in _TOPICS:
                 messages.append((topics[record.channel_id], record.data))
-    except Exception:   # noqa: BLE001 - the damage, whatever the reader makes of it, ends what can be read
+    except Exception:  # noqa: BLE001 - the damage, whatever the reader makes of it, ends what can be read
         pass
     return metas, messages
 
@@ -99,7 +100,7 @@ def read_log(path: str | Path) -> RecordedRun:
     with open(path, "rb") as f:
         try:
             metas, messages = _read_indexed(f)
-        except Exception as exc:   # noqa: BLE001 - any damage: read what comes before it
+        except Exception as exc:  # noqa: BLE001 - any damage: read what comes before it
             f.seek(0)
             metas, messages = _read_streamed(f)
             truncated = True
@@ -126,8 +127,10 @@ def read_log(path: str | Path) -> RecordedRun:
     if meta.get("version") != str(LOG_VERSION):
         raise LogFileError(f"{path}: run log version {meta.get('version')}; this rovernav replays {LOG_VERSION}")
     if meta.get("schema_hash") != f"0x{mg.SCHEMA_HASH:08X}":
-        raise LogFileError(f"{path}: recorded with protocol schema {meta.get('schema_hash')}, this rovernav "
-                           f"speaks 0x{mg.SCHEMA_HASH:08X}: the frames cannot be decoded the same way")
+        raise LogFileError(
+            f"{path}: recorded with protocol schema {meta.get('schema_hash')}, this rovernav "
+            f"speaks 0x{mg.SCHEMA_HASH:08X}: the frames cannot be decoded the same way"
+        )
     try:
         spec = MissionSpec.from_json(meta["spec"])
     except (KeyError, ValueError) as exc:
@@ -149,7 +152,7 @@ class _ReplayLink:
         self.frames: collections.deque[Frame] = collections.deque()
 
     def send(self, message) -> int:
-        message.values()   # the range checks a real link makes before a frame goes out
+        message.values()  # the range checks a real link makes before a frame goes out
         seq = self._seq
         self._seq = (seq + 1) & 0xFF
         return seq
@@ -164,8 +167,16 @@ class _Outputs(Recorder):
         self.events: list[tuple[float, str]] = []
 
     def host_tx(self, t_s, message, seq):
-        self.sent.append({"t_s": t_s, "type": message.NAME, "id": message.ID, "seq": seq,
-                          "payload_hex": message.pack().hex(), "fields": message.to_dict()})
+        self.sent.append(
+            {
+                "t_s": t_s,
+                "type": message.NAME,
+                "id": message.ID,
+                "seq": seq,
+                "payload_hex": message.pack().hex(),
+                "fields": message.to_dict(),
+            }
+        )
 
     def host_event(self, t_s, text):
         self.events.append((t_s, text))
@@ -196,7 +207,7 @@ class ReplayResult:
             if not _same(a[i], b[i]):
                 return i
         if len(a) == len(b) or (self.run.truncated and len(b) > len(a)):
-            return None   # a cut-off log ends where its last whole chunk ends: the host may say more
+            return None  # a cut-off log ends where its last whole chunk ends: the host may say more
         return min(len(a), len(b))
 
     @property
@@ -209,14 +220,23 @@ class ReplayResult:
     def to_json(self) -> dict:
         i = self.first_difference()
         rec, new = self.paths(True), self.paths(False)
-        out = {"identical": i is None, "frames_recorded": len(self.run.sent), "frames_replayed": len(self.sent),
-               "paths_recorded": len(rec), "paths_replayed": len(new),
-               "outcome_recorded": self.run.summary.get("host_outcome"), "outcome_replayed": self.outcome,
-               "changed": _changes(self.run.spec, self.spec),
-               "paths": [{"recorded": _path_json(a), "replayed": _path_json(b)}
-                         for a, b in _zip_longest(rec, new)]}
+        out = {
+            "identical": i is None,
+            "frames_recorded": len(self.run.sent),
+            "frames_replayed": len(self.sent),
+            "paths_recorded": len(rec),
+            "paths_replayed": len(new),
+            "outcome_recorded": self.run.summary.get("host_outcome"),
+            "outcome_replayed": self.outcome,
+            "changed": _changes(self.run.spec, self.spec),
+            "paths": [{"recorded": _path_json(a), "replayed": _path_json(b)} for a, b in _zip_longest(rec, new)],
+        }
         if i is not None:
-            out["first_difference"] = {"index": i, "recorded": _brief(self.run.sent, i), "replayed": _brief(self.sent, i)}
+            out["first_difference"] = {
+                "index": i,
+                "recorded": _brief(self.run.sent, i),
+                "replayed": _brief(self.sent, i),
+            }
         return out
 
 
@@ -238,8 +258,12 @@ def _zip_longest(a: list, b: list):
 def _path_json(p: dict | None) -> dict | None:
     if p is None:
         return None
-    return {"t_s": p["t_s"], "path_id": p["path_id"], "length_m": round(p["length_m"], 4),
-            "waypoints_m": [[x, y] for x, y in p["waypoints"]]}
+    return {
+        "t_s": p["t_s"],
+        "path_id": p["path_id"],
+        "length_m": round(p["length_m"], 4),
+        "waypoints_m": [[x, y] for x, y in p["waypoints"]],
+    }
 
 
 def paths_sent(frames: list[dict]) -> list[dict]:
@@ -255,7 +279,7 @@ def paths_sent(frames: list[dict]) -> list[dict]:
         p = by_id.get(key)
         if p is None or p["total"] != m["total"] or p.get("done"):
             if p is not None and p.get("done") and m["first_index"] in p["chunks"]:
-                continue   # a re-sent chunk of a path already whole
+                continue  # a re-sent chunk of a path already whole
             p = {"t_s": f["t_s"], "path_id": key, "total": m["total"], "chunks": {}}
             by_id[key] = p
             order.append(p)
@@ -265,8 +289,14 @@ def paths_sent(frames: list[dict]) -> list[dict]:
     out = []
     for p in order:
         pts = [pt for first in sorted(p["chunks"]) for pt in p["chunks"][first]]
-        out.append({"t_s": p["t_s"], "path_id": p["path_id"], "waypoints": pts,
-                    "length_m": sum(math.dist(a, b) for a, b in zip(pts, pts[1:]))})
+        out.append(
+            {
+                "t_s": p["t_s"],
+                "path_id": p["path_id"],
+                "waypoints": pts,
+                "length_m": sum(math.dist(a, b) for a, b in zip(pts, pts[1:])),
+            }
+        )
     return out
 
 
@@ -275,8 +305,9 @@ def _changes(a: MissionSpec, b: MissionSpec) -> dict:
     for f in dataclasses.fields(MissionSpec):
         va, vb = getattr(a, f.name), getattr(b, f.name)
         if f.name == "planner":
-            out.update({f"planner.{k}": [va.get(k), vb.get(k)] for k in sorted(set(va) | set(vb))
-                        if va.get(k) != vb.get(k)})
+            out.update(
+                {f"planner.{k}": [va.get(k), vb.get(k)] for k in sorted(set(va) | set(vb)) if va.get(k) != vb.get(k)}
+            )
         elif va != vb and f.name != "host_boot_id":
             out[f.name] = [va, vb]
     return out
@@ -284,8 +315,10 @@ def _changes(a: MissionSpec, b: MissionSpec) -> dict:
 
 # ------------------------------------------------------------ running it
 
-def replay(run: RecordedRun, spec: MissionSpec | None = None,
-           progress: Callable[[float], None] | None = None) -> ReplayResult:
+
+def replay(
+    run: RecordedRun, spec: MissionSpec | None = None, progress: Callable[[float], None] | None = None
+) -> ReplayResult:
     """Feed `run`'s recorded inputs to a Mission built from `spec` (default: the recorded one)."""
     spec = spec or run.spec
     outputs = _Outputs()
@@ -293,7 +326,7 @@ def replay(run: RecordedRun, spec: MissionSpec | None = None,
         link = _ReplayLink()
         mission = start_host(spec, link, Path(workdir), on_event=lambda t, text: None, recorder=outputs)
         try:
-            if "initial_map" in run.meta:   # `rovernav run --map`: what the sonar had found before
+            if "initial_map" in run.meta:  # `rovernav run --map`: what the sonar had found before
                 from ..mapping import SonarReading
 
                 mission.map.replay([SonarReading(**r) for r in json.loads(run.meta["initial_map"])])
@@ -328,47 +361,64 @@ def _feed(spec, inputs, link, mission, outputs, workdir, progress):
             mission.fail(r["why"])
         elif kind == "new_host":
             link = _ReplayLink()
-            mission = start_host(spec.with_boot_id(r["host_boot_id"]), link, Path(workdir),
-                                 on_event=lambda t, text: None, recorder=outputs)
-        elif kind != "rx":   # (a frame outside a tick: none is; the mission reads only in tick)
+            mission = start_host(
+                spec.with_boot_id(r["host_boot_id"]),
+                link,
+                Path(workdir),
+                on_event=lambda t, text: None,
+                recorder=outputs,
+            )
+        elif kind != "rx":  # (a frame outside a tick: none is; the mission reads only in tick)
             raise LogFileError(f"the log has a host input of unknown kind {kind!r}")
     return mission
 
 
 # ------------------------------------------------------------ showing it
 
+
 def report_text(result: ReplayResult, limit: int = 12) -> str:
     run = result.run
     lines = []
     if run.truncated:
-        lines.append(f"the log ends early (a run cut off before its log was closed): read up to its last whole "
-                     f"chunk, {run.inputs[-1]['t_s'] if run.inputs else 0:.1f} s of the mission")
+        lines.append(
+            f"the log ends early (a run cut off before its log was closed): read up to its last whole "
+            f"chunk, {run.inputs[-1]['t_s'] if run.inputs else 0:.1f} s of the mission"
+        )
     changes = _changes(run.spec, result.spec)
     if changes:
         lines.append("changed: " + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changes.items()))
     i = result.first_difference()
     rec_paths, new_paths = result.paths(True), result.paths(False)
     if i is None:
-        lines.append(f"identical: the replayed host sent the same {len(result.sent)} frames at the same times "
-                     f"({len(rec_paths)} paths); outcome {result.outcome}")
+        lines.append(
+            f"identical: the replayed host sent the same {len(result.sent)} frames at the same times "
+            f"({len(rec_paths)} paths); outcome {result.outcome}"
+        )
         return "\n".join(lines)
     a, b = _brief(run.sent, i), _brief(result.sent, i)
     lines.append(f"DIFFERENT from frame {i + 1} of {len(run.sent)} recorded ({len(result.sent)} replayed):")
     lines.append("  recorded: " + (_show(a) if a else "(nothing more)"))
     lines.append("  replayed: " + (_show(b) if b else "(nothing more)"))
     lines.append("  (from here on the recorded rover answered the recorded host: what follows is open loop)")
-    differ = [k for k, (p, q) in enumerate(_zip_longest(rec_paths, new_paths))
-              if p is None or q is None or p["waypoints"] != q["waypoints"] or p["t_s"] != q["t_s"]]
-    lines.append(f"paths: {len(rec_paths)} recorded, {len(new_paths)} replayed; "
-                 + (f"the first that differs is #{differ[0] + 1}" if differ else "all the same"))
+    differ = [
+        k
+        for k, (p, q) in enumerate(_zip_longest(rec_paths, new_paths))
+        if p is None or q is None or p["waypoints"] != q["waypoints"] or p["t_s"] != q["t_s"]
+    ]
+    lines.append(
+        f"paths: {len(rec_paths)} recorded, {len(new_paths)} replayed; "
+        + (f"the first that differs is #{differ[0] + 1}" if differ else "all the same")
+    )
     lines.append(f"  {'#':>2}  {'recorded':<34} {'replayed':<34} same")
     for k, (p, q) in enumerate(_zip_longest(rec_paths, new_paths)[:limit]):
         same = p is not None and q is not None and p["waypoints"] == q["waypoints"] and p["t_s"] == q["t_s"]
         lines.append(f"  {k + 1:>2}  {_show_path(p):<34} {_show_path(q):<34} {'yes' if same else 'NO'}")
     if len(rec_paths) > limit or len(new_paths) > limit:
         lines.append(f"  ... ({max(len(rec_paths), len(new_paths)) - limit} more)")
-    lines.append(f"outcome: recorded {run.summary.get('host_outcome', '?')}, replayed {result.outcome}"
-                 + (f" ({result.error})" if result.error else ""))
+    lines.append(
+        f"outcome: recorded {run.summary.get('host_outcome', '?')}, replayed {result.outcome}"
+        + (f" ({result.error})" if result.error else "")
+    )
     return "\n".join(lines)
 
 
@@ -401,8 +451,9 @@ def replay_picture(result: ReplayResult, path: Path) -> None:
         from ..scenario import Arena, Pose, Scenario, Target
         from ..scenario import Mission as ScMission
 
-        sc = Scenario("run", Arena(spec.arena_w_m, spec.arena_h_m), Pose(*spec.start_xy), Target(*spec.target_xy),
-                      ScMission(), ())
+        sc = Scenario(
+            "run", Arena(spec.arena_w_m, spec.arena_h_m), Pose(*spec.start_xy), Target(*spec.target_xy), ScMission(), ()
+        )
     canvas = Canvas(sc.arena.width_m, sc.arena.height_m, px_per_m=min(400, 1600 / max(sc.arena.width_m, 1e-3)))
     draw_arena(canvas, SimpleNamespace(scenario=sc, mission=result.mission), result.mission.grid)
     img = canvas.img
@@ -412,10 +463,13 @@ def replay_picture(result: ReplayResult, path: Path) -> None:
                 cv2.polylines(img, [canvas.pts(p["waypoints"])], False, colour, width, cv2.LINE_AA)
     footer = np.full((60, img.shape[1], 3), 255, np.uint8)
     i = result.first_difference()
-    lines = ["recorded paths: blue (wide); replayed: magenta",
-             "identical" if i is None else
-             f"first difference at {(_brief(result.run.sent, i) or _brief(result.sent, i))['t_s']:.2f} s; "
-             + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in _changes(result.run.spec, result.spec).items())]
+    lines = [
+        "recorded paths: blue (wide); replayed: magenta",
+        "identical"
+        if i is None
+        else f"first difference at {(_brief(result.run.sent, i) or _brief(result.sent, i))['t_s']:.2f} s; "
+        + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in _changes(result.run.spec, result.spec).items()),
+    ]
     for k, line in enumerate(lines):
         cv2.putText(footer, line[:110], (10, 22 + 24 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
     ok, png = cv2.imencode(".png", np.vstack([img, footer]))

@@ -23,6 +23,7 @@ offers `foxglove.sdk.v1`, or open the run's MCAP file instead. tests/test_runlog
 test_the_live_view_accepts_only_the_sdk_subprotocol checks these four answers (sdk.v1 alone,
 both names, websocket.v1 alone, none) against the installed SDK.
 """
+
 from __future__ import annotations
 
 import json
@@ -83,7 +84,7 @@ def _json(data: dict) -> bytes:
 def _quat(heading_deg: float):
     from foxglove.messages import Quaternion
 
-    yaw = math.pi / 2 - math.radians(heading_deg)   # heading: 0 = +y, clockwise; yaw: from +x, anticlockwise
+    yaw = math.pi / 2 - math.radians(heading_deg)  # heading: 0 = +y, clockwise; yaw: from +x, anticlockwise
     return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
@@ -108,8 +109,16 @@ def _poses_along(points) -> list:
 
 def message_record(message, seq: int, n: int, t_s: float, counter: int | None = None) -> dict:
     """A link frame as the log keeps it: its payload (what replay decodes) and its fields (to read)."""
-    return {"n": n, "t_s": t_s, "type": message.NAME, "id": message.ID, "seq": seq,
-            "payload_hex": message.pack().hex(), "fields": message.to_dict(), "counter": counter}
+    return {
+        "n": n,
+        "t_s": t_s,
+        "type": message.NAME,
+        "id": message.ID,
+        "seq": seq,
+        "payload_hex": message.pack().hex(),
+        "fields": message.to_dict(),
+        "counter": counter,
+    }
 
 
 def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
@@ -124,10 +133,10 @@ def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
     version, msg_id, seq = raw[0], raw[1], raw[2]
     if version == mg.PROTOCOL_VERSION:
         return msg_id, seq, None
-    end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES   # the counter ends where the tag begins
+    end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES  # the counter ends where the tag begins
     if version != mg.PROTOCOL_VERSION | mg.SIGN_FLAG or end - mg.SIGN_COUNTER_BYTES < HEADER_BYTES:
         return None
-    return msg_id, seq, int.from_bytes(raw[end - mg.SIGN_COUNTER_BYTES:end], "little")
+    return msg_id, seq, int.from_bytes(raw[end - mg.SIGN_COUNTER_BYTES : end], "little")
 
 
 class RunLog(Recorder):
@@ -136,8 +145,18 @@ class RunLog(Recorder):
     None: no server). `truth`: the simulator's true world may be shown (unknown obstacles,
     true pose)."""
 
-    def __init__(self, path: str | Path | None, spec, *, source: str, scenario=None, truth: bool = False,
-                 live_port: int | None = None, image_hz: float = DEFAULT_IMAGE_HZ, meta: dict | None = None):
+    def __init__(
+        self,
+        path: str | Path | None,
+        spec,
+        *,
+        source: str,
+        scenario=None,
+        truth: bool = False,
+        live_port: int | None = None,
+        image_hz: float = DEFAULT_IMAGE_HZ,
+        meta: dict | None = None,
+    ):
         import foxglove
         from foxglove.channels import (
             CompressedImageChannel,
@@ -164,15 +183,20 @@ class RunLog(Recorder):
         self._next_arena_s = 0.0
         self._next_time_s = 0.0
         self._driven: list[tuple[float, float, float]] = []
-        self._radio = None          # the simulator's radio counts (watch_radio)
+        self._radio = None  # the simulator's radio counts (watch_radio)
         self._next_radio_s = 0.0
         self._echoes = 0
-        self._sent: tuple[int, int, int | None] | None = None   # the frame the host wrote last (id, seq, counter)
+        self._sent: tuple[int, int, int | None] | None = None  # the frame the host wrote last (id, seq, counter)
         self._closed = False
         self.ctx = foxglove.Context()
-        typed = {"foxglove.CompressedImage": CompressedImageChannel, "foxglove.PoseInFrame": PoseInFrameChannel,
-                 "foxglove.PosesInFrame": PosesInFrameChannel, "foxglove.SceneUpdate": SceneUpdateChannel,
-                 "foxglove.Grid": GridChannel, "foxglove.Log": LogChannel}
+        typed = {
+            "foxglove.CompressedImage": CompressedImageChannel,
+            "foxglove.PoseInFrame": PoseInFrameChannel,
+            "foxglove.PosesInFrame": PosesInFrameChannel,
+            "foxglove.SceneUpdate": SceneUpdateChannel,
+            "foxglove.Grid": GridChannel,
+            "foxglove.Log": LogChannel,
+        }
         self.channels = {}
         for c in CHANNELS:
             if c.sim_only and not truth:
@@ -180,20 +204,27 @@ class RunLog(Recorder):
             if c.schema in typed:
                 self.channels[c.topic] = typed[c.schema](c.topic, context=self.ctx)
             else:
-                schema = foxglove.Schema(name=c.schema, encoding="jsonschema",
-                                         data=json.dumps(json_schema(c.schema)).encode())
-                self.channels[c.topic] = foxglove.Channel(c.topic, schema=schema, message_encoding="json",
-                                                          context=self.ctx)
+                schema = foxglove.Schema(
+                    name=c.schema, encoding="jsonschema", data=json.dumps(json_schema(c.schema)).encode()
+                )
+                self.channels[c.topic] = foxglove.Channel(
+                    c.topic, schema=schema, message_encoding="json", context=self.ctx
+                )
         self.writer = None
         if self.path is not None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self.writer = foxglove.open_mcap(self.partial, allow_overwrite=True, context=self.ctx)
-            except Exception as exc:   # the SDK raises its own error types
+            except Exception as exc:  # the SDK raises its own error types
                 raise RunLogError(f"cannot write the run log {self.path}: {exc}") from None
-            run = {"format": LOG_FORMAT, "version": str(LOG_VERSION), "source": source,
-                   "started_unix_ns": str(self.t0_ns), "spec": spec.to_json(),
-                   "schema_hash": f"0x{mg.SCHEMA_HASH:08X}"}
+            run = {
+                "format": LOG_FORMAT,
+                "version": str(LOG_VERSION),
+                "source": source,
+                "started_unix_ns": str(self.t0_ns),
+                "spec": spec.to_json(),
+                "schema_hash": f"0x{mg.SCHEMA_HASH:08X}",
+            }
             run.update({k: (v if isinstance(v, str) else json.dumps(v)) for k, v in (meta or {}).items()})
             self.writer.write_metadata(META_RUN, run)
         self.server = None
@@ -201,8 +232,13 @@ class RunLog(Recorder):
             try:
                 # Speaks LIVE_SUBPROTOCOL ("foxglove.sdk.v1") only: the SDK has no way to take
                 # "foxglove.websocket.v1" too (see the module's docstring).
-                self.server = foxglove.start_server(name="rovernav", host="127.0.0.1", port=live_port,
-                                                    context=self.ctx, capabilities=[foxglove.Capability.Time])
+                self.server = foxglove.start_server(
+                    name="rovernav",
+                    host="127.0.0.1",
+                    port=live_port,
+                    context=self.ctx,
+                    capabilities=[foxglove.Capability.Time],
+                )
             except Exception as exc:
                 self.close()
                 raise RunLogError(f"cannot serve the live view on 127.0.0.1:{live_port}: {exc}") from None
@@ -246,8 +282,15 @@ class RunLog(Recorder):
         if kind == "detection" and data.get("x_m") is not None:
             from foxglove.messages import PoseInFrame
 
-            self._log("/camera/fix", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                      pose=_pose(data["x_m"], data["y_m"], data["heading_deg"])))
+            self._log(
+                "/camera/fix",
+                t_s,
+                PoseInFrame(
+                    timestamp=self._stamp(t_s),
+                    frame_id=ARENA_FRAME,
+                    pose=_pose(data["x_m"], data["y_m"], data["heading_deg"]),
+                ),
+            )
             if not self.truth:
                 self._drive(t_s, data["x_m"], data["y_m"])
 
@@ -278,8 +321,9 @@ class RunLog(Recorder):
     def host_path(self, t_s: float, path_id: int, path) -> None:
         from foxglove.messages import PosesInFrame
 
-        self._log("/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                  poses=_poses_along(path)))
+        self._log(
+            "/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=_poses_along(path))
+        )
 
     def host_sonar(self, t_s: float, reading, changed: bool) -> None:
         if reading.range_m is None:
@@ -292,12 +336,23 @@ class RunLog(Recorder):
         sx, sy = sonar_origin(r.x_m, r.y_m, r.heading_deg, off)
         ex, ey = echo_point(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m, off)
         self._echoes += 1
-        entity = SceneEntity(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, id=f"echo-{self._echoes}",
-                             lines=[LinePrimitive(thickness=0.004, points=[Point3(x=sx, y=sy, z=0.05),
-                                                                          Point3(x=ex, y=ey, z=0.05)],
-                                                  color=_color(1.0, 0.6, 0.0, 0.5))],
-                             spheres=[SpherePrimitive(pose=_pose(ex, ey, z_m=0.05), size=Vector3(x=0.02, y=0.02, z=0.02),
-                                                      color=_color(1.0, 0.0, 0.0))])
+        entity = SceneEntity(
+            timestamp=self._stamp(t_s),
+            frame_id=ARENA_FRAME,
+            id=f"echo-{self._echoes}",
+            lines=[
+                LinePrimitive(
+                    thickness=0.004,
+                    points=[Point3(x=sx, y=sy, z=0.05), Point3(x=ex, y=ey, z=0.05)],
+                    color=_color(1.0, 0.6, 0.0, 0.5),
+                )
+            ],
+            spheres=[
+                SpherePrimitive(
+                    pose=_pose(ex, ey, z_m=0.05), size=Vector3(x=0.02, y=0.02, z=0.02), color=_color(1.0, 0.0, 0.0)
+                )
+            ],
+        )
         self._log("/sonar/echo", t_s, SceneUpdate(entities=[entity]))
 
     def host_map(self, t_s: float, learned_map) -> None:
@@ -307,16 +362,27 @@ class RunLog(Recorder):
         sonar = learned_map.sonar
         pct = np.clip(np.rint(sonar.probability() * 100), 0, 100).astype(np.uint8)
         pct[sonar.known] = 100
-        inflated = g.inflated[:pct.shape[0], :pct.shape[1]].astype(np.uint8) * 100
-        cells = np.stack([pct, inflated], axis=-1)   # rows from y = 0 up, as Grid wants
+        inflated = g.inflated[: pct.shape[0], : pct.shape[1]].astype(np.uint8) * 100
+        cells = np.stack([pct, inflated], axis=-1)  # rows from y = 0 up, as Grid wants
         ny, nx = pct.shape
-        self._log("/map/occupancy", t_s, Grid(
-            timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, pose=_pose(0.0, 0.0),
-            column_count=nx, cell_size=Vector2(x=sonar.resolution_m, y=sonar.resolution_m),
-            row_stride=nx * 2, cell_stride=2,
-            fields=[PackedElementField(name="occupied_pct", offset=0, type=PackedElementFieldNumericType.Uint8),
-                    PackedElementField(name="inflated", offset=1, type=PackedElementFieldNumericType.Uint8)],
-            data=cells.tobytes()))
+        self._log(
+            "/map/occupancy",
+            t_s,
+            Grid(
+                timestamp=self._stamp(t_s),
+                frame_id=ARENA_FRAME,
+                pose=_pose(0.0, 0.0),
+                column_count=nx,
+                cell_size=Vector2(x=sonar.resolution_m, y=sonar.resolution_m),
+                row_stride=nx * 2,
+                cell_stride=2,
+                fields=[
+                    PackedElementField(name="occupied_pct", offset=0, type=PackedElementFieldNumericType.Uint8),
+                    PackedElementField(name="inflated", offset=1, type=PackedElementFieldNumericType.Uint8),
+                ],
+                data=cells.tobytes(),
+            ),
+        )
 
     # ------------------------------------------------------------ the runner's
 
@@ -325,8 +391,11 @@ class RunLog(Recorder):
         if direction == "host_to_rover":
             self._sent = sent_frame(data)
         if data:
-            self._log(f"/link/raw/{direction}", self.t_s,
-                      _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}))
+            self._log(
+                f"/link/raw/{direction}",
+                self.t_s,
+                _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}),
+            )
 
     def watch_radio(self, counts) -> None:
         """Log `counts()` (the simulated radio's figures, sim/channel.radio_figures) on /sim/radio
@@ -335,8 +404,18 @@ class RunLog(Recorder):
 
     def _publish_radio(self, t_s: float) -> None:
         figures = self._radio()
-        self._log("/sim/radio", t_s, _json({"t_s": t_s, "to_rover": figures["to_rover"],
-                                            "to_host": figures["to_host"], "bursts": figures["bursts"]}))
+        self._log(
+            "/sim/radio",
+            t_s,
+            _json(
+                {
+                    "t_s": t_s,
+                    "to_rover": figures["to_rover"],
+                    "to_host": figures["to_host"],
+                    "bursts": figures["bursts"],
+                }
+            ),
+        )
 
     def camera_image(self, t_s: float, frame_bgr: np.ndarray) -> None:
         """A camera frame; kept when the image rate allows (the first, then every 1/image_hz s)."""
@@ -348,8 +427,11 @@ class RunLog(Recorder):
 
         ok, jpeg = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
         if ok:
-            self._log("/camera/image", t_s, CompressedImage(timestamp=self._stamp(t_s), frame_id="camera",
-                                                            data=jpeg.tobytes(), format="jpeg"))
+            self._log(
+                "/camera/image",
+                t_s,
+                CompressedImage(timestamp=self._stamp(t_s), frame_id="camera", data=jpeg.tobytes(), format="jpeg"),
+            )
 
     def true_pose(self, t_s: float, x_m: float, y_m: float, heading_deg: float) -> None:
         """The simulated rover's pose (thinned to TRUE_POSE_EVERY_S)."""
@@ -358,8 +440,11 @@ class RunLog(Recorder):
         self._next_true_s = t_s + TRUE_POSE_EVERY_S
         from foxglove.messages import PoseInFrame
 
-        self._log("/sim/true_pose", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                     pose=_pose(x_m, y_m, heading_deg)))
+        self._log(
+            "/sim/true_pose",
+            t_s,
+            PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, pose=_pose(x_m, y_m, heading_deg)),
+        )
         self._drive(t_s, x_m, y_m)
 
     def event(self, t_s: float, text: str, source: str = "sim", level: str = "info") -> None:
@@ -401,11 +486,19 @@ class RunLog(Recorder):
         from foxglove.messages import PoseInFrame
 
         if m.flags & mg.StatusFlag.MISSION_ACTIVE or m.x_mm or m.y_mm:
-            self._log("/rover/estimate", t_s, PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                          pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100)))
+            self._log(
+                "/rover/estimate",
+                t_s,
+                PoseInFrame(
+                    timestamp=self._stamp(t_s),
+                    frame_id=ARENA_FRAME,
+                    pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100),
+                ),
+            )
         # The state by name ("drive"), and by number in state_code (a Plot panel plots numbers).
-        state = mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ \
-            else f"unknown {m.state}"
+        state = (
+            mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else f"unknown {m.state}"
+        )
         self._log("/rover/status", t_s, _json({"t_s": t_s, **m.to_dict(), "state": state, "state_code": m.state}))
 
     def _drive(self, t_s: float, x_m: float, y_m: float) -> None:
@@ -418,8 +511,11 @@ class RunLog(Recorder):
     def _publish_driven(self, t_s: float) -> None:
         from foxglove.messages import PosesInFrame
 
-        self._log("/rover/driven_path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME,
-                                                          poses=_poses_along(self._driven)))
+        self._log(
+            "/rover/driven_path",
+            t_s,
+            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=_poses_along(self._driven)),
+        )
 
     def _arena(self, t_s: float) -> None:
         from foxglove.messages import (
@@ -438,29 +534,59 @@ class RunLog(Recorder):
         cubes, cylinders = [], []
         for o in sc.obstacles:
             if o.known or self.truth:
-                cubes.append(CubePrimitive(pose=_pose(o.x_m, o.y_m, z_m=height / 2),
-                                           size=Vector3(x=o.w_m, y=o.h_m, z=height), color=known if o.known else unknown))
+                cubes.append(
+                    CubePrimitive(
+                        pose=_pose(o.x_m, o.y_m, z_m=height / 2),
+                        size=Vector3(x=o.w_m, y=o.h_m, z=height),
+                        color=known if o.known else unknown,
+                    )
+                )
         for w in sc.walls:
             if w.known or self.truth:
                 heading = math.degrees(math.atan2(w.x1_m - w.x0_m, w.y1_m - w.y0_m))
-                cubes.append(CubePrimitive(pose=_pose((w.x0_m + w.x1_m) / 2, (w.y0_m + w.y1_m) / 2, heading + 90.0,
-                                                      z_m=height / 2),
-                                           size=Vector3(x=w.thickness_m, y=w.length_m, z=height),
-                                           color=known if w.known else unknown))
+                cubes.append(
+                    CubePrimitive(
+                        pose=_pose((w.x0_m + w.x1_m) / 2, (w.y0_m + w.y1_m) / 2, heading + 90.0, z_m=height / 2),
+                        size=Vector3(x=w.thickness_m, y=w.length_m, z=height),
+                        color=known if w.known else unknown,
+                    )
+                )
         for p in sc.posts:
             if p.known or self.truth:
-                cylinders.append(CylinderPrimitive(pose=_pose(p.x_m, p.y_m, z_m=height / 2),
-                                                   size=Vector3(x=2 * p.radius_m, y=2 * p.radius_m, z=height),
-                                                   bottom_scale=1.0, top_scale=1.0, color=known if p.known else unknown))
-        floor = CubePrimitive(pose=_pose(sc.arena.width_m / 2, sc.arena.height_m / 2, z_m=-0.005),
-                              size=Vector3(x=sc.arena.width_m, y=sc.arena.height_m, z=0.01),
-                              color=_color(0.15, 0.15, 0.15, 1.0))
-        marks = [SpherePrimitive(pose=_pose(sc.start.x_m, sc.start.y_m, z_m=0.02), size=Vector3(x=0.06, y=0.06, z=0.02),
-                                 color=_color(0.1, 0.8, 0.1)),
-                 SpherePrimitive(pose=_pose(sc.target.x_m, sc.target.y_m, z_m=0.02), size=Vector3(x=0.08, y=0.08, z=0.02),
-                                 color=_color(1.0, 0.85, 0.0))]
-        entity = SceneEntity(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, id="arena",
-                             cubes=[floor] + cubes, cylinders=cylinders, spheres=marks)
+                cylinders.append(
+                    CylinderPrimitive(
+                        pose=_pose(p.x_m, p.y_m, z_m=height / 2),
+                        size=Vector3(x=2 * p.radius_m, y=2 * p.radius_m, z=height),
+                        bottom_scale=1.0,
+                        top_scale=1.0,
+                        color=known if p.known else unknown,
+                    )
+                )
+        floor = CubePrimitive(
+            pose=_pose(sc.arena.width_m / 2, sc.arena.height_m / 2, z_m=-0.005),
+            size=Vector3(x=sc.arena.width_m, y=sc.arena.height_m, z=0.01),
+            color=_color(0.15, 0.15, 0.15, 1.0),
+        )
+        marks = [
+            SpherePrimitive(
+                pose=_pose(sc.start.x_m, sc.start.y_m, z_m=0.02),
+                size=Vector3(x=0.06, y=0.06, z=0.02),
+                color=_color(0.1, 0.8, 0.1),
+            ),
+            SpherePrimitive(
+                pose=_pose(sc.target.x_m, sc.target.y_m, z_m=0.02),
+                size=Vector3(x=0.08, y=0.08, z=0.02),
+                color=_color(1.0, 0.85, 0.0),
+            ),
+        ]
+        entity = SceneEntity(
+            timestamp=self._stamp(t_s),
+            frame_id=ARENA_FRAME,
+            id="arena",
+            cubes=[floor] + cubes,
+            cylinders=cylinders,
+            spheres=marks,
+        )
         self._log("/arena", t_s, SceneUpdate(entities=[entity]))
 
 

@@ -11,6 +11,7 @@ A rover with the host's key refuses all four (bad_tag, replayed, bad_tag, not_si
 mission goes on. On an unsigned link (`--unsigned`) the rover refuses only the signed forgery
 (it has no key: unverified) and obeys the rest: replays, altered frames and STOPs.
 """
+
 from __future__ import annotations
 
 import collections
@@ -31,11 +32,11 @@ class Attacker:
         self.rng = np.random.default_rng(seed)
         self.start_s, self.period_s = start_s, period_s
         self._next_s = start_s
-        self._heard: collections.deque[tuple[float, bytes]] = collections.deque(maxlen=256)   # (time, raw body)
+        self._heard: collections.deque[tuple[float, bytes]] = collections.deque(maxlen=256)  # (time, raw body)
         self._own = Signer(bytes(self.rng.integers(0, 256, 16, dtype=np.uint8)), SIGN_HOST_TO_ROVER)
         self.injected = {kind: 0 for kind in KINDS}
         self._i = 0
-        self._sending = False   # its own frames go through the same channel: not recorded
+        self._sending = False  # its own frames go through the same channel: not recorded
 
     def observe(self, data: bytes, now_s: float) -> None:
         """What the host put on the air (whole frames)."""
@@ -69,7 +70,7 @@ class Attacker:
     def _make(self, kind: str, now_s: float) -> bytes | None:
         seq = int(self.rng.integers(256))
         if kind == "forged":
-            self._own.jump_past(1 << 46)   # far past anything the host has sent
+            self._own.jump_past(1 << 46)  # far past anything the host has sent
             return encode_frame(Stop(reason=StopReason.OPERATOR), seq, self._own)
         if kind == "unsigned":
             return encode_frame(Stop(reason=StopReason.OPERATOR), seq)
@@ -84,6 +85,6 @@ class Attacker:
             if payload_len > 0:
                 body[3 + int(self.rng.integers(payload_len))] ^= 1 << int(self.rng.integers(8))
             if signed:
-                body[end - SIGN_COUNTER_BYTES:end] = ((1 << 46) + self._i).to_bytes(SIGN_COUNTER_BYTES, "little")
+                body[end - SIGN_COUNTER_BYTES : end] = ((1 << 46) + self._i).to_bytes(SIGN_COUNTER_BYTES, "little")
         body += crc16(bytes(body)).to_bytes(2, "little")
         return cobs_encode(bytes(body)) + b"\x00"

@@ -21,6 +21,7 @@ machine, where drawing the rover with the whole frame's noise took 0.9 ms.
 Conventions are the vision package's: arena metres from the bottom-left corner, x right, y up;
 heading 0 = +y (up the image), clockwise positive, degrees.
 """
+
 from __future__ import annotations
 
 import math
@@ -35,11 +36,11 @@ from ..vision.config import ARUCO_SIZE_M, MARKER_DISTANCE_M, ROVER_CENTRE_FRACTI
 
 BGR = tuple[int, int, int]
 
-_SUPERSAMPLE = 8          # sub-pixels per pixel side when filling shapes (a power of 2)
-_SHIFT_BITS = 8           # fixed-point fraction bits given to cv2.fillPoly
-_NOISE_PAD = 48           # the noise bank is this much larger than a frame on each axis
-_NOISE_POOL = 8           # noisy copies of the lit arena kept for the floor's noise (see Renderer)
-_FRESH_MARGIN_PX = 8      # fresh noise this far round every marker and the rover's body
+_SUPERSAMPLE = 8  # sub-pixels per pixel side when filling shapes (a power of 2)
+_SHIFT_BITS = 8  # fixed-point fraction bits given to cv2.fillPoly
+_NOISE_PAD = 48  # the noise bank is this much larger than a frame on each axis
+_NOISE_POOL = 8  # noisy copies of the lit arena kept for the floor's noise (see Renderer)
+_FRESH_MARGIN_PX = 8  # fresh noise this far round every marker and the rover's body
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class Scene:
         "target" (a colour square like that marker) or an int (an ArUco tag with that id).
     """
 
-    arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0   # protocol/vehicle.toml
+    arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0  # protocol/vehicle.toml
     arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0
     obstacles: tuple[tuple[float, float, float, float], ...] = ()
     walls: tuple[tuple[float, float, float, float, float], ...] = ()
@@ -80,7 +81,7 @@ class RoverLook:
     The rover's ArUco tag is centred on the rover centre, its top edge facing forward.
     """
 
-    body_length_m: float = BODY_LENGTH_MM / 1000.0   # protocol/vehicle.toml
+    body_length_m: float = BODY_LENGTH_MM / 1000.0  # protocol/vehicle.toml
     body_width_m: float = BODY_WIDTH_MM / 1000.0
     body_offset_m: float = -0.005
     marker_size_m: float = 0.05
@@ -92,21 +93,26 @@ class RoverLook:
     rover_tag_id: int = 1
     target_tag_id: int = 2
     body_bgr: BGR = (34, 32, 30)
-    front_bgr: BGR = (30, 110, 235)      # orange: OpenCV H 12, inside Table 4.1's 5-22
-    back_bgr: BGR = (70, 175, 45)        # green: H 66, inside 55-80
-    target_bgr: BGR = (40, 215, 220)     # yellow: H 29, inside 25-35
+    front_bgr: BGR = (30, 110, 235)  # orange: OpenCV H 12, inside Table 4.1's 5-22
+    back_bgr: BGR = (70, 175, 45)  # green: H 66, inside 55-80
+    target_bgr: BGR = (40, 215, 220)  # yellow: H 29, inside 25-35
     obstacle_bgr: BGR = (118, 124, 130)  # warm grey, S about 24: below every marker's S floor
     obstacle_rim_bgr: BGR = (92, 96, 100)
     floor_bgr: BGR = (150, 156, 162)
     grout_bgr: BGR = (118, 121, 124)
-    outside_bgr: BGR = (64, 64, 64)      # beyond the arena, when an oblique camera sees past it
+    outside_bgr: BGR = (64, 64, 64)  # beyond the arena, when an oblique camera sees past it
 
     @classmethod
     def for_vision(cls, config: VisionConfig, **overrides) -> RoverLook:
         """A look that matches a VisionConfig's geometry and ArUco settings."""
-        kw = dict(marker_distance_m=config.marker_distance_m, centre_fraction=config.rover_centre_fraction,
-                  aruco_size_m=config.aruco.size_m, aruco_dictionary=config.aruco.dictionary,
-                  rover_tag_id=config.aruco.rover_id, target_tag_id=config.aruco.target_id)
+        kw = dict(
+            marker_distance_m=config.marker_distance_m,
+            centre_fraction=config.rover_centre_fraction,
+            aruco_size_m=config.aruco.size_m,
+            aruco_dictionary=config.aruco.dictionary,
+            rover_tag_id=config.aruco.rover_id,
+            target_tag_id=config.aruco.target_id,
+        )
         kw.update(overrides)
         return cls(**kw)
 
@@ -132,8 +138,12 @@ class Lighting:
     @classmethod
     def random(cls, rng: np.random.Generator) -> Lighting:
         """A plausible uneven light: between about 0.5 and 1.2 across the frame."""
-        return cls(level=float(rng.uniform(0.9, 1.05)), gradient=float(rng.uniform(0.05, 0.25)),
-                   gradient_angle_deg=float(rng.uniform(0.0, 360.0)), vignette=float(rng.uniform(0.1, 0.35)))
+        return cls(
+            level=float(rng.uniform(0.9, 1.05)),
+            gradient=float(rng.uniform(0.05, 0.25)),
+            gradient_angle_deg=float(rng.uniform(0.0, 360.0)),
+            vignette=float(rng.uniform(0.1, 0.35)),
+        )
 
     def factor(self, width_px: int, height_px: int) -> np.ndarray:
         """The light factor of every pixel, float32 (height_px, width_px)."""
@@ -190,7 +200,7 @@ def _group(corners: np.ndarray, groups: list[tuple[int, BGR]]) -> list[_Shape]:
     """Quadrilaterals' corners (N x 4 x 2) split into shapes: [(count, colour), ...] in order."""
     shapes, i = [], 0
     for n, bgr in groups:
-        shapes.append((list(corners[i:i + n]), bgr))
+        shapes.append((list(corners[i : i + n]), bgr))
         i += n
     return shapes
 
@@ -234,7 +244,7 @@ def _paint(img: np.ndarray, polys_px: list[np.ndarray], bgr) -> None:
         return
     x0, y0, cov = got
     h, w = cov.shape
-    roi = img[:, y0:y0 + h, x0:x0 + w]
+    roi = img[:, y0 : y0 + h, x0 : x0 + w]
     roi *= 1.0 - cov
     roi += cov * np.asarray(bgr, dtype=np.float32)[:, None, None]
 
@@ -305,9 +315,9 @@ class Renderer:
         self._mappings: dict[tuple[float, float], Calibration] = {}
         self._templates: dict[tuple, tuple[np.ndarray, list[tuple[int, BGR]]]] = {}
         self._static_key = None
-        self._albedo: np.ndarray | None = None      # float32 3 x H x W (planar), unlit, no rover
-        self._lit: np.ndarray | None = None         # uint8 H x W x 3, lit, no rover, no noise
-        self._fresh: list[tuple[int, int, int, int]] = []   # windows round the static markers
+        self._albedo: np.ndarray | None = None  # float32 3 x H x W (planar), unlit, no rover
+        self._lit: np.ndarray | None = None  # uint8 H x W x 3, lit, no rover, no noise
+        self._fresh: list[tuple[int, int, int, int]] = []  # windows round the static markers
         self._noise: tuple[np.ndarray, np.ndarray] | None = None
         self._pool_offsets: np.ndarray | None = None
         self._pool: list[np.ndarray | None] = []
@@ -344,13 +354,16 @@ class Renderer:
         # Grout: a soft line about 5 mm wide along the tile edges.
         dx = np.abs(x / tile_m - np.round(x / tile_m)) * tile_m
         dy = np.abs(y / tile_m - np.round(y / tile_m)) * tile_m
-        grout = np.exp(-(np.minimum(dx, dy) / 0.0035) ** 2)
+        grout = np.exp(-((np.minimum(dx, dy) / 0.0035) ** 2))
         floor = np.asarray(look.floor_bgr, np.float64)
         gr = np.asarray(look.grout_bgr, np.float64)
         img = floor[None, None, :] + tile_shade[..., None]
         img = img * (1 - grout[..., None]) + gr[None, None, :] * grout[..., None]
-        mottle = cv2.resize(rng.normal(0.0, 6.0, size=(7, 9)).astype(np.float32), (cam.width_px, cam.height_px),
-                            interpolation=cv2.INTER_CUBIC)
+        mottle = cv2.resize(
+            rng.normal(0.0, 6.0, size=(7, 9)).astype(np.float32),
+            (cam.width_px, cam.height_px),
+            interpolation=cv2.INTER_CUBIC,
+        )
         grain = rng.normal(0.0, 2.0, size=(cam.height_px, cam.width_px)).astype(np.float32)
         img = img + (mottle + grain)[..., None]
         inside = (x >= 0) & (x <= arena_w_m) & (y >= 0) & (y <= arena_h_m)
@@ -383,8 +396,8 @@ class Renderer:
             for r in range(cells):
                 for k in range(cells):
                     if pattern[r, k]:
-                        a0, a1 = -half + k * cell_m, -half + (k + 1) * cell_m      # along right
-                        b1, b0 = half - r * cell_m, half - (r + 1) * cell_m        # along forward
+                        a0, a1 = -half + k * cell_m, -half + (k + 1) * cell_m  # along right
+                        b1, b0 = half - r * cell_m, half - (r + 1) * cell_m  # along forward
                         quads.append(np.array([(b1, a0), (b1, a1), (b0, a1), (b0, a0)]))
             return np.array(quads), [(1, (235, 235, 235)), (len(quads) - 1, (20, 20, 20))]
         # The rover: its body, then its colour squares (back, front) or its tag.
@@ -398,8 +411,10 @@ class Renderer:
                 groups += tag_groups
         else:
             back = -look.centre_fraction * look.marker_distance_m
-            for name, u, bgr in (("back", back, look.back_bgr),
-                                 ("front", back + look.marker_distance_m, look.front_bgr)):
+            for name, u, bgr in (
+                ("back", back, look.back_bgr),
+                ("front", back + look.marker_distance_m, look.front_bgr),
+            ):
                 if name not in hidden:
                     quads.append(_rect_local(u, look.marker_size_m, look.marker_size_m))
                     groups.append((1, bgr))
@@ -431,15 +446,20 @@ class Renderer:
             centre = ((x0 + x1) / 2, (y0 + y1) / 2)
             boxes.append(([mapping.to_pixels(_rect(centre, fwd, side, length, t))], look.obstacle_rim_bgr))
             rim = min(0.012, length / 4, t / 4)
-            boxes.append(([mapping.to_pixels(_rect(centre, fwd, side, length - 2 * rim, t - 2 * rim))], look.obstacle_bgr))
+            boxes.append(
+                ([mapping.to_pixels(_rect(centre, fwd, side, length - 2 * rim, t - 2 * rim))], look.obstacle_bgr)
+            )
         for cx, cy, r in scene.posts:
             a = np.linspace(0.0, 2 * math.pi, 24, endpoint=False)
             rim = min(0.012, r / 4)
             for radius, colour in ((r, look.obstacle_rim_bgr), (r - rim, look.obstacle_bgr)):
                 ring = np.stack([cx + radius * np.sin(a), cy + radius * np.cos(a)], axis=1)
                 boxes.append(([mapping.to_pixels(ring)], colour))
-        squares = {"front": (look.marker_size_m, look.front_bgr), "back": (look.marker_size_m, look.back_bgr),
-                   "target": (look.target_size_m, look.target_bgr)}
+        squares = {
+            "front": (look.marker_size_m, look.front_bgr),
+            "back": (look.marker_size_m, look.back_bgr),
+            "target": (look.target_size_m, look.target_bgr),
+        }
         markers: list[_Shape] = []
         for kind, x, y in scene.decoys:
             if isinstance(kind, int):
@@ -494,8 +514,16 @@ class Renderer:
         self._check(scene)
         cam = self.camera
         mapping = self._mapping(scene.arena_w_m, scene.arena_h_m)
-        key = (scene.arena_w_m, scene.arena_h_m, scene.obstacles, scene.walls, scene.posts, scene.target,
-               scene.marker_kind, scene.decoys)
+        key = (
+            scene.arena_w_m,
+            scene.arena_h_m,
+            scene.obstacles,
+            scene.walls,
+            scene.posts,
+            scene.target,
+            scene.marker_kind,
+            scene.decoys,
+        )
         if key != self._static_key:
             self._static_key = None
             self._albedo, self._fresh = self._static_albedo(scene, mapping)
@@ -517,8 +545,8 @@ class Renderer:
 
         def fresh(x0: int, y0: int, x1: int, y1: int, clean: np.ndarray) -> None:
             out = frame[y0:y1, x0:x1]
-            cv2.add(clean, plus[oy + y0:oy + y1, ox + x0:ox + x1], dst=out)
-            cv2.subtract(out, minus[oy + y0:oy + y1, ox + x0:ox + x1], dst=out)
+            cv2.add(clean, plus[oy + y0 : oy + y1, ox + x0 : ox + x1], dst=out)
+            cv2.subtract(out, minus[oy + y0 : oy + y1, ox + x0 : ox + x1], dst=out)
 
         for x0, y0, x1, y1 in self._fresh:
             fresh(x0, y0, x1, y1, lit[y0:y1, x0:x1])
@@ -542,7 +570,7 @@ class Renderer:
         if box is None:
             return None
         x0, y0, x1, y1 = box
-        patch = self._albedo[:, y0:y1, x0:x1].copy()   # type: ignore[index]
+        patch = self._albedo[:, y0:y1, x0:x1].copy()  # type: ignore[index]
         for polys, bgr in _group(corners - (x0, y0), groups):
             _paint(patch, polys, bgr)
         return box, _light_up(patch, self._light[y0:y1, x0:x1])
@@ -560,16 +588,23 @@ class Renderer:
             h, w = self._shape_hw
             oy, ox = (int(v) for v in self._pool_offsets[k])  # type: ignore[index]
             plus, minus = self._noise
-            got = self._pool[k] = cv2.subtract(cv2.add(self._lit, plus[oy:oy + h, ox:ox + w]),
-                                               minus[oy:oy + h, ox:ox + w])
+            got = self._pool[k] = cv2.subtract(
+                cv2.add(self._lit, plus[oy : oy + h, ox : ox + w]), minus[oy : oy + h, ox : ox + w]
+            )
         return got
 
 
 _RENDERERS: dict[tuple, Renderer] = {}
 
 
-def render_frame(scene: Scene, rng: np.random.Generator, *, look: RoverLook | None = None,
-                 camera: Camera | None = None, seed: int = 0) -> np.ndarray:
+def render_frame(
+    scene: Scene,
+    rng: np.random.Generator,
+    *,
+    look: RoverLook | None = None,
+    camera: Camera | None = None,
+    seed: int = 0,
+) -> np.ndarray:
     """One BGR uint8 frame (camera.height_px x camera.width_px x 3, 480 x 640 by default) of a scene.
 
     A convenience over `Renderer`: keeps one renderer per (look, camera, seed), so a loop drawing the

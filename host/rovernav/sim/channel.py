@@ -18,6 +18,7 @@ body = version | msg_id | seq | ...): `counters()` gives bytes sent, delivered, 
 and corrupted, and per message kind the frames that went on the air and those damaged (any byte
 of the frame, its delimiter included, lost or corrupted).
 """
+
 from __future__ import annotations
 
 import collections
@@ -29,7 +30,7 @@ from ..link.messages_gen import MESSAGES
 from ..link.transport import Transport
 from ..radio import ChannelConfig
 
-if TYPE_CHECKING:   # the simulation's generator; this module needs no numpy of its own
+if TYPE_CHECKING:  # the simulation's generator; this module needs no numpy of its own
     import numpy as np
 
 #: The longest run of bytes without a delimiter the frame counter keeps (longer: "malformed").
@@ -39,6 +40,7 @@ _PRUNE_EDGES = 4096
 
 
 # ---------------------------------------------------------------- bursts
+
 
 class BurstProcess:
     """A two-state (good, burst) Gilbert-Elliott process in simulated time, drawn lazily from the
@@ -55,12 +57,12 @@ class BurstProcess:
         self.mean_s, self.share = mean_s, share
         self.mean_good_s = mean_s * (1 - share) / share
         self.rng = rng
-        self._bad0: bool | None = None      # the state at time 0 (drawn at the first question)
-        self._edges: list[float] = []       # switch times not yet forgotten
-        self._base = 0                      # absolute index of _edges[0]
-        self._last = 0.0                    # the last switch time drawn (0: none yet)
-        self._dropped_end = 0.0             # the last forgotten switch time
-        self._dropped_bursts = 0            # bursts that ended at a forgotten switch, and their time
+        self._bad0: bool | None = None  # the state at time 0 (drawn at the first question)
+        self._edges: list[float] = []  # switch times not yet forgotten
+        self._base = 0  # absolute index of _edges[0]
+        self._last = 0.0  # the last switch time drawn (0: none yet)
+        self._dropped_end = 0.0  # the last forgotten switch time
+        self._dropped_bursts = 0  # bursts that ended at a forgotten switch, and their time
         self._dropped_burst_s = 0.0
         self._views: list[BurstView] = []
 
@@ -105,11 +107,11 @@ class BurstProcess:
             upto += 1
         for j in range(self._base, upto):
             end = self._edges[j - self._base]
-            if self._bad_after(j):   # the interval that ends at switch j
+            if self._bad_after(j):  # the interval that ends at switch j
                 self._dropped_bursts += 1
                 self._dropped_burst_s += end - self._dropped_end
             self._dropped_end = end
-        del self._edges[:upto - self._base]
+        del self._edges[: upto - self._base]
         self._base = upto
 
     def stats(self, t_s: float) -> dict:
@@ -126,11 +128,14 @@ class BurstProcess:
                 burst_s += min(end, t_s) - start
             start, k = end, k + 1
         else:
-            if start < t_s and self._bad_after(k):   # past the last switch drawn
+            if start < t_s and self._bad_after(k):  # past the last switch drawn
                 bursts += 1
                 burst_s += t_s - start
-        return {"bursts": bursts, "burst_time_s": round(burst_s, 6),
-                "share_measured": round(burst_s / t_s, 6) if t_s > 0 else None}
+        return {
+            "bursts": bursts,
+            "burst_time_s": round(burst_s, 6),
+            "share_measured": round(burst_s / t_s, 6) if t_s > 0 else None,
+        }
 
 
 class BurstView:
@@ -140,8 +145,8 @@ class BurstView:
 
     def __init__(self, proc: BurstProcess):
         self.proc = proc
-        self.k = 0              # switches at or before the last time asked
-        self.t = 0.0            # the last time asked
+        self.k = 0  # switches at or before the last time asked
+        self.t = 0.0  # the last time asked
         self._next = -math.inf  # when the state last found ends
         self._bad = False
 
@@ -155,6 +160,7 @@ class BurstView:
 
 
 # ---------------------------------------------------------------- the shared medium
+
 
 class Medium:
     """One half-duplex radio medium that both directions' Channels transmit on. It puts their
@@ -182,7 +188,7 @@ class Medium:
                 x, y, s, t = a, b, sa, ta
             else:
                 x, y, s, t = b, a, sb, tb
-            if t > now_s:   # also when both are idle (inf)
+            if t > now_s:  # also when both are idle (inf)
                 return
             # y's last byte ended after x's started, or y's next starts before x's ends.
             collided = y._last_end > s or y._next_start() < t
@@ -190,6 +196,7 @@ class Medium:
 
 
 # ---------------------------------------------------------------- one direction
+
 
 def frame_kind(encoded: bytes) -> str:
     """The message name of a COBS-encoded frame (its delimiter left off), "unknown" for a message
@@ -206,11 +213,18 @@ class Channel:
     the other direction (None: its own when the config has bursts); `medium`: the half-duplex
     Medium it shares (None: its own when the config is half duplex, with no other end)."""
 
-    def __init__(self, config: ChannelConfig, rng: np.random.Generator, outages: list[tuple[float, float]] = (),
-                 *, bursts: BurstProcess | None = None, medium: Medium | None = None):
+    def __init__(
+        self,
+        config: ChannelConfig,
+        rng: np.random.Generator,
+        outages: list[tuple[float, float]] = (),
+        *,
+        bursts: BurstProcess | None = None,
+        medium: Medium | None = None,
+    ):
         self.config = config
         self.rng = rng
-        self.outages = list(outages)    # (start_s, end_s)
+        self.outages = list(outages)  # (start_s, end_s)
         self._sending: collections.deque[tuple[float, int]] = collections.deque()  # (written at, byte)
         self._in_flight: collections.deque[tuple[float, int]] = collections.deque()
         self._line_free_at = 0.0
@@ -221,7 +235,7 @@ class Channel:
         self.bytes_corrupted = 0
         self.lost_by = {"outage": 0, "noise": 0, "collision": 0}
         self.bytes_in_bursts = 0
-        self.tap = None   # called with (data, now_s) for every write: an eavesdropper (attacker.py)
+        self.tap = None  # called with (data, now_s) for every write: an eavesdropper (attacker.py)
         # What each byte risks: outside bursts (and without them) the configured shares; inside
         # bursts those over the burst share.
         self.bursts = None
@@ -232,14 +246,14 @@ class Channel:
             self._burst = self.bursts.view()
             p_loss, p_err = p_loss / config.burst_share, p_err / config.burst_share
         self._p_loss = p_loss
-        if p_err and p_loss:   # among the bytes that get through
+        if p_err and p_loss:  # among the bytes that get through
             p_err = p_err / (1.0 - p_loss) if p_loss < 1.0 else 0.0
         self._p_err = p_err
         self._jitter_s = config.jitter_s
         self._last_arrival = -math.inf
         self._extra_s = 0.0
         self.medium = None
-        self._last_end = -math.inf      # when this end's last byte left the air (the medium's)
+        self._last_end = -math.inf  # when this end's last byte left the air (the medium's)
         if config.half_duplex:
             self.medium = medium or Medium()
             self.medium.attach(self)
@@ -247,9 +261,9 @@ class Channel:
         self._partial = bytearray()
         self._partial_over = False
         self._kinds: collections.deque[str] = collections.deque()
-        self._frame_len = 0              # bytes of the frame now going on the air, so far
+        self._frame_len = 0  # bytes of the frame now going on the air, so far
         self._frame_damaged = False
-        self.frames: dict[str, list[int]] = {}   # kind -> [on the air, damaged]
+        self.frames: dict[str, list[int]] = {}  # kind -> [on the air, damaged]
 
     def in_outage(self, t_s: float) -> bool:
         return any(a <= t_s < b for a, b in self.outages)
@@ -277,7 +291,7 @@ class Channel:
                 return
             if self._partial_over:
                 self._kinds.append("malformed")
-            elif self._partial:   # an empty frame (two delimiters) is none
+            elif self._partial:  # an empty frame (two delimiters) is none
                 self._kinds.append(frame_kind(bytes(self._partial)))
             self._partial.clear()
             self._partial_over = False
@@ -318,7 +332,7 @@ class Channel:
 
     def _air(self, t: float, byte: int, collided: bool) -> None:
         """One byte whose stop bit leaves at t: lost, corrupted or on its way; counted to its frame."""
-        if self._frame_len == 0 and self._jitter_s:   # a frame's first byte: its extra delay
+        if self._frame_len == 0 and self._jitter_s:  # a frame's first byte: its extra delay
             self._extra_s = float(self.rng.exponential(self._jitter_s))
         self._frame_len += 1
         original = byte
@@ -344,12 +358,12 @@ class Channel:
             self.lost_by[lost] += 1
             self._frame_damaged = True
         elif self._jitter_s:
-            arrival = max(t + self.config.delay_s + self._extra_s, self._last_arrival)   # never overtakes
+            arrival = max(t + self.config.delay_s + self._extra_s, self._last_arrival)  # never overtakes
             self._last_arrival = arrival
             self._in_flight.append((arrival, byte))
         else:
             self._in_flight.append((t + self.config.delay_s, byte))
-        if original == 0:   # the frame's delimiter
+        if original == 0:  # the frame's delimiter
             if self._frame_len > 1:
                 kind = self._kinds.popleft() if self._kinds else "malformed"
                 counts = self.frames.get(kind)
@@ -371,34 +385,48 @@ class Channel:
 
     def byte_counters(self) -> dict:
         """The byte counts (report.json's link.to_rover and link.to_host)."""
-        return {"bytes_sent": self.bytes_sent, "bytes_delivered": self.bytes_delivered,
-                "bytes_lost": self.bytes_lost, "bytes_corrupted": self.bytes_corrupted}
+        return {
+            "bytes_sent": self.bytes_sent,
+            "bytes_delivered": self.bytes_delivered,
+            "bytes_lost": self.bytes_lost,
+            "bytes_corrupted": self.bytes_corrupted,
+        }
 
     def counters(self) -> dict:
         """Bytes (lost by cause), and frames on the air and damaged, in all and by message kind."""
         frames = {kind: {"sent": c[0], "damaged": c[1]} for kind, c in sorted(self.frames.items())}
-        return {**self.byte_counters(), "bytes_lost_by": dict(self.lost_by), "bytes_in_bursts": self.bytes_in_bursts,
-                "frames_sent": sum(c[0] for c in self.frames.values()),
-                "frames_damaged": sum(c[1] for c in self.frames.values()),
-                "frames": frames}
+        return {
+            **self.byte_counters(),
+            "bytes_lost_by": dict(self.lost_by),
+            "bytes_in_bursts": self.bytes_in_bursts,
+            "frames_sent": sum(c[0] for c in self.frames.values()),
+            "frames_damaged": sum(c[1] for c in self.frames.values()),
+            "frames": frames,
+        }
 
 
-def channel_pair(config: ChannelConfig, rng: np.random.Generator,
-                 outages: list[tuple[float, float]] = ()) -> tuple[Channel, Channel]:
+def channel_pair(
+    config: ChannelConfig, rng: np.random.Generator, outages: list[tuple[float, float]] = ()
+) -> tuple[Channel, Channel]:
     """The simulator's radio: (to_rover, to_host), sharing one burst process and, half duplex,
     one medium. Nothing is drawn here."""
     bursts = BurstProcess(config.burst_mean_s, config.burst_share, rng) if config.bursts else None
     medium = Medium() if config.half_duplex else None
-    return (Channel(config, rng, outages, bursts=bursts, medium=medium),
-            Channel(config, rng, outages, bursts=bursts, medium=medium))
+    return (
+        Channel(config, rng, outages, bursts=bursts, medium=medium),
+        Channel(config, rng, outages, bursts=bursts, medium=medium),
+    )
 
 
 def radio_figures(to_rover: Channel, to_host: Channel, t_s: float) -> dict:
     """report.json's "radio": the settings, the bursts as they fell, and each direction's counts."""
     bursts = to_rover.bursts or to_host.bursts
-    return {"settings": to_rover.config.settings(),
-            "bursts": None if bursts is None else bursts.stats(t_s),
-            "to_rover": to_rover.counters(), "to_host": to_host.counters()}
+    return {
+        "settings": to_rover.config.settings(),
+        "bursts": None if bursts is None else bursts.stats(t_s),
+        "to_rover": to_rover.counters(),
+        "to_host": to_host.counters(),
+    }
 
 
 class SimTransport(Transport):

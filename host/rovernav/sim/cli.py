@@ -1,4 +1,5 @@
 """`rovernav sim`: run a mission in the simulator and write its report, video and picture."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,90 +17,169 @@ RESULT_FILES = ("report.json", "summary.png", "video.mp4", "run.mcap", "comparis
 
 def add_sim_parser(sub) -> None:
     p = sub.add_parser(
-        "sim", help="run a mission in the simulator (the main job without hardware)",
+        "sim",
+        help="run a mission in the simulator (the main job without hardware)",
         description="Simulate a mission: the firmware core the Uno runs (through its C ABI), a rover plant "
-                    "with motor lag and dead band, a drifting gyro, an HC-SR04 on a servo, an overhead camera "
-                    f"rendering 640x480 frames that the host's vision code reads, and a {LINK_BAUD:,}-baud radio; the "
-                    "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4, "
-                    "summary.png and run.mcap (the run log: open it in Foxglove, or `rovernav replay` it) "
-                    "into the output folder; --live shows the run in Foxglove as it happens.",
+        "with motor lag and dead band, a drifting gyro, an HC-SR04 on a servo, an overhead camera "
+        f"rendering 640x480 frames that the host's vision code reads, and a {LINK_BAUD:,}-baud radio; the "
+        "host is the same mission code `rovernav run` uses. Writes report.json, video.mp4, "
+        "summary.png and run.mcap (the run log: open it in Foxglove, or `rovernav replay` it) "
+        "into the output folder; --live shows the run in Foxglove as it happens.",
         epilog="Strategies: rovernav (the autonomy on the rover, simplified paths, fast sweeps) and seed (the "
-               "2019 system's behaviour: a stop at every grid waypoint, 9-second sweeps); both runs them in the "
-               "same world and prints them side by side.")
-    p.add_argument("scenario", nargs="?", default="out-and-back",
-                   help="a scenario name (see scenarios/) or a scenario file (default: out-and-back)")
-    p.add_argument("--out", type=out_dir, default=Path("out/sim"),
-                   help="output folder (default out/sim); a run first removes the previous run's results there")
-    p.add_argument("--seed", type=number(0, 2**32 - 1, integer=True), default=1,
-                   help="random seed, 0 to 2^32-1: noise, light, drops (default 1)")
+        "2019 system's behaviour: a stop at every grid waypoint, 9-second sweeps); both runs them in the "
+        "same world and prints them side by side.",
+    )
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default="out-and-back",
+        help="a scenario name (see scenarios/) or a scenario file (default: out-and-back)",
+    )
+    p.add_argument(
+        "--out",
+        type=out_dir,
+        default=Path("out/sim"),
+        help="output folder (default out/sim); a run first removes the previous run's results there",
+    )
+    p.add_argument(
+        "--seed",
+        type=number(0, 2**32 - 1, integer=True),
+        default=1,
+        help="random seed, 0 to 2^32-1: noise, light, drops (default 1)",
+    )
     p.add_argument("--strategy", choices=("rovernav", "seed", "both"), default="rovernav")
-    p.add_argument("--drive-mode", choices=("rotate_drive", "pose_law", "both"), default=None,
-                   help="how the rover drives between waypoints: the seed's rotate-then-drive, or the "
-                        "moving-to-a-pose law (arcs, a heading at each waypoint); both runs each and says "
-                        "which was faster (default: the configuration's [rover] drive_mode, else rotate_drive)")
+    p.add_argument(
+        "--drive-mode",
+        choices=("rotate_drive", "pose_law", "both"),
+        default=None,
+        help="how the rover drives between waypoints: the seed's rotate-then-drive, or the "
+        "moving-to-a-pose law (arcs, a heading at each waypoint); both runs each and says "
+        "which was faster (default: the configuration's [rover] drive_mode, else rotate_drive)",
+    )
     p.add_argument("--no-video", action="store_true", help="skip the video (faster)")
-    p.add_argument("--config", type=input_file, help="a rovernav TOML configuration (vision, planner, rover parameters)")
-    p.add_argument("--max-time", type=seconds(MAX_SIM_TIME_S, positive=True), default=900.0,
-                   help=f"give up after this many simulated seconds, up to {MAX_SIM_TIME_S:g} (default 900)")
-    p.add_argument("--camera-fps", type=number(1.0, 120.0), default=30.0, help="camera frame rate, 1 to 120 (default 30)")
-    p.add_argument("--no-host-replan", action="store_true",
-                   help="the host never replans: only the rover's own detours get it round obstacles")
-    p.add_argument("--link-outage", type=time_window, action="append", default=[], metavar="START:DURATION",
-                   help="no bytes either way on the radio for DURATION seconds from START (repeatable)")
-    p.add_argument("--camera-outage", type=time_window, action="append", default=[], metavar="START:DURATION",
-                   help="the camera delivers nothing (or see --camera-outage-kind) for a while (repeatable)")
+    p.add_argument(
+        "--config", type=input_file, help="a rovernav TOML configuration (vision, planner, rover parameters)"
+    )
+    p.add_argument(
+        "--max-time",
+        type=seconds(MAX_SIM_TIME_S, positive=True),
+        default=900.0,
+        help=f"give up after this many simulated seconds, up to {MAX_SIM_TIME_S:g} (default 900)",
+    )
+    p.add_argument(
+        "--camera-fps", type=number(1.0, 120.0), default=30.0, help="camera frame rate, 1 to 120 (default 30)"
+    )
+    p.add_argument(
+        "--no-host-replan",
+        action="store_true",
+        help="the host never replans: only the rover's own detours get it round obstacles",
+    )
+    p.add_argument(
+        "--link-outage",
+        type=time_window,
+        action="append",
+        default=[],
+        metavar="START:DURATION",
+        help="no bytes either way on the radio for DURATION seconds from START (repeatable)",
+    )
+    p.add_argument(
+        "--camera-outage",
+        type=time_window,
+        action="append",
+        default=[],
+        metavar="START:DURATION",
+        help="the camera delivers nothing (or see --camera-outage-kind) for a while (repeatable)",
+    )
     p.add_argument("--camera-outage-kind", choices=("no_frames", "no_markers"), default="no_frames")
-    p.add_argument("--host-restart", type=seconds(), action="append", default=[], metavar="T",
-                   help="restart the host process state at T seconds (repeatable)")
-    p.add_argument("--firmware-reset", type=seconds(), action="append", default=[], metavar="T",
-                   help="reset the rover's firmware at T seconds (repeatable)")
+    p.add_argument(
+        "--host-restart",
+        type=seconds(),
+        action="append",
+        default=[],
+        metavar="T",
+        help="restart the host process state at T seconds (repeatable)",
+    )
+    p.add_argument(
+        "--firmware-reset",
+        type=seconds(),
+        action="append",
+        default=[],
+        metavar="T",
+        help="reset the rover's firmware at T seconds (repeatable)",
+    )
     p.add_argument("--gyro-dies", type=seconds(), metavar="T", help="the gyro stops answering at T seconds")
-    p.add_argument("--unsigned", action="store_true",
-                   help="run the link unsigned (no key on either end). By default host and rover share a "
-                        "128-bit link key, as after `rovernav keygen` and `rovernav provision`: every frame "
-                        "but HELLO carries a counter and a SipHash-2-4 tag, and each end refuses the rest "
-                        "(report.json: link.signing)")
-    p.add_argument("--attacker", action="store_true",
-                   help="a second transmitter on the rover's frequency: from 3 s on it injects, every 0.5 s, "
-                        "a forged STOP, a replay of a frame the host sent, a recorded frame altered in one "
-                        "bit, and an unsigned STOP, in turn. report.json's link.signing.attacker counts "
-                        "what it injected and what the rover refused")
-    p.add_argument("--rover", choices=("native", "uno"), default="native",
-                   help="the rover's firmware: native (default) steps the firmware core through its C ABI, "
-                        "built for this machine; uno runs the Uno image itself (build/uno/firmware.elf, "
-                        "built if missing) in simavr at 16 MHz, with the world on its pins: motor PWM "
-                        "registers, the servo's Timer1 pulse, HC-SR04 TRIG/ECHO, an MPU-6050 on the TWI bus, "
-                        f"the UART at {LINK_BAUD:,} baud. uno runs several times faster than real time (about 9x "
-                        "without video on a 2-core machine, native about 15x; the harness skips the image's "
-                        "idle polling, cycle-exactly), and adds \"uno_timing\" to report.json: step times per "
-                        "state and per flag (from the image's PB0 probe and GPIOR0 step descriptor), the worst "
-                        "step and where it was, the step period's jitter, and the stack's high-water mark. "
-                        "Needs gcc-avr, avr-libc, arduino-core-avr and libsimavr-dev")
-    p.add_argument("--profile", action="store_true",
-                   help="with --rover uno: profile the image's steps by function. While a step works (PB0 high) "
-                        "the harness counts every instruction's cycles to the function whose ELF symbol holds its "
-                        "PC (exact, not sampled), interrupt handlers apart, and follows CALL and RET for inclusive "
-                        "times and callers. Writes uno_timing[\"profile\"] to report.json: for all steps, the steps "
-                        "with a FIX, with sonar, with the detour planner, with radio bytes, with none of those, and "
-                        "the worst 1 %% and the worst step: the top 15 functions with their share of the step time, microseconds and "
-                        "calls per step, the interrupts, and the float and integer library routines with their "
-                        "callers. Prints the top 10 for the steps with a FIX. Off by default: the AVR simulation "
-                        "runs about a third slower")
+    p.add_argument(
+        "--unsigned",
+        action="store_true",
+        help="run the link unsigned (no key on either end). By default host and rover share a "
+        "128-bit link key, as after `rovernav keygen` and `rovernav provision`: every frame "
+        "but HELLO carries a counter and a SipHash-2-4 tag, and each end refuses the rest "
+        "(report.json: link.signing)",
+    )
+    p.add_argument(
+        "--attacker",
+        action="store_true",
+        help="a second transmitter on the rover's frequency: from 3 s on it injects, every 0.5 s, "
+        "a forged STOP, a replay of a frame the host sent, a recorded frame altered in one "
+        "bit, and an unsigned STOP, in turn. report.json's link.signing.attacker counts "
+        "what it injected and what the rover refused",
+    )
+    p.add_argument(
+        "--rover",
+        choices=("native", "uno"),
+        default="native",
+        help="the rover's firmware: native (default) steps the firmware core through its C ABI, "
+        "built for this machine; uno runs the Uno image itself (build/uno/firmware.elf, "
+        "built if missing) in simavr at 16 MHz, with the world on its pins: motor PWM "
+        "registers, the servo's Timer1 pulse, HC-SR04 TRIG/ECHO, an MPU-6050 on the TWI bus, "
+        f"the UART at {LINK_BAUD:,} baud. uno runs several times faster than real time (about 9x "
+        "without video on a 2-core machine, native about 15x; the harness skips the image's "
+        'idle polling, cycle-exactly), and adds "uno_timing" to report.json: step times per '
+        "state and per flag (from the image's PB0 probe and GPIOR0 step descriptor), the worst "
+        "step and where it was, the step period's jitter, and the stack's high-water mark. "
+        "Needs gcc-avr, avr-libc, arduino-core-avr and libsimavr-dev",
+    )
+    p.add_argument(
+        "--profile",
+        action="store_true",
+        help="with --rover uno: profile the image's steps by function. While a step works (PB0 high) "
+        "the harness counts every instruction's cycles to the function whose ELF symbol holds its "
+        "PC (exact, not sampled), interrupt handlers apart, and follows CALL and RET for inclusive "
+        'times and callers. Writes uno_timing["profile"] to report.json: for all steps, the steps '
+        "with a FIX, with sonar, with the detour planner, with radio bytes, with none of those, and "
+        "the worst 1 %% and the worst step: the top 15 functions with their share of the step time, microseconds and "
+        "calls per step, the interrupts, and the float and integer library routines with their "
+        "callers. Prints the top 10 for the steps with a FIX. Off by default: the AVR simulation "
+        "runs about a third slower",
+    )
     add_radio_flags(p)
     from ..runlog.cli import add_log_flags
 
     add_log_flags(p, "run.mcap in the output folder")
-    p.add_argument("--speed", type=number(0.01, 1000.0), default=None, metavar="X",
-                   help="run at X times real time (default: as fast as the machine goes; with --live, 1: the "
-                        "live view shows the mission at its own pace)")
+    p.add_argument(
+        "--speed",
+        type=number(0.01, 1000.0),
+        default=None,
+        metavar="X",
+        help="run at X times real time (default: as fast as the machine goes; with --live, 1: the "
+        "live view shows the mission at its own pace)",
+    )
     p.add_argument("--quiet", action="store_true", help="print only the summary")
-    p.add_argument("--setup", type=number(0, 2**32 - 1, integer=True), metavar="SEED",
-                   help="a set-up that is not the defaults, drawn from SEED: other marker colours, light, a tilted "
-                        "camera, motors and gyro off the firmware's figures (rovernav.sim.setup); the default "
-                        "configuration does not see its rover: calibrate with --calibration-frames")
-    p.add_argument("--calibration-frames", type=out_dir, metavar="DIR",
-                   help="with --setup: write three camera frames of the scenario's start into DIR for "
-                        "`rovernav calibrate camera`, print that command, and run no mission")
+    p.add_argument(
+        "--setup",
+        type=number(0, 2**32 - 1, integer=True),
+        metavar="SEED",
+        help="a set-up that is not the defaults, drawn from SEED: other marker colours, light, a tilted "
+        "camera, motors and gyro off the firmware's figures (rovernav.sim.setup); the default "
+        "configuration does not see its rover: calibrate with --calibration-frames",
+    )
+    p.add_argument(
+        "--calibration-frames",
+        type=out_dir,
+        metavar="DIR",
+        help="with --setup: write three camera frames of the scenario's start into DIR for "
+        "`rovernav calibrate camera`, print that command, and run no mission",
+    )
     p.set_defaults(func=cmd_sim)
 
 
@@ -108,8 +188,10 @@ def _write_calibration_frames(args, scenario, setup) -> int:
     import cv2
 
     if setup is None:
-        print("rovernav sim: --calibration-frames needs --setup SEED (the default set-up is the configuration's)",
-              file=sys.stderr)
+        print(
+            "rovernav sim: --calibration-frames needs --setup SEED (the default set-up is the configuration's)",
+            file=sys.stderr,
+        )
         return 2
     args.calibration_frames.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -118,11 +200,17 @@ def _write_calibration_frames(args, scenario, setup) -> int:
         cv2.imwrite(str(path), frame)
         paths.append(str(path))
     words = " ".join(f"--{role.split('_')[-1]} {word}" for role, word in setup.colour_words().items())
-    print(f"wrote {len(paths)} frames of set-up {args.setup} ({scenario.name} at its start) in {args.calibration_frames}")
-    print(f"calibrate:  rovernav calibrate camera {' '.join(paths)} {words} "
-          f"--write {args.calibration_frames / 'calibrated.toml'}")
-    print(f"then fly:   rovernav sim {args.scenario} --setup {args.setup} "
-          f"--config {args.calibration_frames / 'calibrated.toml'}")
+    print(
+        f"wrote {len(paths)} frames of set-up {args.setup} ({scenario.name} at its start) in {args.calibration_frames}"
+    )
+    print(
+        f"calibrate:  rovernav calibrate camera {' '.join(paths)} {words} "
+        f"--write {args.calibration_frames / 'calibrated.toml'}"
+    )
+    print(
+        f"then fly:   rovernav sim {args.scenario} --setup {args.setup} "
+        f"--config {args.calibration_frames / 'calibrated.toml'}"
+    )
     return 0
 
 
@@ -138,11 +226,14 @@ def burst_spec(text: str) -> tuple[float, float]:
             raise ValueError
         mean, share = float(parts[0]), float(parts[1])
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected MEAN_S:SHARE, e.g. 0.5:0.1 (bursts of 0.5 s on "
-                                         "average, 10 % of the time), or off") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected MEAN_S:SHARE, e.g. 0.5:0.1 (bursts of 0.5 s on average, 10 % of the time), or off"
+        ) from None
     if not (math.isfinite(mean) and MIN_BURST_MEAN_S <= mean <= MAX_BURST_MEAN_S):
-        raise argparse.ArgumentTypeError(f"{text!r}: MEAN_S, the mean burst length, must be from "
-                                         f"{MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g} seconds")
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: MEAN_S, the mean burst length, must be from "
+            f"{MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g} seconds"
+        )
     if not (math.isfinite(share) and 0.0 < share < 1.0):
         raise argparse.ArgumentTypeError(f"{text!r}: SHARE, the share of time in bursts, must be above 0 and below 1")
     return mean, share
@@ -156,37 +247,73 @@ def add_radio_flags(p: argparse.ArgumentParser, config: bool = True) -> None:
     from ..radio import MAX_BURST_MEAN_S, MAX_JITTER_MS, MIN_BURST_MEAN_S
 
     g = p.add_argument_group(
-        "the simulated radio", textwrap.fill(width=100, text=f"{LINK_BAUD:,} baud 8N1 ({LINK_BAUD // 10:,} bytes/s each way), 15 ms modem latency. By default it "
-        "loses and corrupts nothing, is full duplex and has no jitter"
-        + ("; a configuration's [radio] table (loss_pct, ber_pct, burst_mean_s, burst_share, jitter_ms, "
-           "half_duplex) sets the same, and these flags win over it" if config else "")
-        + (". report.json's \"radio\" and the run log's /sim/radio give" if config else
-           ". Each run's report.json \"radio\" gives")
-        + " what it did, each way: bytes sent, lost and corrupted, frames sent and damaged by message kind."))
-    g.add_argument("--radio-loss", type=number(0.0, 100.0), default=None, metavar="PCT",
-                   help="the long-run mean share of bytes lost, in percent, 0 to 100 (default 0). Each byte "
-                        "independently, or with --radio-burst only inside bursts")
-    g.add_argument("--radio-ber", type=number(0.0, 100.0), default=None, metavar="PCT",
-                   help="the long-run mean share of bytes that arrive with one bit flipped, in percent, 0 to 100 "
-                        "(default 0); a byte is lost or corrupted, not both, so with --radio-loss at most 100 "
-                        "in all. Independently, or with --radio-burst only inside bursts as losses are")
-    g.add_argument("--radio-burst", type=burst_spec, default=None, metavar="MEAN_S:SHARE",
-                   help="losses and bit errors come in bursts (a two-state Gilbert-Elliott channel): bursts last "
-                        f"MEAN_S seconds on average ({MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g}) and take "
-                        "SHARE of the time (above 0, below 1), both exponential in simulated time; inside a "
-                        "burst bytes are lost at LOSS / SHARE and corrupted at BER / SHARE, so LOSS + BER may "
-                        "not pass 100 x SHARE. One burst process for both directions (a fade of the path, or "
-                        "interference at the rover, hits both ways). off: none (the default)")
-    g.add_argument("--radio-jitter-ms", type=number(0.0, MAX_JITTER_MS), default=None, metavar="MS",
-                   help=f"a mean extra delay per frame, in milliseconds, 0 to {MAX_JITTER_MS:g} (default 0): "
-                        "exponential, drawn per frame, on top of the 15 ms latency; bytes keep their order (a "
-                        "late frame holds up those behind it, as in a serial modem)")
-    g.add_argument("--radio-half-duplex", action=argparse.BooleanOptionalAction, default=None,
-                   help=f"both ends share one {LINK_BAUD:,}-baud medium, as 433 MHz transparent modems (HC-12, APC220, "
-                        "3DR-style) do: bytes on the air from both ends at once collide and both are lost (no "
-                        f"carrier sense). Default off (full duplex, each direction its own {LINK_BAUD:,} baud, as the "
-                        "figures so far were made, so that they stay comparable); --no-radio-half-duplex "
-                        "overrides a configuration that turns it on")
+        "the simulated radio",
+        textwrap.fill(
+            width=100,
+            text=f"{LINK_BAUD:,} baud 8N1 ({LINK_BAUD // 10:,} bytes/s each way), 15 ms modem latency. By default it "
+            "loses and corrupts nothing, is full duplex and has no jitter"
+            + (
+                "; a configuration's [radio] table (loss_pct, ber_pct, burst_mean_s, burst_share, jitter_ms, "
+                "half_duplex) sets the same, and these flags win over it"
+                if config
+                else ""
+            )
+            + (
+                ". report.json's \"radio\" and the run log's /sim/radio give"
+                if config
+                else '. Each run\'s report.json "radio" gives'
+            )
+            + " what it did, each way: bytes sent, lost and corrupted, frames sent and damaged by message kind.",
+        ),
+    )
+    g.add_argument(
+        "--radio-loss",
+        type=number(0.0, 100.0),
+        default=None,
+        metavar="PCT",
+        help="the long-run mean share of bytes lost, in percent, 0 to 100 (default 0). Each byte "
+        "independently, or with --radio-burst only inside bursts",
+    )
+    g.add_argument(
+        "--radio-ber",
+        type=number(0.0, 100.0),
+        default=None,
+        metavar="PCT",
+        help="the long-run mean share of bytes that arrive with one bit flipped, in percent, 0 to 100 "
+        "(default 0); a byte is lost or corrupted, not both, so with --radio-loss at most 100 "
+        "in all. Independently, or with --radio-burst only inside bursts as losses are",
+    )
+    g.add_argument(
+        "--radio-burst",
+        type=burst_spec,
+        default=None,
+        metavar="MEAN_S:SHARE",
+        help="losses and bit errors come in bursts (a two-state Gilbert-Elliott channel): bursts last "
+        f"MEAN_S seconds on average ({MIN_BURST_MEAN_S:g} to {MAX_BURST_MEAN_S:g}) and take "
+        "SHARE of the time (above 0, below 1), both exponential in simulated time; inside a "
+        "burst bytes are lost at LOSS / SHARE and corrupted at BER / SHARE, so LOSS + BER may "
+        "not pass 100 x SHARE. One burst process for both directions (a fade of the path, or "
+        "interference at the rover, hits both ways). off: none (the default)",
+    )
+    g.add_argument(
+        "--radio-jitter-ms",
+        type=number(0.0, MAX_JITTER_MS),
+        default=None,
+        metavar="MS",
+        help=f"a mean extra delay per frame, in milliseconds, 0 to {MAX_JITTER_MS:g} (default 0): "
+        "exponential, drawn per frame, on top of the 15 ms latency; bytes keep their order (a "
+        "late frame holds up those behind it, as in a serial modem)",
+    )
+    g.add_argument(
+        "--radio-half-duplex",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"both ends share one {LINK_BAUD:,}-baud medium, as 433 MHz transparent modems (HC-12, APC220, "
+        "3DR-style) do: bytes on the air from both ends at once collide and both are lost (no "
+        f"carrier sense). Default off (full duplex, each direction its own {LINK_BAUD:,} baud, as the "
+        "figures so far were made, so that they stay comparable); --no-radio-half-duplex "
+        "overrides a configuration that turns it on",
+    )
 
 
 def radio_values(args: argparse.Namespace, file=None, where: str = "") -> tuple[dict, dict]:
@@ -198,8 +325,14 @@ def radio_values(args: argparse.Namespace, file=None, where: str = "") -> tuple[
 
     file = file or RadioConfig()
     burst = args.radio_burst or (None, None)
-    given = {"loss_pct": args.radio_loss, "ber_pct": args.radio_ber, "burst_mean_s": burst[0],
-             "burst_share": burst[1], "jitter_ms": args.radio_jitter_ms, "half_duplex": args.radio_half_duplex}
+    given = {
+        "loss_pct": args.radio_loss,
+        "ber_pct": args.radio_ber,
+        "burst_mean_s": burst[0],
+        "burst_share": burst[1],
+        "jitter_ms": args.radio_jitter_ms,
+        "half_duplex": args.radio_half_duplex,
+    }
     values = {k: getattr(file, k) if v is None else v for k, v in given.items()}
     names = {k: FLAG_NAMES[k] if v is not None or not where else f"{where}[radio] {k}" for k, v in given.items()}
     return values, names
@@ -232,8 +365,10 @@ def radio_line(report: dict) -> str | None:
     ways = []
     for way, label in (("to_rover", "to the rover"), ("to_host", "to the host")):
         c = r[way]
-        ways.append(f"{label} {c['frames_damaged']}/{c['frames_sent']} frames damaged "
-                    f"({c['bytes_lost']} bytes lost, {c['bytes_corrupted']} corrupted)")
+        ways.append(
+            f"{label} {c['frames_damaged']}/{c['frames_sent']} frames damaged "
+            f"({c['bytes_lost']} bytes lost, {c['bytes_corrupted']} corrupted)"
+        )
     return f"  radio ({', '.join(parts)}): " + "; ".join(ways)
 
 
@@ -265,7 +400,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         return _write_calibration_frames(args, scenario, setup)
     channel = radio_from_args(args, config.radio if config else None, f"{args.config}: " if args.config else "")
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
-    modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]   # None: the config's
+    modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]  # None: the config's
     runs = [(st, mode) for st in strategies for mode in modes]
     if len(runs) > 1:
         remove_stale(args.out, ("comparison.json",))
@@ -274,16 +409,34 @@ def cmd_sim(args: argparse.Namespace) -> int:
         name = strategy if len(modes) == 1 else (mode if len(strategies) == 1 else f"{strategy}-{mode}")
         out = args.out / name if len(runs) > 1 else args.out
         out.mkdir(parents=True, exist_ok=True)
-        remove_stale(out, RESULT_FILES)   # never the last run's results beside this one's
-        faults = Faults(link_outages=args.link_outage, camera_outages=args.camera_outage,
-                        camera_outage_kind=args.camera_outage_kind, host_restarts=args.host_restart,
-                        firmware_resets=args.firmware_reset, gyro_dies_at=args.gyro_dies)
-        opts = SimOptions(seed=args.seed, strategy=strategy, camera_fps=args.camera_fps, max_time_s=args.max_time,
-                          host_replan=not args.no_host_replan, faults=faults, config=config, drive_mode=mode,
-                          rover=args.rover, signed=not args.unsigned, attacker=args.attacker, channel=channel,
-                          log=None if args.no_log else out / "run.mcap", live_port=live_port_of(args),
-                          log_image_hz=args.log_image_hz, setup=setup,
-                          pace=args.speed if args.speed is not None else (1.0 if args.live else 0.0))
+        remove_stale(out, RESULT_FILES)  # never the last run's results beside this one's
+        faults = Faults(
+            link_outages=args.link_outage,
+            camera_outages=args.camera_outage,
+            camera_outage_kind=args.camera_outage_kind,
+            host_restarts=args.host_restart,
+            firmware_resets=args.firmware_reset,
+            gyro_dies_at=args.gyro_dies,
+        )
+        opts = SimOptions(
+            seed=args.seed,
+            strategy=strategy,
+            camera_fps=args.camera_fps,
+            max_time_s=args.max_time,
+            host_replan=not args.no_host_replan,
+            faults=faults,
+            config=config,
+            drive_mode=mode,
+            rover=args.rover,
+            signed=not args.unsigned,
+            attacker=args.attacker,
+            channel=channel,
+            log=None if args.no_log else out / "run.mcap",
+            live_port=live_port_of(args),
+            log_image_hz=args.log_image_hz,
+            setup=setup,
+            pace=args.speed if args.speed is not None else (1.0 if args.live else 0.0),
+        )
         video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
         started = time.monotonic()
 
@@ -304,14 +457,19 @@ def cmd_sim(args: argparse.Namespace) -> int:
             print(f"rovernav sim: {exc}", file=sys.stderr)
             return 2
         if not args.quiet:
-            print(f"simulating {scenario.name} with the {strategy} strategy, {sim.drive_mode} (seed {args.seed}) ...",
-                  flush=True)
+            print(
+                f"simulating {scenario.name} with the {strategy} strategy, {sim.drive_mode} (seed {args.seed}) ...",
+                flush=True,
+            )
         if sim.runlog is not None and sim.runlog.live_port is not None:
-            print(f"live view: open Foxglove and connect to ws://localhost:{sim.runlog.live_port} "
-                  f"(running at {opts.pace:g}x real time)", flush=True)
+            print(
+                f"live view: open Foxglove and connect to ws://localhost:{sim.runlog.live_port} "
+                f"(running at {opts.pace:g}x real time)",
+                flush=True,
+            )
         if args.profile:
             try:
-                sim.core.enable_profile()   # before the first step: the image has not run yet
+                sim.core.enable_profile()  # before the first step: the image has not run yet
             except FirmwareBuildError as exc:
                 print(f"rovernav sim: {exc}", file=sys.stderr)
                 return 2
@@ -321,12 +479,12 @@ def cmd_sim(args: argparse.Namespace) -> int:
             # Ctrl-C or an error mid-run: no half video; a report that says the run was cut short.
             if video is not None:
                 video.close(keep=False)
-            sim.close_log({"interrupted": True})   # the log of a run cut short is kept: it says how it ended
+            sim.close_log({"interrupted": True})  # the log of a run cut short is kept: it says how it ended
             try:
                 cut = build_report(sim, time.monotonic() - started)
                 cut.update(outcome="interrupted", interrupted=True, reached=False)
                 write_report(cut, out / "report.json")
-            except Exception:   # noqa: BLE001 - the report is a courtesy; the original error matters
+            except Exception:  # noqa: BLE001 - the report is a courtesy; the original error matters
                 pass
             raise
         if video is not None:
@@ -344,8 +502,11 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(_summary_line(report))
         if radio_line(report):
             print(radio_line(report))
-        print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}")
-              + ("" if opts.log is None else f", {opts.log}"))
+        print(
+            f"  wrote {out / 'report.json'}, {out / 'summary.png'}"
+            + ("" if video is None else f", {out / 'video.mp4'}")
+            + ("" if opts.log is None else f", {opts.log}")
+        )
     if len(reports) > 1:
         print()
         print(comparison_table(reports))
@@ -361,22 +522,26 @@ def _summary_line(r: dict) -> str:
     from .report import fmt_m, outcome_text
 
     ok = outcome_text(r)
-    return (f"{r['scenario']} / {r['strategy']} / {r['drive_mode']}: {ok} in {r['mission_time_s']:.1f} s simulated "
-            f"({r['wall_time_s']:.1f} s wall, {r['speedup']}x), driven {r['path_length_m']:.2f} m "
-            f"(clairvoyant optimum {fmt_m(r['optimal_length_m'])}), SPL {r['spl']:.2f}, "
-            f"collisions {r['collisions']}, min clearance {r['min_clearance_m']} m, replans {r['replans']}"
-            + (f"; error: {r['error']}" if r.get("error") else ""))
+    return (
+        f"{r['scenario']} / {r['strategy']} / {r['drive_mode']}: {ok} in {r['mission_time_s']:.1f} s simulated "
+        f"({r['wall_time_s']:.1f} s wall, {r['speedup']}x), driven {r['path_length_m']:.2f} m "
+        f"(clairvoyant optimum {fmt_m(r['optimal_length_m'])}), SPL {r['spl']:.2f}, "
+        f"collisions {r['collisions']}, min clearance {r['min_clearance_m']} m, replans {r['replans']}"
+        + (f"; error: {r['error']}" if r.get("error") else "")
+    )
 
 
 def _uno_line(t: dict) -> str:
     speed, stack, worst = t["speed"], t["stack"], t["worst_step"]
-    line = (f"  uno: {t['steps']} steps, AVR simulated at {speed['avr_x_real_time']}x real time "
-            f"({speed['idle_fast_forward_share'] or 0:.0%} of cycles fast-forwarded idle), "
-            f"stack {stack['used_bytes']} bytes used, {stack['margin_bytes']} to spare")
+    line = (
+        f"  uno: {t['steps']} steps, AVR simulated at {speed['avr_x_real_time']}x real time "
+        f"({speed['idle_fast_forward_share'] or 0:.0%} of cycles fast-forwarded idle), "
+        f"stack {stack['used_bytes']} bytes used, {stack['margin_bytes']} to spare"
+    )
     if worst:
-        line += (f"; worst step {worst['us'] / 1000:.2f} ms at {worst['t_s']:.2f} s"
-                 + (f" ({worst['state']}{', ' + '+'.join(worst['flags']) if worst['flags'] else ''})"
-                    if worst["state"] else ""))
+        line += f"; worst step {worst['us'] / 1000:.2f} ms at {worst['t_s']:.2f} s" + (
+            f" ({worst['state']}{', ' + '+'.join(worst['flags']) if worst['flags'] else ''})" if worst["state"] else ""
+        )
     if t["period_jitter"]["max_abs_us"] is not None:
         line += f"; period jitter max {t['period_jitter']['max_abs_us'] / 1000:.2f} ms"
     if not t["hooks"]["step_probe_pb0"]:
@@ -389,30 +554,35 @@ def _uno_profile_table(prof: dict, kind: str = "fix", rows: int = 10) -> str:
     k = prof["kinds"].get(kind) or {}
     if not k.get("steps"):
         return f"  uno profile: no steps of kind {kind!r}"
-    lines = [f"  uno profile, steps with {'a FIX' if kind == 'fix' else kind}: {k['steps']} steps, mean "
-             f"{k['mean_step_us'] / 1000:.2f} ms; {k['named_share']:.1%} of their cycles in named functions, "
-             f"interrupts {k['interrupt_share']:.1%}, float library {k['float_library']['share']:.1%} "
-             f"({k['float_library']['us_per_step']:.0f} us/step), integer library {k['integer_library']['share']:.1%}",
-             f"  {'self':>7} {'us/step':>8} {'calls':>6} {'incl us':>8}  function (self: at its own PCs; incl: "
-             "CALL to RET)"]
+    lines = [
+        f"  uno profile, steps with {'a FIX' if kind == 'fix' else kind}: {k['steps']} steps, mean "
+        f"{k['mean_step_us'] / 1000:.2f} ms; {k['named_share']:.1%} of their cycles in named functions, "
+        f"interrupts {k['interrupt_share']:.1%}, float library {k['float_library']['share']:.1%} "
+        f"({k['float_library']['us_per_step']:.0f} us/step), integer library {k['integer_library']['share']:.1%}",
+        f"  {'self':>7} {'us/step':>8} {'calls':>6} {'incl us':>8}  function (self: at its own PCs; incl: CALL to RET)",
+    ]
     for r in k["functions"][:rows]:
         incl = r.get("inclusive_us_per_step")
-        lines.append(f"  {r['share']:>7.1%} {r['us_per_step']:>8.1f} {r['calls_per_step']:>6.2f} "
-                     f"{'' if incl is None else f'{incl:.1f}':>8}  {r['function']}")
+        lines.append(
+            f"  {r['share']:>7.1%} {r['us_per_step']:>8.1f} {r['calls_per_step']:>6.2f} "
+            f"{'' if incl is None else f'{incl:.1f}':>8}  {r['function']}"
+        )
     return "\n".join(lines)
 
 
 def comparison_table(reports: list[dict]) -> str:
     from .report import fmt_m
 
-    rows = [("", *[f"{r['strategy']}/{r['drive_mode']}" for r in reports]),
-            ("outcome", *[r["outcome"] for r in reports]),
-            ("mission time (s)", *[f"{r['mission_time_s']:.1f}" for r in reports]),
-            ("path length (m)", *[f"{r['path_length_m']:.2f}" for r in reports]),
-            ("clairvoyant optimum", *[fmt_m(r["optimal_length_m"]) for r in reports]),
-            ("SPL", *[f"{r['spl']:.2f}" for r in reports]),
-            ("replans", *[str(r["replans"]) for r in reports]),
-            ("collisions", *[str(r["collisions"]) for r in reports]),
-            ("min clearance (m)", *[str(r["min_clearance_m"]) for r in reports])]
+    rows = [
+        ("", *[f"{r['strategy']}/{r['drive_mode']}" for r in reports]),
+        ("outcome", *[r["outcome"] for r in reports]),
+        ("mission time (s)", *[f"{r['mission_time_s']:.1f}" for r in reports]),
+        ("path length (m)", *[f"{r['path_length_m']:.2f}" for r in reports]),
+        ("clairvoyant optimum", *[fmt_m(r["optimal_length_m"]) for r in reports]),
+        ("SPL", *[f"{r['spl']:.2f}" for r in reports]),
+        ("replans", *[str(r["replans"]) for r in reports]),
+        ("collisions", *[str(r["collisions"]) for r in reports]),
+        ("min clearance (m)", *[str(r["min_clearance_m"]) for r in reports]),
+    ]
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)) for row in rows)

@@ -18,6 +18,7 @@
 - Servo: travels at 0.1 s per 60 degrees; the sonar points where the servo is, not where it was
   told to be.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -35,24 +36,24 @@ from .world import World
 
 @dataclasses.dataclass(frozen=True)
 class PlantConfig:
-    mm_s_per_pwm: float = 2.2         # wheel speed per PWM above the dead band (firmware assumes 2.0)
-    deadband_pwm: float = float(PARAMS[Param.MOTOR_DEADBAND_PWM].default)   # as the firmware assumes
-    lag_s: float = 0.08               # motor and inertia
-    right_gain: float = 1.10          # the right motor is the stronger
-    track_m: float = WHEEL_TRACK_MM / 1000.0   # distance between the wheels (protocol/vehicle.toml)
-    speed_noise: float = 0.02         # relative, slowly varying (floor, battery)
-    gyro_noise_dps: float = 0.05      # white noise of one sample
-    gyro_bias_dps: float = 0.05       # bias left after calibration (one sigma)
+    mm_s_per_pwm: float = 2.2  # wheel speed per PWM above the dead band (firmware assumes 2.0)
+    deadband_pwm: float = float(PARAMS[Param.MOTOR_DEADBAND_PWM].default)  # as the firmware assumes
+    lag_s: float = 0.08  # motor and inertia
+    right_gain: float = 1.10  # the right motor is the stronger
+    track_m: float = WHEEL_TRACK_MM / 1000.0  # distance between the wheels (protocol/vehicle.toml)
+    speed_noise: float = 0.02  # relative, slowly varying (floor, battery)
+    gyro_noise_dps: float = 0.05  # white noise of one sample
+    gyro_bias_dps: float = 0.05  # bias left after calibration (one sigma)
     gyro_bias_walk_dps_per_sqrt_s: float = 0.005
-    gyro_scale: float = 1.0           # the gyro's reading per true rate (an MPU6050's sensitivity: +-3 %)
+    gyro_scale: float = 1.0  # the gyro's reading per true rate (an MPU6050's sensitivity: +-3 %)
     sonar_cone_deg: float = PARAMS[Param.SONAR_CONE_CDEG].default / 100.0
     sonar_noise_mm: float = 3.0
-    sonar_floor_m: float = 0.65       # floor echoes from beyond here
-    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0   # the driver's last echo (protocol/vehicle.toml): past it, none
-    sonar_max_incidence_deg: float = 40.0   # a flat face further off its normal gives no echo (90: always)
-    sonar_rays: int = 7               # rays sampled across the cone
-    sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)   # the sensor sits ahead of the rover's centre
-    servo_deg_per_s: float = 600.0    # 0.1 s per 60 degrees
+    sonar_floor_m: float = 0.65  # floor echoes from beyond here
+    sonar_max_m: float = SONAR_MAX_RANGE_MM / 1000.0  # the driver's last echo (protocol/vehicle.toml): past it, none
+    sonar_max_incidence_deg: float = 40.0  # a flat face further off its normal gives no echo (90: always)
+    sonar_rays: int = 7  # rays sampled across the cone
+    sonar_offset_m: float = geometry_m(Param.SONAR_OFFSET_MM)  # the sensor sits ahead of the rover's centre
+    servo_deg_per_s: float = 600.0  # 0.1 s per 60 degrees
     # Wiring faults, for `rovernav check` to find: a motor whose two wires are swapped turns the
     # other way; a ranger with TRIG and ECHO swapped (or unpowered) never answers.
     left_motor_reversed: bool = False
@@ -66,7 +67,7 @@ class RoverPlant:
         self.x, self.y, self.heading = x_m, y_m, heading_deg
         self.cfg = config
         self.rng = rng
-        self.v_left = self.v_right = 0.0   # m/s
+        self.v_left = self.v_right = 0.0  # m/s
         self.rate_dps = 0.0
         self.servo_deg = 0.0
         self.gyro_bias = float(rng.normal(0.0, config.gyro_bias_dps))
@@ -88,7 +89,7 @@ class RoverPlant:
         self.v_left += k * (self._wheel_target(left, 1.0) * self.speed_factor - self.v_left)
         self.v_right += k * (self._wheel_target(right_pwm, c.right_gain) * self.speed_factor - self.v_right)
         v = 0.5 * (self.v_left + self.v_right)
-        omega = (self.v_left - self.v_right) / c.track_m   # rad/s, clockwise
+        omega = (self.v_left - self.v_right) / c.track_m  # rad/s, clockwise
         self.rate_dps = math.degrees(omega)
         mid = math.radians(self.heading + 0.5 * self.rate_dps * dt_s)
         self.x += v * dt_s * math.sin(mid)
@@ -105,7 +106,9 @@ class RoverPlant:
         """One gyro sample (millidegrees/s, clockwise), or None when the gyro is dead."""
         if not self.gyro_alive:
             return None
-        reading = self.rate_dps * self.cfg.gyro_scale + self.gyro_bias + self.cfg.gyro_noise_dps * float(self.rng.normal())
+        reading = (
+            self.rate_dps * self.cfg.gyro_scale + self.gyro_bias + self.cfg.gyro_noise_dps * float(self.rng.normal())
+        )
         return int(round(reading * 1000))
 
     def sonar_mm(self, world: World) -> int:
@@ -115,8 +118,7 @@ class RoverPlant:
             return 0
         sx, sy = sonar_origin(self.x, self.y, self.heading, c.sonar_offset_m)
         axis = self.heading + self.servo_deg
-        nearest = world.sonar_m(sx, sy, axis, c.sonar_cone_deg, c.sonar_max_m, c.sonar_max_incidence_deg,
-                                c.sonar_rays)
+        nearest = world.sonar_m(sx, sy, axis, c.sonar_cone_deg, c.sonar_max_m, c.sonar_max_incidence_deg, c.sonar_rays)
         if nearest > c.sonar_floor_m:
             # Beyond about 0.65 m the cone reaches the floor: an echo from there, a little random.
             nearest = c.sonar_floor_m + abs(float(self.rng.normal(0.0, 0.05)))

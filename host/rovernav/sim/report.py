@@ -1,4 +1,5 @@
 """What a simulated mission produced: report.json, the summary picture and the annotated video."""
+
 from __future__ import annotations
 
 import math
@@ -61,7 +62,9 @@ def cruise_speed_m_s(params: list) -> float:
         return p.get(int(param), mg.PARAMS[param].default)
 
     pwm = get(mg.Param.DRIVE_PWM) - get(mg.Param.MOTOR_DEADBAND_PWM)
-    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].scale / 1000
+    return (
+        max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].scale / 1000
+    )
 
 
 def build_report(sim, wall_time_s: float) -> dict:
@@ -75,25 +78,39 @@ def build_report(sim, wall_time_s: float) -> dict:
         driven_total += driven
         optimal = sim.trip_optimal_m(trip.index)
         end = trip.finished_s if trip.finished_s is not None else sim.t
-        legs.append({
-            "index": trip.index + 1, "goal": [round(trip.goal[0], 3), round(trip.goal[1], 3)],
-            "reached": trip.reached, "time_s": round(end - trip.started_s, 2),
-            "path_length_m": round(driven, 3), "optimal_length_m": _r(optimal, 3),
-            "spl": round(_spl(trip.reached, optimal, driven), 3), "replans": trip.replans,
-            "sonar_echoes": trip.obstacles_found, "planned_length_m": round(trip.planned_length_m, 3),
-        })
+        legs.append(
+            {
+                "index": trip.index + 1,
+                "goal": [round(trip.goal[0], 3), round(trip.goal[1], 3)],
+                "reached": trip.reached,
+                "time_s": round(end - trip.started_s, 2),
+                "path_length_m": round(driven, 3),
+                "optimal_length_m": _r(optimal, 3),
+                "spl": round(_spl(trip.reached, optimal, driven), 3),
+                "replans": trip.replans,
+                "sonar_echoes": trip.obstacles_found,
+                "planned_length_m": round(trip.planned_length_m, 3),
+            }
+        )
     reached = len(m.legs) == m.legs_asked and all(leg["reached"] for leg in legs)
     # A trip: one leg for a reach mission, out and back (two legs) for an out-and-back one.
     per_trip = legs_per_trip(sc.mission.kind)
     trips = []
     for i in range(0, len(legs), per_trip):
-        group = legs[i:i + per_trip]
-        trips.append({"index": i // per_trip + 1, "reached": len(group) == per_trip and all(g["reached"] for g in group),
-                      "time_s": round(sum(g["time_s"] for g in group), 2),
-                      "path_length_m": round(sum(g["path_length_m"] for g in group), 3),
-                      "optimal_length_m": None if any(g["optimal_length_m"] is None for g in group)
-                      else round(sum(g["optimal_length_m"] for g in group), 3),
-                      "replans": sum(g["replans"] for g in group), "legs": [g["index"] for g in group]})
+        group = legs[i : i + per_trip]
+        trips.append(
+            {
+                "index": i // per_trip + 1,
+                "reached": len(group) == per_trip and all(g["reached"] for g in group),
+                "time_s": round(sum(g["time_s"] for g in group), 2),
+                "path_length_m": round(sum(g["path_length_m"] for g in group), 3),
+                "optimal_length_m": None
+                if any(g["optimal_length_m"] is None for g in group)
+                else round(sum(g["optimal_length_m"] for g in group), 3),
+                "replans": sum(g["replans"] for g in group),
+                "legs": [g["index"] for g in group],
+            }
+        )
     status = m.last_status
     c = sim.link.counters
     unknown = [o for o in _shapes(sc) if not o.known]
@@ -131,17 +148,35 @@ def build_report(sim, wall_time_s: float) -> dict:
         "failure": m.failure.value if m.failure is not None else None,
         "trips": trips,
         "legs": legs,
-        "camera": {"fps": sim.opt.camera_fps, "latency_s": sim.opt.camera_latency_s,
-                   "frames": sim.frames_rendered, "dropped": sim.frames_dropped, "fixes_sent": m.fixes_sent},
+        "camera": {
+            "fps": sim.opt.camera_fps,
+            "latency_s": sim.opt.camera_latency_s,
+            "frames": sim.frames_rendered,
+            "dropped": sim.frames_dropped,
+            "fixes_sent": m.fixes_sent,
+        },
         "link": {
-            "baud": sim.opt.channel.baud, "delay_s": sim.opt.channel.delay_s,
-            "to_rover": sim.to_rover.byte_counters(), "to_host": sim.to_host.byte_counters(),
-            "host_decoder": {"frames_ok": c.frames_ok, "bad_crc": c.bad_crc, "overlong": c.overlong,
-                             "unknown_id": c.unknown_id, "malformed": c.malformed},
-            "rover_decoder": None if status is None else {
-                "frames_ok": status.rx_ok, "bad_crc": status.rx_bad_crc, "overlong": status.rx_overlong,
-                "unknown_id": status.rx_unknown_id, "malformed": status.rx_malformed,
-                "tx_dropped": status.tx_dropped},
+            "baud": sim.opt.channel.baud,
+            "delay_s": sim.opt.channel.delay_s,
+            "to_rover": sim.to_rover.byte_counters(),
+            "to_host": sim.to_host.byte_counters(),
+            "host_decoder": {
+                "frames_ok": c.frames_ok,
+                "bad_crc": c.bad_crc,
+                "overlong": c.overlong,
+                "unknown_id": c.unknown_id,
+                "malformed": c.malformed,
+            },
+            "rover_decoder": None
+            if status is None
+            else {
+                "frames_ok": status.rx_ok,
+                "bad_crc": status.rx_bad_crc,
+                "overlong": status.rx_overlong,
+                "unknown_id": status.rx_unknown_id,
+                "malformed": status.rx_malformed,
+                "tx_dropped": status.tx_dropped,
+            },
             "signing": signing_figures(sim),
             # As the host measured it (what `rovernav run` shows too): frames through both ways,
             # and what it sent and sent again, per message kind.
@@ -162,38 +197,59 @@ def setup_figures(setup) -> dict | None:
     if setup is None:
         return None
     p = setup.plant
-    return {"seed": setup.seed, "colours": setup.colour_words(),
-            "bgr": {"rover_front": list(setup.front_bgr), "rover_back": list(setup.back_bgr),
-                    "target": list(setup.target_bgr)},
-            "light_level": None if setup.lighting is None else round(setup.lighting.level, 3),
-            "corners_px": None if setup.corners_px is None else [[round(u, 2), round(v, 2)] for u, v in setup.corners_px],
-            "plant": {"mm_s_per_pwm": round(p.mm_s_per_pwm, 3), "right_gain": round(p.right_gain, 3),
-                      "deadband_pwm": round(p.deadband_pwm, 2), "gyro_bias_dps": round(p.gyro_bias_dps, 3)}}
+    return {
+        "seed": setup.seed,
+        "colours": setup.colour_words(),
+        "bgr": {
+            "rover_front": list(setup.front_bgr),
+            "rover_back": list(setup.back_bgr),
+            "target": list(setup.target_bgr),
+        },
+        "light_level": None if setup.lighting is None else round(setup.lighting.level, 3),
+        "corners_px": None if setup.corners_px is None else [[round(u, 2), round(v, 2)] for u, v in setup.corners_px],
+        "plant": {
+            "mm_s_per_pwm": round(p.mm_s_per_pwm, 3),
+            "right_gain": round(p.right_gain, 3),
+            "deadband_pwm": round(p.deadband_pwm, 2),
+            "gyro_bias_dps": round(p.gyro_bias_dps, 3),
+        },
+    }
 
 
 def signing_figures(sim) -> dict:
     """Whether the link was signed, what each end refused for its signature, and what the attacker
     (if any) injected: each injected frame should be refused by the rover, by the reason expected."""
     hc = sim.link.counters
-    out = {"signed": sim.link_key is not None,
-           "rover_refused": sim.core.auth_counters(),
-           # the native core is asked; the Uno image's counts are those of its last LINK_AUTH, sent
-           # in STATUS's place when they change (a refusal in the last 0.2 s may not be in it)
-           "rover_counts_from": "core" if sim.opt.rover == "native" else "last LINK_AUTH",
-           "host_refused": {"bad_tag": hc.bad_tag, "replayed": hc.replayed, "not_signed": hc.not_signed,
-                            "unverified": hc.unverified}}
+    out = {
+        "signed": sim.link_key is not None,
+        "rover_refused": sim.core.auth_counters(),
+        # the native core is asked; the Uno image's counts are those of its last LINK_AUTH, sent
+        # in STATUS's place when they change (a refusal in the last 0.2 s may not be in it)
+        "rover_counts_from": "core" if sim.opt.rover == "native" else "last LINK_AUTH",
+        "host_refused": {
+            "bad_tag": hc.bad_tag,
+            "replayed": hc.replayed,
+            "not_signed": hc.not_signed,
+            "unverified": hc.unverified,
+        },
+    }
     if sim.attacker is not None:
         from .attacker import EXPECTED_REFUSAL
+
         expected: dict[str, int] = {}
         for kind, n in sim.attacker.injected.items():
-            reason = EXPECTED_REFUSAL[kind] if sim.link_key is not None else ("unverified" if kind == "forged" else None)
-            if reason is not None:   # unsigned: the rest is obeyed
+            reason = (
+                EXPECTED_REFUSAL[kind] if sim.link_key is not None else ("unverified" if kind == "forged" else None)
+            )
+            if reason is not None:  # unsigned: the rest is obeyed
                 expected[reason] = expected.get(reason, 0) + n
         refused = out["rover_refused"]
-        out["attacker"] = {"injected": dict(sim.attacker.injected),
-                           "injected_total": sum(sim.attacker.injected.values()),
-                           "refused_total": sum(refused[k] for k in ("bad_tag", "replayed", "not_signed", "unverified")),
-                           "expected_refusals": expected}
+        out["attacker"] = {
+            "injected": dict(sim.attacker.injected),
+            "injected_total": sum(sim.attacker.injected.values()),
+            "refused_total": sum(refused[k] for k in ("bad_tag", "replayed", "not_signed", "unverified")),
+            "expected_refusals": expected,
+        }
     return out
 
 
@@ -213,26 +269,41 @@ def fault_figures(sim) -> dict:
     for smp in sim.samples:
         if smp.state == mg.RoverState.HOLD and in_hold is None:
             in_hold = smp
-            holds.append({"t_s": round(smp.t_s, 2), "x_m": round(smp.x_m, 3), "y_m": round(smp.y_m, 3),
-                          "uncertainty_2sd_m": round(2 * smp.est[3], 3) if smp.est else None})
+            holds.append(
+                {
+                    "t_s": round(smp.t_s, 2),
+                    "x_m": round(smp.x_m, 3),
+                    "y_m": round(smp.y_m, 3),
+                    "uncertainty_2sd_m": round(2 * smp.est[3], 3) if smp.est else None,
+                }
+            )
         elif smp.state != mg.RoverState.HOLD and in_hold is not None:
             recoveries.append(round(smp.t_s - in_hold.t_s, 2))
             in_hold = None
     if in_hold is not None:
         recoveries.append(None)
     return {
-        "injected": {"link_outages": f.link_outages, "camera_outages": f.camera_outages,
-                     "camera_outage_kind": f.camera_outage_kind, "host_restarts": f.host_restarts,
-                     "firmware_resets": f.firmware_resets, "gyro_dies_at": f.gyro_dies_at},
+        "injected": {
+            "link_outages": f.link_outages,
+            "camera_outages": f.camera_outages,
+            "camera_outage_kind": f.camera_outage_kind,
+            "host_restarts": f.host_restarts,
+            "firmware_resets": f.firmware_resets,
+            "gyro_dies_at": f.gyro_dies_at,
+        },
         "dr_errors_m": dr_errors,
         "max_dr_error_m": max(dr_errors) if dr_errors else None,
         "holds": holds,
         "hold_recovery_s": recoveries,
         "link_lost_events": len(of(mg.EventKind.LINK_LOST)),
         "camera_lost_events": len(of(mg.EventKind.CAMERA_LOST)),
-        "rover_faults": [{"t_s": round(e.time_ms / 1000, 2),
-                          "fault": mg.FaultCode(e.arg).name.lower() if e.arg in mg.FaultCode._value2member_map_ else e.arg}
-                         for _, e in of(mg.EventKind.FAULT)],
+        "rover_faults": [
+            {
+                "t_s": round(e.time_ms / 1000, 2),
+                "fault": mg.FaultCode(e.arg).name.lower() if e.arg in mg.FaultCode._value2member_map_ else e.arg,
+            }
+            for _, e in of(mg.EventKind.FAULT)
+        ],
         "local_detours": sum(1 for _, e in of(mg.EventKind.REPLANNED) if e.arg > 0),
         "reflex_stops": len(of(mg.EventKind.REFLEX)),
         "turns_refused": len(of(mg.EventKind.TURN_REFUSED)),
@@ -252,13 +323,16 @@ def _echo_on(obstacle, echoes, offset_m: float, margin_m: float = 0.06) -> bool:
         if getattr(obstacle, "kind", "box") != "box":
             if obstacle.distance_m(px, py) <= margin_m:
                 return True
-        elif (abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m
-              and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m):
+        elif (
+            abs(px - obstacle.x_m) <= obstacle.w_m / 2 + margin_m
+            and abs(py - obstacle.y_m) <= obstacle.h_m / 2 + margin_m
+        ):
             return True
     return False
 
 
 # ---------------------------------------------------------------- pictures
+
 
 def summary_picture(sim, report: dict, path: Path) -> None:
     sc = sim.scenario
@@ -273,13 +347,15 @@ def summary_picture(sim, report: dict, path: Path) -> None:
         s = sim.samples[-1]
         cv2.polylines(img, [canvas.pts(footprint(s.x_m, s.y_m, s.heading_deg))], True, (20, 20, 20), 2)
     footer = np.full((70, img.shape[1], 3), 255, np.uint8)
-    lines = [f"{report['scenario']} / {report['strategy']}: {outcome_text(report)}, "
-             f"{report['mission_time_s']:.1f} s, {report['path_length_m']:.2f} m driven "
-             f"(optimal {fmt_m(report['optimal_length_m'])}), SPL {report['spl']:.2f}",
-             f"collisions {report['collisions']}, min clearance {report['min_clearance_m'] or 0:.3f} m, "
-             f"replans {report['replans']}, unknown obstacles found {report['obstacles_discovered']}/"
-             f"{report['obstacles_unknown']}; trips: " + ", ".join(
-                 f"{t['index']}: {t['time_s']:.0f} s, {t['replans']} replans" for t in report["trips"])]
+    lines = [
+        f"{report['scenario']} / {report['strategy']}: {outcome_text(report)}, "
+        f"{report['mission_time_s']:.1f} s, {report['path_length_m']:.2f} m driven "
+        f"(optimal {fmt_m(report['optimal_length_m'])}), SPL {report['spl']:.2f}",
+        f"collisions {report['collisions']}, min clearance {report['min_clearance_m'] or 0:.3f} m, "
+        f"replans {report['replans']}, unknown obstacles found {report['obstacles_discovered']}/"
+        f"{report['obstacles_unknown']}; trips: "
+        + ", ".join(f"{t['index']}: {t['time_s']:.0f} s, {t['replans']} replans" for t in report["trips"]),
+    ]
     for i, line in enumerate(lines):
         cv2.putText(footer, line, (10, 25 + 28 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (30, 30, 30), 1, cv2.LINE_AA)
     ok, png = cv2.imencode(".png", np.vstack([img, footer]))
@@ -314,9 +390,9 @@ class VideoWriter:
         self.fps = fps
         self.crf = self.CRF_DEFAULT if crf is None else crf
         self.preset = preset or self.PRESET_DEFAULT
-        self.container = None   # av.container.OutputContainer once the first frame came
+        self.container = None  # av.container.OutputContainer once the first frame came
         self.stream = None
-        self.codec = None       # the encoder's name, "libx264" (or the fall-back's)
+        self.codec = None  # the encoder's name, "libx264" (or the fall-back's)
         self.frames = 0
         self._cal = None
 
@@ -348,7 +424,9 @@ class VideoWriter:
             cv2.polylines(img, [pxs(m.path)], False, (255, 0, 255), 2, cv2.LINE_AA)
         for o in sc.obstacles:
             color = (200, 200, 200) if o.known else (80, 80, 255)
-            cv2.rectangle(img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1)
+            cv2.rectangle(
+                img, px(o.x_m - o.w_m / 2, o.y_m + o.h_m / 2), px(o.x_m + o.w_m / 2, o.y_m - o.h_m / 2), color, 1
+            )
         # Walls and posts: the camera's renderer does not draw them (its Scene holds boxes only),
         # so the overlay draws them filled, known grey, unknown red.
         for o in getattr(sc, "walls", ()):
@@ -392,8 +470,7 @@ class VideoWriter:
         the old mp4v video's 34.0 (45.5) at 26 MB. The dead zone only acts without trellis
         quantisation, as in veryfast; slower presets also spend their effort keeping noise (medium
         makes a bigger file than veryfast) and cost more time."""
-        return {"crf": f"{self.crf:g}", "preset": self.preset, "tune": "animation",
-                "x264-params": "deadzone-inter=32"}
+        return {"crf": f"{self.crf:g}", "preset": self.preset, "tune": "animation", "x264-params": "deadzone-inter=32"}
 
     def _open(self, w: int, h: int) -> None:
         from fractions import Fraction
@@ -413,12 +490,12 @@ class VideoWriter:
                     # Frame threads (PyAV's default is slice threads, where each encode call waits
                     # for its frame): x264 codes on its own threads while the simulation goes on.
                     stream.codec_context.thread_type = "FRAME"
-                    stream.codec_context.thread_count = 0   # x264's own choice (1.5 per core)
-                else:   # OpenH264 has no CRF: a bitrate that keeps out-and-back under 5 MB
+                    stream.codec_context.thread_count = 0  # x264's own choice (1.5 per core)
+                else:  # OpenH264 has no CRF: a bitrate that keeps out-and-back under 5 MB
                     stream.bit_rate = 150_000
                     stream.gop_size = max(1, int(round(10 * self.fps)))
-                stream.codec_context.open()   # now, not at the first frame: a failure here falls back
-            except (av.FFmpegError, ValueError) as exc:   # not in this FFmpeg build, or it will not open
+                stream.codec_context.open()  # now, not at the first frame: a failure here falls back
+            except (av.FFmpegError, ValueError) as exc:  # not in this FFmpeg build, or it will not open
                 tried.append(f"{codec}: {exc}")
                 container.close()
                 self.partial.unlink(missing_ok=True)
@@ -429,9 +506,11 @@ class VideoWriter:
                 raise
             self.container, self.stream, self.codec = container, stream, codec
             return
-        raise RuntimeError(f"cannot write video {self.path}: the FFmpeg inside PyAV {av.__version__} has no "
-                           f"H.264 encoder that works ({'; '.join(tried)}); install PyAV's own wheel "
-                           f"(`pip install av`, it bundles libx264) or run without video (--no-video)")
+        raise RuntimeError(
+            f"cannot write video {self.path}: the FFmpeg inside PyAV {av.__version__} has no "
+            f"H.264 encoder that works ({'; '.join(tried)}); install PyAV's own wheel "
+            f"(`pip install av`, it bundles libx264) or run without video (--no-video)"
+        )
 
     def write(self, img: np.ndarray) -> None:
         """Encodes one annotated BGR frame (the next at the camera's rate)."""
@@ -455,7 +534,7 @@ class VideoWriter:
         try:
             try:
                 if keep:
-                    container.mux(stream.encode(None))   # what the encoder still holds
+                    container.mux(stream.encode(None))  # what the encoder still holds
             finally:
                 container.close()
         except BaseException:

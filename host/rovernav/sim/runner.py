@@ -9,6 +9,7 @@ Every 10 ms of simulated time:
      result and the bytes the radio delivered, and its bytes go on the air at 57,600 baud;
   4. the plant moves under the motor commands; contacts and clearances are recorded.
 """
+
 from __future__ import annotations
 
 import collections
@@ -37,19 +38,19 @@ from .plant import PlantConfig, RoverPlant
 from .setup import Setup
 from .world import World
 
-STEP_S = STEP_PERIOD_MS / 1000.0   # the rover's step (protocol/vehicle.toml)
+STEP_S = STEP_PERIOD_MS / 1000.0  # the rover's step (protocol/vehicle.toml)
 HOST_PERIOD_S = 0.030
-ROVER_CLOCK_SKEW = 0.005   # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
-HOST_BOOT_ID = 0x484F5354   # "HOST": the simulated host's boot id (+1 per restart)
+ROVER_CLOCK_SKEW = 0.005  # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
+HOST_BOOT_ID = 0x484F5354  # "HOST": the simulated host's boot id (+1 per restart)
 
 
 @dataclasses.dataclass
 class Faults:
     """What can go wrong on purpose (times in simulated seconds)."""
 
-    link_outages: list[tuple[float, float]] = dataclasses.field(default_factory=list)    # (start, duration)
+    link_outages: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # (start, duration)
     camera_outages: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # (start, duration)
-    camera_outage_kind: str = "no_frames"      # or "no_markers"
+    camera_outage_kind: str = "no_frames"  # or "no_markers"
     host_restarts: list[float] = dataclasses.field(default_factory=list)
     firmware_resets: list[float] = dataclasses.field(default_factory=list)
     gyro_dies_at: float | None = None
@@ -58,25 +59,25 @@ class Faults:
 @dataclasses.dataclass
 class SimOptions:
     seed: int = 1
-    strategy: str = "rovernav"        # or "seed"
+    strategy: str = "rovernav"  # or "seed"
     camera_fps: float = 30.0
     camera_latency_s: float = 0.060
     frame_drop: float = 0.02
     max_time_s: float = 900.0
     host_replan: bool = True
-    drive_mode: str | None = None     # "rotate_drive" or "pose_law" (the rover's DRIVE_MODE); None: the config's
+    drive_mode: str | None = None  # "rotate_drive" or "pose_law" (the rover's DRIVE_MODE); None: the config's
     channel: ChannelConfig = ChannelConfig()
     plant: PlantConfig = PlantConfig()
     faults: Faults = dataclasses.field(default_factory=Faults)
     config: Config | None = None
-    rover: str = "native"             # or "uno": build/uno/firmware.elf in simavr (cores/uno.py)
-    signed: bool = True               # host and rover share a link key ([signing]); False: unsigned
-    attacker: bool = False            # a second transmitter injects forged and replayed frames (attacker.py)
-    log: Path | None = None           # the run's MCAP log (rovernav.runlog); None: none
-    live_port: int | None = None      # serve the log's channels live on 127.0.0.1 at this port (0: any free one)
-    log_image_hz: float = 2.0         # camera images kept in the log (and shown live) per second
-    pace: float = 0.0                 # > 0: run at this many times real time (for a live view); 0: flat out
-    setup: Setup | None = None      # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
+    rover: str = "native"  # or "uno": build/uno/firmware.elf in simavr (cores/uno.py)
+    signed: bool = True  # host and rover share a link key ([signing]); False: unsigned
+    attacker: bool = False  # a second transmitter injects forged and replayed frames (attacker.py)
+    log: Path | None = None  # the run's MCAP log (rovernav.runlog); None: none
+    live_port: int | None = None  # serve the log's channels live on 127.0.0.1 at this port (0: any free one)
+    log_image_hz: float = 2.0  # camera images kept in the log (and shown live) per second
+    pace: float = 0.0  # > 0: run at this many times real time (for a live view); 0: flat out
+    setup: Setup | None = None  # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
 
 
 @dataclasses.dataclass
@@ -87,33 +88,44 @@ class Sample:
     x_m: float
     y_m: float
     heading_deg: float
-    est: tuple[float, float, float, float] | None   # x, y, heading, sd (m, m, deg, m) from the core's probe
+    est: tuple[float, float, float, float] | None  # x, y, heading, sd (m, m, deg, m) from the core's probe
     state: int
     trip: int
 
 
 class Simulation:
-    def __init__(self, scenario, options: SimOptions, frame_sink: Callable | None = None,
-                 progress: Callable[[float, str], None] | None = None):
+    def __init__(
+        self,
+        scenario,
+        options: SimOptions,
+        frame_sink: Callable | None = None,
+        progress: Callable[[float, str], None] | None = None,
+    ):
         self.scenario = scenario
         self.opt = options
-        self.cfg = options.config or config_from_dict({"arena": {"width_m": scenario.arena.width_m,
-                                                                 "height_m": scenario.arena.height_m}})
+        self.cfg = options.config or config_from_dict(
+            {"arena": {"width_m": scenario.arena.width_m, "height_m": scenario.arena.height_m}}
+        )
         cfg_mode = self.cfg.rover.get(mg.Param.DRIVE_MODE)
         # What the rover is told, and what the report says: the flag, else the configuration.
-        self.drive_mode = options.drive_mode or (mg.DriveMode(cfg_mode).name.lower() if cfg_mode is not None
-                                                 else "rotate_drive")
+        self.drive_mode = options.drive_mode or (
+            mg.DriveMode(cfg_mode).name.lower() if cfg_mode is not None else "rotate_drive"
+        )
         self.rng = np.random.default_rng(options.seed)
         self.world = World.from_scenario(scenario)
         s = scenario.start
         setup = options.setup
-        self.plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, setup.plant if setup is not None else options.plant,
-                                self.rng)
+        self.plant = RoverPlant(
+            s.x_m, s.y_m, s.heading_deg, setup.plant if setup is not None else options.plant, self.rng
+        )
         if self.world.collides(self.plant.x, self.plant.y, self.plant.heading):
             from ..scenario import ScenarioError  # `rovernav plan` refuses such a start too
-            raise ScenarioError(f"{scenario.path or scenario.name}: start ({s.x_m:g}, {s.y_m:g}) m, heading "
-                                f"{s.heading_deg:g} deg: the rover would stand on "
-                                f"{self.world.touching(self.plant.x, self.plant.y, self.plant.heading)}")
+
+            raise ScenarioError(
+                f"{scenario.path or scenario.name}: start ({s.x_m:g}, {s.y_m:g}) m, heading "
+                f"{s.heading_deg:g} deg: the rover would stand on "
+                f"{self.world.touching(self.plant.x, self.plant.y, self.plant.heading)}"
+            )
         self.frame_sink = frame_sink
         self.progress = progress or (lambda t, text: None)
         # Both directions share one burst process and, half duplex, one medium (sim/channel.py).
@@ -121,12 +133,16 @@ class Simulation:
         # The link key, as `rovernav keygen` would make it and `provision` store it (from its own
         # generator: the simulation's random draws stay those of an unsigned run), and the
         # counters the rover last stored (its EEPROM; the Uno image keeps its own in simavr).
-        self.link_key = (bytes(np.random.default_rng([options.seed, 0x4B4559]).integers(0, 256, 16, dtype=np.uint8))
-                         if options.signed else None)
+        self.link_key = (
+            bytes(np.random.default_rng([options.seed, 0x4B4559]).integers(0, 256, 16, dtype=np.uint8))
+            if options.signed
+            else None
+        )
         self._stored_counters = (0, 0)
         self.attacker = None
         if options.attacker:
             from .attacker import Attacker
+
             self.attacker = Attacker(self.to_rover, seed=options.seed)
             self.to_rover.tap = self.attacker.observe
         self.core: RoverCore | None = None
@@ -136,24 +152,28 @@ class Simulation:
         w_m, h_m = scenario.arena.width_m, scenario.arena.height_m
         camera = Camera(lighting=lighting, noise_sigma=3.0)
         if setup is not None:
-            look = dataclasses.replace(look, front_bgr=setup.front_bgr, back_bgr=setup.back_bgr,
-                                       target_bgr=setup.target_bgr)
+            look = dataclasses.replace(
+                look, front_bgr=setup.front_bgr, back_bgr=setup.back_bgr, target_bgr=setup.target_bgr
+            )
             camera = Camera(calibration=setup.mapping(w_m, h_m), lighting=setup.lighting or lighting, noise_sigma=3.0)
         self.renderer = Renderer(look, camera, seed=int(self.rng.integers(2**31)))
         self.locator = Locator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
-        self.scene_base = Scene(arena_w_m=scenario.arena.width_m, arena_h_m=scenario.arena.height_m,
-                                obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
-                                walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
-                                posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
-                                target=(scenario.target.x_m, scenario.target.y_m),
-                                marker_kind=self.cfg.vision.markers,
-                                decoys=setup.decoys(w_m, h_m) if setup is not None else ())
+        self.scene_base = Scene(
+            arena_w_m=scenario.arena.width_m,
+            arena_h_m=scenario.arena.height_m,
+            obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
+            walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
+            posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
+            target=(scenario.target.x_m, scenario.target.y_m),
+            marker_kind=self.cfg.vision.markers,
+            decoys=setup.decoys(w_m, h_m) if setup is not None else (),
+        )
         self.t = 0.0
         self.samples: list[Sample] = []
         self.frames_rendered = 0
         self.frames_dropped = 0
         self.collisions = 0
-        self.crash: dict | None = None       # where and when the rover first touched something
+        self.crash: dict | None = None  # where and when the rover first touched something
         self.timed_out = False
         self._in_contact = False
         self.min_clearance_m = math.inf
@@ -169,17 +189,36 @@ class Simulation:
             params.append((mg.Param.DRIVE_MODE, int(mg.DriveMode[self.drive_mode.upper()])))
         # The host's mission in plain values: the run log keeps it, and `rovernav replay` builds
         # the same mission from it. Its boot id says "HOST" (+1 per restart).
-        self.spec = MissionSpec.for_run(scenario, self.cfg, strategy=options.strategy,
-                                        host_replan=options.host_replan, rover_params=params, host_boot_id=HOST_BOOT_ID)
+        self.spec = MissionSpec.for_run(
+            scenario,
+            self.cfg,
+            strategy=options.strategy,
+            host_replan=options.host_replan,
+            rover_params=params,
+            host_boot_id=HOST_BOOT_ID,
+        )
         self.runlog = None
         if options.log is not None or options.live_port is not None:
             from ..runlog import RunLog
 
-            self.runlog = RunLog(options.log, self.spec, source="sim", scenario=scenario, truth=True,
-                                 live_port=options.live_port, image_hz=options.log_image_hz,
-                                 meta={"scenario": scenario.name, "seed": options.seed, "strategy": options.strategy,
-                                       "drive_mode": self.drive_mode, "rover": options.rover,
-                                       "signed": options.signed, "radio": options.channel.settings()})
+            self.runlog = RunLog(
+                options.log,
+                self.spec,
+                source="sim",
+                scenario=scenario,
+                truth=True,
+                live_port=options.live_port,
+                image_hz=options.log_image_hz,
+                meta={
+                    "scenario": scenario.name,
+                    "seed": options.seed,
+                    "strategy": options.strategy,
+                    "drive_mode": self.drive_mode,
+                    "rover": options.rover,
+                    "signed": options.signed,
+                    "radio": options.channel.settings(),
+                },
+            )
             self.runlog.watch_radio(lambda: radio_figures(self.to_rover, self.to_host, self.runlog.t_s))
         self.mission = self._new_host()
         self._clairvoyant: OccupancyGrid | None = None
@@ -192,16 +231,23 @@ class Simulation:
         if self.opt.rover == "native":
             if self.core is not None:
                 self.core.close()
-            return NativeCore(boot_id=boot_id, reset_cause=reset_cause, key=self.link_key,
-                              counters=self._stored_counters)
+            return NativeCore(
+                boot_id=boot_id, reset_cause=reset_cause, key=self.link_key, counters=self._stored_counters
+            )
         if self.opt.rover != "uno":
             raise ValueError(f"unknown rover {self.opt.rover!r}: native or uno")
         if self.core is not None:
             self.core.reset(reset_cause)
             return self.core
         from ..cores.uno import UnoCore
-        return UnoCore(boot_id=boot_id, reset_cause=reset_cause, sonar=lambda: self.plant.sonar_mm(self.world),
-                       start_ms=int(round(getattr(self, "t", 0.0) * 1000)), key=self.link_key)
+
+        return UnoCore(
+            boot_id=boot_id,
+            reset_cause=reset_cause,
+            sonar=lambda: self.plant.sonar_mm(self.world),
+            start_ms=int(round(getattr(self, "t", 0.0) * 1000)),
+            key=self.link_key,
+        )
 
     def uno_timing(self) -> dict | None:
         """The report's "uno_timing" (None for the native core), with where the worst step was."""
@@ -256,15 +302,19 @@ class Simulation:
                 self._sim_event(self.t, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)", "error")
                 break
             now = self.t
-            if self.opt.pace > 0:   # a live view: simulated time keeps pace with the wall clock
+            if self.opt.pace > 0:  # a live view: simulated time keeps pace with the wall clock
                 time.sleep(max(0.0, wall0 + now / self.opt.pace - time.monotonic()))
             if self.runlog is not None:
                 self.runlog.set_time(now)
                 self._fault_edges(now)
             if restarts and now >= restarts[0]:
                 restarts.pop(0)
-                self._sim_event(now, "host restarted: the new host keeps what was on disk (the learned map, the legs "
-                                     "done) and takes the rest from the rover's HELLO and STATUS", "warning")
+                self._sim_event(
+                    now,
+                    "host restarted: the new host keeps what was on disk (the learned map, the legs "
+                    "done) and takes the rest from the rover's HELLO and STATUS",
+                    "warning",
+                )
                 # As a restarted process: nothing in memory survives, only the files the old host
                 # kept in its working folder (start_host reloads them).
                 self.restarts_done += 1
@@ -304,8 +354,11 @@ class Simulation:
                 self.frames_dropped += 1
             else:
                 p = self.plant
-                scene = dataclasses.replace(self.scene_base, rover=(p.x, p.y, p.heading),
-                                            hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset())
+                scene = dataclasses.replace(
+                    self.scene_base,
+                    rover=(p.x, p.y, p.heading),
+                    hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset(),
+                )
                 frame = self.renderer.render(scene, self.rng)
                 self.frames_rendered += 1
                 if self.runlog is not None:
@@ -339,8 +392,14 @@ class Simulation:
     def close_log(self, summary: dict | None = None) -> None:
         """End the run log (renamed into place; also for a run cut short)."""
         if self.runlog is not None:
-            self.runlog.close({"outcome": self.outcome, "host_outcome": self.mission.outcome.value,
-                               "mission_time_s": self.t, **(summary or {})})
+            self.runlog.close(
+                {
+                    "outcome": self.outcome,
+                    "host_outcome": self.mission.outcome.value,
+                    "mission_time_s": self.t,
+                    **(summary or {}),
+                }
+            )
 
     def _camera_out(self, now: float) -> str | None:
         for start, duration in self.opt.faults.camera_outages:
@@ -350,9 +409,14 @@ class Simulation:
 
     def _rover(self, now: float) -> None:
         rx = self.to_rover.receive(now, 255)
-        tx_room = max(0, mg.UART_BUFFER_BYTES - self.to_host.queued())   # the Uno's serial TX buffer
-        out = self.core.step(int(round(now * 1000)), gyro_rate_mdps=self.plant.gyro_mdps(),
-                             sonar_range_mm=self._sonar_pending, rx=rx, tx_room=tx_room)
+        tx_room = max(0, mg.UART_BUFFER_BYTES - self.to_host.queued())  # the Uno's serial TX buffer
+        out = self.core.step(
+            int(round(now * 1000)),
+            gyro_rate_mdps=self.plant.gyro_mdps(),
+            sonar_range_mm=self._sonar_pending,
+            rx=rx,
+            tx_room=tx_room,
+        )
         # (The Uno image pings the plant itself, through UnoCore's sonar callback.)
         self._sonar_pending = self.plant.sonar_mm(self.world) if out.fire_sonar and self.opt.rover == "native" else None
         if out.tx:
@@ -383,17 +447,26 @@ class Simulation:
             self.collisions += 1
             against = self.world.touching(self.plant.x, self.plant.y, self.plant.heading)
             # Motors cannot push a rover through a box or a wall: the run ends where it touched.
-            self.crash = {"t_s": round(now, 2), "x_m": round(self.plant.x, 3), "y_m": round(self.plant.y, 3),
-                          "heading_deg": round(self.plant.heading, 1), "against": against}
+            self.crash = {
+                "t_s": round(now, 2),
+                "x_m": round(self.plant.x, 3),
+                "y_m": round(self.plant.y, 3),
+                "heading_deg": round(self.plant.heading, 1),
+                "against": against,
+            }
             self._sim_event(now, f"CRASH at ({self.plant.x:.2f}, {self.plant.y:.2f}) m against {against}")
             self.mission.fail(f"the rover crashed into {against}")
         self._in_contact = contact
         if int(round(now * 1000)) % 50 == 0:
             pr = self.core.probe()
-            est = (pr.x_mm / 1000, pr.y_mm / 1000, math.degrees(pr.heading_rad), pr.position_sd_mm / 1000) \
-                if pr.state != mg.RoverState.IDLE or pr.x_mm else None
-            self.samples.append(Sample(now, self.plant.x, self.plant.y, self.plant.heading, est, pr.state,
-                                       len(self.mission.legs) - 1))
+            est = (
+                (pr.x_mm / 1000, pr.y_mm / 1000, math.degrees(pr.heading_rad), pr.position_sd_mm / 1000)
+                if pr.state != mg.RoverState.IDLE or pr.x_mm
+                else None
+            )
+            self.samples.append(
+                Sample(now, self.plant.x, self.plant.y, self.plant.heading, est, pr.state, len(self.mission.legs) - 1)
+            )
 
     # ---------------------------------------------------------------- results
 
@@ -404,8 +477,12 @@ class Simulation:
             return "crashed"
         if self.timed_out:
             return "timeout"
-        return {Outcome.REACHED: "reached", Outcome.NO_PATH: "no_path", Outcome.FAILED: "failed",
-                Outcome.RUNNING: "timeout"}[self.mission.outcome]
+        return {
+            Outcome.REACHED: "reached",
+            Outcome.NO_PATH: "no_path",
+            Outcome.FAILED: "failed",
+            Outcome.RUNNING: "timeout",
+        }[self.mission.outcome]
 
     def _clairvoyant_grid(self) -> OccupancyGrid:
         if self._clairvoyant is None:

@@ -20,6 +20,7 @@ scatters sound every way, so it echoes whenever it lies inside the cone, in sigh
 With max_incidence_deg ≥ 90 every ray that meets a surface echoes and corners are not looked at
 separately: the nearest surface along the rays, the model before posts and walls existed.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -30,7 +31,7 @@ import numpy as np
 from ..scenario import Post, Wall  # the same in the scenario and the world: one definition each
 from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 
-ROVER_WIDTH_M = BODY_WIDTH_MM / 1000.0    # protocol/vehicle.toml
+ROVER_WIDTH_M = BODY_WIDTH_MM / 1000.0  # protocol/vehicle.toml
 ROVER_LENGTH_M = BODY_LENGTH_MM / 1000.0
 HALF_DIAGONAL_M = math.hypot(ROVER_WIDTH_M, ROVER_LENGTH_M) / 2
 
@@ -53,8 +54,8 @@ class Box:
 def footprint(x_m: float, y_m: float, heading_deg: float) -> np.ndarray:
     """The rover's rectangle as 4 corners (front-left, front-right, back-right, back-left)."""
     h = math.radians(heading_deg)
-    f = np.array([math.sin(h), math.cos(h)])      # forward
-    r = np.array([math.cos(h), -math.sin(h)])     # right
+    f = np.array([math.sin(h), math.cos(h)])  # forward
+    r = np.array([math.cos(h), -math.sin(h)])  # right
     c = np.array([x_m, y_m])
     hl, hw = ROVER_LENGTH_M / 2, ROVER_WIDTH_M / 2
     return np.array([c + hl * f - hw * r, c + hl * f + hw * r, c - hl * f + hw * r, c - hl * f - hw * r])
@@ -124,8 +125,9 @@ def _rect_point_distance(frame: tuple[float, ...], x: float, y: float) -> float:
     return math.hypot(max(abs(dx * ux + dy * uy) - a, 0.0), max(abs(dy * ux - dx * uy) - b, 0.0))
 
 
-def _slab_hit(px: float, py: float, dx: float, dy: float, x0: float, y0: float, x1: float, y1: float,
-              t_max: float) -> tuple[float, int] | None:
+def _slab_hit(
+    px: float, py: float, dx: float, dy: float, x0: float, y0: float, x1: float, y1: float, t_max: float
+) -> tuple[float, int] | None:
     """Where the ray p + t·d (t ≥ 0) enters the box [x0, x1] × [y0, y1] before t_max: (t, the axis
     of the face it enters by: 0 for a face across x, 1 across y, -1 when it starts inside)."""
     tmin, tmax, axis = 0.0, t_max, -1
@@ -167,8 +169,9 @@ def _overlaps(pts: list[tuple[float, float]], box: tuple[float, float, float, fl
 class World:
     """The arena's walls, boxes, walls inside it and posts; collision, clearance and sonar geometry."""
 
-    def __init__(self, width_m: float, height_m: float, boxes: list[Box], walls: list[Wall] = (),
-                 posts: list[Post] = ()):
+    def __init__(
+        self, width_m: float, height_m: float, boxes: list[Box], walls: list[Wall] = (), posts: list[Post] = ()
+    ):
         self.width_m = width_m
         self.height_m = height_m
         self.boxes = list(boxes)
@@ -176,8 +179,16 @@ class World:
         self.posts = list(posts)
         self._frames = [w.frame() for w in self.walls]
         # Every corner of a box or a wall: the edges that echo from any direction.
-        corners = [c for b in self.boxes for c in ((b.bounds[0], b.bounds[1]), (b.bounds[2], b.bounds[1]),
-                                                   (b.bounds[2], b.bounds[3]), (b.bounds[0], b.bounds[3]))]
+        corners = [
+            c
+            for b in self.boxes
+            for c in (
+                (b.bounds[0], b.bounds[1]),
+                (b.bounds[2], b.bounds[1]),
+                (b.bounds[2], b.bounds[3]),
+                (b.bounds[0], b.bounds[3]),
+            )
+        ]
         corners += [c for w in self.walls for c in w.corners()]
         self._corners = np.array(corners, dtype=np.float64).reshape(-1, 2)
 
@@ -185,10 +196,13 @@ class World:
     def from_scenario(cls, scenario) -> World:
         walls = getattr(scenario, "walls", ())
         posts = getattr(scenario, "posts", ())
-        return cls(scenario.arena.width_m, scenario.arena.height_m,
-                   [Box(o.x_m, o.y_m, o.w_m, o.h_m, o.known) for o in scenario.obstacles],
-                   list(walls),
-                   list(posts))
+        return cls(
+            scenario.arena.width_m,
+            scenario.arena.height_m,
+            [Box(o.x_m, o.y_m, o.w_m, o.h_m, o.known) for o in scenario.obstacles],
+            list(walls),
+            list(posts),
+        )
 
     # ---------------------------------------------------------------- contact and clearance
 
@@ -246,15 +260,21 @@ class World:
         kind, i = what
         if kind == "box":
             b = self.boxes[i]
-            return (f"obstacle {i + 1} ({'known' if b.known else 'unknown'} box at "
-                    f"({b.x_m:.2f}, {b.y_m:.2f}) m, {b.w_m:.2f} x {b.h_m:.2f} m)")
+            return (
+                f"obstacle {i + 1} ({'known' if b.known else 'unknown'} box at "
+                f"({b.x_m:.2f}, {b.y_m:.2f}) m, {b.w_m:.2f} x {b.h_m:.2f} m)"
+            )
         if kind == "wall":
             w = self.walls[i]
-            return (f"wall {i + 1} ({'known' if w.known else 'unknown'}, from ({w.x0_m:.2f}, {w.y0_m:.2f}) "
-                    f"to ({w.x1_m:.2f}, {w.y1_m:.2f}) m, {w.thickness_m:.2f} m thick)")
+            return (
+                f"wall {i + 1} ({'known' if w.known else 'unknown'}, from ({w.x0_m:.2f}, {w.y0_m:.2f}) "
+                f"to ({w.x1_m:.2f}, {w.y1_m:.2f}) m, {w.thickness_m:.2f} m thick)"
+            )
         p = self.posts[i]
-        return (f"post {i + 1} ({'known' if p.known else 'unknown'}, at ({p.x_m:.2f}, {p.y_m:.2f}) m, "
-                f"radius {p.radius_m:.3f} m)")
+        return (
+            f"post {i + 1} ({'known' if p.known else 'unknown'}, at ({p.x_m:.2f}, {p.y_m:.2f}) m, "
+            f"radius {p.radius_m:.3f} m)"
+        )
 
     def touching(self, x_m: float, y_m: float, heading_deg: float) -> str:
         """What the rover's footprint touches (or comes nearest to): "the left wall", or a box,
@@ -262,8 +282,12 @@ class World:
         knew it."""
         poly = footprint(x_m, y_m, heading_deg)
         xs, ys = poly[:, 0], poly[:, 1]
-        walls = {"the left wall": xs.min(), "the bottom wall": ys.min(),
-                 "the right wall": self.width_m - xs.max(), "the top wall": self.height_m - ys.max()}
+        walls = {
+            "the left wall": xs.min(),
+            "the bottom wall": ys.min(),
+            "the right wall": self.width_m - xs.max(),
+            "the top wall": self.height_m - ys.max(),
+        }
         best_name, best = min(walls.items(), key=lambda kv: kv[1])
         for d, what in self._distances(x_m, y_m, heading_deg, math.inf, cull=False):
             if d < best:
@@ -325,8 +349,9 @@ class World:
         """Distance along a ray to the first wall, box or post (max_m if none nearer)."""
         return self.cast(x_m, y_m, direction_deg, max_m)[0]
 
-    def echo_m(self, x_m: float, y_m: float, direction_deg: float, max_m: float,
-               max_incidence_deg: float = 90.0) -> float:
+    def echo_m(
+        self, x_m: float, y_m: float, direction_deg: float, max_m: float, max_incidence_deg: float = 90.0
+    ) -> float:
         """Distance along a ray to the first surface if it echoes back, max_m if not (nothing
         there, or a flat face met more than max_incidence_deg off its normal: the sound goes away)."""
         t, cos = self.cast(x_m, y_m, direction_deg, max_m)
@@ -347,17 +372,26 @@ class World:
         for k in cand[np.argsort(dist[cand], kind="stable")]:
             r = float(dist[k])
             bearing = math.degrees(math.atan2(float(d[k, 0]), float(d[k, 1])))
-            if self.ray_m(x_m, y_m, bearing, r + 1e-3) >= r - 1e-3:   # nothing in front of it
+            if self.ray_m(x_m, y_m, bearing, r + 1e-3) >= r - 1e-3:  # nothing in front of it
                 return r
         return max_m
 
-    def sonar_m(self, x_m: float, y_m: float, axis_deg: float, cone_deg: float, max_m: float,
-                max_incidence_deg: float = 90.0, rays: int = 7) -> float:
+    def sonar_m(
+        self,
+        x_m: float,
+        y_m: float,
+        axis_deg: float,
+        cone_deg: float,
+        max_m: float,
+        max_incidence_deg: float = 90.0,
+        rays: int = 7,
+    ) -> float:
         """One ping of a sensor at (x, y) pointing along axis_deg: the nearest echo within the cone
         (`rays` rays across it, corners in it), or max_m if nothing echoes (see the module's notes)."""
         half = cone_deg / 2
-        nearest = min(self.echo_m(x_m, y_m, axis_deg + a, max_m, max_incidence_deg)
-                      for a in np.linspace(-half, half, rays))
+        nearest = min(
+            self.echo_m(x_m, y_m, axis_deg + a, max_m, max_incidence_deg) for a in np.linspace(-half, half, rays)
+        )
         if max_incidence_deg < 90.0:
             nearest = min(nearest, self.corner_echo_m(x_m, y_m, axis_deg, cone_deg, nearest))
         return nearest

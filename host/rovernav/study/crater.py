@@ -7,6 +7,7 @@ report's map has Aeolis Mons in the middle). Craters are placed so that none tou
 keep-clear points (P0, P1, P2 by default), so those points are free and never inside a rim.
 The rover (about 3 m across) is far smaller than a pixel, so the map is not inflated.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,8 +21,8 @@ from ..planning.planner import warm_up
 from ..planning.segment import polyline_clear
 from .pose import REPORT_P0, REPORT_P1, save_figure
 
-REPORT_P2 = (10_870.0, 25_670.0)           # eq. 3.1 [m]
-MAP_WIDTH_M = 50_000.0                     # the report's map: about 50 km × 35 km
+REPORT_P2 = (10_870.0, 25_670.0)  # eq. 3.1 [m]
+MAP_WIDTH_M = 50_000.0  # the report's map: about 50 km × 35 km
 MAP_HEIGHT_M = 35_000.0
 
 
@@ -31,8 +32,8 @@ class CraterMap:
 
     obstacles: np.ndarray
     scale_m: float
-    craters: tuple[tuple[float, float, float, float], ...]   # (x, y, radius, rim width) [m]
-    mound: tuple[float, float, float, float]                 # (x, y, semi-axis x, semi-axis y) [m]
+    craters: tuple[tuple[float, float, float, float], ...]  # (x, y, radius, rim width) [m]
+    mound: tuple[float, float, float, float]  # (x, y, semi-axis x, semi-axis y) [m]
 
     @property
     def width_m(self) -> float:
@@ -52,12 +53,16 @@ class CraterMap:
         return OccupancyGrid.from_layers(self.obstacles, resolution_m=self.scale_m)
 
 
-def crater_map(seed: int = 0, scale_m: float = 50.0, n_craters: int = 180,
-               radius_range_m: tuple[float, float] = (300.0, 4_000.0),
-               keep_clear: Sequence[Sequence[float]] = (REPORT_P0[:2], REPORT_P1[:2], REPORT_P2),
-               clearance_m: float = 500.0,
-               mound: tuple[float, float, float, float] = (24_000.0, 11_500.0, 8_000.0, 5_000.0),
-               keep_clear_path: np.ndarray | None = None) -> CraterMap:
+def crater_map(
+    seed: int = 0,
+    scale_m: float = 50.0,
+    n_craters: int = 180,
+    radius_range_m: tuple[float, float] = (300.0, 4_000.0),
+    keep_clear: Sequence[Sequence[float]] = (REPORT_P0[:2], REPORT_P1[:2], REPORT_P2),
+    clearance_m: float = 500.0,
+    mound: tuple[float, float, float, float] = (24_000.0, 11_500.0, 8_000.0, 5_000.0),
+    keep_clear_path: np.ndarray | None = None,
+) -> CraterMap:
     """Generate a map of MAP_WIDTH_M × MAP_HEIGHT_M at `scale_m` m/pixel, the same for the same seed.
 
     Crater radii follow a power law (many small, few large) within `radius_range_m`; rim width is
@@ -95,10 +100,9 @@ def crater_map(seed: int = 0, scale_m: float = 50.0, n_craters: int = 180,
         w = max(0.15 * r, 2.0 * scale_m)
         cx, cy = rng.uniform(0, nx * scale_m), rng.uniform(0, ny * scale_m)
         d = np.hypot(points[:, 0] - cx, points[:, 1] - cy)
-        if np.any(d < r + w / 2 + clearance_m):   # near the rim, or inside the crater
+        if np.any(d < r + w / 2 + clearance_m):  # near the rim, or inside the crater
             continue
-        if route is not None and np.any(np.abs(np.hypot(route[:, 0] - cx, route[:, 1] - cy) - r)
-                                        < w / 2 + clearance_m):
+        if route is not None and np.any(np.abs(np.hypot(route[:, 0] - cx, route[:, 1] - cy) - r) < w / 2 + clearance_m):
             continue
         craters.append((cx, cy, r, w))
         c0, c1 = max(int((cx - r - w) / scale_m), 0), min(int((cx + r + w) / scale_m) + 1, nx)
@@ -110,8 +114,9 @@ def crater_map(seed: int = 0, scale_m: float = 50.0, n_craters: int = 180,
     return CraterMap(obstacles=blocked, scale_m=float(scale_m), craters=tuple(craters), mound=tuple(mound))
 
 
-def plan_on_map(cmap: CraterMap, start_xy: Sequence[float] = REPORT_P1[:2],
-                goal_xy: Sequence[float] = REPORT_P2) -> PlanResult:
+def plan_on_map(
+    cmap: CraterMap, start_xy: Sequence[float] = REPORT_P1[:2], goal_xy: Sequence[float] = REPORT_P2
+) -> PlanResult:
     """A* on the map's pixels (the report's "pixel domain") from `start_xy` to `goal_xy` [m].
 
     Raises the planner's NoPathError when the map has no way through.
@@ -126,30 +131,37 @@ def path_is_clear(cmap: CraterMap, waypoints: Sequence[Sequence[float]]) -> bool
     return bool(polyline_clear(grid.inflated, grid.to_cell_units(np.asarray(waypoints, dtype=np.float64))))
 
 
-def plot_crater_plan(cmap: CraterMap, result: PlanResult | None, path: str,
-                     trajectory_xy: np.ndarray | None = None) -> None:
+def plot_crater_plan(
+    cmap: CraterMap, result: PlanResult | None, path: str, trajectory_xy: np.ndarray | None = None
+) -> None:
     """The map, the A* path P1 → P2 (and optionally the pose-law trajectory, an (n, 2) array [m]) to a PNG."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(10, 7.5))
-    ax.imshow(cmap.obstacles, origin="lower", cmap="Greys",
-              extent=(0, cmap.width_m / 1e3, 0, cmap.height_m / 1e3))
+    ax.imshow(cmap.obstacles, origin="lower", cmap="Greys", extent=(0, cmap.width_m / 1e3, 0, cmap.height_m / 1e3))
     if trajectory_xy is not None:
         ax.plot(trajectory_xy[:, 0] / 1e3, trajectory_xy[:, 1] / 1e3, "b-", lw=1.5, label="pose law P0 → P1")
     if result is not None:
         wp = np.asarray(result.waypoints)
-        ax.plot(wp[:, 0] / 1e3, wp[:, 1] / 1e3, "r-", lw=1.8,
-                label=f"A* P1 → P2: {result.length_m / 1e3:.2f} km, {result.time_s * 1e3:.0f} ms")
+        ax.plot(
+            wp[:, 0] / 1e3,
+            wp[:, 1] / 1e3,
+            "r-",
+            lw=1.8,
+            label=f"A* P1 → P2: {result.length_m / 1e3:.2f} km, {result.time_s * 1e3:.0f} ms",
+        )
     for name, (px, py) in (("P0", REPORT_P0[:2]), ("P1", REPORT_P1[:2]), ("P2", REPORT_P2)):
         ax.plot(px / 1e3, py / 1e3, "o", ms=7)
         ax.annotate(name, (px / 1e3, py / 1e3), textcoords="offset points", xytext=(6, 6))
-    ax.set_xlabel("x [km]"); ax.set_ylabel("y [km]")
+    ax.set_xlabel("x [km]")
+    ax.set_ylabel("y [km]")
     ax.set_title(f"Crater map ({cmap.scale_m:g} m/pixel) and reference path")
     ax.legend(loc="lower right")
     fig.tight_layout()
     try:
-        save_figure(fig, path, dpi=110)   # atomically: never half a PNG
+        save_figure(fig, path, dpi=110)  # atomically: never half a PNG
     finally:
         plt.close(fig)

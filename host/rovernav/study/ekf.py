@@ -12,6 +12,7 @@ A sign in the report's Hq (eq. 4.7) is off: ∂β/∂x is (y_lm − y)/r², not 
 finite difference shows (tests/test_study.py). `jacobian_hq` is the derivative of eq. 4.5.
 The bearing innovation is wrapped to [−π, π).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,6 +25,7 @@ from .pose import save_figure, wrap_angle
 
 # --- the models ------------------------------------------------------------------------------
 
+
 def motion(q: np.ndarray, d_m: float, dtheta_rad: float) -> np.ndarray:
     """Eq. 4.1 with the noise folded into `d_m` and `dtheta_rad`."""
     x, y, theta = q
@@ -33,9 +35,7 @@ def motion(q: np.ndarray, d_m: float, dtheta_rad: float) -> np.ndarray:
 def jacobian_fq(q: np.ndarray, d_m: float) -> np.ndarray:
     """∂f/∂q at v = 0 (eq. 4.3)."""
     theta = q[2]
-    return np.array([[1.0, 0.0, -d_m * math.sin(theta)],
-                     [0.0, 1.0, d_m * math.cos(theta)],
-                     [0.0, 0.0, 1.0]])
+    return np.array([[1.0, 0.0, -d_m * math.sin(theta)], [0.0, 1.0, d_m * math.cos(theta)], [0.0, 0.0, 1.0]])
 
 
 def jacobian_fv(q: np.ndarray) -> np.ndarray:
@@ -55,22 +55,23 @@ def jacobian_hq(q: np.ndarray, landmark: Sequence[float]) -> np.ndarray:
     dx, dy = q[0] - landmark[0], q[1] - landmark[1]
     r2 = dx * dx + dy * dy
     r = math.sqrt(r2)
-    return np.array([[dx / r, dy / r, 0.0],
-                     [-dy / r2, dx / r2, -1.0]])
+    return np.array([[dx / r, dy / r, 0.0], [-dy / r2, dx / r2, -1.0]])
 
 
-HW = np.eye(2)   # eq. 4.8: the sensor noise adds straight to (r, β)
+HW = np.eye(2)  # eq. 4.8: the sensor noise adds straight to (r, β)
 
 
-def predict(q: np.ndarray, P: np.ndarray, d_m: float, dtheta_rad: float, V: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
+def predict(
+    q: np.ndarray, P: np.ndarray, d_m: float, dtheta_rad: float, V: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Dead-reckoning step: the state through eq. 4.1, the covariance through eq. 4.2."""
     Fq, Fv = jacobian_fq(q, d_m), jacobian_fv(q)
     return motion(q, d_m, dtheta_rad), Fq @ P @ Fq.T + Fv @ V @ Fv.T
 
 
-def update(q: np.ndarray, P: np.ndarray, z: np.ndarray, landmark: Sequence[float], W: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray]:
+def update(
+    q: np.ndarray, P: np.ndarray, z: np.ndarray, landmark: Sequence[float], W: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """EKF correction with one observation `z` = (r, β) of `landmark` (eq. 4.6, 4.9, 4.10)."""
     Hq = jacobian_hq(q, landmark)
     S = Hq @ P @ Hq.T + HW @ W @ HW.T
@@ -97,6 +98,7 @@ def nees(q_true: np.ndarray, q_est: np.ndarray, P: np.ndarray) -> float:
 
 # --- the scenario ----------------------------------------------------------------------------
 
+
 @dataclasses.dataclass(frozen=True)
 class LocalisationScenario:
     """A loop driven in fixed steps, a handful of landmarks, and the noise levels (1σ).
@@ -108,23 +110,29 @@ class LocalisationScenario:
     loop_radius_m: float = 100.0
     step_m: float = 2.0
     laps: int = 2
-    landmarks: tuple[tuple[float, float], ...] = ((0.0, 0.0), (130.0, 0.0), (-130.0, 0.0),
-                                                   (0.0, 130.0), (0.0, -130.0), (90.0, 90.0))
-    sigma_d_m: float = 0.04           # odometry distance noise per step
-    sigma_theta_rad: float = math.radians(0.3)   # odometry turn noise per step
-    sigma_r_m: float = 0.3            # range noise
-    sigma_b_rad: float = math.radians(0.5)       # bearing noise
+    landmarks: tuple[tuple[float, float], ...] = (
+        (0.0, 0.0),
+        (130.0, 0.0),
+        (-130.0, 0.0),
+        (0.0, 130.0),
+        (0.0, -130.0),
+        (90.0, 90.0),
+    )
+    sigma_d_m: float = 0.04  # odometry distance noise per step
+    sigma_theta_rad: float = math.radians(0.3)  # odometry turn noise per step
+    sigma_r_m: float = 0.3  # range noise
+    sigma_b_rad: float = math.radians(0.5)  # bearing noise
     observe_every: int = 10
     max_range_m: float = 120.0
     initial_sigma: tuple[float, float, float] = (0.1, 0.1, math.radians(0.5))
 
     @property
     def V(self) -> np.ndarray:
-        return np.diag([self.sigma_d_m ** 2, self.sigma_theta_rad ** 2])
+        return np.diag([self.sigma_d_m**2, self.sigma_theta_rad**2])
 
     @property
     def W(self) -> np.ndarray:
-        return np.diag([self.sigma_r_m ** 2, self.sigma_b_rad ** 2])
+        return np.diag([self.sigma_r_m**2, self.sigma_b_rad**2])
 
     @property
     def P0(self) -> np.ndarray:
@@ -164,25 +172,32 @@ class LocalisationRun:
 
     def summary(self) -> dict:
         dr, ekf = self.position_errors("dr"), self.position_errors("ekf")
-        return {"dr_final_position_error_m": float(dr[-1]), "dr_mean_position_error_m": float(dr.mean()),
-                "ekf_final_position_error_m": float(ekf[-1]), "ekf_mean_position_error_m": float(ekf.mean()),
-                "dr_mean_nees": float(self.dr_nees[1:].mean()), "ekf_mean_nees": float(self.ekf_nees[1:].mean()),
-                "n_steps": int(len(self.truth) - 1), "n_updates": int(self.observed.sum())}
+        return {
+            "dr_final_position_error_m": float(dr[-1]),
+            "dr_mean_position_error_m": float(dr.mean()),
+            "ekf_final_position_error_m": float(ekf[-1]),
+            "ekf_mean_position_error_m": float(ekf.mean()),
+            "dr_mean_nees": float(self.dr_nees[1:].mean()),
+            "ekf_mean_nees": float(self.ekf_nees[1:].mean()),
+            "n_steps": int(len(self.truth) - 1),
+            "n_updates": int(self.observed.sum()),
+        }
 
 
-def run_localisation(scenario: LocalisationScenario | None = None,
-                     rng: np.random.Generator | int | None = 0) -> LocalisationRun:
+def run_localisation(
+    scenario: LocalisationScenario | None = None, rng: np.random.Generator | int | None = 0
+) -> LocalisationRun:
     """Simulate the loop once: noisy odometry and observations drawn from `rng` (a Generator or a seed)."""
     sc = scenario or LocalisationScenario()
     rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     landmarks = np.asarray(sc.landmarks, dtype=np.float64)
     V, W, P0 = sc.V, sc.W, sc.P0
     n = sc.n_steps
-    turn = sc.step_m / sc.loop_radius_m      # the commanded turn per step on the circle
+    turn = sc.step_m / sc.loop_radius_m  # the commanded turn per step on the circle
 
     truth = np.empty((n + 1, 3))
     truth[0] = sc.start
-    q_init = sc.start + rng.multivariate_normal(np.zeros(3), P0)   # the estimate starts off by a P0 draw
+    q_init = sc.start + rng.multivariate_normal(np.zeros(3), P0)  # the estimate starts off by a P0 draw
     q_init[2] = wrap_angle(q_init[2])
     dr_q, ekf_q = np.empty((n + 1, 3)), np.empty((n + 1, 3))
     dr_P, ekf_P = np.empty((n + 1, 3, 3)), np.empty((n + 1, 3, 3))
@@ -201,15 +216,25 @@ def run_localisation(scenario: LocalisationScenario | None = None,
             i = int(np.argmin(ranges))
             if ranges[i] <= sc.max_range_m:
                 z = observe(truth[k + 1], landmarks[i]) + np.array(
-                    [sc.sigma_r_m * rng.standard_normal(), sc.sigma_b_rad * rng.standard_normal()])
+                    [sc.sigma_r_m * rng.standard_normal(), sc.sigma_b_rad * rng.standard_normal()]
+                )
                 z[1] = wrap_angle(z[1])
                 q, P = update(q, P, z, landmarks[i], W)
                 observed[k + 1] = True
         ekf_q[k + 1], ekf_P[k + 1] = q, P
     dr_nees = np.array([nees(truth[k], dr_q[k], dr_P[k]) for k in range(n + 1)])
     ekf_nees = np.array([nees(truth[k], ekf_q[k], ekf_P[k]) for k in range(n + 1)])
-    return LocalisationRun(truth=truth, dr_q=dr_q, dr_P=dr_P, ekf_q=ekf_q, ekf_P=ekf_P, dr_nees=dr_nees,
-                           ekf_nees=ekf_nees, observed=observed, landmarks=landmarks)
+    return LocalisationRun(
+        truth=truth,
+        dr_q=dr_q,
+        dr_P=dr_P,
+        ekf_q=ekf_q,
+        ekf_P=ekf_P,
+        dr_nees=dr_nees,
+        ekf_nees=ekf_nees,
+        observed=observed,
+        landmarks=landmarks,
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -228,8 +253,13 @@ class NeesCheck:
     n_runs: int
 
 
-def nees_monte_carlo(n_runs: int = 20, seed: int = 0, scenario: LocalisationScenario | None = None,
-                     which: str = "ekf", confidence: float = 0.95) -> NeesCheck:
+def nees_monte_carlo(
+    n_runs: int = 20,
+    seed: int = 0,
+    scenario: LocalisationScenario | None = None,
+    which: str = "ekf",
+    confidence: float = 0.95,
+) -> NeesCheck:
     """Run the scenario `n_runs` times (independent noise) and check the filter's NEES."""
     from scipy.stats import chi2
 
@@ -249,6 +279,7 @@ def nees_monte_carlo(n_runs: int = 20, seed: int = 0, scenario: LocalisationScen
 
 # --- figures ---------------------------------------------------------------------------------
 
+
 def _ellipse(mean_xy: np.ndarray, P_xy: np.ndarray, k: float = 3.0, n: int = 48) -> np.ndarray:
     """Points of the k-σ ellipse of a 2-D Gaussian."""
     vals, vecs = np.linalg.eigh(P_xy)
@@ -257,18 +288,21 @@ def _ellipse(mean_xy: np.ndarray, P_xy: np.ndarray, k: float = 3.0, n: int = 48)
     return (vecs @ (k * np.sqrt(np.maximum(vals, 0))[:, None] * circle)).T + mean_xy
 
 
-def plot_localisation(run: LocalisationRun, path: str, nees_check: NeesCheck | None = None,
-                      ellipse_every: int = 20) -> None:
+def plot_localisation(
+    run: LocalisationRun, path: str, nees_check: NeesCheck | None = None, ellipse_every: int = 20
+) -> None:
     """Dead reckoning and EKF against truth with 3σ position ellipses, det(P), and NEES (the
     report's Figures 8-11) into one PNG. A 3σ ellipse holds 98.9 % of a 2-D Gaussian."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 3, figsize=(16, 9.5))
     steps = np.arange(len(run.truth))
-    for row, (name, q, P, ne) in enumerate((("Dead reckoning", run.dr_q, run.dr_P, run.dr_nees),
-                                            ("EKF", run.ekf_q, run.ekf_P, run.ekf_nees))):
+    for row, (name, q, P, ne) in enumerate(
+        (("Dead reckoning", run.dr_q, run.dr_P, run.dr_nees), ("EKF", run.ekf_q, run.ekf_P, run.ekf_nees))
+    ):
         ax = axes[row, 0]
         ax.plot(run.truth[:, 0], run.truth[:, 1], "k-", lw=1, label="truth")
         ax.plot(q[:, 0], q[:, 1], "b-", lw=1, label=name)
@@ -278,24 +312,38 @@ def plot_localisation(run: LocalisationRun, path: str, nees_check: NeesCheck | N
         ax.plot([], [], "r-", lw=0.6, label="3σ ellipse")
         ax.plot(run.landmarks[:, 0], run.landmarks[:, 1], "g^", ms=8, label="landmarks")
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]"); ax.set_title(f"{name}: trajectory"); ax.legend(fontsize=8)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{name}: trajectory")
+        ax.legend(fontsize=8)
         ax = axes[row, 1]
         ax.semilogy(steps, np.linalg.det(P))
-        ax.set_xlabel("step"); ax.set_ylabel("det(P)"); ax.set_title(f"{name}: det(P)"); ax.grid(True, alpha=0.3)
+        ax.set_xlabel("step")
+        ax.set_ylabel("det(P)")
+        ax.set_title(f"{name}: det(P)")
+        ax.grid(True, alpha=0.3)
         ax = axes[row, 2]
         ax.semilogy(steps[1:], ne[1:], lw=0.6, label=f"NEES (mean {ne[1:].mean():.2f})")
         ax.axhline(3.0, color="k", ls="--", lw=1, label="3 (consistent)")
-        ax.set_xlabel("step"); ax.set_ylabel("NEES"); ax.set_title(f"{name}: NEES, one run"); ax.grid(True, alpha=0.3)
+        ax.set_xlabel("step")
+        ax.set_ylabel("NEES")
+        ax.set_title(f"{name}: NEES, one run")
+        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     if nees_check is not None:
         ax = axes[1, 2]
-        ax.semilogy(steps[1:], nees_check.per_step, "m-", lw=1,
-                    label=f"mean of {nees_check.n_runs} runs ({nees_check.mean:.2f})")
+        ax.semilogy(
+            steps[1:],
+            nees_check.per_step,
+            "m-",
+            lw=1,
+            label=f"mean of {nees_check.n_runs} runs ({nees_check.mean:.2f})",
+        )
         for b in nees_check.band:
             ax.axhline(b, color="m", ls=":", lw=1)
         ax.legend(fontsize=8)
     fig.tight_layout()
     try:
-        save_figure(fig, path, dpi=100)   # atomically: never half a PNG
+        save_figure(fig, path, dpi=100)  # atomically: never half a PNG
     finally:
         plt.close(fig)

@@ -22,6 +22,7 @@ condition Kα + 5/3·Kβ − 2/π·Kρ > 0 (α never leaves (−π/2, π/2], so 
 is *not* met by the report's own gains (0.145 − 0.317 − 0.064 = −0.235), so it is checked only
 on request (`check(strong=True)`) and reported as `strongly_stable`.
 """
+
 from __future__ import annotations
 
 import array
@@ -39,20 +40,20 @@ from ..control import PoseGains
 from ..files import write_atomic
 from ..validate import MAX_SIM_STEPS
 
-CURIOSITY_VMAX_M_S = 0.04            # the seed's V_max: 4 cm/s
-REPORT_P0 = (42_380.0, 11_590.0, math.pi / 2)   # eq. 2.1 [m, m, rad]
-REPORT_P1 = (33_070.0, 19_010.0, math.pi)       # eq. 2.2 [m, m, rad]
-REPORT_TIME_S = 3.85 * 86_400.0                 # "Time Required: 3.85 days"
-MAX_TIME_S = 30 * 86_400.0                      # a run gives up after 30 simulated days
+CURIOSITY_VMAX_M_S = 0.04  # the seed's V_max: 4 cm/s
+REPORT_P0 = (42_380.0, 11_590.0, math.pi / 2)  # eq. 2.1 [m, m, rad]
+REPORT_P1 = (33_070.0, 19_010.0, math.pi)  # eq. 2.2 [m, m, rad]
+REPORT_TIME_S = 3.85 * 86_400.0  # "Time Required: 3.85 days"
+MAX_TIME_S = 30 * 86_400.0  # a run gives up after 30 simulated days
 
 # What `rovernav pose` accepts (and why):
-MAX_POSE_COORD_M = 100_000.0   # x, y within ±100 km: twice the report's 50 x 35 km crater map, whose
-                               # metres P0, P1 and P2 are in (an arena's limits are far too small here)
-MAX_THETA_RAD = 10.0           # |θ| ≤ 10 rad (wrapped to [−π, π) anyway; 90 would be degrees)
+MAX_POSE_COORD_M = 100_000.0  # x, y within ±100 km: twice the report's 50 x 35 km crater map, whose
+# metres P0, P1 and P2 are in (an arena's limits are far too small here)
+MAX_THETA_RAD = 10.0  # |θ| ≤ 10 rad (wrapped to [−π, π) anyway; 90 would be degrees)
 MIN_DT_S, MAX_DT_S = 1e-3, 1.0  # the report's step is 1 s; longer steps make the Euler heading
-                               # update overshoot, shorter ones only add work (steps are capped below)
-MAX_VMAX_M_S = 10.0            # Curiosity drives at 0.04 m/s; 10 m/s is already a car
-MAX_GAIN = 10.0                # |K| ≤ 10 per second: with steps up to 1 s larger gains only overshoot
+# update overshoot, shorter ones only add work (steps are capped below)
+MAX_VMAX_M_S = 10.0  # Curiosity drives at 0.04 m/s; 10 m/s is already a car
+MAX_GAIN = 10.0  # |K| ≤ 10 per second: with steps up to 1 s larger gains only overshoot
 
 
 def wrap_angle(a: float) -> float:
@@ -78,7 +79,7 @@ def from_polar(polar: Sequence[float], goal: Sequence[float]) -> tuple[float, fl
     """(ρ, α, β) → (x, y, θ): the inverse of `to_polar` (θ in [−π, π))."""
     rho, alpha, beta = polar
     gx, gy, gtheta = goal
-    bearing = gtheta - beta              # direction rover → goal
+    bearing = gtheta - beta  # direction rover → goal
     return (gx - rho * math.cos(bearing), gy - rho * math.sin(bearing), wrap_angle(gtheta - alpha - beta))
 
 
@@ -86,8 +87,7 @@ def report_inverse_as_printed(polar: Sequence[float], goal: Sequence[float]) -> 
     """Eq. 2.4 exactly as printed; kept to show (in the tests) that it does not invert eq. 2.3."""
     rho, alpha, beta = polar
     gx, gy, gtheta = goal
-    return (-rho * math.cos(alpha + beta) + gx, -rho * math.sin(alpha + beta) + gy,
-            wrap_angle(-alpha - beta + gtheta))
+    return (-rho * math.cos(alpha + beta) + gx, -rho * math.sin(alpha + beta) + gy, wrap_angle(-alpha - beta + gtheta))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,8 +127,9 @@ class PoseRun:
         return float(np.hypot(np.diff(self.x), np.diff(self.y)).sum())
 
 
-def min_time_s(start: Sequence[float], goal: Sequence[float], k_rho: float, vmax: float, dt: float,
-               rho_tol_m: float = 0.1) -> float:
+def min_time_s(
+    start: Sequence[float], goal: Sequence[float], k_rho: float, vmax: float, dt: float, rho_tol_m: float = 0.1
+) -> float:
     """A lower bound on the time [s] `simulate_pose` needs to bring ρ below `rho_tol_m` with steps of `dt`.
 
     A step moves the rover v·dt at most, v = min(Kρ·ρ, vmax), so ρ' ≥ g(ρ) = ρ − min(Kρ·ρ, vmax)·dt,
@@ -140,12 +141,12 @@ def min_time_s(start: Sequence[float], goal: Sequence[float], k_rho: float, vmax
     rho = math.hypot(goal[0] - start[0], goal[1] - start[1])
     if rho < rho_tol_m:
         return 0.0
-    rho_s = vmax / k_rho                   # above it the speed limit binds
+    rho_s = vmax / k_rho  # above it the speed limit binds
     stride = vmax * dt
     steps = 0.0
     if rho > rho_s:
         n1 = math.ceil((rho - rho_s) / stride)
-        if rho - n1 * stride < rho_tol_m:          # below the tolerance while still at top speed
+        if rho - n1 * stride < rho_tol_m:  # below the tolerance while still at top speed
             return max(0.0, ((rho - rho_tol_m) / stride - 1.0) * dt)
         steps, rho = float(n1), rho - n1 * stride
     shrink = 1.0 - k_rho * dt
@@ -156,10 +157,17 @@ def min_time_s(start: Sequence[float], goal: Sequence[float], k_rho: float, vmax
     return max(0.0, (steps - 1.0) * dt)
 
 
-def simulate_pose(start: Sequence[float] = REPORT_P0, goal: Sequence[float] = REPORT_P1,
-                  gains: PoseGains | None = None, vmax: float = CURIOSITY_VMAX_M_S, dt: float = 1.0,
-                  rho_tol_m: float = 0.1, heading_tol_rad: float = 1e-3,
-                  max_time_s: float = MAX_TIME_S, max_steps: int = MAX_SIM_STEPS) -> PoseRun:
+def simulate_pose(
+    start: Sequence[float] = REPORT_P0,
+    goal: Sequence[float] = REPORT_P1,
+    gains: PoseGains | None = None,
+    vmax: float = CURIOSITY_VMAX_M_S,
+    dt: float = 1.0,
+    rho_tol_m: float = 0.1,
+    heading_tol_rad: float = 1e-3,
+    max_time_s: float = MAX_TIME_S,
+    max_steps: int = MAX_SIM_STEPS,
+) -> PoseRun:
     """Drive from `start` to `goal` (poses [m, m, rad]) with the law, Euler steps of `dt` [s].
 
     v = min(Kρ·ρ, vmax); ω = Kα·α + Kβ·β (not limited); ẋ = v cos θ, ẏ = v sin θ, θ̇ = ω.
@@ -200,7 +208,12 @@ def simulate_pose(start: Sequence[float] = REPORT_P0, goal: Sequence[float] = RE
         beta = beta if beta > -pi else beta + two_pi
         v = min(kr * rho, vmax)
         omega = ka * alpha + kb * beta
-        t_add(t); x_add(x); y_add(y); th_add(theta); v_add(v); om_add(omega)
+        t_add(t)
+        x_add(x)
+        y_add(y)
+        th_add(theta)
+        v_add(v)
+        om_add(omega)
         if rho < rho_tol_m and abs(wrap_angle(theta - gtheta)) < heading_tol_rad:
             converged = True
             break
@@ -212,9 +225,20 @@ def simulate_pose(start: Sequence[float] = REPORT_P0, goal: Sequence[float] = RE
         theta = theta if theta > -pi else theta + two_pi
         t = (k + 1) * dt
     as_np = lambda a: np.frombuffer(a, dtype=np.float64)  # noqa: E731 - no copy
-    return PoseRun(start=start, goal=goal, gains=gains, vmax_m_s=float(vmax), dt_s=float(dt),
-                   t=as_np(ts), x=as_np(xs), y=as_np(ys), theta=as_np(ths),
-                   v=as_np(vs), omega=as_np(oms), converged=converged)
+    return PoseRun(
+        start=start,
+        goal=goal,
+        gains=gains,
+        vmax_m_s=float(vmax),
+        dt_s=float(dt),
+        t=as_np(ts),
+        x=as_np(xs),
+        y=as_np(ys),
+        theta=as_np(ths),
+        v=as_np(vs),
+        omega=as_np(oms),
+        converged=converged,
+    )
 
 
 def save_figure(fig, path: str | os.PathLike, dpi: int) -> None:
@@ -231,13 +255,14 @@ def plot_pose(run: PoseRun, path: str | os.PathLike, obstacles: np.ndarray | Non
     """Trajectory (over `obstacles`, a boolean map of `scale_m` m per pixel, when given), v, θ and ω
     against time in days, in one PNG (the report's Figures 1-5)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    stride = max(1, len(run.t) // PLOT_POINTS)   # at most ~PLOT_POINTS points a curve (and the last)
+    stride = max(1, len(run.t) // PLOT_POINTS)  # at most ~PLOT_POINTS points a curve (and the last)
     idx = np.r_[np.arange(0, len(run.t), stride), len(run.t) - 1] if stride > 1 else slice(None)
     t, x, y, v, omega = (a[idx] for a in (run.t, run.x, run.y, run.v, run.omega))
-    theta = np.unwrap(run.theta)[idx]   # unwrapped before thinning, so no turn is missed
+    theta = np.unwrap(run.theta)[idx]  # unwrapped before thinning, so no turn is missed
     days = t / 86_400.0
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     ax = axes[0, 0]
@@ -247,16 +272,28 @@ def plot_pose(run: PoseRun, path: str | os.PathLike, obstacles: np.ndarray | Non
     ax.plot(x / 1e3, y / 1e3, "b-", lw=1.5, label="trajectory")
     ax.plot(run.start[0] / 1e3, run.start[1] / 1e3, "go", label="start")
     ax.plot(run.goal[0] / 1e3, run.goal[1] / 1e3, "r*", ms=12, label="goal")
-    ax.set_xlabel("x [km]"); ax.set_ylabel("y [km]"); ax.set_title("Trajectory"); ax.legend(loc="best")
+    ax.set_xlabel("x [km]")
+    ax.set_ylabel("y [km]")
+    ax.set_title("Trajectory")
+    ax.legend(loc="best")
     if obstacles is None:
         ax.set_aspect("equal", adjustable="datalim")
-    axes[0, 1].plot(days, v * 100.0); axes[0, 1].set_ylabel("v [cm/s]"); axes[0, 1].set_title("Velocity")
-    axes[1, 0].plot(days, theta); axes[1, 0].set_ylabel("θ [rad], unwrapped"); axes[1, 0].set_title("Heading")
-    axes[1, 1].plot(days, omega); axes[1, 1].set_ylabel("ω [rad/s]"); axes[1, 1].set_title("Angular velocity")
+    axes[0, 1].plot(days, v * 100.0)
+    axes[0, 1].set_ylabel("v [cm/s]")
+    axes[0, 1].set_title("Velocity")
+    axes[1, 0].plot(days, theta)
+    axes[1, 0].set_ylabel("θ [rad], unwrapped")
+    axes[1, 0].set_title("Heading")
+    axes[1, 1].plot(days, omega)
+    axes[1, 1].set_ylabel("ω [rad/s]")
+    axes[1, 1].set_title("Angular velocity")
     for a in (axes[0, 1], axes[1, 0], axes[1, 1]):
-        a.set_xlabel("t [days]"); a.grid(True, alpha=0.3)
-    fig.suptitle(f"Moving to a pose: {run.time_s / 86_400:.2f} days, final error "
-                 f"[{run.final_error[0]:.2e} m, {run.final_error[1]:.2e} m, {run.final_error[2]:.2e} rad]")
+        a.set_xlabel("t [days]")
+        a.grid(True, alpha=0.3)
+    fig.suptitle(
+        f"Moving to a pose: {run.time_s / 86_400:.2f} days, final error "
+        f"[{run.final_error[0]:.2e} m, {run.final_error[1]:.2e} m, {run.final_error[2]:.2e} rad]"
+    )
     fig.tight_layout()
     try:
         save_figure(fig, path, dpi=110)

@@ -8,6 +8,7 @@ Modules: config (VisionConfig, from a TOML [vision] table), calibration (pixels 
 colour_markers / aruco_markers (finding markers in a frame), locator (Locator, Detection),
 cli (the `rovernav locate IMAGE` command).
 """
+
 from .calibration import Calibration, heading_deg
 from .config import VisionConfig
 from .locator import Detection, Locator, RoverPose, TargetPosition

@@ -11,6 +11,7 @@ quiet zone is long and clean: sample it across at several points along each side
 edge on each profile to a small fraction of a pixel, fit a line per side and intersect
 neighbouring lines (headings then good to about 0.3 degrees at that size).
 """
+
 from __future__ import annotations
 
 import cv2
@@ -27,7 +28,7 @@ class ArucoMarkers:
         self.config = config
         dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, config.dictionary))
         params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_NONE   # refine_outline does better
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_NONE  # refine_outline does better
         # Two adaptive-threshold windows instead of OpenCV's three (3, 13, 23 px): each costs about
         # 0.35 ms at 640 x 480, and on rendered frames (tags 18-27 px wide, straight down and
         # oblique) 7 and 17 find every tag the three do.
@@ -100,7 +101,7 @@ def refine_outline(gray: np.ndarray, rough: np.ndarray, cells: int = 6, passes: 
 
 def _refine_once(gray: np.ndarray, corners: np.ndarray, cells: int) -> np.ndarray | None:
     a = corners
-    side = np.roll(corners, -1, axis=0) - a                        # (4, 2), side i from corner i to i+1
+    side = np.roll(corners, -1, axis=0) - a  # (4, 2), side i from corner i to i+1
     length = np.hypot(side[:, 0], side[:, 1])
     if length.min() < 8.0:
         return None
@@ -109,30 +110,30 @@ def _refine_once(gray: np.ndarray, corners: np.ndarray, cells: int) -> np.ndarra
     n = np.stack([t[:, 1], -t[:, 0]], axis=1)
     # Outward: away from the tag's centre.
     if float(np.sum(n * (a + side / 2 - corners.mean(axis=0)), axis=1)[0]) < 0:
-        n = -n                                                     # corners all turn the same way
-    base = a[:, None, :] + _ALONG[None, :, None] * side[:, None, :]                  # (4, K, 2)
-    pts = base[:, :, None, :] + across[None, None, :, None] * n[:, None, None, :]      # (4, K, M, 2)
+        n = -n  # corners all turn the same way
+    base = a[:, None, :] + _ALONG[None, :, None] * side[:, None, :]  # (4, K, 2)
+    pts = base[:, :, None, :] + across[None, None, :, None] * n[:, None, None, :]  # (4, K, M, 2)
     h, w = gray.shape
     if pts[..., 0].min() < 0 or pts[..., 1].min() < 0 or pts[..., 0].max() > w - 1 or pts[..., 1].max() > h - 1:
         return None
     k, m = len(_ALONG), len(across)
     flat = pts.reshape(4 * k, m, 2).astype(np.float32)
-    prof = cv2.remap(gray, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR).astype(np.float32)   # (4K, M)
+    prof = cv2.remap(gray, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR).astype(np.float32)  # (4K, M)
     inside = prof[:, :3].mean(axis=1)
     contrast = prof[:, -3:].mean(axis=1) - inside
     if contrast.min() < 30.0:
         return None
-    dark = np.clip(1.0 - (prof - inside[:, None]) / contrast[:, None], 0.0, 1.0)   # 1 inside, 0 outside
+    dark = np.clip(1.0 - (prof - inside[:, None]) / contrast[:, None], 0.0, 1.0)  # 1 inside, 0 outside
     step = float(across[1] - across[0])
-    above = (dark.sum(axis=1) - (dark[:, 0] + dark[:, -1]) / 2) * step            # trapezoid rule
-    offset = (across[0] + above).reshape(4, k).astype(np.float64)                   # edge offset along n
+    above = (dark.sum(axis=1) - (dark[:, 0] + dark[:, -1]) / 2) * step  # trapezoid rule
+    offset = (across[0] + above).reshape(4, k).astype(np.float64)  # edge offset along n
     # Per side, a straight line through the edge: offset = c0 + c1 * s, s along the side in pixels.
-    s_ = _ALONG[None, :] * length[:, None]                                           # (4, K)
+    s_ = _ALONG[None, :] * length[:, None]  # (4, K)
     s_mean, o_mean = s_.mean(axis=1), offset.mean(axis=1)
     ds, do = s_ - s_mean[:, None], offset - o_mean[:, None]
     c1 = (ds * do).sum(axis=1) / (ds * ds).sum(axis=1)
-    p = a + s_mean[:, None] * t + o_mean[:, None] * n                                # a point on each line
-    d = t + c1[:, None] * n                                                          # its direction
+    p = a + s_mean[:, None] * t + o_mean[:, None] * n  # a point on each line
+    d = t + c1[:, None] * n  # its direction
     # Corner i joins side i-1 (arriving from corner i-1) and side i (leaving towards corner i+1):
     # solve p[i-1] + u d[i-1] = p[i] + v d[i] for u.
     p1, d1 = np.roll(p, 1, axis=0), np.roll(d, 1, axis=0)

@@ -15,6 +15,7 @@ Two ways to get a `Calibration`:
 Only points on the floor plane map exactly; a marker on the rover's top, above the floor, is
 seen displaced away from the image's principal point (parallax), which neither mapping knows.
 """
+
 from __future__ import annotations
 
 import math
@@ -54,9 +55,7 @@ class Calibration:
         """The frame spans the arena exactly, seen from straight above (the seed's set-up)."""
         sx = width_px / arena_w_m
         sy = height_px / arena_h_m
-        m = np.array([[sx, 0.0, -0.5],
-                      [0.0, -sy, height_px - 0.5],
-                      [0.0, 0.0, 1.0]])
+        m = np.array([[sx, 0.0, -0.5], [0.0, -sy, height_px - 0.5], [0.0, 0.0, 1.0]])
         return cls(m, arena_w_m, arena_h_m)
 
     @staticmethod

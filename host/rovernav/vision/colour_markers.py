@@ -16,6 +16,7 @@ Two passes, for speed and precision:
    pixels (the seed's int() centroids made a still rover's heading jump by 2.5 degrees).
    The backgrounds the markers sit on (floor, dark rover body) must be near-neutral for this.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -55,8 +56,17 @@ class BlobSearch:
 def hue_name(lower_h: int, upper_h: int) -> str:
     """A colour word for an OpenCV hue range (H 0-179), for messages."""
     h = (lower_h + upper_h) / 2 * 2  # degrees
-    for limit, name in ((15, "red"), (48, "orange"), (70, "yellow"), (160, "green"), (200, "cyan"),
-                        (260, "blue"), (300, "purple"), (340, "magenta"), (361, "red")):
+    for limit, name in (
+        (15, "red"),
+        (48, "orange"),
+        (70, "yellow"),
+        (160, "green"),
+        (200, "cyan"),
+        (260, "blue"),
+        (300, "purple"),
+        (340, "magenta"),
+        (361, "red"),
+    ):
         if h < limit:
             return name
     return "red"
@@ -69,16 +79,20 @@ class ColourMarkers:
 
     def __init__(self, config: VisionConfig):
         self.config = config
-        self.ranges = {name: (np.array(getattr(config.hsv, name)[0], np.uint8),
-                              np.array(getattr(config.hsv, name)[1], np.uint8)) for name in self.NAMES}
+        self.ranges = {
+            name: (np.array(getattr(config.hsv, name)[0], np.uint8), np.array(getattr(config.hsv, name)[1], np.uint8))
+            for name in self.NAMES
+        }
         self.colour_names = {name: hue_name(int(lo[0]), int(hi[0])) for name, (lo, hi) in self.ranges.items()}
         self._open = cv2.getStructuringElement(cv2.MORPH_RECT, (config.open_kernel_px,) * 2)
         self._close = cv2.getStructuringElement(cv2.MORPH_RECT, (config.close_kernel_px,) * 2)
         self._kernel3 = np.ones((3, 3), np.uint8)
-        self._gate_lo = {n: np.array([max(int(lo[0]) - _HUE_MARGIN, 0), 0, 0], np.uint8)
-                         for n, (lo, hi) in self.ranges.items()}
-        self._gate_hi = {n: np.array([min(int(hi[0]) + _HUE_MARGIN, 179), 255, 255], np.uint8)
-                         for n, (lo, hi) in self.ranges.items()}
+        self._gate_lo = {
+            n: np.array([max(int(lo[0]) - _HUE_MARGIN, 0), 0, 0], np.uint8) for n, (lo, hi) in self.ranges.items()
+        }
+        self._gate_hi = {
+            n: np.array([min(int(hi[0]) + _HUE_MARGIN, 179), 255, 255], np.uint8) for n, (lo, hi) in self.ranges.items()
+        }
 
     # Half-sizes (full-resolution pixels) of the windows searched around a marker's last place.
     WINDOW_HALF_PX = {"target": 32, "rover_front": 64, "rover_back": 64}
@@ -106,7 +120,9 @@ class ColourMarkers:
             small = frame_bgr if s == 1 else cv2.resize(frame_bgr, (w // s, h // s), interpolation=cv2.INTER_AREA)
             hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
             for name in rest:
-                out[name] = self._choose(name, frame_bgr, self._mask(name, hsv), self.config.min_blob_area_px / (s * s), s)
+                out[name] = self._choose(
+                    name, frame_bgr, self._mask(name, hsv), self.config.min_blob_area_px / (s * s), s
+                )
         return out
 
     def _mask(self, name: str, hsv: np.ndarray) -> np.ndarray:
@@ -130,21 +146,30 @@ class ColourMarkers:
         win = frame[y0:y1, x0:x1]
         small = win if s == 1 else cv2.resize(win, ((x1 - x0) // s, (y1 - y0) // s), interpolation=cv2.INTER_AREA)
         mask = self._mask(name, cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
-        found = self._choose(name, frame, mask, self.config.min_blob_area_px / (s * s), s, origin=(x0, y0),
-                             edge_ok=False)
+        found = self._choose(
+            name, frame, mask, self.config.min_blob_area_px / (s * s), s, origin=(x0, y0), edge_ok=False
+        )
         return found if found.blob is not None else None
 
-    def _choose(self, name: str, frame: np.ndarray, mask: np.ndarray, min_area_small: float, s: int,
-                origin: tuple[int, int] = (0, 0), edge_ok: bool = True) -> BlobSearch:
+    def _choose(
+        self,
+        name: str,
+        frame: np.ndarray,
+        mask: np.ndarray,
+        min_area_small: float,
+        s: int,
+        origin: tuple[int, int] = (0, 0),
+        edge_ok: bool = True,
+    ) -> BlobSearch:
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         blobs = []
         mh, mw = mask.shape[:2]
         for c in contours:
             x, y, w, h = cv2.boundingRect(c)
-            area = cv2.countNonZero(mask[y:y + h, x:x + w])
+            area = cv2.countNonZero(mask[y : y + h, x : x + w])
             if area >= min_area_small:
                 if not edge_ok and (x == 0 or y == 0 or x + w >= mw or y + h >= mh):
-                    return BlobSearch(None, "at the window's edge", 0)   # let the whole frame decide
+                    return BlobSearch(None, "at the window's edge", 0)  # let the whole frame decide
                 blobs.append((area, x, y, w, h))
         if not blobs:
             return BlobSearch(None, "not found", 0)
@@ -180,8 +205,10 @@ class ColourMarkers:
         # (say the yellow target under the orange front marker, whose chroma points much the same
         # way) are left out.
         support = cv2.dilate(strict, self._kernel3)
-        foreign = cv2.bitwise_and(cv2.inRange(hsv, _STRONG_LO, _STRONG_HI),
-                                  cv2.bitwise_not(cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])))
+        foreign = cv2.bitwise_and(
+            cv2.inRange(hsv, _STRONG_LO, _STRONG_HI),
+            cv2.bitwise_not(cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])),
+        )
         use = cv2.bitwise_and(support, cv2.bitwise_not(foreign))
         winf = win.astype(np.float32)
         chroma = winf - winf.mean(axis=2, keepdims=True)

@@ -33,6 +33,7 @@
     width_m = 2.36                      # corners: bottom-left, bottom-right, top-right, top-left
     height_m = 1.75
 """
+
 from __future__ import annotations
 
 import math
@@ -122,13 +123,14 @@ class VisionConfig:
             if name in kw:
                 kw[name] = _int(kw[name], f"{prefix}.{name}", lo=1, hi=15)
         for name, lo, hi, open_lo in (
-                ("min_blob_area_px", 1.0, 1e6, False),
-                ("doubled_area_ratio", 0.0, 1.0, True),
-                ("rover_centre_fraction", 0.0, 2.0, False),
-                ("marker_distance_m", 0.0, 10.0, True),
-                ("marker_distance_tolerance_m", 0.0, 10.0, False),
-                ("max_rover_speed_m_s", 0.0, 100.0, True),
-                ("jump_slack_m", 0.0, 10.0, False)):
+            ("min_blob_area_px", 1.0, 1e6, False),
+            ("doubled_area_ratio", 0.0, 1.0, True),
+            ("rover_centre_fraction", 0.0, 2.0, False),
+            ("marker_distance_m", 0.0, 10.0, True),
+            ("marker_distance_tolerance_m", 0.0, 10.0, False),
+            ("max_rover_speed_m_s", 0.0, 100.0, True),
+            ("jump_slack_m", 0.0, 10.0, False),
+        ):
             if name in kw:
                 kw[name] = _float(kw[name], f"{prefix}.{name}", lo=lo, hi=hi, open_lo=open_lo)
         if "hsv" in d:
@@ -138,8 +140,10 @@ class VisionConfig:
         if "calibration" in d and d["calibration"] is not None:
             kw["calibration"] = _calibration_from_dict(d["calibration"], f"{prefix}.calibration")
         obj = object.__new__(cls)
-        defaults = {f.name: (f.default_factory() if callable(f.default_factory) else f.default)  # type: ignore[misc]
-                    for f in fields(cls)}
+        defaults = {
+            f.name: (f.default_factory() if callable(f.default_factory) else f.default)  # type: ignore[misc]
+            for f in fields(cls)
+        }
         for name, value in {**defaults, **kw}.items():
             object.__setattr__(obj, name, value)
         return obj
@@ -158,15 +162,24 @@ class VisionConfig:
             "marker_distance_tolerance_m": self.marker_distance_tolerance_m,
             "max_rover_speed_m_s": self.max_rover_speed_m_s,
             "jump_slack_m": self.jump_slack_m,
-            "hsv": {name: [list(getattr(self.hsv, name)[0]), list(getattr(self.hsv, name)[1])]
-                    for name in ("target", "rover_front", "rover_back")},
-            "aruco": {"dictionary": self.aruco.dictionary, "rover_id": self.aruco.rover_id,
-                      "target_id": self.aruco.target_id, "size_m": self.aruco.size_m,
-                      "size_tolerance_m": self.aruco.size_tolerance_m},
+            "hsv": {
+                name: [list(getattr(self.hsv, name)[0]), list(getattr(self.hsv, name)[1])]
+                for name in ("target", "rover_front", "rover_back")
+            },
+            "aruco": {
+                "dictionary": self.aruco.dictionary,
+                "rover_id": self.aruco.rover_id,
+                "target_id": self.aruco.target_id,
+                "size_m": self.aruco.size_m,
+                "size_tolerance_m": self.aruco.size_tolerance_m,
+            },
         }
         if self.calibration is not None:
-            d["calibration"] = {"corners_px": [list(c) for c in self.calibration.corners_px],
-                                "width_m": self.calibration.width_m, "height_m": self.calibration.height_m}
+            d["calibration"] = {
+                "corners_px": [list(c) for c in self.calibration.corners_px],
+                "width_m": self.calibration.width_m,
+                "height_m": self.calibration.height_m,
+            }
         return d
 
 
@@ -216,8 +229,11 @@ def _hsv_from_dict(d: Any, prefix: str) -> HsvRanges:
             continue
         key = f"{prefix}.{name}"
         pair = d[name]
-        if (not isinstance(pair, (list, tuple)) or len(pair) != 2
-                or any(not isinstance(b, (list, tuple)) or len(b) != 3 for b in pair)):
+        if (
+            not isinstance(pair, (list, tuple))
+            or len(pair) != 2
+            or any(not isinstance(b, (list, tuple)) or len(b) != 3 for b in pair)
+        ):
             raise ValueError(f"{key}: expected [[H, S, V], [H, S, V]] (lower, upper), got {pair!r}")
         bounds = []
         for which, b in zip(("lower", "upper"), pair):
@@ -265,19 +281,25 @@ def _calibration_from_dict(d: Any, prefix: str) -> CalibrationConfig:
             raise ValueError(f"{prefix}.{k}: missing")
     corners = d["corners_px"]
     key = f"{prefix}.corners_px"
-    if (not isinstance(corners, (list, tuple)) or len(corners) != 4
-            or any(not isinstance(c, (list, tuple)) or len(c) != 2 or not all(_is_number(v) for v in c)
-                   for c in corners)):
-        raise ValueError(f"{key}: expected four [u, v] pixel positions (bottom-left, bottom-right, "
-                         f"top-right, top-left), got {corners!r}")
+    if (
+        not isinstance(corners, (list, tuple))
+        or len(corners) != 4
+        or any(not isinstance(c, (list, tuple)) or len(c) != 2 or not all(_is_number(v) for v in c) for c in corners)
+    ):
+        raise ValueError(
+            f"{key}: expected four [u, v] pixel positions (bottom-left, bottom-right, "
+            f"top-right, top-left), got {corners!r}"
+        )
     pts = tuple((float(c[0]), float(c[1])) for c in corners)
     # In that order the corners of a floor seen by a camera (v down, never mirrored) make a convex
     # quadrilateral that turns the same way at every corner as (0, 480), (640, 480), (640, 0), (0, 0).
     for i in range(4):
         (ax, ay), (bx, by), (cx, cy) = pts[i], pts[(i + 1) % 4], pts[(i + 2) % 4]
         if (bx - ax) * (cy - by) - (by - ay) * (cx - bx) >= 0:
-            raise ValueError(f"{key}: {corners!r} is not a convex quadrilateral in the order bottom-left, "
-                             f"bottom-right, top-right, top-left as the camera sees them (out of order or mirrored)")
+            raise ValueError(
+                f"{key}: {corners!r} is not a convex quadrilateral in the order bottom-left, "
+                f"bottom-right, top-right, top-left as the camera sees them (out of order or mirrored)"
+            )
     w = _float(d["width_m"], f"{prefix}.width_m", 0.0, 1000.0, open_lo=True)
     h = _float(d["height_m"], f"{prefix}.height_m", 0.0, 1000.0, open_lo=True)
     return CalibrationConfig(corners_px=pts, width_m=w, height_m=h)  # type: ignore[arg-type]

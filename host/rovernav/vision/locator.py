@@ -17,6 +17,7 @@ markers about 0.8 ms a frame, searched in the whole frame every time; ArUco tags
 whole-frame search and about 1.2 ms while tracking (both tags looked for in windows around where
 they were in the last frame, the whole frame again as soon as either is not there).
 """
+
 from __future__ import annotations
 
 import math
@@ -88,23 +89,29 @@ class Locator:
     Keeps the last good fix (and its time) for the jump check; `reset()` forgets it.
     """
 
-    def __init__(self, config: VisionConfig | None = None, arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0,
-                 arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0):
+    def __init__(
+        self,
+        config: VisionConfig | None = None,
+        arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0,
+        arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0,
+    ):
         self.config = config or VisionConfig()
         if arena_w_m <= 0 or arena_h_m <= 0:
             raise ValueError(f"arena size {arena_w_m} x {arena_h_m} m: both must be positive")
         cal = self.config.calibration
         if cal is not None and (abs(cal.width_m - arena_w_m) > 1e-3 or abs(cal.height_m - arena_h_m) > 1e-3):
-            raise ValueError(f"vision.calibration: corners of a {cal.width_m} x {cal.height_m} m arena, "
-                             f"but the arena is {arena_w_m} x {arena_h_m} m")
+            raise ValueError(
+                f"vision.calibration: corners of a {cal.width_m} x {cal.height_m} m arena, "
+                f"but the arena is {arena_w_m} x {arena_h_m} m"
+            )
         self.arena_w_m, self.arena_h_m = float(arena_w_m), float(arena_h_m)
         self._fixed = Calibration.from_config(cal) if cal is not None else None
         self._straight_down: dict[tuple[int, int], Calibration] = {}
         self._colour = ColourMarkers(self.config) if self.config.markers == "colour" else None
         self._aruco = ArucoMarkers(self.config.aruco) if self.config.markers == "aruco" else None
-        self._last: tuple[float, float, float | None] | None = None   # x_m, y_m, t_s of the last fix
-        self._tag_boxes: dict[int, tuple[int, int, int, int]] = {}      # ArUco tracking windows, pixels
-        self._colour_hints: dict[str, tuple[float, float]] = {}         # colour markers' last pixels
+        self._last: tuple[float, float, float | None] | None = None  # x_m, y_m, t_s of the last fix
+        self._tag_boxes: dict[int, tuple[int, int, int, int]] = {}  # ArUco tracking windows, pixels
+        self._colour_hints: dict[str, tuple[float, float]] = {}  # colour markers' last pixels
 
     def reset(self) -> None:
         """Forget the last fix (after the rover was moved by hand, say) and where the tags were."""
@@ -161,8 +168,10 @@ class Locator:
         dist = math.hypot(x_m - lx, y_m - ly)
         allowed = self.config.max_rover_speed_m_s * dt + self.config.jump_slack_m
         if dist > allowed:
-            return (f"jump of {dist:.2f} m in {dt:.2f} s from the last fix "
-                    f"(at most {allowed:.2f} m at {self.config.max_rover_speed_m_s:g} m/s)")
+            return (
+                f"jump of {dist:.2f} m in {dt:.2f} s from the last fix "
+                f"(at most {allowed:.2f} m at {self.config.max_rover_speed_m_s:g} m/s)"
+            )
         return None
 
     # -- colour squares -----------------------------------------------------------------------------
@@ -198,8 +207,10 @@ class Locator:
             back = cal.to_arena(pixels["back"])
             spacing = float(np.hypot(*(front - back)))
             if abs(spacing - cfg.marker_distance_m) > cfg.marker_distance_tolerance_m:
-                reason = (f"markers {spacing:.2f} m apart, expected {cfg.marker_distance_m:.2f} "
-                          f"± {cfg.marker_distance_tolerance_m:.2f}")
+                reason = (
+                    f"markers {spacing:.2f} m apart, expected {cfg.marker_distance_m:.2f} "
+                    f"± {cfg.marker_distance_tolerance_m:.2f}"
+                )
             else:
                 centre = back + cfg.rover_centre_fraction * (front - back)
                 reason = self._jump_problem(float(centre[0]), float(centre[1]), t_s)
@@ -216,8 +227,9 @@ class Locator:
         tags = self._tracked_tags(gray)
         if tags is None:
             tags = self._aruco.find_gray(gray)
-        self._tag_boxes = {i: _box_around(c[0]) for i, c in tags.items()
-                           if len(c) == 1 and i in (acfg.rover_id, acfg.target_id)}
+        self._tag_boxes = {
+            i: _box_around(c[0]) for i, c in tags.items() if len(c) == 1 and i in (acfg.rover_id, acfg.target_id)
+        }
         pixels: dict[str, tuple[float, float]] = {}
         areas: dict[str, float] = {}
 

@@ -1,6 +1,7 @@
 """Driving the runs: where they go, whether the rover stands where they can go, and the runs
 themselves, against the simulated rover (runs_sim) or the real one (runs_hardware).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -18,12 +19,17 @@ RUN_M = 0.5
 SIM_WALL_M = 0.40
 WALL_RANGE_M = (0.15, 0.5)
 #: What the runs set: sweeps off (a sweep stops the rover), rotate-and-drive, and the level.
-RUN_PARAMS = [(mg.Param.SWEEP_INTERVAL_MM, 0), (mg.Param.SWEEP_AT_START, 0), (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
-              (mg.Param.DRIVE_MODE, int(mg.DriveMode.ROTATE_DRIVE))]
+RUN_PARAMS = [
+    (mg.Param.SWEEP_INTERVAL_MM, 0),
+    (mg.Param.SWEEP_AT_START, 0),
+    (mg.Param.SWEEP_BEFORE_TURN_DEG, 0),
+    (mg.Param.DRIVE_MODE, int(mg.DriveMode.ROTATE_DRIVE)),
+]
 
 
-def plan_runs(start_xy: tuple[float, float], heading_deg: float, levels=LEVELS_PWM,
-              run_m: float = RUN_M) -> list[tuple[int, tuple[float, float], tuple[float, float]]]:
+def plan_runs(
+    start_xy: tuple[float, float], heading_deg: float, levels=LEVELS_PWM, run_m: float = RUN_M
+) -> list[tuple[int, tuple[float, float], tuple[float, float]]]:
     """(level, start, goal) for each run: ahead from where the rover stands, then back, and so on."""
     h = math.radians(heading_deg)
     a = start_xy
@@ -34,19 +40,23 @@ def plan_runs(start_xy: tuple[float, float], heading_deg: float, levels=LEVELS_P
     return out
 
 
-def check_room(start_xy, heading_deg: float, arena_w_m: float, arena_h_m: float, margin_m: float,
-               run_m: float = RUN_M) -> None:
+def check_room(
+    start_xy, heading_deg: float, arena_w_m: float, arena_h_m: float, margin_m: float, run_m: float = RUN_M
+) -> None:
     """CalibrationFailed unless the runs' line lies margin_m inside the arena."""
     (_, a, b) = plan_runs(start_xy, heading_deg, (0,), run_m)[0]
     for x, y in (a, b):
         if not (margin_m <= x <= arena_w_m - margin_m and margin_m <= y <= arena_h_m - margin_m):
-            raise CalibrationFailed(f"the runs go from ({a[0]:.2f}, {a[1]:.2f}) to ({b[0]:.2f}, {b[1]:.2f}) m, closer "
-                                    f"than {margin_m:.2f} m to the arena's edge: turn the rover to face "
-                                    f"{run_m + margin_m:.1f} m of open floor")
+            raise CalibrationFailed(
+                f"the runs go from ({a[0]:.2f}, {a[1]:.2f}) to ({b[0]:.2f}, {b[1]:.2f}) m, closer "
+                f"than {margin_m:.2f} m to the arena's edge: turn the rover to face "
+                f"{run_m + margin_m:.1f} m of open floor"
+            )
 
 
-def check_wall(wall: tuple[float, float, float, float], x_m: float, y_m: float, heading_deg: float,
-               sonar_offset_m: float) -> None:
+def check_wall(
+    wall: tuple[float, float, float, float], x_m: float, y_m: float, heading_deg: float, sonar_offset_m: float
+) -> None:
     """CalibrationFailed unless the rover at (x_m, y_m), heading_deg stands in front of the wall's
     face, facing it within WALL_FACING_DEG, its sensor WALL_RANGE_M from it (by the offset the
     configuration says: the measure is the offset's correction)."""
@@ -56,13 +66,17 @@ def check_wall(wall: tuple[float, float, float, float], x_m: float, y_m: float, 
     d_m, normal_deg = geo
     off = abs(wrap_deg(heading_deg - normal_deg))
     if off > WALL_FACING_DEG:
-        raise CalibrationFailed(f"--wall: the rover faces {off:.0f} degrees off square to the wall (within "
-                                f"{WALL_FACING_DEG:.0f}, please: turn it to face the wall)")
+        raise CalibrationFailed(
+            f"--wall: the rover faces {off:.0f} degrees off square to the wall (within "
+            f"{WALL_FACING_DEG:.0f}, please: turn it to face the wall)"
+        )
     sensor_m = d_m - sonar_offset_m * math.cos(math.radians(off))
     lo, hi = WALL_RANGE_M
     if not lo <= sensor_m <= hi:
-        raise CalibrationFailed(f"--wall: the ranger is {sensor_m:.2f} m from the wall (the camera's place for the "
-                                f"rover): stand it {lo:.2f}-{hi:.2f} m from the wall")
+        raise CalibrationFailed(
+            f"--wall: the ranger is {sensor_m:.2f} m from the wall (the camera's place for the "
+            f"rover): stand it {lo:.2f}-{hi:.2f} m from the wall"
+        )
 
 
 def run_error(mission, finished: bool) -> str | None:
@@ -107,6 +121,7 @@ def _watch(mission, run: Run, clock) -> None:
 
 # ---------------------------------------------------------------- in the simulator
 
+
 def sim_bench(config) -> tuple[tuple[float, float], float, tuple[float, float, float, float]]:
     """The simulator's bench: where the rover stands (its centre) and faces, and the wall's face
     (x0, y0, x1, y1) SIM_WALL_M ahead of it, square to it, 0.6 m long: the runs go the other way
@@ -134,9 +149,16 @@ def runs_sim(config, setup=None, seed: int = 1, levels=LEVELS_PWM, progress=None
     plan = plan_runs(start, facing + 180.0, levels)
     for i, (level, a, b) in enumerate(plan):
         heading = facing if i == 0 else math.degrees(math.atan2(a[0] - plan[i - 1][1][0], a[1] - plan[i - 1][1][1]))
-        scenario = Scenario(name="calibrate-rover", arena=Arena(w, h), start=Pose(a[0], a[1], heading % 360.0),
-                            target=Target(*b), mission=Mission("reach", 1), obstacles=(), walls=(wall,),
-                            description="rovernav calibrate rover's run")
+        scenario = Scenario(
+            name="calibrate-rover",
+            arena=Arena(w, h),
+            start=Pose(a[0], a[1], heading % 360.0),
+            target=Target(*b),
+            mission=Mission("reach", 1),
+            obstacles=(),
+            walls=(wall,),
+            description="rovernav calibrate rover's run",
+        )
         # The runs that begin on the bench (the first and third) begin with a sweep of the wall.
         swept = i % 2 == 0
         extra = [(mg.Param.SWEEP_AT_START, 1)] if swept else []
@@ -167,8 +189,15 @@ def runs_sim(config, setup=None, seed: int = 1, levels=LEVELS_PWM, progress=None
 
 # ---------------------------------------------------------------- on the real rover
 
-def runs_hardware(port: str, camera: str | None, config_path: str | None, levels=LEVELS_PWM,
-                  progress=None, wall: tuple[float, float, float, float] | None = None) -> list[Run]:
+
+def runs_hardware(
+    port: str,
+    camera: str | None,
+    config_path: str | None,
+    levels=LEVELS_PWM,
+    progress=None,
+    wall: tuple[float, float, float, float] | None = None,
+) -> list[Run]:
     """The runs on the real rover on `port`, watched by `camera`, one mission a run on one link;
     from where the camera first sees the rover, ahead the way it faces, then back (with `wall`,
     the face of a wall it stands facing: a sweep first, and the runs away from the wall). Every input is
@@ -211,7 +240,7 @@ def runs_hardware(port: str, camera: str | None, config_path: str | None, levels
         try:
             if wall is not None:
                 check_wall(wall, x, y, heading, cfg.planner.sonar_offset_m)
-                heading = (heading + 180.0) % 360.0   # the runs go away from the wall
+                heading = (heading + 180.0) % 360.0  # the runs go away from the wall
             check_room((x, y), heading, cfg.arena.width_m, cfg.arena.height_m, cfg.planner.inflation_m + 0.02)
         except CalibrationFailed as exc:
             raise InputError(str(exc)) from None
@@ -219,12 +248,18 @@ def runs_hardware(port: str, camera: str | None, config_path: str | None, levels
             # With a wall, the runs that begin where the rover stood (the first and third) begin
             # with a sweep of it.
             swept = wall is not None and i % 2 == 0
-            run = Run(level, a, b, turn_first=i > 0 or wall is not None, swept=swept,
-                      still_s=STILL_S if i == 0 else 0.0)
+            run = Run(
+                level, a, b, turn_first=i > 0 or wall is not None, swept=swept, still_s=STILL_S if i == 0 else 0.0
+            )
             extra = [(mg.Param.SWEEP_AT_START, 1)] if swept else []
             params = {**cfg.rover, **dict(RUN_PARAMS + extra), mg.Param.DRIVE_PWM: level}
-            spec = MissionSpec.for_run(None, dataclasses.replace(cfg, rover=params), start_xy=a, target_xy=b,
-                                       host_boot_id=int.from_bytes(os.urandom(4), "little"))
+            spec = MissionSpec.for_run(
+                None,
+                dataclasses.replace(cfg, rover=params),
+                start_xy=a,
+                target_xy=b,
+                host_boot_id=int.from_bytes(os.urandom(4), "little"),
+            )
             mission = spec.build(link, on_event=lambda t, text: None)
             _watch(mission, run, lambda: time.monotonic() - t0)
             started = time.monotonic()
@@ -248,11 +283,12 @@ def runs_hardware(port: str, camera: str | None, config_path: str | None, levels
         if link is not None:
             restore = [mg.Stop(reason=mg.StopReason.OPERATOR)] + [
                 mg.Config(param=int(p), value=int(cfg.rover.get(p, mg.PARAMS[p].default)))
-                for p, _ in RUN_PARAMS + [(mg.Param.DRIVE_PWM, 0)]]
+                for p, _ in RUN_PARAMS + [(mg.Param.DRIVE_PWM, 0)]
+            ]
             for message in restore:
                 try:
                     link.request(message, timeout_s=0.5, retries=3)
-                except Exception:   # noqa: BLE001 - the port may be gone; the runs say what was seen
+                except Exception:  # noqa: BLE001 - the port may be gone; the runs say what was seen
                     pass
         cap.release()
         if transport is not None:

@@ -2,6 +2,7 @@
 commands, the gyro's scale over a turn and its bias over the still window, the sonar's offset
 from a sweep facing a wall (the method: rovernav.calibrate.rover's docstring).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -56,16 +57,16 @@ class Run:
     start: tuple[float, float]
     goal: tuple[float, float]
     turn_first: bool = False
-    swept: bool = False                  # begins with a sweep, facing the wall (for the sonar's offset)
-    still_s: float = 0.0                 # the still window before START (the first run: STILL_S)
+    swept: bool = False  # begins with a sweep, facing the wall (for the sonar's offset)
+    still_s: float = 0.0  # the still window before START (the first run: STILL_S)
     poses: list[tuple[float, float, float, float]] = dataclasses.field(default_factory=list)
     status: list[tuple[float, int, int, int, int]] = dataclasses.field(default_factory=list)
     echoes: list[tuple[float, float, float]] = dataclasses.field(default_factory=list)  # t, bearing deg, range m
-    start_sent_s: float | None = None    # when the host first sent START
-    fixed_at_s: float | None = None      # the first STATUS that says the rover has had a fix
+    start_sent_s: float | None = None  # when the host first sent START
+    fixed_at_s: float | None = None  # the first STATUS that says the rover has had a fix
     error: str | None = None
     on_status_hooks: list = dataclasses.field(default_factory=list, repr=False)
-    true_bias: list[tuple[float, float]] = dataclasses.field(default_factory=list)   # sim only: t, deg/s
+    true_bias: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # sim only: t, deg/s
 
     @property
     def time_limit_s(self) -> float:
@@ -117,8 +118,10 @@ class Run:
             return "the camera did not see the rover while it stood still"
         turned = wrap_deg(_circular_median(last) - _circular_median(first))
         if abs(turned) > STILL_TURN_DEG:
-            return (f"the camera saw the rover turn {turned:+.1f} degrees while it was to stand still "
-                    "(was it pushed, or its wheels not stopped?)")
+            return (
+                f"the camera saw the rover turn {turned:+.1f} degrees while it was to stand still "
+                "(was it pushed, or its wheels not stopped?)"
+            )
         return _slope_se(rover)
 
     def sonar_offsets(self, wall: tuple[float, float, float, float], cone_deg: float = CONE_DEG) -> list[float] | str:
@@ -142,8 +145,10 @@ class Run:
         d_m, normal_deg = geo
         facing = math.cos(math.radians(h - normal_deg))
         if facing < math.cos(math.radians(WALL_FACING_DEG)):
-            return (f"the rover faced {abs(wrap_deg(h - normal_deg)):.0f} degrees off square to the wall "
-                    f"(it must face it within {WALL_FACING_DEG:.0f})")
+            return (
+                f"the rover faced {abs(wrap_deg(h - normal_deg)):.0f} degrees off square to the wall "
+                f"(it must face it within {WALL_FACING_DEG:.0f})"
+            )
         within = min(SQUARE_DEG, cone_deg / 2)
         offsets = [(d_m - r) / facing for _, b, r in self.echoes if abs(wrap_deg(h + b - normal_deg)) <= within]
         return offsets or f"no echo square to the wall (the sweep faced it within {within:.0f} degrees no time)"
@@ -163,7 +168,7 @@ class Run:
         if j is None:
             return None
         t_a, t_b = self.status[i][0], self.status[j][0]
-        rover = sum(wrap_deg((b[4] - a[4]) / 100.0) for a, b in zip(self.status[i:j], self.status[i + 1:j + 1]))
+        rover = sum(wrap_deg((b[4] - a[4]) / 100.0) for a, b in zip(self.status[i:j], self.status[i + 1 : j + 1]))
         # The camera's headings from the last before t_a to the first after t_b, unwrapped, and
         # read at t_a and t_b by interpolation (the rover turns fast: a frame's 33 ms is degrees).
         k0 = next((k for k in range(len(self.poses) - 1, -1, -1) if self.poses[k][0] <= t_a), None)
@@ -171,7 +176,7 @@ class Run:
         if k0 is None or k1 is None or k1 - k0 < 10:
             return None
         ts, hs = [self.poses[k0][0]], [self.poses[k0][3]]
-        for p in self.poses[k0 + 1:k1 + 1]:
+        for p in self.poses[k0 + 1 : k1 + 1]:
             hs.append(hs[-1] + wrap_deg(p[3] - hs[-1]))
             ts.append(p[0])
 
@@ -252,8 +257,8 @@ def wall_geometry(wall: tuple[float, float, float, float], x_m: float, y_m: floa
     along = (x_m - x0) * ux + (y_m - y0) * uy
     if not 0.0 <= along <= length:
         return "the rover is not in front of the wall (past one of its ends)"
-    across = -(x_m - x0) * uy + (y_m - y0) * ux   # the rover's side of the line
-    nx, ny = (uy, -ux) if across > 0 else (-uy, ux)   # towards the face
+    across = -(x_m - x0) * uy + (y_m - y0) * ux  # the rover's side of the line
+    nx, ny = (uy, -ux) if across > 0 else (-uy, ux)  # towards the face
     return abs(across), math.degrees(math.atan2(nx, ny))
 
 

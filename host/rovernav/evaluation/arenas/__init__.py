@@ -85,6 +85,7 @@ The package
     generate.py    generate_arena(s), the scenario text, write_arenas, write_gallery
     cli.py         `rovernav arenas`
 """
+
 from __future__ import annotations
 
 from .cellular import (
@@ -141,12 +142,51 @@ from .generate import (
 )
 
 __all__ = [
-    "ARENA_HEIGHT_RANGE_M", "ARENA_WIDTH_RANGE_M", "ArenaError", "END_MARGIN_M", "GenerationFailed", "KEEP_CLEAR_M",
-    "NARROW_EXTRA_M", "POST_DIAMETERS_M", "SEED_BOX_SIZES_M", "START_AT_TARGET_RANGE_M", "WALL_THICKNESS_RANGE_M",
-    "ALL_FAMILY_NAMES", "FAMILIES", "FAMILY_NAMES", "CELLULAR_BOXES", "CELLULAR_CELL_M", "CELLULAR_FIELDS",
-    "CELLULAR_FILL_RANGE", "CELLULAR_HEIGHT_RANGE_M", "CELLULAR_SMOOTHING", "CELLULAR_WIDTH_RANGE_M",
-    "ArenaMeasure", "BAND_HARD", "BAND_MEDIUM", "CD_OPEN_M", "CLEARANCE_OPEN_M", "DETOUR_LONG", "DISPERSION_DENSE",
-    "PINCH_OPEN_M", "RAY_COUNT", "RAY_LENGTH_M", "RAY_STEP_M", "SCORE_WEIGHTS", "band_of", "measure_scenario",
-    "GALLERY_COUNT", "GeneratedArena", "INDEX_FIELDS", "MAX_COUNT", "MAX_TRIES", "generate_arena",
-    "generate_arenas", "index_row", "write_arenas", "write_gallery", "add_arenas_parser", "cmd_arenas",
+    "ARENA_HEIGHT_RANGE_M",
+    "ARENA_WIDTH_RANGE_M",
+    "ArenaError",
+    "END_MARGIN_M",
+    "GenerationFailed",
+    "KEEP_CLEAR_M",
+    "NARROW_EXTRA_M",
+    "POST_DIAMETERS_M",
+    "SEED_BOX_SIZES_M",
+    "START_AT_TARGET_RANGE_M",
+    "WALL_THICKNESS_RANGE_M",
+    "ALL_FAMILY_NAMES",
+    "FAMILIES",
+    "FAMILY_NAMES",
+    "CELLULAR_BOXES",
+    "CELLULAR_CELL_M",
+    "CELLULAR_FIELDS",
+    "CELLULAR_FILL_RANGE",
+    "CELLULAR_HEIGHT_RANGE_M",
+    "CELLULAR_SMOOTHING",
+    "CELLULAR_WIDTH_RANGE_M",
+    "ArenaMeasure",
+    "BAND_HARD",
+    "BAND_MEDIUM",
+    "CD_OPEN_M",
+    "CLEARANCE_OPEN_M",
+    "DETOUR_LONG",
+    "DISPERSION_DENSE",
+    "PINCH_OPEN_M",
+    "RAY_COUNT",
+    "RAY_LENGTH_M",
+    "RAY_STEP_M",
+    "SCORE_WEIGHTS",
+    "band_of",
+    "measure_scenario",
+    "GALLERY_COUNT",
+    "GeneratedArena",
+    "INDEX_FIELDS",
+    "MAX_COUNT",
+    "MAX_TRIES",
+    "generate_arena",
+    "generate_arenas",
+    "index_row",
+    "write_arenas",
+    "write_gallery",
+    "add_arenas_parser",
+    "cmd_arenas",
 ]

@@ -1,4 +1,5 @@
 """The cellular family: BARN's worlds (Perille et al., 2020), scaled to this rover."""
+
 from __future__ import annotations
 
 import heapq
@@ -18,10 +19,10 @@ from .draw import _Box, _Draw, _Layout, _Redraw
 CELLULAR_CELL_M = 0.084
 CELLULAR_WIDTH_RANGE_M = (2.5, 4.0)
 CELLULAR_HEIGHT_RANGE_M = (1.8, 3.0)
-CELLULAR_FILL_RANGE = (0.10, 0.30)      # BARN's initial fill, the share of cells occupied
-CELLULAR_SMOOTHING = (0, 4)             # BARN's smoothing iterations
-CELLULAR_BOXES = (8, 120)               # boxes (merged cells) an arena may hold
-CELLULAR_FIELDS = 6                     # fields drawn with one fill and smoothing before one is carved
+CELLULAR_FILL_RANGE = (0.10, 0.30)  # BARN's initial fill, the share of cells occupied
+CELLULAR_SMOOTHING = (0, 4)  # BARN's smoothing iterations
+CELLULAR_BOXES = (8, 120)  # boxes (merged cells) an arena may hold
+CELLULAR_FIELDS = 6  # fields drawn with one fill and smoothing before one is carved
 
 
 def _way_through(occ: np.ndarray, need_cells: float) -> bool:
@@ -93,15 +94,19 @@ def _smooth(occ: np.ndarray) -> np.ndarray:
     neighbours of its 8 becomes occupied, one with 3 or fewer becomes free, else it stays (outside
     the grid counts as free floor)."""
     padded = np.pad(occ.astype(np.int8), 1)
-    n = sum(padded[1 + dy:padded.shape[0] - 1 + dy, 1 + dx:padded.shape[1] - 1 + dx]
-            for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dx, dy) != (0, 0))
+    n = sum(
+        padded[1 + dy : padded.shape[0] - 1 + dy, 1 + dx : padded.shape[1] - 1 + dx]
+        for dy in (-1, 0, 1)
+        for dx in (-1, 0, 1)
+        if (dx, dy) != (0, 0)
+    )
     return np.where(n >= 5, True, np.where(n <= 3, False, occ))
 
 
 def _cell_boxes(occ: np.ndarray, x0: float, y0: float, c: float) -> list[tuple[float, float, float, float]]:
     """The occupied cells as few boxes (x0, x1, y0, y1): each row's runs, merged with the same run
     of the rows above."""
-    open_runs: dict[tuple[int, int], list[int]] = {}   # (first column, last column) -> [first row, last row]
+    open_runs: dict[tuple[int, int], list[int]] = {}  # (first column, last column) -> [first row, last row]
     done = []
     for row in range(occ.shape[0]):
         runs, col = [], 0
@@ -120,8 +125,10 @@ def _cell_boxes(occ: np.ndarray, x0: float, y0: float, c: float) -> list[tuple[f
         for key in runs:
             open_runs.setdefault(key, [row, row])[1] = row
     done += list(open_runs.items())
-    return [(round(x0 + a * c, 6), round(x0 + (b + 1) * c, 6), round(y0 + r0 * c, 6), round(y0 + (r1 + 1) * c, 6))
-            for (a, b), (r0, r1) in done]
+    return [
+        (round(x0 + a * c, 6), round(x0 + (b + 1) * c, 6), round(y0 + r0 * c, 6), round(y0 + (r1 + 1) * c, 6))
+        for (a, b), (r0, r1) in done
+    ]
 
 
 def _cellular(d: _Draw) -> _Layout:
@@ -156,7 +163,14 @@ def _cellular(d: _Draw) -> _Layout:
     boxes = [_Box(bx0, bx1, by0, by1, False, "cell") for bx0, bx1, by0, by1 in _cell_boxes(occ, x0, y0, c)]
     if not CELLULAR_BOXES[0] <= len(boxes) <= CELLULAR_BOXES[1]:
         raise _Redraw(f"{len(boxes)} boxes")
-    return _Layout(W, H, start, d.heading(start, target), target, boxes,
-                   f"BARN-style cellular world: fill {fill:.2f}, {smoothing} smoothing steps, {len(boxes)} boxes "
-                   f"({int(occ.sum())} cells of {c * 100:.1f} cm), every one unknown"
-                   + (f"; {carved} cells carved for a way through" if carved else ""))
+    return _Layout(
+        W,
+        H,
+        start,
+        d.heading(start, target),
+        target,
+        boxes,
+        f"BARN-style cellular world: fill {fill:.2f}, {smoothing} smoothing steps, {len(boxes)} boxes "
+        f"({int(occ.sum())} cells of {c * 100:.1f} cm), every one unknown"
+        + (f"; {carved} cells carved for a way through" if carved else ""),
+    )

@@ -1,4 +1,5 @@
 """`rovernav arenas`: the command's flags, its help and what it prints."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,6 +15,7 @@ from .families import ALL_FAMILY_NAMES, FAMILIES
 from .generate import GALLERY_COUNT, MAX_COUNT, GeneratedArena, _families, generate_arenas, write_arenas, write_gallery
 
 # --- the command ----------------------------------------------------------------------------------
+
 
 def _help_epilog() -> str:
     width = max(len(n) for n in ALL_FAMILY_NAMES)
@@ -35,7 +37,7 @@ straight start-target segment when unsolvable), in the spirit of BARN:
   narrowest_dimension_m       the same, smallest over the points: the tightest place passed
   optimal_length_m, detour_ratio   the optimum's length, and over the straight distance
   known_path_blocked          the path planned on the known obstacles crosses an unknown one
-  score in [0, 1] = {' + '.join(f'{w:.2f} {k}' for k, w in SCORE_WEIGHTS.items())}
+  score in [0, 1] = {" + ".join(f"{w:.2f} {k}" for k, w in SCORE_WEIGHTS.items())}
   band: easy below {BAND_MEDIUM}, medium, hard from {BAND_HARD}
 (rovernav.evaluation.arenas explains each term.)
 
@@ -48,20 +50,28 @@ the same files byte for byte."""
 def add_arenas_parser(sub) -> None:
     """Register `rovernav arenas` on the command's subparsers."""
     p = sub.add_parser(
-        "arenas", help="generate arenas (scenario files) from families of rooms and tests, with labels",
+        "arenas",
+        help="generate arenas (scenario files) from families of rooms and tests, with labels",
         description="Write COUNT scenario files drawn from families of arenas that real rooms and the seed's "
-                    "tests contain, each labelled with its family, a difficulty and whether it can be solved "
-                    "with every obstacle known; the families are cycled, so any count of at least the number "
-                    "of families covers them all.",
-        epilog=_help_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
+        "tests contain, each labelled with its family, a difficulty and whether it can be solved "
+        "with every obstacle known; the families are cycled, so any count of at least the number "
+        "of families covers them all.",
+        epilog=_help_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--count", default="200", metavar="N", help=f"how many arenas, 1 to {MAX_COUNT} (default 200)")
     p.add_argument("--seed", default="1", metavar="S", help="random seed, a whole number ≥ 0 (default 1)")
     p.add_argument("--out", default="out/arenas", metavar="DIR", help="output folder (default out/arenas)")
-    p.add_argument("--family", default=None, metavar="F[,F...]",
-                   help="only these families (comma-separated; default all)")
-    p.add_argument("--picture", default=None, metavar="FILE", type=output_file(".png", ".jpg"),
-                   help=f"where to write the contact sheet of the first {GALLERY_COUNT} arenas "
-                        "(default DIR/gallery.png)")
+    p.add_argument(
+        "--family", default=None, metavar="F[,F...]", help="only these families (comma-separated; default all)"
+    )
+    p.add_argument(
+        "--picture",
+        default=None,
+        metavar="FILE",
+        type=output_file(".png", ".jpg"),
+        help=f"where to write the contact sheet of the first {GALLERY_COUNT} arenas (default DIR/gallery.png)",
+    )
     p.set_defaults(func=cmd_arenas)
 
 
@@ -107,8 +117,10 @@ def cmd_arenas(args: argparse.Namespace) -> int:
         print(f"rovernav arenas: {exc}", file=sys.stderr)
         return 1
     print(_summary(arenas))
-    print(f"wrote {len(arenas)} arenas, index.json and index.csv to {out}, the contact sheet to {picture}, "
-          f"in {time.perf_counter() - started:.1f} s")
+    print(
+        f"wrote {len(arenas)} arenas, index.json and index.csv to {out}, the contact sheet to {picture}, "
+        f"in {time.perf_counter() - started:.1f} s"
+    )
     return 0
 
 
@@ -122,8 +134,10 @@ def _summary(arenas: Sequence[GeneratedArena]) -> str:
 
     def line(label: str, group: Sequence[GeneratedArena]) -> str:
         bands = [a.difficulty["band"] for a in group]
-        return (f"{label:<{width}}  {len(group):>6}  {sum(a.solvable for a in group):>8}  "
-                f"{bands.count('easy'):>4}  {bands.count('medium'):>6}  {bands.count('hard'):>4}")
+        return (
+            f"{label:<{width}}  {len(group):>6}  {sum(a.solvable for a in group):>8}  "
+            f"{bands.count('easy'):>4}  {bands.count('medium'):>6}  {bands.count('hard'):>4}"
+        )
 
     lines += [line(name, groups[name]) for name in ALL_FAMILY_NAMES if name in groups]
     lines.append(line("all", arenas))

@@ -1,5 +1,6 @@
 """The difficulty of an arena, measured along its clairvoyant optimum in the spirit of BARN
 (the package's docstring defines each metric and the score)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -15,11 +16,11 @@ from ...scenario import Scenario
 RAY_COUNT = 16
 RAY_LENGTH_M = 1.0
 RAY_STEP_M = 0.01
-CD_OPEN_M = 1.6                      # a characteristic dimension this wide is open floor
-PINCH_OPEN_M = 1.0                   # a narrowest place this wide is no squeeze
-CLEARANCE_OPEN_M = 0.45              # a mean clearance this large is open floor
-DISPERSION_DENSE = 15.0              # this many switches is dense clutter
-DETOUR_LONG = 0.5                    # a path 50 % longer than the straight line is a long detour
+CD_OPEN_M = 1.6  # a characteristic dimension this wide is open floor
+PINCH_OPEN_M = 1.0  # a narrowest place this wide is no squeeze
+CLEARANCE_OPEN_M = 0.45  # a mean clearance this large is open floor
+DISPERSION_DENSE = 15.0  # this many switches is dense clutter
+DETOUR_LONG = 0.5  # a path 50 % longer than the straight line is a long detour
 SCORE_WEIGHTS = {"narrow": 0.15, "pinch": 0.15, "tight": 0.10, "clutter": 0.15, "detour": 0.25, "surprise": 0.20}
 # Over the 600 arenas of seeds 1-3 the score's tertiles fell at 0.46 and 0.64.
 BAND_MEDIUM = 0.45
@@ -27,13 +28,14 @@ BAND_HARD = 0.65
 
 # --- difficulty -----------------------------------------------------------------------------------
 
+
 @dataclasses.dataclass(frozen=True)
 class ArenaMeasure:
     """What `measure_scenario` finds: solvability, the difficulty table and the clairvoyant optimum."""
 
     solvable: bool
     difficulty: dict[str, Any]
-    optimal_path: tuple[tuple[float, float], ...]   # waypoints [m]; () when unsolvable
+    optimal_path: tuple[tuple[float, float], ...]  # waypoints [m]; () when unsolvable
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,8 +59,11 @@ def _shapes(scenario: Scenario) -> _Shapes:
             boxes.append((cx - ex, cx + ex, cy - ey, cy + ey))
         else:
             walls.append((cx, cy, ux, uy, a, b))
-    return _Shapes(np.array(boxes, dtype=np.float64).reshape(-1, 4), np.array(walls, dtype=np.float64).reshape(-1, 6),
-                   np.array([(p.x_m, p.y_m, p.radius_m) for p in scenario.posts], dtype=np.float64).reshape(-1, 3))
+    return _Shapes(
+        np.array(boxes, dtype=np.float64).reshape(-1, 4),
+        np.array(walls, dtype=np.float64).reshape(-1, 6),
+        np.array([(p.x_m, p.y_m, p.radius_m) for p in scenario.posts], dtype=np.float64).reshape(-1, 3),
+    )
 
 
 def _box_edges(scenario: Scenario) -> np.ndarray:
@@ -92,8 +97,9 @@ def _clearances(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: f
     out = np.minimum(wall, np.hypot(dx, dy).min(axis=1, initial=np.inf))
     if len(shapes.walls):
         along, across = _wall_local(x[:, None], y[:, None], shapes.walls)
-        d = np.hypot(np.maximum(np.abs(along) - shapes.walls[:, 4], 0.0),
-                     np.maximum(np.abs(across) - shapes.walls[:, 5], 0.0))
+        d = np.hypot(
+            np.maximum(np.abs(along) - shapes.walls[:, 4], 0.0), np.maximum(np.abs(across) - shapes.walls[:, 5], 0.0)
+        )
         out = np.minimum(out, d.min(axis=1))
     if len(shapes.posts):
         p = shapes.posts
@@ -132,7 +138,7 @@ def _ray_lengths(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: 
     enter, leave = np.maximum(near_x, near_y), np.minimum(far_x, far_y)
     hit = np.isfinite(enter) & (leave >= np.maximum(enter, 0.0))
     t_box = np.where(hit, np.maximum(enter, 0.0), np.inf).min(axis=2, initial=np.inf)
-    if len(shapes.walls):   # the slab method in each wall's frame
+    if len(shapes.walls):  # the slab method in each wall's frame
         w = shapes.walls
         lp, lq = _wall_local(px, py, w)
         ldx, ldy = cx * w[:, 2] + cy * w[:, 3], cy * w[:, 2] - cx * w[:, 3]
@@ -143,7 +149,7 @@ def _ray_lengths(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: 
         enter, leave = np.maximum(near_a, near_b), np.minimum(far_a, far_b)
         hit = np.isfinite(enter) & (leave >= np.maximum(enter, 0.0))
         t_box = np.minimum(t_box, np.where(hit, np.maximum(enter, 0.0), np.inf).min(axis=2))
-    if len(shapes.posts):   # p + t·c meets the circle |p + t·c − centre| = r (c is a unit vector)
+    if len(shapes.posts):  # p + t·c meets the circle |p + t·c − centre| = r (c is a unit vector)
         q = shapes.posts
         fx, fy = px - q[:, 0], py - q[:, 1]
         b = fx * cx + fy * cy
@@ -155,8 +161,7 @@ def _ray_lengths(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: 
     with np.errstate(divide="ignore", invalid="ignore"):
         wx = np.where(cx > 0, (width_m - px) / cx, np.where(cx < 0, -px / cx, np.inf))[..., 0]
         wy = np.where(cy > 0, (height_m - py) / cy, np.where(cy < 0, -py / cy, np.inf))[..., 0]
-    return np.minimum.reduce([t_box, np.maximum(wx, 0.0), np.maximum(wy, 0.0),
-                              np.full_like(t_box, RAY_LENGTH_M)])
+    return np.minimum.reduce([t_box, np.maximum(wx, 0.0), np.maximum(wy, 0.0), np.full_like(t_box, RAY_LENGTH_M)])
 
 
 def _dispersion(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: float) -> float:
@@ -164,11 +169,11 @@ def _dispersion(points: np.ndarray, shapes: _Shapes, width_m: float, height_m: f
     step = RAY_STEP_M
     nx, ny = math.ceil(width_m / step), math.ceil(height_m / step)
     occupied = np.zeros((ny, nx), dtype=np.bool_)
-    for x0, x1, y0, y1 in shapes.boxes:   # cells whose centre lies in the box
+    for x0, x1, y0, y1 in shapes.boxes:  # cells whose centre lies in the box
         c0, c1 = max(math.ceil(x0 / step - 0.5), 0), math.floor(x1 / step - 0.5) + 1
         r0, r1 = max(math.ceil(y0 / step - 0.5), 0), math.floor(y1 / step - 0.5) + 1
-        occupied[r0:max(r1, r0), c0:max(c1, c0)] = True
-    if len(shapes.walls) or len(shapes.posts):   # cells whose centre lies in a wall at an angle or a post
+        occupied[r0 : max(r1, r0), c0 : max(c1, c0)] = True
+    if len(shapes.walls) or len(shapes.posts):  # cells whose centre lies in a wall at an angle or a post
         centres_x = (np.arange(nx) + 0.5) * step
         centres_y = (np.arange(ny) + 0.5) * step
         for w in shapes.walls:
@@ -204,7 +209,7 @@ def _score(difficulty: dict[str, Any], solvable: bool, inflation_m: float) -> fl
 
 
 def band_of(score: float) -> str:
-    """"easy" below BAND_MEDIUM, "hard" from BAND_HARD, "medium" between."""
+    """ "easy" below BAND_MEDIUM, "hard" from BAND_HARD, "medium" between."""
     return "easy" if score < BAND_MEDIUM else "hard" if score >= BAND_HARD else "medium"
 
 
@@ -234,7 +239,7 @@ def measure_scenario(scenario: Scenario, config: PlannerConfig | None = None) ->
     clearance = _clearances(points, shapes, W, H)
     rays = _ray_lengths(points, shapes, W, H)
     half = RAY_COUNT // 2
-    widths = (rays[:, :half] + rays[:, half:]).min(axis=1)   # the narrowest line through each point
+    widths = (rays[:, :half] + rays[:, half:]).min(axis=1)  # the narrowest line through each point
     difficulty: dict[str, Any] = {
         "closest_obstacle_m": float(clearance.min()),
         "mean_clearance_m": float(clearance.mean()),
@@ -250,5 +255,6 @@ def measure_scenario(scenario: Scenario, config: PlannerConfig | None = None) ->
     score = round(_score(difficulty, optimum is not None, cfg.inflation_m), 4)
     difficulty["score"] = score
     difficulty["band"] = band_of(score)
-    return ArenaMeasure(solvable=optimum is not None, difficulty=difficulty,
-                        optimal_path=tuple(path) if optimum is not None else ())
+    return ArenaMeasure(
+        solvable=optimum is not None, difficulty=difficulty, optimal_path=tuple(path) if optimum is not None else ()
+    )

@@ -1,5 +1,6 @@
 """What a family draws: the arena's size and the obstacles' (boxes, walls, posts), the random
 choices of one draw, and the errors of the generator."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -17,12 +18,11 @@ ARENA_WIDTH_RANGE_M = (2.0, 3.0)
 ARENA_HEIGHT_RANGE_M = (1.5, 2.2)
 WALL_THICKNESS_RANGE_M = (0.04, 0.06)
 # The seed's boxes: 0.08 m (small obstacles), 0.15, 0.18, 0.25, 0.30 × 0.15 (out-and-back), 0.20 (Fig. 4.8).
-SEED_BOX_SIZES_M = ((0.08, 0.08), (0.15, 0.15), (0.18, 0.18), (0.20, 0.20), (0.25, 0.25), (0.30, 0.15),
-                    (0.15, 0.30))
-POST_DIAMETERS_M = (0.05, 0.06, 0.08, 0.10)   # table legs, pipes, pillars: the clutter family's posts
-KEEP_CLEAR_M = 0.03                  # beyond the inflation: a box keeps the start's and target's cells free
-END_MARGIN_M = 0.06                  # beyond the inflation: start and target from the arena's wall
-NARROW_EXTRA_M = 0.06                # narrow passages: 2 × inflation to 2 × inflation + this
+SEED_BOX_SIZES_M = ((0.08, 0.08), (0.15, 0.15), (0.18, 0.18), (0.20, 0.20), (0.25, 0.25), (0.30, 0.15), (0.15, 0.30))
+POST_DIAMETERS_M = (0.05, 0.06, 0.08, 0.10)  # table legs, pipes, pillars: the clutter family's posts
+KEEP_CLEAR_M = 0.03  # beyond the inflation: a box keeps the start's and target's cells free
+END_MARGIN_M = 0.06  # beyond the inflation: start and target from the arena's wall
+NARROW_EXTRA_M = 0.06  # narrow passages: 2 × inflation to 2 × inflation + this
 START_AT_TARGET_RANGE_M = (0.021, 0.049)
 
 
@@ -40,6 +40,7 @@ class _Redraw(Exception):
 
 # --- what a family draws ---------------------------------------------------------------------
 
+
 @dataclasses.dataclass
 class _Box:
     """An axis-aligned obstacle by its edges [m]: a box, or a wall (written as [[walls]] along
@@ -51,7 +52,7 @@ class _Box:
     y1: float
     known: bool
     role: str
-    shape: str = "box"          # or "wall"
+    shape: str = "box"  # or "wall"
 
     def distance_to(self, x_m: float, y_m: float) -> float:
         dx = max(self.x0 - x_m, 0.0, x_m - self.x1)
@@ -88,8 +89,9 @@ class _Post:
         return max(other.distance_to(self.x, self.y) - self.r, 0.0)
 
     def on_arena(self, width_m: float, height_m: float) -> bool:
-        return (self.x - self.r >= 0 and self.y - self.r >= 0 and self.x + self.r <= width_m
-                and self.y + self.r <= height_m)
+        return (
+            self.x - self.r >= 0 and self.y - self.r >= 0 and self.x + self.r <= width_m and self.y + self.r <= height_m
+        )
 
 
 @dataclasses.dataclass
@@ -114,12 +116,12 @@ class _Layout:
     start: tuple[float, float]
     heading_deg: float
     target: tuple[float, float]
-    boxes: list[_Box]                           # boxes and axis-aligned walls
-    note: str                                   # what this arena is, for the description
+    boxes: list[_Box]  # boxes and axis-aligned walls
+    note: str  # what this arena is, for the description
     kind: str = "reach"
     trips: int = 1
     passage_width_m: float | None = None
-    segs: list[_Seg] = dataclasses.field(default_factory=list)     # walls at an angle
+    segs: list[_Seg] = dataclasses.field(default_factory=list)  # walls at an angle
     posts: list[_Post] = dataclasses.field(default_factory=list)
 
 
@@ -132,8 +134,8 @@ class _Draw:
         self.inflation_m = config.inflation_m
         self.width_m = self.u(*ARENA_WIDTH_RANGE_M, step_m=0.01)
         self.height_m = self.u(*ARENA_HEIGHT_RANGE_M, step_m=0.01)
-        self.margin_m = self.inflation_m + END_MARGIN_M      # start and target from the wall
-        self.clear_m = self.inflation_m + KEEP_CLEAR_M       # a box from the start and the target
+        self.margin_m = self.inflation_m + END_MARGIN_M  # start and target from the wall
+        self.clear_m = self.inflation_m + KEEP_CLEAR_M  # a box from the start and the target
 
     def u(self, lo: float, hi: float, step_m: float = 0.001) -> float:
         """A uniform multiple of `step_m` in [lo, hi]; _Redraw when there is none."""
@@ -159,8 +161,7 @@ class _Draw:
     def point(self, x_lo: float, x_hi: float, y_lo: float = 0.0, y_hi: float = math.inf) -> tuple[float, float]:
         """A start or target in the given ranges, at least `margin_m` from the wall."""
         m = self.margin_m
-        return (self.u(max(x_lo, m), min(x_hi, self.width_m - m)),
-                self.u(max(y_lo, m), min(y_hi, self.height_m - m)))
+        return (self.u(max(x_lo, m), min(x_hi, self.width_m - m)), self.u(max(y_lo, m), min(y_hi, self.height_m - m)))
 
     def heading(self, start: tuple[float, float], target: tuple[float, float]) -> float:
         """Towards the target (to the nearest 45°) half the time, else any multiple of 45°."""
@@ -170,19 +171,29 @@ class _Draw:
         return float(self.whole(0, 7) * 45)
 
     def box(self, cx: float, cy: float, w: float, h: float, known: bool, role: str) -> _Box:
-        return _Box(round(cx - w / 2, 6), round(cx + w / 2, 6), round(cy - h / 2, 6), round(cy + h / 2, 6),
-                    known, role)
+        return _Box(round(cx - w / 2, 6), round(cx + w / 2, 6), round(cy - h / 2, 6), round(cy + h / 2, 6), known, role)
 
-    def fits(self, box: _Box | _Post, boxes: Sequence[_Box | _Post], ends: Sequence[tuple[float, float]],
-             gap_m: float = 0.02) -> bool:
+    def fits(
+        self, box: _Box | _Post, boxes: Sequence[_Box | _Post], ends: Sequence[tuple[float, float]], gap_m: float = 0.02
+    ) -> bool:
         """On the arena, `gap_m` from the other boxes (and posts), and clear of the start and the target."""
-        return (box.on_arena(self.width_m, self.height_m)
-                and all(box.gap_to(b) >= gap_m for b in boxes)
-                and all(box.distance_to(*p) > self.clear_m for p in ends))
+        return (
+            box.on_arena(self.width_m, self.height_m)
+            and all(box.gap_to(b) >= gap_m for b in boxes)
+            and all(box.distance_to(*p) > self.clear_m for p in ends)
+        )
 
-    def scatter(self, boxes: list[_Box], n: int, ends: Sequence[tuple[float, float]], unknown_p: float,
-                role: str, sizes: Sequence[tuple[float, float]] = SEED_BOX_SIZES_M,
-                x_range: tuple[float, float] | None = None, near_line_p: float = 0.6) -> None:
+    def scatter(
+        self,
+        boxes: list[_Box],
+        n: int,
+        ends: Sequence[tuple[float, float]],
+        unknown_p: float,
+        role: str,
+        sizes: Sequence[tuple[float, float]] = SEED_BOX_SIZES_M,
+        x_range: tuple[float, float] | None = None,
+        near_line_p: float = 0.6,
+    ) -> None:
         """Add up to `n` boxes, most near the line from ends[0] to ends[1], the rest anywhere in x_range."""
         x_lo, x_hi = x_range or (0.0, self.width_m)
         (ax, ay), (bx, by) = ends[0], ends[-1]
@@ -201,8 +212,9 @@ class _Draw:
                     boxes.append(box)
                     break
 
-    def known_path(self, layout_boxes: Sequence[_Box], start: tuple[float, float],
-                   target: tuple[float, float]) -> PlanResult:
+    def known_path(
+        self, layout_boxes: Sequence[_Box], start: tuple[float, float], target: tuple[float, float]
+    ) -> PlanResult:
         """The optimum on the known boxes so far; _Redraw when there is none."""
         grid = OccupancyGrid(self.width_m, self.height_m, self.config)
         for b in layout_boxes:
@@ -213,8 +225,9 @@ class _Draw:
         except NoPathError as exc:
             raise _Redraw(str(exc)) from None
 
-    def across_path(self, waypoints: Sequence[tuple[float, float]], fraction: float, w: float, h: float,
-                    role: str) -> _Box:
+    def across_path(
+        self, waypoints: Sequence[tuple[float, float]], fraction: float, w: float, h: float, role: str
+    ) -> _Box:
         """An unknown box centred near the point `fraction` of the way along the path, across it."""
         pts = np.asarray(waypoints, dtype=np.float64)
         seg = np.hypot(*np.diff(pts, axis=0).T)
@@ -229,8 +242,16 @@ class _Draw:
         c = p + normal * self.rng.uniform(-0.3, 0.3) * min(w, h) / 2
         return self.box(round(float(c[0]), 3), round(float(c[1]), 3), w, h, False, role)
 
-    def beside(self, p: tuple[float, float], bearing_deg: float, clearance_m: float, w: float, h: float,
-               role: str, known: bool = False) -> _Box:
+    def beside(
+        self,
+        p: tuple[float, float],
+        bearing_deg: float,
+        clearance_m: float,
+        w: float,
+        h: float,
+        role: str,
+        known: bool = False,
+    ) -> _Box:
         """A box (unknown by default) in direction `bearing_deg` (0° = +y, clockwise) from p, its
         nearest face `clearance_m` from p."""
         ux, uy = math.sin(math.radians(bearing_deg)), math.cos(math.radians(bearing_deg))
@@ -239,7 +260,7 @@ class _Draw:
             return self.box(p[0] + r * ux, p[1] + r * uy, w, h, False, role).distance_to(*p)
 
         lo, hi = 0.0, clearance_m + math.hypot(w, h)
-        for _ in range(40):   # the gap grows with r: bisect for the clearance
+        for _ in range(40):  # the gap grows with r: bisect for the clearance
             mid = (lo + hi) / 2
             lo, hi = (mid, hi) if gap(mid) < clearance_m else (lo, mid)
         r = round(hi + 0.0005, 3)
