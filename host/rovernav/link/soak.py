@@ -19,26 +19,8 @@ For SECONDS after the HELLO the host keeps up the traffic of an idle session and
     follows a new path at once).
   * HEARTBEATs every HEARTBEAT_S (camera: no frames), as link-check sends them.
 
-What missions tolerate, in frames: the lossy-radio benchmark (benchmarks/lossy_radio.py) shows
-missions reach their target at 1 % of bytes lost with 0.1 % corrupted (and at 2 % lost in
-bursts), but not reliably at 5 % lost. A lost or corrupted byte breaks the frame it is in, and the
-frame after it when it is the 0x00 between them, so a frame of L bytes on the wire (its 0x00
-included) arrives whole at byte damage p with probability (1 - p) ** (L + 1). The share of
-frames lost at p is then, over the frames this soak sent that way (each of its length):
-
-    host to rover   1 - sum(n_L * (1-p)**(L+1)) / sum(n_L)          n_L: frames of L bytes sent
-    rover to host   1 - sum(m_L) / sum(m_L / (1-p)**(L+1))          m_L: frames of L bytes received
-                                                                    (the lost ones are unseen)
-
-with p = TOLERATED_BYTE_DAMAGE (1.1 %) for what missions tolerate and FAILING_BYTE_LOSS (5 %) for
-where they fail. So the thresholds follow the frames measured (signed frames are 12 bytes longer:
-the same byte loss loses more of them; the benchmark's missions ran signed). For the frames a mission sends most, `typical_thresholds()`: a HEARTBEAT (12
-bytes) 13 % / 49 %, a FIX (18) 19 % / 62 %, a PATH chunk (44) 39 % / 90 %, a STATUS (52) 44 % /
-93 %. Losses in bursts break fewer frames for the same bytes lost (the lost bytes fall together,
-many in frames already broken): 2 % of bytes lost in bursts, which missions tolerate (10 % of the
-time, a fifth of the bytes lost in it), loses about 10 % of frames of any length, below the 1 %
-line for frames of 12 bytes and more (a HEARTBEAT's 13 %). The report also gives, each way, the
-byte damage under which independent loss would lose the frames measured.
+What missions tolerate, in frames, and the byte loss that would explain the frames lost: soak_loss.py.
+What the soak sends and how often: soak_plan.py. Its figures and report: soak_report.py.
 
 Nothing here reads a clock of its own: `Soak` is given one (time.monotonic on a real radio; a
 simulated one in the tests) and how long one wait for the rover may last.
@@ -48,99 +30,77 @@ from __future__ import annotations
 
 import array
 import collections
-import math
 import os
-import random
 import time
 from collections.abc import Callable
 
 from . import messages_gen as mg
 from .errors import LinkError
-from .framing import CRC_BYTES, HEADER_BYTES, SIGNATURE_BYTES
 from .link import host_hello
 from .path_upload import CHUNK_SPACING_S, Answer, PathUpload
 from .quality import LinkQuality
+from .soak_loss import (
+    FAILING_BYTE_LOSS,
+    TOLERATED_BYTE_DAMAGE,
+    byte_damage_for,
+    frame_loss_at,
+    typical_thresholds,
+    wire_bytes,
+)
+from .soak_plan import (
+    ARENA_MM,
+    FEW_FRAMES,
+    HEARTBEAT_S,
+    MAX_SOAK_S,
+    MIN_SOAK_S,
+    PATH_EVERY_S,
+    PATH_FIRST_S,
+    PATH_GIVE_UP_S,
+    PATH_RESEND_S,
+    PATH_WAYPOINTS,
+    PROBE_HZ,
+    PROBE_PARAM,
+    PROBE_TIMEOUT_S,
+    PROGRESS_S,
+    SILENT_S,
+    WAYS,
+    soak_waypoints,
+)
+from .soak_report import SoakFigures
 
-#: The round-trip probe: a CONFIG naming no parameter, which the rover refuses (NACK
-#: unknown_param, the same sequence number) without changing anything.
-PROBE_PARAM = 0
-assert PROBE_PARAM not in {int(p) for p in mg.PARAMS}, "the probe must name no parameter"
-PROBE_HZ = 5.0
-PROBE_TIMEOUT_S = 2.0  # a probe unanswered this long is lost
-HEARTBEAT_S = 0.2  # as link-check
-PATH_WAYPOINTS = 32
-PATH_EVERY_S = 5.0  # a path load starts this long after the last one ended
-PATH_FIRST_S = 1.0  # ... and the first this long into the soak (after a STATUS)
-PATH_RESEND_S = 0.4  # the mission's RESEND_S (rovernav.mission.phases)
-PATH_GIVE_UP_S = 30.0  # a load not complete after this long is given up (and counted)
-PROGRESS_S = 5.0  # a progress line this often
-SILENT_S = 1.0  # no frame from the rover this long: a silence (the mission's SILENT_S)
-MIN_SOAK_S, MAX_SOAK_S = 1.0, 86_400.0
-#: Missions reach their target at 1 % of bytes lost and 0.1 % corrupted (lossy-radio benchmark) ...
-TOLERATED_BYTE_DAMAGE = 0.011
-#: ... but not reliably at 5 % lost.
-FAILING_BYTE_LOSS = 0.05
-#: Fewer frames than this one way, and the share lost is a rough figure: the report says so.
-FEW_FRAMES = 200
-#: The seed's arena (rovernav.config.ArenaConfig), less a margin: where the soak's waypoints lie [mm].
-ARENA_MM = ((150, 2200), (150, 1600))
-
-WAYS = {"host_to_rover": "host -> rover", "rover_to_host": "rover -> host"}
-
-
-# ------------------------------------------------------------------ frames and byte loss
-
-
-def wire_bytes(payload_bytes: int, signed: bool) -> int:
-    """Bytes a frame with this payload takes on the wire: header, payload, signature, CRC, COBS's
-    overhead and the 0x00."""
-    raw = HEADER_BYTES + payload_bytes + (SIGNATURE_BYTES if signed else 0) + CRC_BYTES
-    return raw + 1 + raw // 254 + 1
-
-
-def frame_loss_at(byte_damage: float, lengths: dict[int, int], received: bool) -> float | None:
-    """Share of frames lost at `byte_damage` (independent per byte) for frames of these lengths
-    ({bytes on the wire: frames}); `received`: the counts are of frames that arrived (the lost ones
-    unseen), else of frames sent. None without frames. See the module docstring."""
-    if not lengths or sum(lengths.values()) <= 0:
-        return None
-    keep = {n: (1.0 - byte_damage) ** (n + 1) for n in lengths}
-    total = sum(lengths.values())
-    if received:
-        return 1.0 - total / sum(count / keep[n] for n, count in lengths.items())
-    return 1.0 - sum(count * keep[n] for n, count in lengths.items()) / total
-
-
-def byte_damage_for(frame_loss: float | None, lengths: dict[int, int], received: bool) -> float | None:
-    """The byte damage (independent per byte) that would lose `frame_loss` of these frames."""
-    if frame_loss is None or not lengths:
-        return None
-    if frame_loss <= 0.0:
-        return 0.0
-    lo, hi = 0.0, 0.5
-    if (frame_loss_at(hi, lengths, received) or 0.0) < frame_loss:
-        return hi
-    for _ in range(60):
-        mid = (lo + hi) / 2
-        if frame_loss_at(mid, lengths, received) < frame_loss:  # type: ignore[operator]
-            lo = mid
-        else:
-            hi = mid
-    return (lo + hi) / 2
+__all__ = [
+    "ARENA_MM",
+    "FAILING_BYTE_LOSS",
+    "FEW_FRAMES",
+    "HEARTBEAT_S",
+    "MAX_SOAK_S",
+    "MIN_SOAK_S",
+    "PATH_EVERY_S",
+    "PATH_FIRST_S",
+    "PATH_GIVE_UP_S",
+    "PATH_RESEND_S",
+    "PATH_WAYPOINTS",
+    "PROBE_HZ",
+    "PROBE_PARAM",
+    "PROBE_TIMEOUT_S",
+    "PROGRESS_S",
+    "SILENT_S",
+    "TOLERATED_BYTE_DAMAGE",
+    "WAYS",
+    "Soak",
+    "SoakFigures",
+    "byte_damage_for",
+    "frame_loss_at",
+    "help_text",
+    "soak_rover",
+    "soak_waypoints",
+    "typical_thresholds",
+    "wire_bytes",
+    "wrap",
+]
 
 
-def typical_thresholds(signed: bool = False) -> dict[str, tuple[int, float, float]]:
-    """{message: (bytes on the wire, frames lost at TOLERATED_BYTE_DAMAGE, at FAILING_BYTE_LOSS)}
-    for the frames a mission sends most."""
-    out = {}
-    for cls in (mg.Heartbeat, mg.Fix, mg.Path, mg.Status):
-        n = wire_bytes(cls.STRUCT.size, signed)
-        out[cls.NAME.upper()] = (
-            n,
-            frame_loss_at(TOLERATED_BYTE_DAMAGE, {n: 1}, False),
-            frame_loss_at(FAILING_BYTE_LOSS, {n: 1}, False),
-        )
-    return out
+# ------------------------------------------------------------------ --help
 
 
 def wrap(text: str, indent: str = "", width: int = 100) -> str:
@@ -192,29 +152,7 @@ def help_text() -> str:
 # ------------------------------------------------------------------ the soak
 
 
-def soak_waypoints(index: int) -> list[tuple[int, int]]:
-    """The `index`-th soak path: PATH_WAYPOINTS points inside the arena (non-negative mm), a new
-    set each time (never driven: no START is sent)."""
-    rng = random.Random(index)
-    (x0, x1), (y0, y1) = ARENA_MM
-    return [(rng.randrange(x0, x1), rng.randrange(y0, y1)) for _ in range(PATH_WAYPOINTS)]
-
-
-def _percentile(sorted_values, q: float) -> float | None:
-    """Nearest-rank percentile of an ascending sequence (None when empty)."""
-    if not sorted_values:
-        return None
-    return sorted_values[max(0, math.ceil(q / 100.0 * len(sorted_values)) - 1)]
-
-
-def _median(sorted_values) -> float | None:
-    n = len(sorted_values)
-    if n == 0:
-        return None
-    return sorted_values[n // 2] if n % 2 else (sorted_values[n // 2 - 1] + sorted_values[n // 2]) / 2
-
-
-class Soak:
+class Soak(SoakFigures):
     """Frames with the rover for a while, and what they show. `link` has made its handshake."""
 
     def __init__(
@@ -389,207 +327,6 @@ class Soak:
             for message in up.due(now)[:1]:
                 self._chunk_at = now
                 up.sent(message, self._send(message), now)
-
-    # ---------------------------------------------------------------- figures
-
-    def _way(self, which: str) -> dict:
-        d = self.quality.to_rover if which == "host_to_rover" else self.quality.to_host
-        received = which == "rover_to_host"
-        lengths = dict(self.rx_lengths if received else self.tx_lengths)
-        lost = None if d.rate is None else 1.0 - d.rate
-        frames = sum(lengths.values())
-        out = {
-            "frames_sent": d.sent,
-            "frames_arrived": min(d.arrived, d.sent),
-            "lost_share": None if lost is None else round(lost, 5),
-            "byte_damage_equivalent": _round(byte_damage_for(lost, lengths, received), 5),
-            "tolerated_lost_share": _round(frame_loss_at(TOLERATED_BYTE_DAMAGE, lengths, received), 4),
-            "failing_lost_share": _round(frame_loss_at(FAILING_BYTE_LOSS, lengths, received), 4),
-            "mean_frame_bytes": round(sum(n * c for n, c in lengths.items()) / frames, 1) if frames else None,
-        }
-        if not received:
-            out["rover_received_broken"] = self.quality.rover_broken
-        return out
-
-    def verdict(self) -> tuple[str, str]:
-        """(kind, one line): 'ok' (within what missions are shown to tolerate), 'beyond' (past it,
-        short of where they fail), 'failing' (past that), or 'unknown' (a way not measured)."""
-        ways = {w: self._way(w) for w in WAYS}
-        unmeasured = [WAYS[w] for w, f in ways.items() if f["lost_share"] is None or f["tolerated_lost_share"] is None]
-        if unmeasured:
-            why = (
-                "the rover sent no two STATUS to count by"
-                if "host -> rover" in unmeasured
-                else "too few frames came from the rover"
-            )
-            return "unknown", f"advice: frames lost {' and '.join(unmeasured)} not measured ({why}): soak longer"
-
-        def pct(v: float) -> str:
-            return f"{100 * v:.1f} %"
-
-        worst = max(ways, key=lambda w: ways[w]["lost_share"] / max(ways[w]["tolerated_lost_share"], 1e-9))
-        f = ways[worst]
-        few = [WAYS[w] for w, g in ways.items() if g["frames_sent"] < FEW_FRAMES]
-        rough = f" (few frames {' and '.join(few)}: a longer soak measures more closely)" if few else ""
-        fix = (
-            "move the radio (higher, in sight of the rover, away from the motors and the Uno's wires), "
-            "change the channel, check both antennas and that both radios use the same air rate, then soak again"
-        )
-        failing = [w for w, g in ways.items() if g["lost_share"] > g["failing_lost_share"]]
-        if failing:
-            what = " and ".join(
-                f"{pct(ways[w]['lost_share'])} of frames lost {WAYS[w]}, above the {pct(ways[w]['failing_lost_share'])}"
-                for w in failing
-            )
-            return "failing", (
-                f"advice: {what} at which missions fail (5 % of bytes lost, for these frames): {fix}{rough}"
-            )
-        if f["lost_share"] > f["tolerated_lost_share"]:
-            return "beyond", (
-                f"advice: {pct(f['lost_share'])} of frames lost {WAYS[worst]}, beyond the "
-                f"{pct(f['tolerated_lost_share'])} missions are shown to tolerate (1 % of bytes lost "
-                f"and 0.1 % corrupted, for these frames; they fail from "
-                f"{pct(f['failing_lost_share'])}): missions may run slow or fail; {fix}{rough}"
-            )
-        t = {w: pct(g["tolerated_lost_share"]) for w, g in ways.items()}
-        return "ok", (
-            f"verdict: within what missions are shown to tolerate (up to {t['host_to_rover']} of "
-            f"frames lost host -> rover and {t['rover_to_host']} rover -> host: 1 % of bytes lost "
-            f"and 0.1 % corrupted, for these frames){rough}"
-        )
-
-    def summary(self) -> dict:
-        """Every figure, for --json (seconds in seconds, shares in [0, 1], None where not measured)."""
-        rt = sorted(self.round_trips)
-        loads = sorted(self.load_times)
-        kind, line = self.verdict()
-        hello = self.link.peer_hello
-        return {
-            "seconds_asked": self.seconds,
-            "seconds_run": round(self.elapsed_s, 3),
-            "ended_by": self.ended_by,
-            "signed": self.link.signer is not None,
-            "rover": {
-                "boot_id": self.rover_boot_id,
-                "restarts": self.restarts,
-                "firmware": None if hello is None else f"{hello.firmware_version >> 8}.{hello.firmware_version & 0xFF}",
-            },
-            **{w: self._way(w) for w in WAYS},
-            "round_trip_s": {
-                "probe": f"CONFIG of parameter {PROBE_PARAM} (none) -> NACK unknown_param",
-                "sent": self.probes_sent,
-                "answered": len(rt),
-                "unanswered": self._unanswered(),
-                "median": _round(_median(rt), 4),
-                "p99": _round(_percentile(rt, 99), 4),
-                "worst": _round(rt[-1] if rt else None, 4),
-            },
-            "path_load_s": {
-                "waypoints": PATH_WAYPOINTS,
-                "started": self.loads_started,
-                "completed": len(loads),
-                "given_up": self.loads_given_up,
-                "refused": len(self.loads_refused),
-                "skipped_mission_running": self.loads_skipped,
-                "median": _round(_median(loads), 3),
-                "worst": _round(loads[-1] if loads else None, 3),
-                "chunks_sent": self.chunks_sent,
-                "chunks_sent_again": self.chunks_resent,
-            },
-            "longest_silence_s": round(self.longest_silence_s, 3),
-            "silences_over_1s": self.silences,
-            "verdict": kind,
-            "advice": line if line.startswith("advice:") else None,
-            "verdict_line": line,
-        }
-
-    def _unanswered(self) -> int:
-        """Probes sent and not answered (those still within PROBE_TIMEOUT_S at the end left out)."""
-        return self.probes_sent - len(self.round_trips) - len(self._probes)
-
-    def progress_line(self) -> str:
-        rt = sorted(self.round_trips)
-        med = _median(rt)
-        loads = len(self.load_times)
-        return (
-            f"soak {self.elapsed_s:.0f}/{self.seconds:g} s: {self.quality.line()} (last 10 s); round trip "
-            f"{'-' if med is None else f'{1000 * med:.0f} ms'} median of {len(rt)}; {loads} path"
-            f"{'' if loads == 1 else 's'} loaded"
-        )
-
-    def report_lines(self) -> list[str]:
-        s = self.summary()
-        out = []
-        ended = "" if s["ended_by"] is None else f", ended early ({s['ended_by']})"
-        out.append(
-            f"soak: {s['seconds_run']:.1f} of {s['seconds_asked']:g} s{ended}; "
-            f"{'signed' if s['signed'] else 'unsigned'} frames"
-            + (
-                f"; the rover restarted {self.restarts} time{'s' if self.restarts != 1 else ''}"
-                if self.restarts
-                else ""
-            )
-        )
-        for w, name in WAYS.items():
-            f = s[w]
-            if f["lost_share"] is None:
-                out.append(f"  frames lost {name}: not measured")
-                continue
-            how = (
-                "by the rover's STATUS rx_ok against the frames sent"
-                + (
-                    f"; it counted {f['rover_received_broken']} arriving broken"
-                    if f.get("rover_received_broken")
-                    else ""
-                )
-                if w == "host_to_rover"
-                else "by gaps in the rover's sequence numbers"
-            )
-            out.append(
-                f"  frames lost {name}: {100 * f['lost_share']:.2f} % "
-                f"({f['frames_sent'] - f['frames_arrived']:,} of {f['frames_sent']:,}, {how}); as if "
-                f"{100 * f['byte_damage_equivalent']:.2f} % of bytes were lost (frames of "
-                f"{f['mean_frame_bytes']:g} bytes on average)"
-            )
-        r = s["round_trip_s"]
-        if r["answered"]:
-            out.append(
-                f"  round trip (CONFIG probe -> NACK, {PROBE_HZ:g} a second): median {1000 * r['median']:.0f} ms, "
-                f"99th percentile {1000 * r['p99']:.0f} ms, worst {1000 * r['worst']:.0f} ms; "
-                f"{r['answered']:,} of {r['sent']:,} answered, {r['unanswered']:,} lost one way or the other"
-            )
-        else:
-            out.append(f"  round trip: none of {r['sent']:,} probes answered")
-        p = s["path_load_s"]
-        if p["completed"]:
-            out.append(
-                f"  {PATH_WAYPOINTS}-waypoint path load: median {p['median']:.2f} s, worst {p['worst']:.2f} s "
-                f"over {p['completed']} loads; {p['chunks_sent_again']} of {p['chunks_sent']} chunks sent again"
-                + (f"; {p['given_up']} given up after {PATH_GIVE_UP_S:g} s" if p["given_up"] else "")
-                + (f"; {p['refused']} refused ({self.loads_refused[0]})" if p["refused"] else "")
-                + (
-                    f"; {p['skipped_mission_running']} not sent while the rover was running a mission"
-                    if p["skipped_mission_running"]
-                    else ""
-                )
-            )
-        elif p["skipped_mission_running"]:
-            out.append("  path load: not measured: the rover is running a mission (it would follow a path sent now)")
-        else:
-            out.append(
-                f"  {PATH_WAYPOINTS}-waypoint path load: none completed ({p['started']} started, "
-                f"{p['given_up']} given up after {PATH_GIVE_UP_S:g} s, {p['refused']} refused)"
-            )
-        out.append(
-            f"  longest silence from the rover: {s['longest_silence_s']:.2f} s"
-            + (f" ({s['silences_over_1s']} of {SILENT_S:g} s or more)" if s["silences_over_1s"] else "")
-        )
-        out.append(s["verdict_line"])
-        return out
-
-
-def _round(value: float | None, digits: int) -> float | None:
-    return None if value is None else round(value, digits)
 
 
 def _nack_text(nack: mg.Nack | None) -> str:
