@@ -2,6 +2,7 @@
 
     core.py          Mission: phases with deadlines, legs, requests and paths sent
     rover_frames.py  ... what the rover says, and what the mission does about it (a base of Mission)
+    leg_control.py   ... its legs: started, resumed, watched, replanned (another base of Mission)
     leg_plan.py      a leg's path on what the host knows (fallbacks, turns, backing out)
     phases.py        Phase, Failure, Outcome, Detection, the exchanges' timings
     recorder.py      Recorder: what a mission tells a run log

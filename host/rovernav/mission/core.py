@@ -12,15 +12,15 @@ in `rovernav run`, the simulator in lockstep) calls `on_detection()` for each ca
 waits for ever.
 
 Here: the phase machine, the ticks and the camera's fixes, and the means of acting (requests,
-paths, STOP). Apart: what the rover says (rover_frames.py, a base class of Mission), a leg's
-path (leg_plan.py), the phases and timings (phases.py), the run log's interface (recorder.py),
-and what a strategy may see of the mission (interface.py).
+paths, STOP). Apart: what the rover says (rover_frames.py, a base class of Mission), the legs
+started, resumed, watched and replanned (leg_control.py, another base), a leg's path
+(leg_plan.py), the phases and timings (phases.py), the run log's interface (recorder.py), and
+what a strategy may see of the mission (interface.py).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -36,8 +36,8 @@ from ..link.requests import RequestTracker
 from ..mapping import Echo, LearnedMap
 from ..planning import OccupancyGrid
 from .interface import Strategy
-from .leg_plan import START_NEAR_M, plan_leg
-from .legs import Deadlines, Leg, LegRecord, leg_goal, path_length_m
+from .leg_control import LegControl
+from .legs import Deadlines, Leg, LegRecord
 from .phases import (
     CLOSE_S,
     HEARD_RECENTLY_S,
@@ -61,7 +61,7 @@ from .strategies import RovernavStrategy
 log = logging.getLogger("rovernav.mission")
 
 
-class Mission(RoverFrames):
+class Mission(RoverFrames, LegControl):
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
     and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
 
@@ -343,26 +343,6 @@ class Mission(RoverFrames):
         if self.phase is Phase.RUN and self.legs:
             self._watch_leg(now_s)
 
-    def _watch_leg(self, now_s: float) -> None:
-        """The leg's deadline, and an arrival that only the rover's STATUS shows (its ARRIVED event
-        was lost): the recovery is to re-plan from where the rover is and send the leg again."""
-        leg = self.current_leg
-        if now_s <= leg.deadline_s:
-            return
-        if leg.recoveries >= self.deadlines.leg_recoveries:
-            self._fail(
-                f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s and {leg.recoveries} re-sends",
-                Failure.LEG_LATE,
-            )
-            return
-        leg.recoveries += 1
-        self.on_event(
-            now_s,
-            f"leg {leg.index + 1} is late: re-planning from where the rover is "
-            f"(recovery {leg.recoveries} of {self.deadlines.leg_recoveries})",
-        )
-        self._resume()
-
     # ---------------------------------------------------------------- doing things
 
     def _set_phase(self, phase: Phase) -> None:
@@ -374,42 +354,6 @@ class Mission(RoverFrames):
         self._set_phase(Phase.CONFIGURE)
         for param, value in self.rover_params:
             self._request(mg.Config(param=int(param), value=int(value)))
-
-    def _next_leg(self) -> None:
-        index = len(self.legs)
-        goal = leg_goal(self.start_xy, self.target_xy, index)
-        leg = Leg(index=index, goal=goal, started_s=self._now)
-        self.legs.append(leg)
-        here = self.rover_xy()
-        if math.dist(here, goal) <= self.arrival_radius_m:
-            # Already there: a leg that is done at once is done (the rover would not move).
-            self.on_event(
-                self._now,
-                f"leg {index + 1}: the rover is already within "
-                f"{self.arrival_radius_m * 1000:.0f} mm of ({goal[0]:.2f}, {goal[1]:.2f}) m",
-            )
-            self._leg_done()
-            return
-        path = self.strategy.leg_path(self, here, goal)
-        if path is None:
-            return
-        leg.planned_length_m = path_length_m(path)
-        leg.deadline_s = self._now + self.deadlines.leg_s(leg.planned_length_m)
-        self.on_event(
-            self._now,
-            f"leg {index + 1}{self.strategy.note}: {len(path)} waypoints, "
-            f"{leg.planned_length_m:.2f} m to ({goal[0]:.2f}, {goal[1]:.2f}) m",
-        )
-        self.strategy.start_leg(self, path)
-
-    def _resume(self) -> None:
-        """The current leg again, from where the rover is (after a rover restart or a late leg)."""
-        leg = self.current_leg
-        path = self.strategy.leg_path(self, self.rover_xy(), leg.goal)
-        if path is None:
-            return
-        leg.deadline_s = self._now + self.deadlines.leg_s(path_length_m(path))
-        self.strategy.start_leg(self, path)
 
     def load_path(self, path: list[tuple[float, float]]) -> None:
         """Send `path` under a new id; START follows once the rover has it whole.
@@ -438,45 +382,6 @@ class Mission(RoverFrames):
         for message in self.upload.due(self._now)[:1]:
             self._chunk_at = self._now
             self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
-
-    def replanned(
-        self, path: list[tuple[float, float]], what: str, why: str = "the sonar found the path blocked"
-    ) -> None:
-        """A strategy replanned the current leg (after the map changed, or `why`)."""
-        self.replans += 1
-        leg = self.current_leg
-        leg.replans += 1
-        leg.deadline_s = max(leg.deadline_s, self._now + self.deadlines.leg_s(path_length_m(path)))
-        self.on_event(self._now, f"{why}: replanned ({what}, {path_length_m(path):.2f} m)")
-
-    def plan_from(
-        self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
-    ) -> list[tuple[float, float]] | None:
-        """A* from `start` to `goal`, simplified (leg_plan.plan_leg: its fallbacks, its turns); None
-        when there is none (the mission has then ended with the no-path verdict and the planner's
-        reason, unless `verdict` is False: a check that may keep the path the rover has)."""
-        # The turn at the start counts from the rover's heading when the path starts where it stands.
-        heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
-        refused = self.current_leg.refused_twice() if self.legs else []
-        path, reason = plan_leg(
-            self.map,
-            start,
-            goal,
-            planner=self.planner,
-            heading=heading,
-            refused=refused,
-            say=lambda text: self.on_event(self._now, text),
-        )
-        if path is None and verdict:
-            self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
-        return path
-
-    def remaining_path(self) -> list[tuple[float, float]]:
-        """From where the rover is through the waypoints it has still to reach."""
-        if not self.path:
-            return []
-        wp = self.last_status.waypoint_index if self.last_status else 0
-        return [self.rover_xy()] + self.path[min(wp, len(self.path) - 1) :] + self.path_rest
 
     def _send(self, message, again: bool = False) -> int:
         seq = self.link.send(message)
@@ -616,24 +521,6 @@ class Mission(RoverFrames):
         if d is None or d.x_m is None or self._now - d.t_s > 0.5:
             return mg.CameraState.NO_ROVER
         return mg.CameraState.OK
-
-    # ---------------------------------------------------------------- persistence
-
-    def restore_state(self) -> int:
-        """A restarted host: take up the mission at the leg the last host had reached (from
-        state_file; the rover's HELLO and STATUS then say the rest). Returns the legs done."""
-        done = min(self.record.load(), self.legs_asked)
-        for i in range(done):
-            self.legs.append(
-                Leg(
-                    index=i,
-                    goal=leg_goal(self.start_xy, self.target_xy, i),
-                    started_s=self._now,
-                    finished_s=self._now,
-                    reached=True,
-                )
-            )
-        return done
 
     def save_map(self, path: str | Path) -> None:
         """Write what the sonar found (see rovernav.mapping.learned_map for the format)."""

@@ -3,6 +3,8 @@
 writer.py   RunLog: the channels (Foxglove's well-known schemas where one fits, JSON where
             the data is ours), written to run.mcap and, with --live, served over Foxglove's
             WebSocket protocol on localhost
+messages.py what the channels carry, made from the run's values: records, poses, the arena's,
+            the echoes' and the map's scenes (the writer's, without its state)
 replay.py   `rovernav replay LOG.mcap`: the host's mission code again against the rover
             frames a log recorded; where its decisions differ from the recorded ones
 channels.py the topics, their schemas and what each carries (one definition for the

@@ -7,7 +7,8 @@ mission time, and a record's MCAP log time is the run's start (wall clock) plus 
 
 The file is written to a hidden partial name and renamed into place by `close()`, also when a
 run is cut short (Ctrl-C, a crash): a log is worth most then. The foxglove-sdk does the
-writing (zstd-compressed chunks) and the WebSocket server; `mcap` reads it back.
+writing (zstd-compressed chunks) and the WebSocket server; `mcap` reads it back. What each
+channel's messages hold is made in messages.py; here, what is logged when.
 
 The live view's WebSocket subprotocol (LIVE_SUBPROTOCOL): the foxglove-sdk's server (`foxglove.
 start_server`, checked with foxglove-sdk 0.30.3) takes only a client that offers
@@ -37,7 +38,6 @@ import numpy as np
 
 from ..errors import RovernavError
 from ..link import messages_gen as mg
-from ..link.framing import CRC_BYTES, HEADER_BYTES, cobs_decode
 from ..link.transport import Transport
 from ..mission.core import Recorder
 from .channels import (  # noqa: F401
@@ -50,6 +50,16 @@ from .channels import (  # noqa: F401
     META_RUN,
     json_schema,
     partial_path,
+)
+from .messages import (
+    arena_scene,
+    echo_scene,
+    message_record,
+    occupancy_grid,
+    pose,
+    poses_along,
+    sent_frame,
+    to_json,
 )
 
 log = logging.getLogger("rovernav.runlog")
@@ -74,69 +84,6 @@ LIVE_SUBPROTOCOL = "foxglove.sdk.v1"
 
 class RunLogError(RovernavError):
     """The log cannot be written or served (a port in use, a folder that cannot be written)."""
-
-
-def _json(data: dict) -> bytes:
-    # Python's JSON writes every float exactly (repr): what replay reads back is what was logged.
-    return json.dumps(data, allow_nan=False, separators=(",", ":")).encode()
-
-
-def _quat(heading_deg: float):
-    from foxglove.messages import Quaternion
-
-    yaw = math.pi / 2 - math.radians(heading_deg)  # heading: 0 = +y, clockwise; yaw: from +x, anticlockwise
-    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
-
-
-def _pose(x_m: float, y_m: float, heading_deg: float = 90.0, z_m: float = 0.0):
-    from foxglove.messages import Pose, Vector3
-
-    return Pose(position=Vector3(x=float(x_m), y=float(y_m), z=float(z_m)), orientation=_quat(heading_deg))
-
-
-def _color(r: float, g: float, b: float, a: float = 1.0):
-    from foxglove.messages import Color
-
-    return Color(r=r, g=g, b=b, a=a)
-
-
-def _poses_along(points) -> list:
-    """Poses at `points` [(x, y, ...)], each facing the next point (the last as the one before it)."""
-    headings = [math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) for a, b in zip(points, points[1:])]
-    headings.append(headings[-1] if headings else 0.0)
-    return [_pose(p[0], p[1], h) for p, h in zip(points, headings)]
-
-
-def message_record(message, seq: int, n: int, t_s: float, counter: int | None = None) -> dict:
-    """A link frame as the log keeps it: its payload (what replay decodes) and its fields (to read)."""
-    return {
-        "n": n,
-        "t_s": t_s,
-        "type": message.NAME,
-        "id": message.ID,
-        "seq": seq,
-        "payload_hex": message.pack().hex(),
-        "fields": message.to_dict(),
-        "counter": counter,
-    }
-
-
-def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
-    """(message id, sequence number, counter) of the one frame `data` holds as the link writes it
-    (COBS, delimiter last); the counter None for an unsigned frame. None if `data` is not exactly
-    one well-formed frame (the CRC is not checked: these are the host's own bytes)."""
-    if len(data) < 2 or data[-1] != 0 or 0 in data[:-1]:
-        return None
-    raw = cobs_decode(data[:-1])
-    if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES:
-        return None
-    version, msg_id, seq = raw[0], raw[1], raw[2]
-    if version == mg.PROTOCOL_VERSION:
-        return msg_id, seq, None
-    end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES  # the counter ends where the tag begins
-    if version != mg.PROTOCOL_VERSION | mg.SIGN_FLAG or end - mg.SIGN_COUNTER_BYTES < HEADER_BYTES:
-        return None
-    return msg_id, seq, int.from_bytes(raw[end - mg.SIGN_COUNTER_BYTES : end], "little")
 
 
 class RunLog(Recorder):
@@ -278,7 +225,7 @@ class RunLog(Recorder):
     # ------------------------------------------------------------ the mission's recorder
 
     def host_input(self, kind: str, t_s: float, **data) -> None:
-        self._log("/host/inputs", t_s, _json({"n": self._next_n(), "t_s": t_s, "kind": kind, **data}))
+        self._log("/host/inputs", t_s, to_json({"n": self._next_n(), "t_s": t_s, "kind": kind, **data}))
         if kind == "detection" and data.get("x_m") is not None:
             from foxglove.messages import PoseInFrame
 
@@ -288,7 +235,7 @@ class RunLog(Recorder):
                 PoseInFrame(
                     timestamp=self._stamp(t_s),
                     frame_id=ARENA_FRAME,
-                    pose=_pose(data["x_m"], data["y_m"], data["heading_deg"]),
+                    pose=pose(data["x_m"], data["y_m"], data["heading_deg"]),
                 ),
             )
             if not self.truth:
@@ -300,7 +247,7 @@ class RunLog(Recorder):
 
     def host_rx(self, t_s: float, frame) -> None:
         m = frame.message
-        self._log("/link/rover_to_host", t_s, _json(message_record(m, frame.seq, self._next_n(), t_s, frame.counter)))
+        self._log("/link/rover_to_host", t_s, to_json(message_record(m, frame.seq, self._next_n(), t_s, frame.counter)))
         if isinstance(m, mg.Status):
             self._status(t_s, m)
 
@@ -310,79 +257,29 @@ class RunLog(Recorder):
         # right after sending it; one that is not the frame written last gets no counter.
         sent, self._sent = self._sent, None
         counter = sent[2] if sent is not None and sent[:2] == (message.ID, seq) else None
-        self._log("/link/host_to_rover", t_s, _json(message_record(message, seq, self._next_n(), t_s, counter)))
+        self._log("/link/host_to_rover", t_s, to_json(message_record(message, seq, self._next_n(), t_s, counter)))
 
     def host_event(self, t_s: float, text: str) -> None:
         self.event(t_s, text, source="host")
 
     def host_link(self, t_s: float, quality: dict) -> None:
-        self._log("/host/link", t_s, _json({"t_s": t_s, **quality}))
+        self._log("/host/link", t_s, to_json({"t_s": t_s, **quality}))
 
     def host_path(self, t_s: float, path_id: int, path) -> None:
         from foxglove.messages import PosesInFrame
 
         self._log(
-            "/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=_poses_along(path))
+            "/plan/path", t_s, PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=poses_along(path))
         )
 
     def host_sonar(self, t_s: float, reading, changed: bool) -> None:
         if reading.range_m is None:
             return
-        from foxglove.messages import LinePrimitive, Point3, SceneEntity, SceneUpdate, SpherePrimitive, Vector3
-
-        from ..mapping import echo_point, sonar_origin
-
-        r, off = reading, self.sonar_offset_m
-        sx, sy = sonar_origin(r.x_m, r.y_m, r.heading_deg, off)
-        ex, ey = echo_point(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m, off)
         self._echoes += 1
-        entity = SceneEntity(
-            timestamp=self._stamp(t_s),
-            frame_id=ARENA_FRAME,
-            id=f"echo-{self._echoes}",
-            lines=[
-                LinePrimitive(
-                    thickness=0.004,
-                    points=[Point3(x=sx, y=sy, z=0.05), Point3(x=ex, y=ey, z=0.05)],
-                    color=_color(1.0, 0.6, 0.0, 0.5),
-                )
-            ],
-            spheres=[
-                SpherePrimitive(
-                    pose=_pose(ex, ey, z_m=0.05), size=Vector3(x=0.02, y=0.02, z=0.02), color=_color(1.0, 0.0, 0.0)
-                )
-            ],
-        )
-        self._log("/sonar/echo", t_s, SceneUpdate(entities=[entity]))
+        self._log("/sonar/echo", t_s, echo_scene(reading, self.sonar_offset_m, self._echoes, self._stamp(t_s)))
 
     def host_map(self, t_s: float, learned_map) -> None:
-        from foxglove.messages import Grid, PackedElementField, PackedElementFieldNumericType, Vector2
-
-        g = learned_map.grid
-        sonar = learned_map.sonar
-        pct = np.clip(np.rint(sonar.probability() * 100), 0, 100).astype(np.uint8)
-        pct[sonar.known] = 100
-        inflated = g.inflated[: pct.shape[0], : pct.shape[1]].astype(np.uint8) * 100
-        cells = np.stack([pct, inflated], axis=-1)  # rows from y = 0 up, as Grid wants
-        ny, nx = pct.shape
-        self._log(
-            "/map/occupancy",
-            t_s,
-            Grid(
-                timestamp=self._stamp(t_s),
-                frame_id=ARENA_FRAME,
-                pose=_pose(0.0, 0.0),
-                column_count=nx,
-                cell_size=Vector2(x=sonar.resolution_m, y=sonar.resolution_m),
-                row_stride=nx * 2,
-                cell_stride=2,
-                fields=[
-                    PackedElementField(name="occupied_pct", offset=0, type=PackedElementFieldNumericType.Uint8),
-                    PackedElementField(name="inflated", offset=1, type=PackedElementFieldNumericType.Uint8),
-                ],
-                data=cells.tobytes(),
-            ),
-        )
+        self._log("/map/occupancy", t_s, occupancy_grid(learned_map, self._stamp(t_s)))
 
     # ------------------------------------------------------------ the runner's
 
@@ -394,7 +291,7 @@ class RunLog(Recorder):
             self._log(
                 f"/link/raw/{direction}",
                 self.t_s,
-                _json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}),
+                to_json({"t_s": self.t_s, "bytes": len(data), "hex": bytes(data).hex()}),
             )
 
     def watch_radio(self, counts) -> None:
@@ -407,7 +304,7 @@ class RunLog(Recorder):
         self._log(
             "/sim/radio",
             t_s,
-            _json(
+            to_json(
                 {
                     "t_s": t_s,
                     "to_rover": figures["to_rover"],
@@ -443,7 +340,7 @@ class RunLog(Recorder):
         self._log(
             "/sim/true_pose",
             t_s,
-            PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, pose=_pose(x_m, y_m, heading_deg)),
+            PoseInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, pose=pose(x_m, y_m, heading_deg)),
         )
         self._drive(t_s, x_m, y_m)
 
@@ -492,14 +389,14 @@ class RunLog(Recorder):
                 PoseInFrame(
                     timestamp=self._stamp(t_s),
                     frame_id=ARENA_FRAME,
-                    pose=_pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100),
+                    pose=pose(m.x_mm / 1000, m.y_mm / 1000, m.heading_cdeg / 100),
                 ),
             )
         # The state by name ("drive"), and by number in state_code (a Plot panel plots numbers).
         state = (
             mg.RoverState(m.state).name.lower() if m.state in mg.RoverState._value2member_map_ else f"unknown {m.state}"
         )
-        self._log("/rover/status", t_s, _json({"t_s": t_s, **m.to_dict(), "state": state, "state_code": m.state}))
+        self._log("/rover/status", t_s, to_json({"t_s": t_s, **m.to_dict(), "state": state, "state_code": m.state}))
 
     def _drive(self, t_s: float, x_m: float, y_m: float) -> None:
         if not self._driven or math.dist(self._driven[-1][:2], (x_m, y_m)) >= DRIVEN_PATH_STEP_M:
@@ -514,80 +411,12 @@ class RunLog(Recorder):
         self._log(
             "/rover/driven_path",
             t_s,
-            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=_poses_along(self._driven)),
+            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=poses_along(self._driven)),
         )
 
     def _arena(self, t_s: float) -> None:
-        from foxglove.messages import (
-            CubePrimitive,
-            CylinderPrimitive,
-            SceneEntity,
-            SceneUpdate,
-            SpherePrimitive,
-            Vector3,
-        )
-
         self._next_arena_s = t_s + LIVE_ARENA_EVERY_S
-        sc = self.scenario
-        known, unknown = _color(0.6, 0.6, 0.6, 0.9), _color(0.9, 0.15, 0.15, 0.6)
-        height = 0.10
-        cubes, cylinders = [], []
-        for o in sc.obstacles:
-            if o.known or self.truth:
-                cubes.append(
-                    CubePrimitive(
-                        pose=_pose(o.x_m, o.y_m, z_m=height / 2),
-                        size=Vector3(x=o.w_m, y=o.h_m, z=height),
-                        color=known if o.known else unknown,
-                    )
-                )
-        for w in sc.walls:
-            if w.known or self.truth:
-                heading = math.degrees(math.atan2(w.x1_m - w.x0_m, w.y1_m - w.y0_m))
-                cubes.append(
-                    CubePrimitive(
-                        pose=_pose((w.x0_m + w.x1_m) / 2, (w.y0_m + w.y1_m) / 2, heading + 90.0, z_m=height / 2),
-                        size=Vector3(x=w.thickness_m, y=w.length_m, z=height),
-                        color=known if w.known else unknown,
-                    )
-                )
-        for p in sc.posts:
-            if p.known or self.truth:
-                cylinders.append(
-                    CylinderPrimitive(
-                        pose=_pose(p.x_m, p.y_m, z_m=height / 2),
-                        size=Vector3(x=2 * p.radius_m, y=2 * p.radius_m, z=height),
-                        bottom_scale=1.0,
-                        top_scale=1.0,
-                        color=known if p.known else unknown,
-                    )
-                )
-        floor = CubePrimitive(
-            pose=_pose(sc.arena.width_m / 2, sc.arena.height_m / 2, z_m=-0.005),
-            size=Vector3(x=sc.arena.width_m, y=sc.arena.height_m, z=0.01),
-            color=_color(0.15, 0.15, 0.15, 1.0),
-        )
-        marks = [
-            SpherePrimitive(
-                pose=_pose(sc.start.x_m, sc.start.y_m, z_m=0.02),
-                size=Vector3(x=0.06, y=0.06, z=0.02),
-                color=_color(0.1, 0.8, 0.1),
-            ),
-            SpherePrimitive(
-                pose=_pose(sc.target.x_m, sc.target.y_m, z_m=0.02),
-                size=Vector3(x=0.08, y=0.08, z=0.02),
-                color=_color(1.0, 0.85, 0.0),
-            ),
-        ]
-        entity = SceneEntity(
-            timestamp=self._stamp(t_s),
-            frame_id=ARENA_FRAME,
-            id="arena",
-            cubes=[floor] + cubes,
-            cylinders=cylinders,
-            spheres=marks,
-        )
-        self._log("/arena", t_s, SceneUpdate(entities=[entity]))
+        self._log("/arena", t_s, arena_scene(self.scenario, self.truth, self._stamp(t_s)))
 
 
 class RecordingTransport(Transport):
