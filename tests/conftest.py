@@ -7,6 +7,7 @@ rovernav_command   `python -m rovernav.cli ARGS` in a subprocess, as a user type
 benchmark_module   a script of benchmarks/ imported as a module, to call its functions
 native_core        the firmware core's library built (once), and its RoverCore class
 simulate           a Simulation of a scenario with its progress lines silenced
+uno_built          the Uno image and its simavr harness built (once); skips without the AVR tools
 """
 
 from __future__ import annotations
@@ -115,3 +116,21 @@ def built():
     from test_avrsim import build_bridge_and_image
 
     return build_bridge_and_image()
+
+
+@pytest.fixture(scope="session")
+def uno_built():
+    """The Uno image and its simavr harness (rovernav.cores.uno_harness.ensure_built), built once a
+    session; the test is skipped, saying what to install, when the AVR toolchain or libsimavr-dev
+    is missing. The test_uno_*.py files take it as their `built`."""
+    from rovernav.cores import uno_harness as harness
+
+    missing = harness.missing_packages()
+    if missing:
+        pytest.skip("the Uno simulation needs Debian packages: " + ", ".join(sorted(missing)))
+    try:
+        return harness.ensure_built()
+    except harness.UnoSetupError as exc:
+        if "apt-get install" in str(exc) or "toolchain" in str(exc):
+            pytest.skip(str(exc))
+        raise

@@ -18,6 +18,10 @@ in a window round its body, and fresh noise (a random window into a bank of Gaus
 once) over the rover and the markers: about 0.25 ms for 640 x 480 on this project's 2-core
 machine, where drawing the rover with the whole frame's noise took 0.9 ms.
 
+The scene, the rover's look, the light and the camera that a frame is drawn from are described in
+rovernav.sim.scene, the drawing primitives (shapes, coverage, painting, lighting up) are in
+rovernav.sim.raster; this module draws, and re-exports the description's names.
+
 Conventions are the vision package's: arena metres from the bottom-left corner, x right, y up;
 heading 0 = +y (up the image), clockwise positive, degrees.
 """
@@ -25,263 +29,19 @@ heading 0 = +y (up the image), clockwise positive, degrees.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM, DEFAULT_ARENA_HEIGHT_MM, DEFAULT_ARENA_WIDTH_MM
 from ..vision.calibration import Calibration
-from ..vision.config import ARUCO_SIZE_M, MARKER_DISTANCE_M, ROVER_CENTRE_FRACTION, VisionConfig
+from .raster import _forward_right, _group, _light_up, _paint, _rect, _rect_local, _Shape, _tag_pattern, _window
+from .scene import BGR, Camera, Lighting, RoverLook, Scene
 
-BGR = tuple[int, int, int]
+__all__ = ["BGR", "Camera", "Lighting", "Renderer", "RoverLook", "Scene", "render_frame"]
 
-_SUPERSAMPLE = 8  # sub-pixels per pixel side when filling shapes (a power of 2)
-_SHIFT_BITS = 8  # fixed-point fraction bits given to cv2.fillPoly
 _NOISE_PAD = 48  # the noise bank is this much larger than a frame on each axis
 _NOISE_POOL = 8  # noisy copies of the lit arena kept for the floor's noise (see Renderer)
 _FRESH_MARGIN_PX = 8  # fresh noise this far round every marker and the rover's body
-
-
-@dataclass(frozen=True)
-class Scene:
-    """What is in the arena at one instant.
-
-    obstacles: boxes as (centre x, centre y, width, height) in metres, axis-aligned.
-    walls: thick segments as (x0, y0, x1, y1, thickness) in metres (square ends, flush with the points).
-    posts: round posts as (centre x, centre y, radius) in metres.
-    rover: (x_m, y_m, heading_deg) of the rover centre, or None for an empty arena.
-    target: (x_m, y_m) or None.
-    marker_kind: "colour" (orange front, green back, yellow target squares) or "aruco" (tags).
-    hidden: rover markers left undrawn, to imitate occlusion or a lost sticker: "front", "back"
-        (colour squares) or "tag" (the rover's ArUco tag).
-    decoys: extra markers lying on the floor, each (kind, x_m, y_m) with kind "front", "back" or
-        "target" (a colour square like that marker) or an int (an ArUco tag with that id).
-    """
-
-    arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0  # protocol/vehicle.toml
-    arena_h_m: float = DEFAULT_ARENA_HEIGHT_MM / 1000.0
-    obstacles: tuple[tuple[float, float, float, float], ...] = ()
-    walls: tuple[tuple[float, float, float, float, float], ...] = ()
-    posts: tuple[tuple[float, float, float], ...] = ()
-    rover: tuple[float, float, float] | None = None
-    target: tuple[float, float] | None = None
-    marker_kind: str = "colour"
-    hidden: frozenset[str] = frozenset()
-    decoys: tuple[tuple[str | int, float, float], ...] = ()
-
-
-@dataclass(frozen=True)
-class RoverLook:
-    """Sizes (metres) and colours (BGR) of what is drawn.
-
-    The colour squares sit on the rover's centre line so that the rover centre is
-    back + centre_fraction * (front - back), the rule the locator uses, with the squares'
-    centres marker_distance_m apart. The body's centre is body_offset_m ahead of the rover centre.
-    The rover's ArUco tag is centred on the rover centre, its top edge facing forward.
-    """
-
-    body_length_m: float = BODY_LENGTH_MM / 1000.0  # protocol/vehicle.toml
-    body_width_m: float = BODY_WIDTH_MM / 1000.0
-    body_offset_m: float = -0.005
-    marker_size_m: float = 0.05
-    marker_distance_m: float = MARKER_DISTANCE_M
-    centre_fraction: float = ROVER_CENTRE_FRACTION
-    target_size_m: float = 0.06
-    aruco_size_m: float = ARUCO_SIZE_M
-    aruco_dictionary: str = "DICT_4X4_50"
-    rover_tag_id: int = 1
-    target_tag_id: int = 2
-    body_bgr: BGR = (34, 32, 30)
-    front_bgr: BGR = (30, 110, 235)  # orange: OpenCV H 12, inside Table 4.1's 5-22
-    back_bgr: BGR = (70, 175, 45)  # green: H 66, inside 55-80
-    target_bgr: BGR = (40, 215, 220)  # yellow: H 29, inside 25-35
-    obstacle_bgr: BGR = (118, 124, 130)  # warm grey, S about 24: below every marker's S floor
-    obstacle_rim_bgr: BGR = (92, 96, 100)
-    floor_bgr: BGR = (150, 156, 162)
-    grout_bgr: BGR = (118, 121, 124)
-    outside_bgr: BGR = (64, 64, 64)  # beyond the arena, when an oblique camera sees past it
-
-    @classmethod
-    def for_vision(cls, config: VisionConfig, **overrides) -> RoverLook:
-        """A look that matches a VisionConfig's geometry and ArUco settings."""
-        kw = dict(
-            marker_distance_m=config.marker_distance_m,
-            centre_fraction=config.rover_centre_fraction,
-            aruco_size_m=config.aruco.size_m,
-            aruco_dictionary=config.aruco.dictionary,
-            rover_tag_id=config.aruco.rover_id,
-            target_tag_id=config.aruco.target_id,
-        )
-        kw.update(overrides)
-        return cls(**kw)
-
-
-@dataclass(frozen=True)
-class Lighting:
-    """Light falling on the floor, as a factor on each pixel's colour.
-
-    factor = level * (1 + gradient * s) * (1 - vignette * r^2), where s in [-1, 1] runs across the
-    frame towards gradient_angle_deg (0 = towards the top of the image, clockwise) and r is the
-    distance from the frame centre, 1 at the corners.
-    """
-
-    level: float = 1.0
-    gradient: float = 0.2
-    gradient_angle_deg: float = 35.0
-    vignette: float = 0.3
-
-    @classmethod
-    def uniform(cls) -> Lighting:
-        return cls(level=1.0, gradient=0.0, vignette=0.0)
-
-    @classmethod
-    def random(cls, rng: np.random.Generator) -> Lighting:
-        """A plausible uneven light: between about 0.5 and 1.2 across the frame."""
-        return cls(
-            level=float(rng.uniform(0.9, 1.05)),
-            gradient=float(rng.uniform(0.05, 0.25)),
-            gradient_angle_deg=float(rng.uniform(0.0, 360.0)),
-            vignette=float(rng.uniform(0.1, 0.35)),
-        )
-
-    def factor(self, width_px: int, height_px: int) -> np.ndarray:
-        """The light factor of every pixel, float32 (height_px, width_px)."""
-        u = (np.arange(width_px, dtype=np.float32) - (width_px - 1) / 2) / (width_px / 2)
-        v = (np.arange(height_px, dtype=np.float32) - (height_px - 1) / 2) / (height_px / 2)
-        uu, vv = np.meshgrid(u, v)
-        a = math.radians(self.gradient_angle_deg)
-        s = (uu * math.sin(a) - vv * math.cos(a)) / max(abs(math.sin(a)) + abs(math.cos(a)), 1e-9)
-        r2 = (uu * uu + vv * vv) / 2.0
-        return (self.level * (1 + self.gradient * s) * (1 - self.vignette * r2)).astype(np.float32)
-
-
-@dataclass(frozen=True)
-class Camera:
-    """The camera: frame size, where it looks (None: straight down, the frame spanning the arena),
-    the light it sees and its sensor noise (standard deviation in grey levels, 0-255)."""
-
-    width_px: int = 640
-    height_px: int = 480
-    calibration: Calibration | None = None
-    lighting: Lighting = field(default_factory=Lighting)
-    noise_sigma: float = 3.0
-
-    def mapping(self, arena_w_m: float, arena_h_m: float) -> Calibration:
-        if self.calibration is not None:
-            return self.calibration
-        return Calibration.straight_down(self.width_px, self.height_px, arena_w_m, arena_h_m)
-
-
-def _forward_right(heading_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    h = math.radians(heading_deg)
-    return np.array([math.sin(h), math.cos(h)]), np.array([math.cos(h), -math.sin(h)])
-
-
-def _rect(centre, forward, right, length_m: float, width_m: float) -> np.ndarray:
-    """Corners (4, 2) of a rectangle: length along forward, width along right."""
-    c = np.asarray(centre, dtype=np.float64)
-    f = forward * (length_m / 2)
-    r = right * (width_m / 2)
-    return np.array([c + f - r, c + f + r, c - f + r, c - f - r])
-
-
-def _rect_local(forward_m: float, length_m: float, width_m: float) -> np.ndarray:
-    """`_rect`'s corners in a body's own frame, (along forward, along right), centred forward_m ahead."""
-    f, r = length_m / 2, width_m / 2
-    return np.array([(forward_m + f, -r), (forward_m + f, r), (forward_m - f, r), (forward_m - f, -r)])
-
-
-# A shape to paint: polygons (pixel coordinates) filled together in one colour.
-_Shape = tuple[list[np.ndarray], BGR]
-
-
-def _group(corners: np.ndarray, groups: list[tuple[int, BGR]]) -> list[_Shape]:
-    """Quadrilaterals' corners (N x 4 x 2) split into shapes: [(count, colour), ...] in order."""
-    shapes, i = [], 0
-    for n, bgr in groups:
-        shapes.append((list(corners[i : i + n]), bgr))
-        i += n
-    return shapes
-
-
-def _coverage(polys_px: list[np.ndarray], shape_hw: tuple[int, int]):
-    """Fraction of each pixel covered by the union of polygons (pixel coordinates).
-
-    Returns (x0, y0, coverage float32) for the window of the frame the polygons touch, clipped to
-    the frame, or None when they miss it.
-    """
-    allp = polys_px[0] if len(polys_px) == 1 else np.concatenate(polys_px)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    x0, y0 = max(math.floor(lo[0]) - 1, 0), max(math.floor(lo[1]) - 1, 0)
-    x1, y1 = min(math.ceil(hi[0]) + 2, shape_hw[1]), min(math.ceil(hi[1]) + 2, shape_hw[0])
-    if x1 <= x0 or y1 <= y0:
-        return None
-    s = _SUPERSAMPLE
-    buf = np.zeros(((y1 - y0) * s, (x1 - x0) * s), np.uint8)
-    # Sub-pixel k of pixel u has its centre at u - 0.5 + (k + 0.5) / s, so pixel position p maps to
-    # s * (p - origin) + (s - 1) / 2 in the supersampled buffer, given to fillPoly in fixed point.
-    one = 1 << _SHIFT_BITS
-    fixed = np.rint((allp - (x0, y0)) * float(s * one) + (s - 1) / 2 * one).astype(np.int32)
-    pts = [fixed] if len(polys_px) == 1 else np.split(fixed, np.cumsum([len(p) for p in polys_px[:-1]]))
-    # Anti-aliased edges in the supersampled buffer too: without, an edge moves in steps of 1/8 px.
-    cv2.fillPoly(buf, pts, 255, lineType=cv2.LINE_AA, shift=_SHIFT_BITS)
-    # Box-average each s x s block down to one pixel, in halvings: OpenCV's INTER_AREA has a fast
-    # path for exactly 2:1 and a slow general one (an 8:1 step took 4 times as long as three 2:1
-    # steps). Each halving rounds to 1/255, so a coverage may be 1/255 off the exact block mean.
-    small = buf
-    while small.shape[0] > y1 - y0:
-        small = cv2.resize(small, (small.shape[1] // 2, small.shape[0] // 2), interpolation=cv2.INTER_AREA)
-    return x0, y0, small.astype(np.float32) * (1.0 / 255.0)
-
-
-def _paint(img: np.ndarray, polys_px: list[np.ndarray], bgr) -> None:
-    """Blend a colour into img over the polygons' coverage, in place. img is float32 and planar,
-    3 x H x W (B, G, R planes): blending a coverage into planes is several times faster than into
-    interleaved H x W x 3 pixels, where numpy broadcasts over an axis of 3."""
-    got = _coverage(polys_px, img.shape[1:])
-    if got is None:
-        return
-    x0, y0, cov = got
-    h, w = cov.shape
-    roi = img[:, y0 : y0 + h, x0 : x0 + w]
-    roi *= 1.0 - cov
-    roi += cov * np.asarray(bgr, dtype=np.float32)[:, None, None]
-
-
-_TAG_PATTERNS: dict[tuple[str, int], np.ndarray] = {}
-
-
-def _tag_pattern(dictionary: str, tag_id: int) -> np.ndarray:
-    """The tag's cells including its black border, True where black; row 0 is the tag's top."""
-    key = (dictionary, tag_id)
-    if key not in _TAG_PATTERNS:
-        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
-        cells = d.markerSize + 2
-        img = cv2.aruco.generateImageMarker(d, tag_id, cells)
-        _TAG_PATTERNS[key] = img < 128
-    return _TAG_PATTERNS[key]
-
-
-def _window(polys_px: list[np.ndarray], margin_px: int, shape_hw: tuple[int, int]):
-    """The pixel window (x0, y0, x1, y1) holding the polygons and margin_px more round them (at
-    least the window `_coverage` fills for each of them), clipped to the frame; None if empty."""
-    allp = np.concatenate(polys_px)
-    x0 = max(int(math.floor(allp[:, 0].min())) - max(margin_px, 1), 0)
-    y0 = max(int(math.floor(allp[:, 1].min())) - max(margin_px, 1), 0)
-    x1 = min(int(math.ceil(allp[:, 0].max())) + max(margin_px, 2), shape_hw[1])
-    y1 = min(int(math.ceil(allp[:, 1].max())) + max(margin_px, 2), shape_hw[0])
-    if x1 <= x0 or y1 <= y0:
-        return None
-    return x0, y0, x1, y1
-
-
-def _light_up(albedo: np.ndarray, light: np.ndarray) -> np.ndarray:
-    """The camera's picture of an albedo (float32, planar 3 x H x W) under a light factor (H x W):
-    uint8 H x W x 3."""
-    lit = albedo * light
-    planes = np.clip(np.rint(lit, out=lit), 0, 255, out=lit).astype(np.uint8)
-    return cv2.merge(list(planes))
 
 
 class Renderer:
