@@ -39,7 +39,7 @@ The modules, by concern:
               speed and commands, the gyro's scale and bias, the sonar's offsets)
     fitting   Fit and fit: the figures over the runs; write_params puts them in a configuration
     drive     the runs driven: their plan, the rover's place checked, runs_sim and runs_hardware
-Their names are all here, as `rovernav calibrate rover` (calibrate/cli.py) uses them.
+Their names are all here, as `rovernav calibrate rover` (calibrate/cli_rover.py) uses them.
 """
 
 from .drive import (
