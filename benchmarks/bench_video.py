@@ -33,8 +33,8 @@ from pathlib import Path
 
 import av
 
+from rovernav.evaluation.report import VideoWriter
 from rovernav.scenario import load_scenario
-from rovernav.sim.report import VideoWriter
 from rovernav.sim.runner import SimOptions, Simulation
 
 LIMIT_MB = 5.0  # for out-and-back

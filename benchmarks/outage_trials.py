@@ -23,8 +23,8 @@ SCENARIOS = ["seed-fig4-8-unknown-obstacle", "seed-large-obstacles", "seed-small
 
 def trial(args: tuple) -> dict:
     scenario, seed, kind, start, length = args
+    from rovernav.evaluation.report import fault_figures
     from rovernav.scenario import load_scenario
-    from rovernav.sim.report import fault_figures
     from rovernav.sim.runner import Faults, SimOptions, Simulation
 
     faults = Faults(link_outages=[(start, length)]) if kind == "radio" else Faults(camera_outages=[(start, length)])

@@ -21,8 +21,8 @@ STRATEGIES = ["rovernav", "seed"]
 
 
 def run_one(scenario: str, strategy: str, seed: int) -> dict:
+    from rovernav.evaluation.report import build_report
     from rovernav.scenario import load_scenario
-    from rovernav.sim.report import build_report
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()

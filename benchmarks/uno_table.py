@@ -42,8 +42,8 @@ STACK_MARGIN_MIN = 256
 
 
 def run_one(scenario: str, rover: str, seed: int) -> dict:
+    from rovernav.evaluation.report import build_report
     from rovernav.scenario import load_scenario
-    from rovernav.sim.report import build_report
     from rovernav.sim.runner import SimOptions, Simulation
 
     started = time.monotonic()

@@ -3,8 +3,8 @@ Used by the mission tests (test_sim_missions.py) and the fault tests (test_sim_f
 
 from __future__ import annotations
 
+from rovernav.evaluation.report import build_report
 from rovernav.scenario import load_scenario
-from rovernav.sim.report import build_report
 from rovernav.sim.runner import SimOptions, Simulation
 
 

@@ -18,9 +18,9 @@ from tests.sim_runs import rover_events as _rover_events
 from tests.sim_runs import run_report as _run
 from tests.sim_runs import simulate_named as _simulate
 
+from rovernav.evaluation.report import build_report
 from rovernav.link import messages_gen as mg
 from rovernav.scenario import load_scenario
-from rovernav.sim.report import build_report
 from rovernav.sim.runner import SimOptions, Simulation
 
 # ---------------------------------------------------------------- whole missions

@@ -269,8 +269,8 @@ def test_rovernav_sim_rover_uno_reaches_the_target_and_reports_the_images_timing
 @pytest.mark.mission
 # A reset cuts a frame short; the image sends a frame delimiter at boot so that its HELLO is heard.
 def test_a_firmware_reset_of_the_uno_mid_mission_is_brought_back_up_to_date(built):
+    from rovernav.evaluation.report import build_report
     from rovernav.scenario import load_scenario
-    from rovernav.sim.report import build_report
     from rovernav.sim.runner import Faults, SimOptions, Simulation
 
     sim = Simulation(

@@ -278,7 +278,7 @@ def test_no_tracked_source_writes_a_vehicle_fact_by_hand():
         ("firmware/lib/hal/board.h", "constexpr uint16_t kSonarMaxRangeMm = 1000;"),
         ("host/rovernav/calibrate/rover.py", "def fit(runs, cone_deg: float = 15.0):"),
         (
-            "host/rovernav/sim/report.py",
+            "host/rovernav/evaluation/report.py",
             "    return max(pwm, 0) * get(mg.Param.SPEED_MM_S_PER_PWM_X1000) / 1000 / 1000",
         ),
         ("firmware/lib/core/params.h", "  float kp() const { return hundredths(Param::PidKpX100); }"),

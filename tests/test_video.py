@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
+from rovernav.evaluation.report import VideoWriter
 from rovernav.scenario import load_scenario
-from rovernav.sim.report import VideoWriter
 from rovernav.sim.runner import SimOptions, Simulation
 
 

@@ -1,7 +1,7 @@
 """The arena from above, in a picture: its border, boxes, walls and posts (known ones grey,
 unknown ones hatched), what the host's map holds, the sonar's echoes, the start and the target.
 
-Drawn under the simulator's summary picture (sim/report.py) and the replay's (runlog/replay.py):
+Drawn under the simulator's summary picture (evaluation/report.py) and the replay's (runlog/replay.py):
 it needs a scenario and a mission (anything with .scenario and .mission), not the simulator.
 """
 

@@ -10,7 +10,9 @@
     pool.py      running the jobs (serially, or on dask.distributed), and map_runs: the process
                  pool the benchmarks (benchmarks/*.py) run their runs in
     tables.py    trials.csv, trials.json, trials.md and the gallery of failed runs
+    report.py  one run's report: report.json, summary.png, the video, the lines printed of it
 
 It stands above the simulator (rovernav.sim, the world missions run in): evaluation imports sim,
-never the other way round (tests/test_imports.py checks it).
+never the other way round (tests/test_imports.py checks it); `rovernav sim`'s front end
+(rovernav.sim.cli, a unit of its own) writes its run's report with report.py.
 """

@@ -144,8 +144,8 @@ def run_trial(
     """
     from ..radio import ChannelConfig, radio_config
     from ..scenario import load_scenario
-    from ..sim.report import build_report, summary_picture, write_report
     from ..sim.runner import SimOptions, Simulation
+    from .report import build_report, summary_picture, write_report
 
     started = time.monotonic()
     deadline = None if run_timeout_s is None else started + run_timeout_s

@@ -250,7 +250,7 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
         help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
         f"(default {','.join(DEFAULT_FAIL_ON)})",
     )
-    from ..sim.cli import add_radio_flags
+    from ..radio_flags import add_radio_flags
 
     add_radio_flags(p, config=False)  # every run's radio; trials.json's settings.radio says what it was
     p.set_defaults(func=cmd_trials)
@@ -308,7 +308,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)
     from ..radio import ChannelConfig, radio_config
-    from ..sim.cli import radio_values
+    from ..radio_flags import radio_values
 
     values, names = radio_values(args)
     channel = radio_config(**values, names=names)  # refused here (one line, exit 2), before any run

@@ -13,8 +13,8 @@ from ..arena_picture import Canvas, draw_arena
 from ..files import write_atomic, write_json_atomic
 from ..link import messages_gen as mg
 from ..mission.legs import legs_per_trip
-from .channel import radio_figures
-from .world import footprint
+from ..sim.channel import radio_figures
+from ..sim.world import footprint
 
 TRIP_COLOURS = [(40, 40, 220), (220, 120, 30), (40, 170, 40), (170, 40, 170), (30, 170, 200)]
 
@@ -234,7 +234,7 @@ def signing_figures(sim) -> dict:
         },
     }
     if sim.attacker is not None:
-        from .attacker import EXPECTED_REFUSAL
+        from ..sim.attacker import EXPECTED_REFUSAL
 
         expected: dict[str, int] = {}
         for kind, n in sim.attacker.injected.items():
