@@ -3,8 +3,9 @@
     grid = OccupancyGrid.from_scenario(scenario, PlannerConfig())   # known obstacles, inflated
     result = plan(grid, scenario.start.xy, scenario.target.xy)     # A*, simplified waypoints [m]
 
-A* runs the seed's 16-direction motion model and is optimal on its grid; the potential
-field is the seed's comparison planner (Table 4.2). Every failure is a NoPathError.
+A* runs the seed's 16-direction motion model and is optimal on its grid; Theta*
+(planner="theta") plans any-angle paths on the same grid; the potential field is the seed's
+comparison planner (Table 4.2). Every failure is a NoPathError.
 """
 
 from .config import PlannerConfig

@@ -2,6 +2,7 @@
 
     rovernav plan seed-small-obstacles                    A* on the known obstacles
     rovernav plan seed-large-obstacles --planner potential --all-obstacles --json
+    rovernav plan seed-small-obstacles --planner theta     any-angle (Lazy Theta*)
     rovernav plan path/to/arena.toml --resolution 0.05 --plot path.png
 
 Exit status 0 when a path is found, 1 when there is none (the reason on stderr), 2 for input
@@ -37,9 +38,11 @@ def add_plan_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentPars
     )
     p.add_argument(
         "--planner",
-        choices=("astar", "potential"),
+        choices=("astar", "theta", "potential"),  # planner.PLANNERS (not imported here: --help stays quick)
         default="astar",
-        help="A* over the 16-direction grid (default) or the seed's potential field",
+        help="astar: A* over the 16-direction grid (default); theta: Lazy Theta*, any-angle segments "
+        "on the same grid, each checked to touch no inflated cell (shorter, fewer waypoints); "
+        "potential: the seed's potential field",
     )
     p.add_argument(
         "--all-obstacles", action="store_true", help="plan around every obstacle, not only those marked known = true"
@@ -129,7 +132,7 @@ def run_plan(args: argparse.Namespace) -> int:
             )
         )
     elif result:
-        name = "A*" if args.planner == "astar" else "potential field"
+        name = {"astar": "A*", "theta": "Theta*"}.get(args.planner, "potential field")
         known = "all obstacles" if args.all_obstacles else f"{len(scenario.known_shapes)} known obstacles"
         print(
             f"{scenario.name}: {name} found a path of {result.length_m:.3f} m in {time_ms:.2f} ms "

@@ -1,4 +1,4 @@
-"""`plan()`: from a start to a target on an occupancy grid, with A* or the potential field."""
+"""`plan()`: from a start to a target on an occupancy grid, with A*, Theta* or the potential field."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from .grid import OccupancyGrid
 from .potential import body_layer, potential_cells
 from .segment import polyline_clear
 from .simplify import simplify_points
+from .theta import theta_points, tighten_points
 
-PLANNERS = ("astar", "potential")
+PLANNERS = ("astar", "theta", "potential")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,9 +28,10 @@ class PlanResult:
                 last the target, exactly as given
     cells       the planner's raw path, an (n, 2) int array of cells (ix, iy), start to goal cell
     length_m    length of the waypoint polyline [m]: what the rover drives
-    cost_m      length of the raw cell path, centre to centre [m] (A*: the optimum on the grid)
+    cost_m      length of the raw cell path, centre to centre [m] (A*: the optimum on the grid);
+                Theta*: the length of its any-angle path as driven (= length_m)
     time_s      time to search and simplify [s] (the grid's construction not included)
-    expansions  A*: cells taken off the open list; potential field: moves examined
+    expansions  A* and Theta*: cells taken off the open list; potential field: moves examined
     """
 
     planner: str
@@ -49,6 +51,7 @@ def warm_up() -> None:
     """
     blocked = np.zeros((3, 3), dtype=np.bool_)
     astar_cells(blocked, 0, 0, 2, 2)
+    tighten_points(blocked, theta_points(blocked, 0.5, 0.5, 2.5, 1.5)[0])
     simplify_points(blocked, np.array([[0.5, 0.5], [1.5, 1.5], [2.5, 2.5]]))
     polyline_clear(blocked, np.array([[0.5, 0.5], [2.5, 1.5]]))
 
@@ -69,8 +72,10 @@ def plan(
 ) -> PlanResult:
     """Plan a path [m] from `start_xy` to `goal_xy`.
 
-    planner: "astar" (optimal on the 16-direction grid; its path touches no inflated cell) or
-    "potential" (the seed's comparison; its path keeps the robot radius, see `potential`).
+    planner: "astar" (optimal on the 16-direction grid; its path touches no inflated cell),
+    "theta" (Lazy Theta*: any-angle segments between cell centres, tightened; every segment
+    touches no inflated cell, see `theta`) or "potential" (the seed's comparison; its path keeps
+    the robot radius, see `potential`).
     The time counts the search and the simplification, and the potential field's map.
     Raises OutsideArena, StartBlocked, GoalBlocked, Unreachable or LocalMinimum (all
     NoPathError), and ValueError for an unknown planner.
@@ -83,7 +88,7 @@ def plan(
         if not (math.isfinite(xy[0]) and math.isfinite(xy[1])) or not grid.contains(*xy):
             raise OutsideArena(which, xy, grid.width_m, grid.height_m)
     t0 = time.perf_counter()
-    if planner == "astar":
+    if planner in ("astar", "theta"):
         blocked, clearance, what = grid.inflated, grid.config.inflation_m, "robot radius + sonar margin"
     else:
         blocked, clearance, what = body_layer(grid), grid.config.robot_radius_m, "robot radius"
@@ -94,6 +99,16 @@ def plan(
     if blocked[g_cell[1], g_cell[0]]:
         raise GoalBlocked(goal, clearance, what)
 
+    res = grid.resolution_m
+    if planner == "theta":
+        ends = grid.to_cell_units([start, goal])
+        points, _, expansions = theta_points(blocked, ends[0, 0], ends[0, 1], ends[1, 0], ends[1, 1])
+        if len(points) == 0:
+            raise Unreachable(start, goal)
+        if simplify:
+            points = simplify_points(blocked, tighten_points(blocked, simplify_points(blocked, points)))
+        cells = np.minimum(np.floor(points).astype(np.int64), [grid.nx - 1, grid.ny - 1])
+        return _result(planner, grid, points * res, start, goal, cells, None, t0, expansions)
     if planner == "astar":
         cells, cost, expansions = astar_cells(blocked, s_cell[0], s_cell[1], g_cell[0], g_cell[1])
         if len(cells) == 0:
@@ -103,25 +118,29 @@ def plan(
         cost = path_cost(cells)
     # Start and target are inside their end cells, so joining them to those cells' centres
     # stays in free cells; the simplifier then drops whatever the rover can skip.
-    res = grid.resolution_m
     points = grid.to_cell_units(np.concatenate([[start], grid.cells_to_world(cells), [goal]]))
     if simplify:
         points = simplify_points(blocked, points)
     else:
         keep = np.concatenate([[True], np.any(points[1:] != points[:-1], axis=1)])
         points = points[keep]
-    waypoints = points * res
+    return _result(planner, grid, points * res, start, goal, cells, float(cost) * res, t0, expansions)
+
+
+def _result(planner, grid, waypoints, start, goal, cells, cost_m, t0, expansions) -> PlanResult:
+    """The PlanResult of waypoints [m] (their ends set to start and goal exactly); cost_m None: their length."""
     waypoints[0] = start
     waypoints[-1] = goal
     if len(waypoints) == 1:
         waypoints = np.array([start, goal])
+    length_m = _polyline_length(waypoints)
     elapsed = time.perf_counter() - t0
     return PlanResult(
         planner=planner,
         waypoints=tuple((float(x), float(y)) for x, y in waypoints),
         cells=np.asarray(cells, dtype=np.int64),
-        length_m=_polyline_length(waypoints),
-        cost_m=float(cost) * res,
+        length_m=length_m,
+        cost_m=length_m if cost_m is None else cost_m,
         time_s=elapsed,
         expansions=int(expansions),
     )
