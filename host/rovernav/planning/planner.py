@@ -15,7 +15,7 @@ from .grid import OccupancyGrid
 from .potential import body_layer, potential_cells
 from .segment import polyline_clear
 from .simplify import simplify_points
-from .theta import theta_points, tighten_points
+from .theta import refine_points, theta_points, tighten_points
 
 PLANNERS = ("astar", "theta", "potential")
 
@@ -106,7 +106,7 @@ def plan(
         if len(points) == 0:
             raise Unreachable(start, goal)
         if simplify:
-            points = simplify_points(blocked, tighten_points(blocked, simplify_points(blocked, points)))
+            points = refine_points(blocked, points)
         cells = np.minimum(np.floor(points).astype(np.int64), [grid.nx - 1, grid.ny - 1])
         return _result(planner, grid, points * res, start, goal, cells, None, t0, expansions)
     if planner == "astar":
