@@ -10,7 +10,10 @@ waypoints the rover drives: their length, their count, the time of plan() as the
 runs after a warm-up), and the visibility-graph optimum (`planning.visibility`: the obstacles
 grown by the inflation as circumscribed polygons of 32 sides per turn, so at least the true
 optimum and within 3.3 mm per radian of turning of it; the inscribed polygons' optimum, a lower
-bound, is computed too and the largest gap between the two printed).
+bound, is computed too and the largest gap between the two printed). And the grid optimum
+(`visibility.grid_optimum`): the shortest path that touches no blocked cell, the best any
+planner with the project's segment check can do on that grid; `grid` is its ratio to the
+optimum (what the cells cost), `θ*/grid` Theta*'s to it (what the planner costs).
 
 Sub-cell passages: the grid blocks the cells whose centre lies within the inflation r of an
 obstacle, so a passage between 2r and 2r + 2h wide (h = res·√2/2, half a cell's diagonal) is
@@ -40,7 +43,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_planning import generated_boxes  # noqa: E402
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan, warm_up  # noqa: E402
-from rovernav.planning.visibility import inflated_polygons, shortest_path  # noqa: E402
+from rovernav.planning.visibility import grid_optimum, inflated_polygons, shortest_path  # noqa: E402
 from rovernav.scenario import load_scenario  # noqa: E402
 
 LIMIT = 1.02
@@ -144,7 +147,7 @@ def main() -> int:
     )
     header = (
         f"{'case':<34} {'cells':>9} {'opt m':>7} {'wp':>3} | {'A* m':>7} {'wp':>3} {'ms':>7} {'ratio':>6} | "
-        f"{'θ* m':>7} {'wp':>3} {'ms':>7} {'ratio':>6}"
+        f"{'θ* m':>7} {'wp':>3} {'ms':>7} {'ratio':>6} | {'grid':>6} {'θ*/grid':>7}"
     )
     print(header)
     print("-" * len(header))
@@ -168,12 +171,27 @@ def main() -> int:
         if grid.path_blocked(t.waypoints):
             print(f"{name}: Theta*'s path touches an inflated cell")
             return 1
-        yardstick = wider.length_m if limited else opt.length_m
-        rows.append((name, a.length_m / opt.length_m, t.length_m / opt.length_m, limited, t.length_m / yardstick))
+        # A sub-cell passage: against the optimum the grid is sure to hold, or, when that one is
+        # shut too, against the optimum itself (the grid held the passage, or Theta* went round).
+        yardstick = wider.length_m if limited and math.isfinite(wider.length_m) else opt.length_m
+        ends = grid.to_cell_units([start, goal])
+        best = grid_optimum(grid.inflated, ends[0], ends[1]) * grid.resolution_m
+        rows.append(
+            (
+                name,
+                a.length_m / opt.length_m,
+                t.length_m / opt.length_m,
+                limited,
+                t.length_m / yardstick,
+                best / opt.length_m,
+                t.length_m / best,
+            )
+        )
         print(
             f"{name:<34} {f'{grid.nx}x{grid.ny}':>9} {opt.length_m:7.3f} {len(opt.waypoints):3d} | "
             f"{a.length_m:7.3f} {len(a.waypoints):3d} {a_ms:7.2f} {a.length_m / opt.length_m:6.4f} | "
-            f"{t.length_m:7.3f} {len(t.waypoints):3d} {t_ms:7.2f} {t.length_m / opt.length_m:6.4f}"
+            f"{t.length_m:7.3f} {len(t.waypoints):3d} {t_ms:7.2f} {t.length_m / opt.length_m:6.4f} | "
+            f"{best / opt.length_m:6.4f} {t.length_m / best:7.4f}"
             + (f"  P (vs r + h: {t.length_m / wider.length_m:.4f})" if limited else "")
         )
     plain = [row for row in rows if not row[3]]
@@ -187,6 +205,13 @@ def main() -> int:
         print(
             f"{label:<7} ratio to the optimum over {len(plain)} cases without a sub-cell passage: "
             f"median {statistics.median(ratios):.4f}, worst {worst[i]:.4f} ({worst[0]})"
+        )
+    for label, i in (("grid optimum", 5), ("Theta* to the grid optimum", 6)):
+        ratios = [row[i] for row in rows]
+        worst = max(rows, key=lambda row: row[i])
+        print(
+            f"{label}: over all {len(rows)} cases median {statistics.median(ratios):.4f}, "
+            f"worst {worst[i]:.4f} ({worst[0]})"
         )
     limited = [row for row in rows if row[3]]
     for row in limited:

@@ -28,7 +28,7 @@ from rovernav.planning import (
     plan,
 )
 from rovernav.planning.theta import theta_points, tighten_points
-from rovernav.planning.visibility import inflated_polygons, scenario_optimum, shortest_path
+from rovernav.planning.visibility import grid_optimum, inflated_polygons, scenario_optimum, shortest_path
 from rovernav.scenario import load_scenario
 
 EPS_M = 1e-9
@@ -207,3 +207,21 @@ def test_theta_is_within_two_percent_of_the_optimum_on_the_seeds_large_obstacles
     theta = plan(grid, scenario.start.xy, scenario.target.xy, planner="theta").length_m
     astar = plan(grid, scenario.start.xy, scenario.target.xy, planner="astar").length_m
     assert optimum * 0.99 < theta <= optimum * 1.02 and theta < astar
+
+
+def test_grid_optimum_round_a_block_of_cells_and_theta_against_it():
+    # Cells x 4-5, y 3-6 blocked on a 10 × 10 grid (the square [4, 6] × [3, 7]); from (2.5, 4.5)
+    # to (7.5, 4.5) [cells] under it, by its bottom corners (4, 3) and (6, 3): 2·|(1.5, 1.5)| + 2
+    # (over the top corners would be 2·|(1.5, 2.5)| + 2).
+    blocked = np.zeros((10, 10), dtype=bool)
+    blocked[3:7, 4:6] = True
+    best = grid_optimum(blocked, (2.5, 4.5), (7.5, 4.5))
+    assert best == pytest.approx(2 * math.hypot(1.5, 1.5) + 2.0, abs=1e-6)
+    assert grid_optimum(np.zeros((5, 5), dtype=bool), (0.5, 0.5), (4.5, 3.5)) == pytest.approx(5.0)
+    # No path that touches no blocked cell is shorter; Theta*'s is within 1 % on the shared scenarios.
+    for name in SEED_SCENARIOS:
+        scenario, grid = scenario_grid(name)
+        ends = grid.to_cell_units([scenario.start.xy, scenario.target.xy])
+        floor_m = grid_optimum(grid.inflated, ends[0], ends[1]) * grid.resolution_m
+        theta = plan(grid, scenario.start.xy, scenario.target.xy, planner="theta").length_m
+        assert floor_m - 1e-6 <= theta <= 1.01 * floor_m, name

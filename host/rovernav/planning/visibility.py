@@ -35,6 +35,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ._jit import njit
+from .segment import segment_clear
 
 _EPS = 1e-9
 
@@ -254,3 +255,51 @@ def scenario_optimum(
     return shortest_path(
         polys, scenario.start.xy, scenario.target.xy, scenario.arena.width_m, scenario.arena.height_m, inflation_m
     )
+
+
+@njit
+def _clear_pairs(blocked, pts):
+    n = pts.shape[0]
+    src = np.empty(n * (n - 1) // 2, dtype=np.int64)
+    dst = np.empty(n * (n - 1) // 2, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if segment_clear(blocked, pts[i, 0], pts[i, 1], pts[j, 0], pts[j, 1]):
+                src[count] = i
+                dst[count] = j
+                count += 1
+    return src[:count], dst[:count]
+
+
+def grid_optimum(blocked: np.ndarray, start_cells: Sequence[float], goal_cells: Sequence[float]) -> float:
+    """The shortest path [cells] between two points [cells] that touches no blocked cell (by
+    `segment.segment_clear`): the best any planner using that check can do on this grid.
+
+    The blocked cells form rectilinear polygons, so the shortest path bends only at their convex
+    corners: grid points where exactly one of the four cells around is blocked. Each is taken
+    1e-7 cells off the corner, diagonally away from its blocked cell (a segment through the very
+    corner touches the cell), and joined to every node it sees; Dijkstra gives the length (inf
+    when there is no path). O(corners²) segment checks: for benchmarks and tests.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    b = np.asarray(blocked, dtype=bool)
+    ny, nx = b.shape
+    # Cells round the interior grid point (i, j): lower-left b[j-1, i-1], lower-right b[j-1, i],
+    # upper-left b[j, i-1], upper-right b[j, i].
+    ll, lr, ul, ur = b[:-1, :-1], b[:-1, 1:], b[1:, :-1], b[1:, 1:]
+    one = (ll.astype(int) + lr + ul + ur) == 1
+    jj, ii = np.nonzero(one)
+    x = ii + 1.0
+    y = jj + 1.0
+    off = 1e-7
+    # Away from the blocked cell: right when it is on the left, up when it is below.
+    x += np.where(ll[one] | ul[one], off, -off)
+    y += np.where(ll[one] | lr[one], off, -off)
+    pts = np.concatenate([[start_cells, goal_cells], np.column_stack([x, y])]).astype(np.float64)
+    src, dst = _clear_pairs(b, pts)
+    w = np.hypot(*(pts[dst] - pts[src]).T)
+    graph = coo_matrix((w, (src, dst)), shape=(len(pts), len(pts))).tocsr()
+    return float(dijkstra(graph, directed=False, indices=0)[1])
