@@ -192,7 +192,7 @@ def main() -> int:
             f"{a.length_m:7.3f} {len(a.waypoints):3d} {a_ms:7.2f} {a.length_m / opt.length_m:6.4f} | "
             f"{t.length_m:7.3f} {len(t.waypoints):3d} {t_ms:7.2f} {t.length_m / opt.length_m:6.4f} | "
             f"{best / opt.length_m:6.4f} {t.length_m / best:7.4f}"
-            + (f"  P (vs r + h: {t.length_m / wider.length_m:.4f})" if limited else "")
+            + (f"  P (vs r + h: {t.length_m / wider.length_m:.4f})" if limited else "").replace("0.0000", "shut")
         )
     plain = [row for row in rows if not row[3]]
     print(

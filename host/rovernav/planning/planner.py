@@ -15,7 +15,7 @@ from .grid import OccupancyGrid
 from .potential import body_layer, potential_cells
 from .segment import polyline_clear
 from .simplify import simplify_points
-from .theta import refine_points, theta_points, tighten_points
+from .theta import refine_points, snap_to_corners, theta_points, tighten_points
 
 PLANNERS = ("astar", "theta", "potential")
 
@@ -51,7 +51,7 @@ def warm_up() -> None:
     """
     blocked = np.zeros((3, 3), dtype=np.bool_)
     astar_cells(blocked, 0, 0, 2, 2)
-    tighten_points(blocked, theta_points(blocked, 0.5, 0.5, 2.5, 1.5)[0])
+    snap_to_corners(blocked, tighten_points(blocked, theta_points(blocked, 0.5, 0.5, 2.5, 1.5)[0]))
     simplify_points(blocked, np.array([[0.5, 0.5], [1.5, 1.5], [2.5, 2.5]]))
     polyline_clear(blocked, np.array([[0.5, 0.5], [2.5, 1.5]]))
 
@@ -73,7 +73,8 @@ def plan(
     """Plan a path [m] from `start_xy` to `goal_xy`.
 
     planner: "astar" (optimal on the 16-direction grid; its path touches no inflated cell),
-    "theta" (Lazy Theta*: any-angle segments between cell centres, tightened; every segment
+    "theta" (Lazy Theta*: any-angle segments, pulled taut and its corners snapped onto the
+    blocked cells' corners; every segment
     touches no inflated cell, see `theta`) or "potential" (the seed's comparison; its path keeps
     the robot radius, see `potential`).
     The time counts the search and the simplification, and the potential field's map.
@@ -106,7 +107,7 @@ def plan(
         if len(points) == 0:
             raise Unreachable(start, goal)
         if simplify:
-            points = refine_points(blocked, points)
+            points = simplify_points(blocked, snap_to_corners(blocked, refine_points(blocked, points)))
         cells = np.minimum(np.floor(points).astype(np.int64), [grid.nx - 1, grid.ny - 1])
         return _result(planner, grid, points * res, start, goal, cells, None, t0, expansions)
     if planner == "astar":
