@@ -15,7 +15,7 @@ from .grid import OccupancyGrid
 from .potential import body_layer, potential_cells
 from .segment import polyline_clear
 from .simplify import simplify_points
-from .theta import refine_points, snap_to_corners, theta_points, tighten_points
+from .theta import refine_points, snap_to_corners, theta_points
 
 PLANNERS = ("astar", "theta", "potential")
 
@@ -51,7 +51,9 @@ def warm_up() -> None:
     """
     blocked = np.zeros((3, 3), dtype=np.bool_)
     astar_cells(blocked, 0, 0, 2, 2)
-    snap_to_corners(blocked, tighten_points(blocked, theta_points(blocked, 0.5, 0.5, 2.5, 1.5)[0]))
+    snap_to_corners(
+        blocked, refine_points(blocked, theta_points(blocked, 0.5, 0.5, 2.5, 1.5)[0])
+    )  # as plan() calls them
     simplify_points(blocked, np.array([[0.5, 0.5], [1.5, 1.5], [2.5, 2.5]]))
     polyline_clear(blocked, np.array([[0.5, 0.5], [2.5, 1.5]]))
 
