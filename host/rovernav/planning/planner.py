@@ -27,6 +27,7 @@ class PlanResult:
     waypoints   (x, y) [m] the rover drives through, simplified; the first is the start and the
                 last the target, exactly as given
     cells       the planner's raw path, an (n, 2) int array of cells (ix, iy), start to goal cell
+                (Theta*: the cells holding its waypoints)
     length_m    length of the waypoint polyline [m]: what the rover drives
     cost_m      length of the raw cell path, centre to centre [m] (A*: the optimum on the grid);
                 Theta*: the length of its any-angle path as driven (= length_m)

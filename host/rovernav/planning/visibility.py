@@ -24,6 +24,10 @@ Nodes: the polygons' vertices that lie in the free space (inside the arena shrun
 every other polygon), the start and the goal. Edges: pairs whose segment crosses no polygon's
 interior (touching an edge or a vertex is allowed); the shrunk arena is convex, so a segment
 between two nodes in it stays in it. Dijkstra (scipy.sparse.csgraph) gives the optimum.
+
+`grid_optimum` is the same construction on the grid itself: the shortest path that touches no
+blocked cell, the best any planner using `segment.segment_clear` can do at that resolution.
+The benchmark (benchmarks/bench_anyangle.py) sets a planner's path against both.
 """
 
 from __future__ import annotations
