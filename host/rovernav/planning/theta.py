@@ -14,8 +14,10 @@ from a neighbour whose short step to it is clear). The heuristic is the Euclidea
 the goal point (admissible). Theta* is not optimal among any-angle paths, but close: its path
 is then pulled taut by `refine_points` (vertices added at the segments' midpoints, each slid
 towards the chord of its two neighbours while both segments stay clear) and its corners moved
-onto the blocked cells' corners by `snap_to_corners`: in the route Theta* chose, that is the
-shortest path touching no blocked cell (the benchmark's `visibility.grid_optimum` measures it).
+onto the blocked cells' corners by `snap_to_corners`. Measured against the shortest path that
+touches no blocked cell (`visibility.grid_optimum`) on 99 generated arenas (seeds 1 and 2),
+the result is that path in 97 (within 0.1 %) and 0.7 % longer at worst, where Theta* chose
+another way round an obstacle (benchmarks/bench_anyangle.py).
 """
 
 from __future__ import annotations
