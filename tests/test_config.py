@@ -163,3 +163,16 @@ def test_a_report_range_past_the_sensor_s_is_refused_in_one_line_exit_2(tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sonar_report_mm = 4000 is outside [50, 1000] (mm)" in err[0]
     assert mg.PARAMS[mg.Param.SONAR_REPORT_MM].max == vehicle.SONAR_MAX_RANGE_MM
+
+
+def test_the_mission_s_planner_is_chosen_by_configuration():
+    from rovernav.mission.spec import MissionSpec
+    from rovernav.scenario import load_scenario
+
+    scenario = load_scenario("seed-fig4-8-unknown-obstacle")
+    assert load_config(None).mission.planner == "astar"
+    assert MissionSpec.for_run(scenario, load_config(None)).planner_name == "astar"
+    cfg = config_from_dict({"mission": {"planner": "theta"}})
+    assert MissionSpec.for_run(scenario, cfg).planner_name == "theta"
+    with pytest.raises(ConfigError, match=r"\[mission\] planner = 'potential' must be one of astar, theta"):
+        config_from_dict({"mission": {"planner": "potential"}})

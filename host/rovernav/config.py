@@ -5,7 +5,7 @@
     [camera]   source (index or video file), fps       the overhead camera
     [vision]   markers, HSV ranges, calibration, ...   (rovernav.vision.config.VisionConfig)
     [planner]  resolution_m, robot_radius_m, ...       (rovernav.planning.PlannerConfig)
-    [mission]  trips, heartbeat_hz, fix_sd_mm, map     what the mission does
+    [mission]  trips, heartbeat_hz, fix_sd_mm, map, planner   what the mission does
     [rover]    any CONFIG parameter by name = value    sent to the rover at the start
     [radio]    loss_pct, ber_pct, burst_mean_s,        the simulated radio (`rovernav sim`; its
                burst_share, jitter_ms, half_duplex     --radio-* flags win over these)
@@ -27,6 +27,10 @@ from . import vehicle_gen as vehicle
 from .errors import InputError
 from .link import messages_gen as mg
 from .validate import MAX_ARENA_M, MAX_TRIPS, check_number, read_text_file
+
+# The global planners a mission may use (rovernav.planning.plan); the potential field is the seed
+# report's comparison, not a mission's planner.
+MISSION_PLANNERS = ("astar", "theta")
 
 
 class ConfigError(InputError):
@@ -60,6 +64,7 @@ class MissionConfig:
     heartbeat_hz: float = 5.0
     fix_sd_mm: int = 3  # one-sigma of a camera fix, sent in FIX
     map: str = ""  # a learned map to load at the start and save at the end
+    planner: str = "astar"  # the host's global planner: "astar" (16 directions) or "theta" (any angle, Theta*)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,7 +165,12 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         "mission",
         data.get("mission", {}),
         where,
-        {"trips": (0, MAX_TRIPS, False), "heartbeat_hz": (0.0, 50.0, True), "fix_sd_mm": (1, 255, False)},
+        {
+            "trips": (0, MAX_TRIPS, False),
+            "heartbeat_hz": (0.0, 50.0, True),
+            "fix_sd_mm": (1, 255, False),
+            "planner": frozenset(MISSION_PLANNERS),
+        },
     )
     try:
         vision = VisionConfig.from_dict(data.get("vision", {}))

@@ -89,6 +89,7 @@ class MissionSpec:
             heartbeat_hz=cfg.mission.heartbeat_hz,
             host_replan=host_replan,
             strategy=strategy,
+            planner_name=cfg.mission.planner,
             host_boot_id=host_boot_id & 0xFFFFFFFF,
         )
 
