@@ -395,3 +395,13 @@ def test_a_benchmark_on_a_one_worker_local_dask_cluster(tmp_path, capsys):
     assert "local dask cluster of 1 worker" in capsys.readouterr().out
     (row,) = _strict_json(out / "trials.json")["rows"]
     assert row["reached"] and row["success"] and row["outcome"] == "reached"
+
+
+def test_a_job_carries_its_planner_to_the_run(tmp_path):
+    from rovernav.evaluation.jobs import make_jobs
+
+    arena = tmp_path / "a.toml"
+    (job,) = make_jobs([(arena, None)], ["rovernav"], [1], tmp_path, 30.0, None)
+    assert job.planner == "astar" and len(job.args) == 6  # as before: the default adds nothing
+    (job,) = make_jobs([(arena, None)], ["rovernav"], [1], tmp_path, 30.0, None, None, "theta")
+    assert job.args[6:] == (None, "theta")

@@ -34,6 +34,7 @@ class TrialJob:
     run_timeout_s: float | None
     meta: dict | None = None
     radio: tuple = ()  # the simulated radio's settings, (name, value) pairs for radio_config (): defaults
+    planner: str = "astar"  # the host's global planner ([mission] planner)
 
     @property
     def arena(self) -> str:
@@ -47,6 +48,8 @@ class TrialJob:
     def args(self) -> tuple:
         """run_trial's arguments, plain values that pickle to any worker."""
         args = (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s, self.run_timeout_s)
+        if self.planner != "astar":
+            return args + (dict(self.radio) or None, self.planner)
         return args + (dict(self.radio),) if self.radio else args
 
 
@@ -99,9 +102,11 @@ def make_jobs(
     max_time_s: float,
     run_timeout_s: float | None,
     radio: dict | None = None,
+    planner: str = "astar",
 ) -> list[TrialJob]:
     """One job per arena, strategy and seed; runs go to out_dir/runs/<strategy>/<arena>-s<seed>/.
-    `radio`: radio_config's settings for the simulated radio (None: its defaults)."""
+    `radio`: radio_config's settings for the simulated radio (None: its defaults); `planner`: the
+    host's global planner."""
     runs = Path(out_dir).resolve() / "runs"
     radio_items = tuple(sorted((radio or {}).items()))
     return [
@@ -114,6 +119,7 @@ def make_jobs(
             run_timeout_s,
             meta,
             radio_items,
+            planner,
         )
         for path, meta in arenas
         for strategy in strategies
@@ -124,6 +130,13 @@ def make_jobs(
 # ---------------------------------------------------------------- one run
 
 
+def _planner_config(planner: str):
+    """The default configuration with [mission] planner set."""
+    from ..config import config_from_dict
+
+    return config_from_dict({"mission": {"planner": planner}})
+
+
 def run_trial(
     scenario_path: str,
     strategy: str,
@@ -132,6 +145,7 @@ def run_trial(
     max_time_s: float,
     run_timeout_s: float | None = None,
     radio: dict | None = None,
+    planner: str = "astar",
 ) -> dict:
     """Simulate one mission headless and return its row (ROW_FIELDS).
 
@@ -141,6 +155,7 @@ def run_trial(
     "hung", with the report so far). Safe in a dask worker process: it imports what it needs
     and keeps no state. Exceptions from the simulator propagate (the caller records an error).
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
+    `planner`: the host's global planner ([mission] planner: "astar" or "theta").
     """
     from ..radio import ChannelConfig, radio_config
     from ..scenario import load_scenario
@@ -161,7 +176,13 @@ def run_trial(
     channel = radio_config(**radio) if radio else ChannelConfig()
     sim = Simulation(
         load_scenario(scenario_path),
-        SimOptions(seed=seed, strategy=strategy, max_time_s=max_time_s, channel=channel),
+        SimOptions(
+            seed=seed,
+            strategy=strategy,
+            max_time_s=max_time_s,
+            channel=channel,
+            config=None if planner == "astar" else _planner_config(planner),
+        ),
         progress=guard,
     )
     stopped = None

@@ -250,6 +250,15 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
         help=f"what fails the gate, comma-separated from {', '.join(FAIL_ON_CHOICES)}, or none "
         f"(default {','.join(DEFAULT_FAIL_ON)})",
     )
+    from ..config import MISSION_PLANNERS
+
+    p.add_argument(
+        "--planner",
+        choices=MISSION_PLANNERS,
+        default="astar",
+        help="the host's global planner for every run, as [mission] planner sets it: astar (16 directions, "
+        "the default) or theta (any angle, Theta*)",
+    )
     from ..radio_flags import add_radio_flags
 
     add_radio_flags(p, config=False)  # every run's radio; trials.json's settings.radio says what it was
@@ -260,6 +269,8 @@ def _command_line(args: argparse.Namespace, runner_flag: str) -> str:
     parts = ["rovernav", "trials", str(args.arenas_dir), "--strategy", args.strategy, "--seeds", str(args.seeds)]
     if args.sample is not None:
         parts += ["--sample", str(args.sample)]
+    if getattr(args, "planner", "astar") != "astar":
+        parts += ["--planner", args.planner]
     parts += [
         "--out",
         str(args.out),
@@ -317,7 +328,9 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if args.sample is not None:
         arenas = sample_arenas(arenas, args.sample)
     strategies = list(STRATEGIES) if args.strategy == "both" else [args.strategy]
-    jobs = make_jobs(arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout, radio)
+    jobs = make_jobs(
+        arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout, radio, args.planner
+    )
     workers = 0 if args.serial else args.workers
     if args.scheduler:
         runner, runner_flag = f"the dask cluster at {args.scheduler}", f"--scheduler {args.scheduler}"
@@ -369,6 +382,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
             "run_timeout_s": args.run_timeout,
             "runner": runner,
             "radio": channel.settings(),
+            "planner": args.planner,
         },
     }
     summary = write_outputs(args.out, rows, context, fail_on)
