@@ -87,7 +87,7 @@ bool LocalPlanner::inside(Point p) const { return within(p, 0, 0, 0); }
 
 bool LocalPlanner::within(Point p, uint16_t clearance_mm, uint16_t reach_mm, uint16_t kept_reach_mm) const {
   for (uint8_t i = 0; i < n_; ++i) {
-    ++ops_;
+    count_op();
     const Disk& d = disks_[i];
     const int32_t arc = d.r_mm > clearance_mm ? d.r_mm - clearance_mm : 0;   // half the arc's width
     const int32_t r = i < kept_ && kept_reach_mm ? kept_reach_mm : arc + reach_mm;
@@ -114,7 +114,7 @@ bool LocalPlanner::blocks(Point a, Point b, uint16_t shrink_mm, bool fresh_only)
   // tests three cells a slice against every disk).
   const float vx = to_float(b.x_mm - a.x_mm), vy = to_float(b.y_mm - a.y_mm);
   for (uint8_t i = fresh_only ? kept_ : 0; i < n_; ++i) {
-    ++ops_;
+    count_op();
     const Disk& d = disks_[i];
     if (d.r_mm <= shrink_mm) continue;
     const uint16_t r = static_cast<uint16_t>(d.r_mm - shrink_mm);
@@ -154,7 +154,7 @@ ROVERNAV_NOINLINE uint8_t grid_cell(int d_mm) {
 }
 
 bool LocalPlanner::begin(Point start, Point goal, uint8_t* scratch) {
-  ops_ = 0;
+  restart_ops();
   phase_ = Phase::Idle;
   const int16_t half = static_cast<int16_t>(kCells * kCellMm / 2);
   origin_.x_mm = static_cast<int16_t>((start.x_mm + goal.x_mm) / 2 - half);
@@ -202,11 +202,11 @@ PlanStatus LocalPlanner::step(uint8_t* scratch, Point* out, uint8_t& n_out) {
       bool any = false;
       for (uint16_t i = 0; i < kBits; ++i) nxt[i] = 0;
       for (uint16_t c = 0; c < kCellCount; ++c) {
-        ++ops_;
+        count_op();
         if (!bit(cur, c)) continue;
         const int16_t cx = static_cast<int16_t>(c % kCells), cy = static_cast<int16_t>(c / kCells);
         for (uint8_t k = 0; k < 8; ++k) {
-          ++ops_;
+          count_op();
           const int16_t nx = static_cast<int16_t>(cx + flash_read_i8(&kDx[k])), ny = static_cast<int16_t>(cy + flash_read_i8(&kDy[k]));
           if (nx < 0 || ny < 0 || nx >= kCells || ny >= kCells) continue;
           const uint16_t n = static_cast<uint16_t>(ny * kCells + nx);

@@ -19,8 +19,8 @@
 // cells tested against the disks, or one layer of the wavefront, or kWalkCells cells of the
 // walk back) and says whether it is still running, found a detour or found none, so the rover
 // keeps its 10 ms step (link, STATUS, STOP) while it plans. plan() runs it to the end at once
-// (tests). ops() counts the work; the Uno's time per slice is measured on the image in the AVR
-// simulator, not estimated from it.
+// (tests). ops() counts the work (native builds only); the Uno's time per slice is measured on
+// the image in the AVR simulator, not estimated from it.
 #pragma once
 #include <stdint.h>
 
@@ -88,7 +88,9 @@ class LocalPlanner {
   void cancel() { phase_ = Phase::Idle; }
   /// Elementary operations of the last plan (cell tests, neighbour visits, disk tests), modulo
   /// 65,536 (a count of the Uno's size: a slice's is the difference of two, as uint16_t).
+#if !defined(__AVR__)
   uint16_t ops() const { return ops_; }
+#endif
 
  private:
   struct Disk {
@@ -105,7 +107,16 @@ class LocalPlanner {
   uint8_t n_ = 0;
   uint8_t kept_ = 0;
   Point origin_ = {0, 0};  // the grid's lower-left corner
+#if defined(__AVR__)
+  // Nothing on the Uno reads the count (the image's time per slice is measured in the AVR
+  // simulator): it keeps neither the counter nor its increments in the planner's loops.
+  void count_op() const {}
+  void restart_ops() {}
+#else
+  void count_op() const { ++ops_; }
+  void restart_ops() { ops_ = 0; }
   mutable uint16_t ops_ = 0;
+#endif
   // The plan under way.
   Point goal_ = {0, 0};
   Point anchor_ = {0, 0}, prev_ = {0, 0};   // the walk back: last kept point, last cell
