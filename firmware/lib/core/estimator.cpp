@@ -62,16 +62,17 @@ void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t 
   if (!initialised_) return;
   const float mid = q_[T] + 0.5f * dth;
   const float s = sinf(mid), c = cosf(mid);
-  advance(q_, d * s, d * c, dth);
+  const float dx = d * s, dy = d * c;
+  advance(q_, dx, dy, dth);
   // The same increments, without the fixes' corrections (so in the estimate's frame).
-  advance(odo_, d * s, d * c, dth);
+  advance(odo_, dx, dy, dth);
 
   // P' = Fq P Fq^T + Fv V Fv^T for the symmetric 3x3 P. With e = (d cos, -d sin), how the
   // position moves with the heading, and the column c = (P_xt, P_yt): c' = c + e P_tt, and each
   // entry of the position block gains e_i c_j + e_j c'_i (the products of Fq P Fq^T, regrouped)
   // and the distance noise g_i g_j var_d, g = (sin, cos). A loop over the block's three entries
   // (xx, xy, yy) is a third of the flash the products written out took.
-  const float e[2] = {d * c, -d * s};
+  const float e[2] = {dy, -dx};   // -(d sin) is (-d) sin exactly: the products above serve
   const float g[2] = {s, c};
   float* P = p_;
   static_assert(XT + 1 == YT && XX + 1 == XY && XY + 1 == YY, "the column and the block lie in order");
