@@ -105,7 +105,9 @@ bool Rover::send_link_auth() {
   return true;
 }
 
-ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_mm) {
+// The OBSTACLE built once and queued `times` times: its copies differ in their sequence number
+// only (built afresh for each, the pose's float conversions ran three times in the sweep's step).
+ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_mm, uint8_t times) {
   msg::Obstacle o;
   o.scan_id = sonar_.scan_id;
   o.bearing_cdeg = bearing_cdeg;
@@ -115,19 +117,19 @@ ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_
   o.y_mm = here.y_mm;
   o.heading_cdeg = rad_to_cdeg(odometry_.est.heading_rad());
   o.sd_mm = saturate_u16(odometry_.est.position_sd_mm());
-  link_.tx.send(o);
+  for (uint8_t i = 0; i < times; ++i) link_.tx.send(o);
 }
 
 ROVERNAV_NOINLINE void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   // Said kSayTimes times: the host plans with what it heard, and the rover takes its path on the
   // host's word only when it heard every echo of the sweep (HEARTBEAT's scan_heard). The host
   // drops the copies.
-  for (uint8_t i = 0; i < kSayTimes; ++i) send_reading(bearing_cdeg, range_mm);
+  send_reading(bearing_cdeg, range_mm, kSayTimes);
   sonar_.count_echo();
   remember_echo(bearing_cdeg, range_mm);
 }
 
-void Rover::report_clear(int16_t bearing_cdeg) { send_reading(bearing_cdeg, 0); }
+void Rover::report_clear(int16_t bearing_cdeg) { send_reading(bearing_cdeg, 0, 1); }
 
 }  // namespace core
 }  // namespace rovernav

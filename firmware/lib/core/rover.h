@@ -200,7 +200,7 @@ class Rover : private RoverFields {
   void send_event(EventKind kind, uint16_t arg);
   void send_status();
   bool send_link_auth();
-  void send_reading(int16_t bearing_cdeg, uint16_t range_mm);
+  void send_reading(int16_t bearing_cdeg, uint16_t range_mm, uint8_t times);
   void report_echo(int16_t bearing_cdeg, uint16_t range_mm);
   void report_clear(int16_t bearing_cdeg);
   // failsafe.cpp
