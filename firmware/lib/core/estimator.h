@@ -44,8 +44,9 @@ class Estimator {
   /// after kMaxRejects rejections in a row the estimate is reset to the fix.
   FixResult update(const PoseFix& fix, uint32_t now_ms);
 
-  float x_mm() const { return q_[0]; }
-  float y_mm() const { return q_[1]; }
+  // Out of line: a float read from the Uno's global Rover is four four-byte loads at each use.
+  ROVERNAV_NOINLINE float x_mm() const { return q_[0]; }
+  ROVERNAV_NOINLINE float y_mm() const { return q_[1]; }
   ROVERNAV_NOINLINE float heading_rad() const { return q_[2]; }
   /// Covariance entries (mm^2, mm*rad, rad^2), by kXX ... kTT.
   enum : uint8_t { kXX, kXY, kYY, kXT, kYT, kTT };
