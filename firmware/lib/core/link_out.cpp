@@ -51,7 +51,7 @@ void Rover::send_event(EventKind kind, uint16_t arg) {
   msg::Event e;
   e.kind = static_cast<uint8_t>(kind);
   e.arg = arg;
-  e.time_ms = step_.last_ms;
+  e.time_ms = step_.now_ms();
   const Point here = here_mm();
   e.x_mm = here.x_mm;
   e.y_mm = here.y_mm;
@@ -60,10 +60,11 @@ void Rover::send_event(EventKind kind, uint16_t arg) {
 
 ROVERNAV_NOINLINE void Rover::send_status() {
   msg::Status s;
-  s.time_ms = step_.last_ms;
-  // The fix's age first, with step_.last_ms just loaded: taken after the floats below, step_.last_ms was held
+  const uint32_t now = step_.now_ms();
+  s.time_ms = now;
+  // The fix's age first, with the step's time just loaded: taken after the floats below, it was held
   // across all their calls, in four more registers to save and restore.
-  s.fix_age_ms = failsafe_.had_fix ? saturate_u16(static_cast<float>(step_.last_ms - failsafe_.last_fix_ms)) : 65535;
+  s.fix_age_ms = failsafe_.had_fix ? saturate_u16(static_cast<float>(now - failsafe_.last_fix_ms)) : 65535;
   s.state = static_cast<uint8_t>(step_.state);
   s.flags = flags();
   s.fault = static_cast<uint8_t>(failsafe_.fault);

@@ -15,7 +15,7 @@ void Rover::start_sweep() {
   int16_t fx = 0, fy = 0;
   heading_q8(fx, fy);
   detour_.local.keep_near(here_mm(), kKeepNearMm, fx, fy, static_cast<int16_t>(params_.raw(Param::SonarOffsetMm)));
-  sonar_.sweep.start(step_.last_ms, sonar_.servo_cdeg, params_.sweep_step_ms());
+  sonar_.sweep.start(step_.now_ms(), sonar_.servo_cdeg, params_.sweep_step_ms());
 }
 
 void Rover::stop_sweep() {

@@ -66,7 +66,7 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
   step_.put_off = false;
   float dt_s = 0.0f;
   if (step_.have_time) {
-    const uint32_t gap_ms = now - step_.last_ms;
+    const uint32_t gap_ms = now - step_.now_ms();
     dt_s = static_cast<float>(gap_ms < kMaxStepMs ? gap_ms : kMaxStepMs) / 1000.0f;
   }
   step_.last_ms = now;
@@ -171,7 +171,7 @@ ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
   if (s == RoverState::Rotate && step_.state != RoverState::Rotate) motion_.rotation_starts();
   if (s == RoverState::BackOff) motion_.back_off_starts();
   if (s == RoverState::Drive && step_.state != RoverState::Drive) {
-    odometry_.drive_starts(step_.last_ms);
+    odometry_.drive_starts(step_.now_ms());
     motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
   }
   step_.state = s;
