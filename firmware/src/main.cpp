@@ -15,6 +15,7 @@
 
 #include "board.h"
 #include "boot_counter.h"
+#include "clock.h"
 #include "hw_watchdog.h"
 #include "link_serial.h"
 #include "link_store.h"
@@ -97,12 +98,12 @@ void setup() {
     const uint8_t consent = static_cast<uint8_t>(~PIND & _BV(PIND7));
     rover.begin(boot_id, static_cast<uint8_t>(hal::HwWatchdog::reset_flags() | consent), &secrets);
   }
-  last_step_ms = static_cast<uint16_t>(millis());
+  last_step_ms = static_cast<uint16_t>(hal::clock_ms());
 }
 
 void loop() {
   hal::HwWatchdog::kick();
-  const uint32_t now_ms = millis();
+  const uint32_t now_ms = hal::clock_ms();
   const uint16_t since_ms = static_cast<uint16_t>(static_cast<uint16_t>(now_ms) - last_step_ms);
   if (since_ms < kStepMs) return;
   // On the 10 ms grid, not 10 ms after whenever this step began: millis() moves in 1.024 ms

@@ -2,6 +2,7 @@
 
 #include <Arduino.h>
 
+#include "clock.h"
 #include "twi_master.h"
 
 namespace rovernav {
@@ -104,7 +105,7 @@ MpuResult Mpu6050::calibrate(uint16_t samples, uint16_t max_ms, void (*idle)()) 
   // Times modulo 65,536, as max_ms is: the loop looks at the clock every few milliseconds and
   // ends once max_ms have passed, so no difference it takes reaches 65,536. Two bytes a time,
   // not four, leave registers for the sums below (it took 62 bytes less flash).
-  const uint16_t start_ms = static_cast<uint16_t>(millis());
+  const uint16_t start_ms = static_cast<uint16_t>(clock_ms());
   uint16_t last_sample_ms = static_cast<uint16_t>(start_ms - kSamplePeriodMs);
   // Sums offsets from the first sample: each is within kGyroCalMaxSpreadMdps, so 65,535 of
   // them fit an int32_t.
@@ -114,7 +115,7 @@ MpuResult Mpu6050::calibrate(uint16_t samples, uint16_t max_ms, void (*idle)()) 
   int32_t sum_offset_mdps = 0;
   uint16_t taken = 0;
   while (taken < samples) {
-    const uint16_t now_ms = static_cast<uint16_t>(millis());
+    const uint16_t now_ms = static_cast<uint16_t>(clock_ms());
     if (static_cast<uint16_t>(now_ms - start_ms) > max_ms) return MpuResult::CalTimeout;
     if (static_cast<uint16_t>(now_ms - last_sample_ms) < kSamplePeriodMs) {
       if (idle != nullptr) idle();
