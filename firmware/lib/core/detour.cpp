@@ -65,7 +65,6 @@ void Rover::replan_locally() {
   if (!detour_.reflex_after_trust && !on_own_detour) {
     detour_.awaiting_host = true;
     enter(RoverState::Blocked);
-    detour_.blocked_since_ms = step_.now_ms();
     return;
   }
   plan_detour();
@@ -167,7 +166,6 @@ void Rover::continue_detour() {
 void Rover::no_detour() {
   detour_.n = detour_.i = 0;
   enter(RoverState::Blocked);   // a path from the host (or kBlockedWaitMs of it sending none) ends it
-  detour_.blocked_since_ms = step_.now_ms();
   send_event(EventKind::Replanned, 0);
 }
 

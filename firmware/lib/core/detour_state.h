@@ -13,7 +13,8 @@ namespace core {
 /// return does (failsafe.cpp); link_in.cpp takes the host's path (take_host_path) and HEARTBEAT's
 /// word (hear_host), and forgets the echoes at START (forget); mode_scan.cpp starts a sweep
 /// (sweep_starts; the planner's keep_near(), its own interface, keeps what lies beside the body);
-/// reflex.cpp notes a stop (reflex_stopped); rover.cpp's enter() cuts a plan short (cancel_plan).
+/// reflex.cpp notes a stop (reflex_stopped); rover.cpp's enter() cuts a plan short (cancel_plan)
+/// and, entering Blocked, starts its wait (blocked_at: one copy for detour.cpp's two ways in).
 struct DetourState {
   LocalPlanner local;                    ///< the last sweep's echoes, as obstacle disks
   Waypoint points[LocalPlanner::kMaxDetour] = {};
@@ -39,6 +40,7 @@ struct DetourState {
   void reflex_stopped() {
     if (trusted_host) reflex_after_trust = true;
   }
+  void blocked_at(uint32_t now_ms) { blocked_since_ms = now_ms; }
   void cancel_plan() {
     local.cancel();
     plan_ahead_dm = 0;

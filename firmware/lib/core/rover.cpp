@@ -174,6 +174,7 @@ ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
     odometry_.drive_starts(step_.now_ms());
     motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
   }
+  if (s == RoverState::Blocked) detour_.blocked_at(step_.now_ms());   // mode_blocked's wait starts (again)
   step_.state = s;
   if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.end();
 }
