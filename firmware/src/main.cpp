@@ -128,7 +128,7 @@ void loop() {
   in.sonar_valid = sonar_pending;
   in.sonar_range_mm = sonar_range_mm;
   sonar_pending = false;
-  in.wheels_valid = false;  // the seed's rover has no encoders
+  in.wheels_valid = false;  // the seed's rover has no encoders (nor does the core read them: io.h)
   rx_len = static_cast<uint8_t>(rx_len + serial_link.read_some(rx + rx_len, static_cast<uint8_t>(sizeof rx - rx_len)));
   in.rx_len = rx_len;
   in.rx = rx;

@@ -11,6 +11,16 @@ namespace core {
 
 enum : uint8_t { kTxPerStep = kUartBufferBytes };  // at most this many bytes leave per step: the TX buffer
 
+// Whether the core reads wheel encoders (Inputs.wheels_valid) at all. The Uno's shell has none
+// to read: main.cpp never sets wheels_valid, and the image leaves out the encoders' dead
+// reckoning (120 bytes of its flash), as dead code the compiler cannot see. The native core,
+// the tests and the simulator keep it. A shell that reads encoders on the Uno turns this on.
+#if defined(ROVERNAV_UNO)
+constexpr bool kReadsWheelEncoders = false;
+#else
+constexpr bool kReadsWheelEncoders = true;
+#endif
+
 struct Inputs {
   uint32_t now_ms;            ///< monotonic time; wraps after 49 days
   bool gyro_valid;            ///< a fresh gyro sample this step

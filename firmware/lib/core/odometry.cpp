@@ -36,8 +36,8 @@ void Rover::dead_reckon(const Inputs& in, float dt_s, uint32_t now) {
   if (!positive(dt_s)) return;   // dt_s is never NaN: the same as dt_s <= 0, without the library call
   float d_mm = 0.0f;
   float var_d = 0.0f;
-  const float mm_per_tick = params_.wheel_mm_per_tick();
-  if (in.wheels_valid && positive(mm_per_tick)) {
+  const float mm_per_tick = kReadsWheelEncoders ? params_.wheel_mm_per_tick() : 0.0f;
+  if (kReadsWheelEncoders && in.wheels_valid && positive(mm_per_tick)) {
     d_mm = 0.5f * static_cast<float>(in.left_ticks + in.right_ticks) * mm_per_tick;
     var_d = kEncoderVarPerMm * fabsf(d_mm);
   } else {
