@@ -164,16 +164,16 @@ void Rover::run_state(const SonarIn& in, float dt_s, uint32_t now, Outputs& out)
 }
 
 ROVERNAV_NOINLINE void Rover::enter(RoverState s) {
-  if (s != step_.state) motion_.pid.reset();
-  if (step_.state == RoverState::Planning && s != RoverState::Planning) {
-    detour_.cancel_plan();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
+  if (s != step_.state) {   // a mode left for another
+    motion_.pid.reset();
+    if (step_.state == RoverState::Planning) detour_.cancel_plan();   // a plan cut short (a sweep, a STOP, a path from the host, a fault)
+    if (s == RoverState::Rotate) motion_.rotation_starts();
+    if (s == RoverState::Drive) {
+      odometry_.drive_starts(step_.now_ms());
+      motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
+    }
   }
-  if (s == RoverState::Rotate && step_.state != RoverState::Rotate) motion_.rotation_starts();
   if (s == RoverState::BackOff) motion_.back_off_starts();
-  if (s == RoverState::Drive && step_.state != RoverState::Drive) {
-    odometry_.drive_starts(step_.now_ms());
-    motion_.drive_starts(mission_.wp < mission_.path_len ? aim(target()) : 0.0f);
-  }
   if (s == RoverState::Blocked) detour_.blocked_at(step_.now_ms());   // mode_blocked's wait starts (again)
   step_.state = s;
   if (s == RoverState::Idle || s == RoverState::Arrived || s == RoverState::Fault) mission_.end();
