@@ -55,7 +55,7 @@ ROVERNAV_NOINLINE float sequential_update(const float* z, const float* h, const 
 void Estimator::reset() {
   initialised_ = false;
   rejects_in_row_ = 0;
-  rejected_total_ = 0;
+  clear_rejected();
 }
 
 void Estimator::predict(float d, float dth, float var_d, float var_th, uint32_t now_ms) {
@@ -153,7 +153,7 @@ FixResult Estimator::update(const PoseFix& fix, uint32_t now_ms) {
     default:
       break;
   }
-  ++rejected_total_;
+  count_rejected();
   if (++rejects_in_row_ < kMaxRejects) return FixResult::Rejected;
   // The camera has insisted: we were wrong (moved by hand, or lost). Start again from it.
   return start_from(z, r_pos);
