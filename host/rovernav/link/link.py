@@ -83,14 +83,22 @@ def host_hello(boot_id: int) -> Hello:
 class Link:
     """Framed, sequenced messages over a Transport. See the module docstring for the contract."""
 
-    def __init__(self, transport: Transport, hello_resend_s: float = 0.5, key: bytes | None = None) -> None:
+    def __init__(
+        self,
+        transport: Transport,
+        hello_resend_s: float = 0.5,
+        key: bytes | None = None,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
         """hello_resend_s: how often handshake() repeats its HELLO while waiting [s]
         (an Uno resets when its port is opened and misses what is sent during boot).
         key: the link key ([signing]): every frame but HELLO is then signed, and only the
         rover's signed frames (and its HELLO) are taken; handshake() refuses a rover that says it
-        holds no key (a downgrade is not accepted)."""
+        holds no key (a downgrade is not accepted).
+        clock: the signing counter's clock, Unix seconds (the wall clock; the simulator's
+        simulated one, so that a run does not depend on how fast the machine runs it)."""
         self.transport = transport
-        self.signer = None if key is None else Signer(key, SIGN_HOST_TO_ROVER)
+        self.signer = None if key is None else Signer(key, SIGN_HOST_TO_ROVER, clock=clock)
         verifier = None if key is None else Verifier(key, SIGN_ROVER_TO_HOST, require=True)
         self.hello_resend_s = check_number("hello_resend_s", hello_resend_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
         #: The rover's HELLO from the last successful handshake(), else None.

@@ -51,6 +51,7 @@ from .channels import (  # noqa: F401
     json_schema,
     partial_path,
 )
+from .images import encode_jpeg
 from .messages import (
     arena_scene,
     echo_scene,
@@ -64,8 +65,6 @@ from .messages import (
 
 log = logging.getLogger("rovernav.runlog")
 
-#: JPEG quality of the kept images.
-JPEG_QUALITY = 75
 #: The true pose is logged this often [s] (the simulator's step is 0.01 s).
 TRUE_POSE_EVERY_S = 0.05
 #: The driven path is republished this often [s], thinned to points this far apart [m].
@@ -316,19 +315,28 @@ class RunLog(Recorder):
 
     def camera_image(self, t_s: float, frame_bgr: np.ndarray) -> None:
         """A camera frame; kept when the image rate allows (the first, then every 1/image_hz s)."""
+        if self.take_image(t_s):
+            jpeg = encode_jpeg(frame_bgr)
+            if jpeg is not None:
+                self.camera_jpeg(t_s, jpeg)
+
+    def take_image(self, t_s: float) -> bool:
+        """Whether a frame taken at t_s is kept (the image rate allows it); True books it: the
+        caller then logs it with `camera_jpeg` (the simulator's camera process encodes it)."""
         if t_s + 1e-9 < self._next_image_s:
-            return
+            return False
         self._next_image_s = t_s + self.image_period_s
-        import cv2
+        return True
+
+    def camera_jpeg(self, t_s: float, jpeg: bytes) -> None:
+        """A kept camera frame, already JPEG (`encode_jpeg`)."""
         from foxglove.messages import CompressedImage
 
-        ok, jpeg = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-        if ok:
-            self._log(
-                "/camera/image",
-                t_s,
-                CompressedImage(timestamp=self._stamp(t_s), frame_id="camera", data=jpeg.tobytes(), format="jpeg"),
-            )
+        self._log(
+            "/camera/image",
+            t_s,
+            CompressedImage(timestamp=self._stamp(t_s), frame_id="camera", data=jpeg, format="jpeg"),
+        )
 
     def true_pose(self, t_s: float, x_m: float, y_m: float, heading_deg: float) -> None:
         """The simulated rover's pose (thinned to TRUE_POSE_EVERY_S)."""

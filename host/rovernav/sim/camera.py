@@ -270,7 +270,22 @@ class Renderer:
         if scene.marker_kind not in ("colour", "aruco"):
             raise ValueError(f"marker_kind {scene.marker_kind!r}: expected 'colour' or 'aruco'")
 
+    def noise_offsets(self, rng: np.random.Generator) -> tuple[int, int] | None:
+        """The frame's draw from rng: where in the noise bank its fresh noise comes from (row,
+        column), or None for a camera without noise (which draws nothing)."""
+        if self.camera.noise_sigma <= 0:
+            return None
+        oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, size=2))
+        return oy, ox
+
     def render(self, scene: Scene, rng: np.random.Generator) -> np.ndarray:
+        """One frame of the scene; rng chooses its noise (one draw, `noise_offsets`)."""
+        self._check(scene)
+        return self.render_at(scene, self.noise_offsets(rng))
+
+    def render_at(self, scene: Scene, offsets: tuple[int, int] | None) -> np.ndarray:
+        """One frame of the scene with the noise `noise_offsets` chose: the same frame `render`
+        draws from the rng that gave those offsets (the camera process draws this way)."""
         self._check(scene)
         cam = self.camera
         mapping = self._mapping(scene.arena_w_m, scene.arena_h_m)
@@ -299,7 +314,8 @@ class Renderer:
                 (x0, y0, x1, y1), patch = rover
                 frame[y0:y1, x0:x1] = patch
             return frame
-        oy, ox = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, size=2))
+        assert offsets is not None, "a camera with noise needs the frame's noise offsets"
+        oy, ox = offsets
         frame = self._pool_frame((oy * (_NOISE_PAD + 1) + ox) % _NOISE_POOL).copy()
         plus, minus = self._noise  # type: ignore[misc]
 

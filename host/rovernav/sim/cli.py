@@ -166,6 +166,15 @@ def add_sim_parser(sub) -> None:
     )
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.add_argument(
+        "--camera-process",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="render and locate the camera's frames in a second process, beside the mission's loop: "
+        "the same frames and fixes, faster on a machine with a core to spare; never with a video, "
+        "which needs the frames in the loop. auto (the default): on when the run writes no video "
+        "and the machine has two usable cores",
+    )
+    p.add_argument(
         "--setup",
         type=number(0, 2**32 - 1, integer=True),
         metavar="SEED",
@@ -222,6 +231,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from ..runlog.cli import live_port_of
     from ..runlog.writer import RunLogError
     from ..scenario import ScenarioError, load_scenario
+    from .camera_process import spare_core
     from .runner import Faults, SimOptions, Simulation
 
     if args.profile and args.rover != "uno":
@@ -261,6 +271,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
             gyro_dies_at=args.gyro_dies,
         )
         opts = SimOptions(
+            camera_process=args.camera_process == "on"
+            or (args.camera_process == "auto" and args.no_video and spare_core()),
             seed=args.seed,
             strategy=strategy,
             camera_fps=args.camera_fps,

@@ -33,6 +33,7 @@ from ..radio import ChannelConfig
 from ..vehicle_gen import STEP_PERIOD_MS
 from ..vision import Locator
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
+from .camera_process import CameraProcess
 from .channel import SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
 from .setup import Setup
@@ -78,6 +79,9 @@ class SimOptions:
     log_image_hz: float = 2.0  # camera images kept in the log (and shown live) per second
     pace: float = 0.0  # > 0: run at this many times real time (for a live view); 0: flat out
     setup: Setup | None = None  # markers' colours, light, camera pose, plant (sim/setup.py); None: the usual
+    # Render and locate frames in a second process, beside the loop (sim/camera_process.py): the
+    # same frames and fixes, on a core to spare. Not with a frame_sink, which needs the frames.
+    camera_process: bool = False
 
 
 @dataclasses.dataclass
@@ -156,8 +160,18 @@ class Simulation:
                 look, front_bgr=setup.front_bgr, back_bgr=setup.back_bgr, target_bgr=setup.target_bgr
             )
             camera = Camera(calibration=setup.mapping(w_m, h_m), lighting=setup.lighting or lighting, noise_sigma=3.0)
-        self.renderer = Renderer(look, camera, seed=int(self.rng.integers(2**31)))
-        self.locator = Locator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
+        renderer_args = (look, camera, int(self.rng.integers(2**31)))
+        locator_args = (self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
+        self.renderer = Renderer(*renderer_args)
+        self.locator = Locator(*locator_args)
+        self._camera_proc: CameraProcess | None = None
+        if options.camera_process and frame_sink is None:
+            self._camera_proc = CameraProcess(renderer_args, locator_args)
+            # While the camera process starts (its imports, the arena's floor), load the compiled
+            # planner here: the first plan would otherwise pay for it in the loop.
+            from ..planning import warm_up
+
+            warm_up()
         self.scene_base = Scene(
             arena_w_m=scenario.arena.width_m,
             arena_h_m=scenario.arena.height_m,
@@ -169,6 +183,9 @@ class Simulation:
             decoys=setup.decoys(w_m, h_m) if setup is not None else (),
         )
         self.t = 0.0
+        # The host's clock for its signing counter: simulated time from the wall clock at the start,
+        # so a restarted host's counters do not depend on how fast this machine simulates.
+        self._clock_epoch_s = time.time()
         self.samples: list[Sample] = []
         self.frames_rendered = 0
         self.frames_dropped = 0
@@ -271,7 +288,7 @@ class Simulation:
             from ..runlog import RecordingTransport
 
             transport = RecordingTransport(self.transport, self.runlog)
-        self.link = Link(transport, key=self.link_key)
+        self.link = Link(transport, key=self.link_key, clock=lambda: self._clock_epoch_s + self.t)
         spec = self.spec.with_boot_id(HOST_BOOT_ID + self.restarts_done)
         if self.restarts_done and self.runlog is not None:
             self.runlog.new_host(self.t, spec.host_boot_id)
@@ -291,6 +308,14 @@ class Simulation:
     # ---------------------------------------------------------------- the loop
 
     def run(self) -> None:
+        try:
+            self._run()
+        finally:
+            if self._camera_proc is not None:
+                self._camera_proc.close()
+                self._camera_proc = None
+
+    def _run(self) -> None:
         f = self.opt.faults
         restarts = sorted(f.host_restarts)
         resets = sorted(f.firmware_resets)
@@ -359,19 +384,28 @@ class Simulation:
                     rover=(p.x, p.y, p.heading),
                     hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset(),
                 )
-                frame = self.renderer.render(scene, self.rng)
-                self.frames_rendered += 1
-                if self.runlog is not None:
-                    self.runlog.camera_image(now, frame)
-                self._pending_frames.append((now, frame))
-                if self.frame_sink is not None:
-                    self.frame_sink(now, frame, self)
+                if self._camera_proc is not None:
+                    # The same draw, the same frame, rendered in the camera process.
+                    keep = self.runlog is not None and self.runlog.take_image(now)
+                    jpeg = self._camera_proc.submit(now, scene, self.renderer.noise_offsets(self.rng), keep)
+                    self.frames_rendered += 1
+                    if jpeg is not None:
+                        self.runlog.camera_jpeg(now, jpeg)  # type: ignore[union-attr]
+                    self._pending_frames.append((now, None))
+                else:
+                    frame = self.renderer.render(scene, self.rng)
+                    self.frames_rendered += 1
+                    if self.runlog is not None:
+                        self.runlog.camera_image(now, frame)
+                    self._pending_frames.append((now, frame))
+                    if self.frame_sink is not None:
+                        self.frame_sink(now, frame, self)
         processed = False
         while self._pending_frames and self._pending_frames[0][0] + self.opt.camera_latency_s <= now + 1e-9:
             processed = True
             self.transport.set_time(now)
             taken, frame = self._pending_frames.popleft()
-            det = self.locator.locate(frame, taken)
+            det = self.locator.locate(frame, taken) if frame is not None else self._camera_proc.take()  # type: ignore[union-attr]
             if det.rover is not None:
                 x, y, h = det.rover
                 self.mission.on_detection(Detection(taken, x, y, h), now)

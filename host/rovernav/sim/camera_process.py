@@ -1,0 +1,165 @@
+"""The simulated camera on a core of its own: frames drawn and located in a second process.
+
+A frame's journey in the simulator is: render it from the true pose (rovernav.sim.camera), keep
+it in the run log now and then, and after the camera's latency (60 ms, six of the rover's steps)
+hand it to the host's vision code (rovernav.vision.Locator). Rendering and locating are the larger
+part of a simulated mission's work and depend on nothing the loop does in between: the pose and
+the noise are fixed when the frame is taken, and the locator's state is its own. So they can run
+beside the loop rather than in it: `CameraProcess` sends each frame's scene and noise draw to a
+worker process, which renders and locates it while the loop steps on, and takes the detection
+back when its latency has passed.
+
+Nothing changes but where the work is done. The loop draws the frame's noise offsets from the
+simulation's generator at the moment it would have drawn them (`Renderer.noise_offsets`), the
+worker draws with `Renderer.render_at` and locates with a `Locator` made from the same
+configuration, frames are taken back in the order they were sent, and a frame the log keeps is
+encoded in the worker and waited for at once, so the log gets it at the same instant as before.
+tests/test_camera_process.py checks that a mission's samples, events, report and log channels
+are identical with and without it.
+
+It pays on a machine with a core to spare: `rovernav sim` uses it when it writes no video
+(`--camera-process auto`); trials, whose workers fill every core already, do not.
+"""
+
+from __future__ import annotations
+
+import collections
+import multiprocessing as mp
+import os
+import socket
+import subprocess
+import sys
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from ..errors import RovernavError
+
+
+class CameraProcessError(RovernavError):
+    """The camera process stopped or failed (its error is in the message)."""
+
+
+def _serve(conn) -> None:
+    """The worker: render and locate frames until told to stop (None) or the socket closes."""
+    from ..runlog.images import encode_jpeg
+    from ..vision import Locator
+    from .camera import Renderer
+
+    try:
+        renderer_args, locator_args = conn.recv()
+        renderer = Renderer(*renderer_args)
+        locator = Locator(*locator_args)
+        conn.send(("ready", None))
+    except Exception as exc:  # noqa: BLE001 - said to the parent, which raises it there
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    while True:
+        try:
+            job = conn.recv()
+        except EOFError:
+            return
+        if job is None:
+            return
+        taken_s, scene, offsets, keep_image = job
+        try:
+            frame = renderer.render_at(scene, offsets)
+            if keep_image:
+                conn.send(("image", encode_jpeg(frame)))
+            conn.send(("detection", locator.locate(frame, taken_s)))
+        except Exception as exc:  # noqa: BLE001
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+            return
+
+
+class CameraProcess:
+    """Renders and locates frames in a worker process (see the module's doc).
+
+    submit(taken_s, scene, offsets, keep_image) -> the JPEG of the frame when keep_image, else None
+    take() -> the Detection of the oldest frame submitted and not yet taken
+    close()
+    """
+
+    def __init__(self, renderer_args: tuple, locator_args: tuple):
+        # A plain child interpreter on one end of a socket pair (not multiprocessing's spawn, which
+        # imports the caller's __main__ again, nor a fork of a process with OpenCV's, numba's and
+        # the log's threads), running this module; it imports the same rovernav as this process.
+        ours, theirs = socket.socketpair()
+        package_root = str(Path(__file__).resolve().parents[2])
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH")) if p)
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "rovernav.sim.camera_process", str(theirs.fileno())],
+                pass_fds=(theirs.fileno(),),
+                env=env,
+                stdin=subprocess.DEVNULL,
+            )
+        finally:
+            theirs.close()
+        self._conn = Connection(ours.detach())
+        self._conn.send((renderer_args, locator_args))
+        self._detections: collections.deque = collections.deque()
+        self._outstanding = 0
+        # Its "ready" is read with the first answer: the child's start (imports, the arena's floor)
+        # overlaps the simulation's own.
+
+    def _recv(self) -> tuple[str, Any]:
+        while True:
+            try:
+                kind, what = self._conn.recv()
+            except (EOFError, OSError) as exc:
+                raise CameraProcessError(f"the camera process stopped (exit code {self._proc.poll()})") from exc
+            if kind == "error":
+                raise CameraProcessError(f"the camera process failed: {what}")
+            if kind != "ready":
+                return kind, what
+
+    def submit(self, taken_s: float, scene, offsets, keep_image: bool) -> bytes | None:
+        self._conn.send((taken_s, scene, offsets, keep_image))
+        self._outstanding += 1
+        if not keep_image:
+            return None
+        while True:  # the detections of earlier frames may come first
+            kind, what = self._recv()
+            if kind == "image":
+                return what
+            self._detections.append(what)
+            self._outstanding -= 1
+
+    def take(self):
+        if self._detections:
+            return self._detections.popleft()
+        if self._outstanding <= 0:
+            raise CameraProcessError("no frame is waiting to be located")
+        kind, what = self._recv()
+        if kind != "detection":
+            raise CameraProcessError(f"the camera process sent {kind!r} where a detection was due")
+        self._outstanding -= 1
+        return what
+
+    def close(self) -> None:
+        try:
+            self._conn.send(None)
+        except (OSError, ValueError):
+            pass
+        try:
+            self._proc.wait(timeout=2.0)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait(timeout=2.0)
+        self._conn.close()
+
+
+def spare_core() -> bool:
+    """Whether this process may start a camera process: a machine with more than one core that
+    it may use, and not itself a daemonic worker (a trials pool's: those cannot have children)."""
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        usable = os.cpu_count() or 1
+    return usable >= 2 and not mp.current_process().daemon
+
+
+if __name__ == "__main__":  # the camera process: python -m rovernav.sim.camera_process FD
+    _serve(Connection(int(sys.argv[1])))

@@ -1,0 +1,110 @@
+"""The camera process (rovernav.sim.camera_process) changes where frames are drawn and located,
+and nothing else: a mission run with it is the mission run without it, sample for sample, event
+for event, message for message in its log."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from rovernav.evaluation.report import build_report
+from rovernav.scenario import load_scenario
+from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
+from rovernav.sim.camera_process import CameraProcess, CameraProcessError
+from rovernav.sim.runner import Faults, SimOptions, Simulation
+from rovernav.vision import Locator, VisionConfig
+
+
+def _messages(path) -> list[tuple[str, int, bytes]]:
+    """The log's messages in the order written: (topic, log time, data)."""
+    with open(path, "rb") as f:
+        return [(c.topic, m.log_time, m.data) for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
+def _run(tmp_path, monkeypatch, name: str, camera_process: bool, **kw):
+    log = tmp_path / f"{name}-{camera_process}.mcap"
+    # The log's epoch and the host's signing clock's (simulated time from the wall clock's start).
+    monkeypatch.setattr("rovernav.runlog.writer.time.time_ns", lambda: 1_795_000_000_000_000_000)
+    monkeypatch.setattr("rovernav.sim.runner.time.time", lambda: 1_795_000_000.0)
+    sim = Simulation(load_scenario(name), SimOptions(camera_process=camera_process, log=log, **kw))
+    assert (sim._camera_proc is not None) == camera_process
+    sim.run()
+    sim.close_log()
+    return sim, build_report(sim, 1.0), log
+
+
+@pytest.mark.mission
+@pytest.mark.parametrize(
+    ("name", "kw"),
+    [
+        ("seed-fig4-8-unknown-obstacle", {"seed": 3}),
+        # frames with no markers and none at all, and a host that starts again
+        (
+            "seed-large-obstacles",
+            {
+                "seed": 5,
+                "max_time_s": 40.0,
+                "faults": Faults(camera_outages=[(6.0, 2.0)], camera_outage_kind="no_markers", host_restarts=[12.0]),
+            },
+        ),
+    ],
+)
+def test_a_mission_with_the_camera_process_is_the_mission_without_it(tmp_path, monkeypatch, name, kw):
+    inline, inline_report, inline_log = _run(tmp_path, monkeypatch, name, False, **kw)
+    beside, beside_report, beside_log = _run(tmp_path, monkeypatch, name, True, **kw)
+    assert inline.frames_rendered > 300
+    assert beside.frames_rendered == inline.frames_rendered
+    assert beside.samples == inline.samples
+    assert beside.events == inline.events
+    assert beside_report == inline_report
+    a, b = _messages(inline_log), _messages(beside_log)
+    assert len(a) == len(b)
+    images = [m for m in a if m[0] == "/camera/image"]
+    assert len(images) > 10  # the log kept frames, encoded in the camera process in the second run
+    differ = sorted({x[0] for x, y in zip(a, b) if x != y})
+    assert differ == [], differ
+
+
+def test_the_process_draws_and_locates_the_frames_the_loop_would():
+    look, camera = RoverLook(), Camera(lighting=Lighting.random(np.random.default_rng(4)), noise_sigma=3.0)
+    scene = Scene(
+        arena_w_m=2.36,
+        arena_h_m=1.75,
+        obstacles=((1.2, 0.9, 0.2, 0.3),),
+        walls=(),
+        posts=(),
+        target=(2.0, 1.4),
+        marker_kind="colour",
+        decoys=(),
+    )
+    proc = CameraProcess((look, camera, 77), (VisionConfig(), 2.36, 1.75))
+    try:
+        here_r, here_l = Renderer(look, camera, 77), Locator(VisionConfig(), 2.36, 1.75)
+        rng_here, rng_there = np.random.default_rng(9), np.random.default_rng(9)
+        for i in range(40):
+            pose = (0.3 + 0.03 * i, 0.4 + 0.02 * i, 7.0 * i)
+            if i == 20:
+                pose = (-1.0, -1.0, 0.0)  # out of sight: a frame with no rover
+            s = dataclasses.replace(scene, rover=pose)
+            want_frame = here_r.render(s, rng_here)
+            jpeg = proc.submit(i / 30, s, here_r.noise_offsets(rng_there), keep_image=i % 7 == 0)
+            assert (jpeg is not None) == (i % 7 == 0)
+            assert proc.take() == here_l.locate(want_frame, i / 30)
+        with pytest.raises(CameraProcessError, match="no frame is waiting"):
+            proc.take()
+    finally:
+        proc.close()
+
+
+def test_a_camera_process_that_fails_says_why():
+    proc = CameraProcess((RoverLook(), Camera(noise_sigma=3.0), 1), (VisionConfig(), 2.36, 1.75))
+    try:
+        bad = Scene(arena_w_m=2.36, arena_h_m=1.75, obstacles=(), walls=(), posts=(), target=None, marker_kind="paint")
+        proc.submit(0.0, bad, (0, 0), keep_image=False)
+        with pytest.raises(CameraProcessError, match="marker_kind 'paint'"):
+            proc.take()
+    finally:
+        proc.close()
