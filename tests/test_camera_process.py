@@ -90,7 +90,7 @@ def test_the_process_draws_and_locates_the_frames_the_loop_would():
                 pose = (-1.0, -1.0, 0.0)  # out of sight: a frame with no rover
             s = dataclasses.replace(scene, rover=pose)
             want_frame = here_r.render(s, rng_here)
-            jpeg = proc.submit(i / 30, s, here_r.noise_offsets(rng_there), keep_image=i % 7 == 0)
+            jpeg = proc.submit(i / 30, scene, s.rover, s.hidden, here_r.noise_offsets(rng_there), keep_image=i % 7 == 0)
             assert (jpeg is not None) == (i % 7 == 0)
             assert proc.take() == here_l.locate(want_frame, i / 30)
         with pytest.raises(CameraProcessError, match="no frame is waiting"):
@@ -103,7 +103,7 @@ def test_a_camera_process_that_fails_says_why():
     proc = CameraProcess((RoverLook(), Camera(noise_sigma=3.0), 1), (VisionConfig(), 2.36, 1.75))
     try:
         bad = Scene(arena_w_m=2.36, arena_h_m=1.75, obstacles=(), walls=(), posts=(), target=None, marker_kind="paint")
-        proc.submit(0.0, bad, (0, 0), keep_image=False)
+        proc.submit(0.0, bad, (1.0, 1.0, 0.0), frozenset(), (0, 0), keep_image=False)
         with pytest.raises(CameraProcessError, match="marker_kind 'paint'"):
             proc.take()
     finally:

@@ -496,3 +496,22 @@ def test_the_live_view_accepts_only_the_sdk_subprotocol(tmp_path, fig48):
         assert _offer(port, None) == ("HTTP/1.1 400 Bad Request", None)
     finally:
         log.close()
+
+
+def test_the_driven_path_made_as_it_grows_is_the_whole_path_made_again():
+    import random
+
+    from rovernav.runlog.messages import GrowingPoses, poses_along
+
+    def values(poses):
+        return [p.encode() for p in poses]  # a foxglove Pose shows only its encoding
+
+    rnd = random.Random(3)
+    points: list[tuple[float, float, float]] = []
+    growing = GrowingPoses()
+    assert growing.poses(points) == []
+    for n in range(1, 60):
+        for _ in range(rnd.choice((0, 1, 1, 3))):
+            points.append((rnd.uniform(0, 2), rnd.uniform(0, 2), n))
+        assert values(growing.poses(points)) == values(poses_along(points))
+    assert len(points) > 50

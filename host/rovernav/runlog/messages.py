@@ -49,6 +49,26 @@ def poses_along(points) -> list:
     return [pose(p[0], p[1], h) for p, h in zip(points, headings)]
 
 
+class GrowingPoses:
+    """`poses_along` of a list of points that only grows (the driven path), made as it grows: a
+    point's pose is made once its next point is known, and only the last one each time (the whole
+    path again each time made a run's log cost grow with the square of its length)."""
+
+    def __init__(self) -> None:
+        self._done: list = []
+
+    def poses(self, points) -> list:
+        done = self._done
+        for i in range(len(done), len(points) - 1):
+            a, b = points[i], points[i + 1]
+            done.append(pose(a[0], a[1], math.degrees(math.atan2(b[0] - a[0], b[1] - a[1]))))
+        if not points:
+            return []
+        last, n = points[-1], len(points)
+        heading = math.degrees(math.atan2(last[0] - points[n - 2][0], last[1] - points[n - 2][1])) if n > 1 else 0.0
+        return [*done, pose(last[0], last[1], heading)]
+
+
 def message_record(message, seq: int, n: int, t_s: float, counter: int | None = None) -> dict:
     """A link frame as the log keeps it: its payload (what replay decodes) and its fields (to read)."""
     return {

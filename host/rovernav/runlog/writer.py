@@ -53,6 +53,7 @@ from .channels import (  # noqa: F401
 )
 from .images import encode_jpeg
 from .messages import (
+    GrowingPoses,
     arena_scene,
     echo_scene,
     message_record,
@@ -129,6 +130,7 @@ class RunLog(Recorder):
         self._next_arena_s = 0.0
         self._next_time_s = 0.0
         self._driven: list[tuple[float, float, float]] = []
+        self._driven_poses = GrowingPoses()
         self._radio = None  # the simulator's radio counts (watch_radio)
         self._next_radio_s = 0.0
         self._echoes = 0
@@ -419,7 +421,7 @@ class RunLog(Recorder):
         self._log(
             "/rover/driven_path",
             t_s,
-            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=poses_along(self._driven)),
+            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=self._driven_poses.poses(self._driven)),
         )
 
     def _arena(self, t_s: float) -> None:

@@ -42,10 +42,13 @@ class CameraProcessError(RovernavError):
 
 def _serve(conn) -> None:
     """The worker: render and locate frames until told to stop (None) or the socket closes."""
+    import dataclasses
+
     from ..runlog.images import encode_jpeg
     from ..vision import Locator
     from .camera import Renderer
 
+    base = None  # the scene without the rover (sent when it changes)
     try:
         renderer_args, locator_args = conn.recv()
         renderer = Renderer(*renderer_args)
@@ -61,9 +64,12 @@ def _serve(conn) -> None:
             return
         if job is None:
             return
-        taken_s, scene, offsets, keep_image = job
+        if job[0] == "scene":
+            base = job[1]
+            continue
+        taken_s, rover, hidden, offsets, keep_image = job
         try:
-            frame = renderer.render_at(scene, offsets)
+            frame = renderer.render_at(dataclasses.replace(base, rover=rover, hidden=hidden), offsets)
             if keep_image:
                 conn.send(("image", encode_jpeg(frame)))
             conn.send(("detection", locator.locate(frame, taken_s)))
@@ -75,7 +81,8 @@ def _serve(conn) -> None:
 class CameraProcess:
     """Renders and locates frames in a worker process (see the module's doc).
 
-    submit(taken_s, scene, offsets, keep_image) -> the JPEG of the frame when keep_image, else None
+    submit(taken_s, base, rover, hidden, offsets, keep_image) -> the JPEG of the frame when
+        keep_image, else None
     take() -> the Detection of the oldest frame submitted and not yet taken
     close()
     """
@@ -101,6 +108,7 @@ class CameraProcess:
         self._conn.send((renderer_args, locator_args))
         self._detections: collections.deque = collections.deque()
         self._outstanding = 0
+        self._base = None
         # Its "ready" is read with the first answer: the child's start (imports, the arena's floor)
         # overlaps the simulation's own.
 
@@ -115,8 +123,13 @@ class CameraProcess:
             if kind != "ready":
                 return kind, what
 
-    def submit(self, taken_s: float, scene, offsets, keep_image: bool) -> bytes | None:
-        self._conn.send((taken_s, scene, offsets, keep_image))
+    def submit(self, taken_s: float, base, rover, hidden, offsets, keep_image: bool) -> bytes | None:
+        """A frame taken at taken_s of the scene `base` with the rover at `rover` (x_m, y_m,
+        heading_deg) and its `hidden` markers, noise `offsets` (Renderer.noise_offsets)."""
+        if base is not self._base:  # the arena, sent when it is a new one: a frame then costs a pose
+            self._conn.send(("scene", base))
+            self._base = base
+        self._conn.send((taken_s, rover, hidden, offsets, keep_image))
         self._outstanding += 1
         if not keep_image:
             return None

@@ -42,6 +42,8 @@ from .world import World
 STEP_S = STEP_PERIOD_MS / 1000.0  # the rover's step (protocol/vehicle.toml)
 HOST_PERIOD_S = 0.030
 ROVER_CLOCK_SKEW = 0.005  # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
+_NO_MARKERS: frozenset[str] = frozenset()
+_ALL_MARKERS = frozenset({"front", "back", "tag"})  # a camera that sees no markers (--camera-outage-kind)
 HOST_BOOT_ID = 0x484F5354  # "HOST": the simulated host's boot id (+1 per restart)
 
 
@@ -379,20 +381,19 @@ class Simulation:
                 self.frames_dropped += 1
             else:
                 p = self.plant
-                scene = dataclasses.replace(
-                    self.scene_base,
-                    rover=(p.x, p.y, p.heading),
-                    hidden=frozenset({"front", "back", "tag"}) if out == "no_markers" else frozenset(),
-                )
+                rover = (p.x, p.y, p.heading)
+                hidden = _ALL_MARKERS if out == "no_markers" else _NO_MARKERS
                 if self._camera_proc is not None:
                     # The same draw, the same frame, rendered in the camera process.
                     keep = self.runlog is not None and self.runlog.take_image(now)
-                    jpeg = self._camera_proc.submit(now, scene, self.renderer.noise_offsets(self.rng), keep)
+                    offsets = self.renderer.noise_offsets(self.rng)
+                    jpeg = self._camera_proc.submit(now, self.scene_base, rover, hidden, offsets, keep)
                     self.frames_rendered += 1
                     if jpeg is not None:
                         self.runlog.camera_jpeg(now, jpeg)  # type: ignore[union-attr]
                     self._pending_frames.append((now, None))
                 else:
+                    scene = dataclasses.replace(self.scene_base, rover=rover, hidden=hidden)
                     frame = self.renderer.render(scene, self.rng)
                     self.frames_rendered += 1
                     if self.runlog is not None:
