@@ -154,3 +154,22 @@ def test_the_sonar_cone_hears_a_corner_but_not_a_face_met_obliquely():
     assert end.sonar_m(1.0, 1.5, bearing + 10.0, 15.0, 2.0, 40.0) == 2.0  # the corner outside the cone
     # a corner hidden behind the obstacle itself does not echo
     assert end.corner_echo_m(1.0, 1.5, math.degrees(math.atan2(0.6, 0.525)), 2.0, 4.0) == 4.0
+
+
+def test_the_footprint_in_plain_floats_is_the_vector_formula_bit_for_bit():
+    # The clearance test uses the corners as plain floats; the reference is the vector formula.
+    import math
+    import random
+
+    import numpy as np
+
+    from rovernav.sim.world import ROVER_LENGTH_M, ROVER_WIDTH_M, footprint
+
+    rnd = random.Random(11)
+    for _ in range(20000):
+        x, y, heading = rnd.uniform(-1, 3), rnd.uniform(-1, 3), rnd.uniform(-720, 720)
+        h = math.radians(heading)
+        f, r, c = np.array([math.sin(h), math.cos(h)]), np.array([math.cos(h), -math.sin(h)]), np.array([x, y])
+        hl, hw = ROVER_LENGTH_M / 2, ROVER_WIDTH_M / 2
+        want = np.array([c + hl * f - hw * r, c + hl * f + hw * r, c - hl * f + hw * r, c - hl * f - hw * r])
+        assert np.array_equal(footprint(x, y, heading), want)

@@ -53,12 +53,20 @@ class Box:
 
 def footprint(x_m: float, y_m: float, heading_deg: float) -> np.ndarray:
     """The rover's rectangle as 4 corners (front-left, front-right, back-right, back-left)."""
+    return np.array(_corners(x_m, y_m, heading_deg))
+
+
+def _corners(x_m: float, y_m: float, heading_deg: float) -> list[tuple[float, float]]:
+    """`footprint` in plain floats (the clearance test runs it most steps), each coordinate the
+    same sum as numpy's centre + half-length * forward -/+ half-width * right."""
     h = math.radians(heading_deg)
-    f = np.array([math.sin(h), math.cos(h)])  # forward
-    r = np.array([math.cos(h), -math.sin(h)])  # right
-    c = np.array([x_m, y_m])
+    fx, fy = math.sin(h), math.cos(h)  # forward
+    rx, ry = math.cos(h), -math.sin(h)  # right
     hl, hw = ROVER_LENGTH_M / 2, ROVER_WIDTH_M / 2
-    return np.array([c + hl * f - hw * r, c + hl * f + hw * r, c - hl * f + hw * r, c - hl * f - hw * r])
+    ax, ay = x_m + hl * fx, y_m + hl * fy  # the front's middle
+    bx, by = x_m - hl * fx, y_m - hl * fy  # the back's
+    wx, wy = hw * rx, hw * ry
+    return [(ax - wx, ay - wy), (ax + wx, ay + wy), (bx + wx, by + wy), (bx - wx, by - wy)]
 
 
 def _poly_box_distance(poly: np.ndarray, box: tuple[float, float, float, float]) -> float:
@@ -209,7 +217,7 @@ class World:
     def _distances(self, x_m: float, y_m: float, heading_deg: float, best: float, cull: bool):
         """(distance, what) for each obstacle the footprint might be nearer to than `best`
         (every obstacle when not `cull`); what is ("box" | "wall" | "post", index)."""
-        pts = [(float(p[0]), float(p[1])) for p in footprint(x_m, y_m, heading_deg)]
+        pts = _corners(x_m, y_m, heading_deg)
         for i, b in enumerate(self.boxes):
             x0, y0, x1, y1 = b.bounds
             # The footprint lies within HALF_DIAGONAL of the centre: an obstacle further than that
@@ -234,9 +242,9 @@ class World:
 
     def clearance_m(self, x_m: float, y_m: float, heading_deg: float) -> float:
         """Distance from the rover's footprint to the nearest obstacle or wall (0: contact)."""
-        poly = footprint(x_m, y_m, heading_deg)
-        xs, ys = poly[:, 0], poly[:, 1]
-        best = max(0.0, float(min(xs.min(), ys.min(), self.width_m - xs.max(), self.height_m - ys.max())))
+        pts = _corners(x_m, y_m, heading_deg)
+        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+        best = max(0.0, min(min(xs), min(ys), self.width_m - max(xs), self.height_m - max(ys)))
         for d, _ in self._distances(x_m, y_m, heading_deg, best, cull=True):
             best = min(best, d)
         return best
