@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
 from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.vision import Locator, VisionConfig
-from rovernav.vision.colour_markers import ColourMarkers
+from rovernav.vision.colour_markers import _ONES_1X3, _THREE, ColourMarkers
 from rovernav.vision.colour_markers_reference import ReferenceColourMarkers, reference_locator
 
 W, H = 2.36, 1.75
@@ -141,3 +142,16 @@ def test_cold_frames_give_the_references_fixes_bit_for_bit():
 )
 def test_other_configurations_and_frame_sizes_give_the_references_fixes(table, size):
     _check_sequence(VisionConfig.from_dict(table), 21, 60, width_px=size[0], height_px=size[1])
+
+
+def test_the_grey_level_is_numpys_mean_for_every_sum_of_three_channels():
+    """The fast grey level (the channels' sum by cv2.transform, divided by float32(3)) against what
+    the reference computed (numpy's mean over the channels: a float32 sum divided by intp(3) in
+    float64, rounded to float32), for every sum a pixel's three channels can have."""
+    s = np.arange(766)
+    a = np.minimum(s, 255)
+    b = np.minimum(s - a, 255)
+    pixels = np.stack([a, b, s - a - b], axis=1).astype(np.uint8).reshape(1, -1, 3).astype(np.float32)
+    want = pixels.mean(axis=2)
+    got = cv2.transform(pixels, _ONES_1X3) / _THREE
+    assert np.array_equal(got.view(np.uint32), want.view(np.uint32))

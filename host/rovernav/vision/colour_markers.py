@@ -31,6 +31,8 @@ _HUE_MARGIN = 4
 # "Clearly coloured": saturated and bright enough for the hue to mean something (HSV bounds).
 _STRONG_LO = np.array([0, 60, 60], np.uint8)
 _STRONG_HI = np.array([179, 255, 255], np.uint8)
+_THREE = np.float32(3)
+_ONES_1X3 = np.ones((1, 3), np.float32)  # cv2.transform: the sum of a pixel's channels
 
 
 @dataclass(frozen=True)
@@ -205,14 +207,25 @@ class ColourMarkers:
         # (say the yellow target under the orange front marker, whose chroma points much the same
         # way) are left out.
         support = cv2.dilate(strict, self._kernel3)
-        foreign = cv2.bitwise_and(
-            cv2.inRange(hsv, _STRONG_LO, _STRONG_HI),
-            cv2.bitwise_not(cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])),
+        # use = support and not foreign, foreign = strong and not gate: on 0/255 masks a saturating
+        # a - b is a and not b.
+        use = cv2.subtract(
+            support,
+            cv2.subtract(
+                cv2.inRange(hsv, _STRONG_LO, _STRONG_HI), cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])
+            ),
         )
-        use = cv2.bitwise_and(support, cv2.bitwise_not(foreign))
         winf = win.astype(np.float32)
-        chroma = winf - winf.mean(axis=2, keepdims=True)
-        ref = chroma[core > 0].mean(axis=0)
+        # chroma and ref are what winf - winf.mean(axis=2, keepdims=True) and chroma[core > 0].mean(axis=0)
+        # give, bit for bit, with less overhead: numpy's mean is a float32 sum (here of three integers,
+        # exact in any order) divided by intp(n) in float64 and rounded to float32, which equals the
+        # float32 division (double rounding is innocuous for a quotient: 53 >= 2 * 24 + 2 bits).
+        grey = cv2.transform(winf, _ONES_1X3)
+        grey /= _THREE
+        chroma = winf - grey[..., None]
+        in_core = np.compress(core.reshape(-1), chroma.reshape(-1, 3), axis=0)
+        ref = np.add.reduce(in_core, axis=0)
+        ref /= np.float32(len(in_core))
         ref_sq = float(ref @ ref)
         if ref_sq < 1e-6:
             return None
