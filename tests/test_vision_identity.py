@@ -155,3 +155,30 @@ def test_the_grey_level_is_numpys_mean_for_every_sum_of_three_channels():
     want = pixels.mean(axis=2)
     got = cv2.transform(pixels, _ONES_1X3) / _THREE
     assert np.array_equal(got.view(np.uint32), want.view(np.uint32))
+
+
+def test_the_hsv_conversion_is_the_same_whatever_a_pixels_place_in_its_row():
+    """_refine converts a strip 32k pixels wide and cuts the window out of it, where the reference
+    converted the window alone: OpenCV's SIMD code (whole blocks) and its scalar code (a row's last
+    pixels) must give every BGR colour the same HSV, as they do on this build (all 2^24 colours)."""
+    c = np.arange(2**24, dtype=np.uint32)
+    bgr = np.stack([(c >> 16) & 255, (c >> 8) & 255, c & 255], axis=1).astype(np.uint8)
+    simd = cv2.cvtColor(bgr.reshape(-1, 32, 3), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+    scalar = cv2.cvtColor(bgr.reshape(-1, 1, 3), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+    assert np.array_equal(simd, scalar)
+    n = 2**24 // 26 * 26
+    assert np.array_equal(cv2.cvtColor(bgr[:n].reshape(-1, 26, 3), cv2.COLOR_BGR2HSV).reshape(-1, 3), simd[:n])
+
+
+def test_erosion_and_dilation_of_a_view_read_nothing_beyond_it():
+    """_mask and _refine erode and dilate views (crops, cut strips): OpenCV must treat a view's edges
+    as the image's edges, as it treats a whole array's."""
+    full = np.full((12, 12), 255, np.uint8)
+    full[:, 6] = 0
+    full[8, :] = 0
+    view = full[2:8, 0:6]  # all 255, next to zeros
+    k = np.ones((3, 3), np.uint8)
+    assert cv2.erode(view, k).min() == 255
+    assert cv2.morphologyEx(view, cv2.MORPH_CLOSE, k).min() == 255
+    inverse = 255 - full
+    assert cv2.dilate(inverse[2:8, 0:6], k).max() == 0  # all 0, next to 255s
