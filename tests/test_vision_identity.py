@@ -14,13 +14,14 @@ import numpy as np
 import pytest
 
 from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
-from rovernav.vision import Locator, VisionConfig
+from rovernav.vision import Calibration, Locator, VisionConfig
 from rovernav.vision.colour_markers import _ONES_1X3, _THREE, ColourMarkers
 from rovernav.vision.colour_markers_reference import ReferenceColourMarkers, reference_locator
 
 W, H = 2.36, 1.75
 NAMES = ColourMarkers.NAMES
 PIXEL = {"target": "target", "rover_front": "front", "rover_back": "back"}
+OBLIQUE = [[70.0, 440.0], [590.0, 455.0], [540.0, 60.0], [120.0, 40.0]]  # a tilted, turned camera
 
 
 def _scenes(rng: np.random.Generator, n: int, cold: bool = False):
@@ -70,7 +71,8 @@ def _scenes(rng: np.random.Generator, n: int, cold: bool = False):
 
 def _renderer(cfg: VisionConfig, rng: np.random.Generator, seed: int, width_px=640, height_px=480) -> Renderer:
     light = Lighting.random(rng) if seed % 3 else Lighting(level=0.6, gradient=0.35, vignette=0.4)  # dim, uneven
-    cam = Camera(width_px=width_px, height_px=height_px, lighting=light, noise_sigma=float(rng.uniform(2.0, 8.0)))
+    cal = None if cfg.calibration is None else Calibration.from_config(cfg.calibration)
+    cam = Camera(width_px, height_px, cal, light, noise_sigma=float(rng.uniform(2.0, 8.0)))
     return Renderer(RoverLook.for_vision(cfg), cam, seed=seed)
 
 
@@ -138,6 +140,7 @@ def test_cold_frames_give_the_references_fixes_bit_for_bit():
         ({"open_kernel_px": 1, "close_kernel_px": 1, "min_blob_area_px": 10}, (640, 480)),
         ({}, (641, 479)),  # odd sizes: windows clipped by the frame are odd too
         ({"downscale": 3}, (500, 373)),
+        ({"calibration": {"corners_px": OBLIQUE, "width_m": W, "height_m": H}}, (640, 480)),  # no shortcut
     ],
 )
 def test_other_configurations_and_frame_sizes_give_the_references_fixes(table, size):
@@ -182,3 +185,24 @@ def test_erosion_and_dilation_of_a_view_read_nothing_beyond_it():
     assert cv2.morphologyEx(view, cv2.MORPH_CLOSE, k).min() == 255
     inverse = 255 - full
     assert cv2.dilate(inverse[2:8, 0:6], k).max() == 0  # all 0, next to 255s
+
+
+@pytest.mark.parametrize("size", [(640, 480), (641, 479), (320, 240), (1920, 1080)])
+def test_one_point_to_the_arena_is_what_the_matrix_product_gives(size):
+    """Calibration.to_arena's shortcut for one (u, v) tuple through a straight-down mapping, against
+    Calibration._apply, bit for bit: over and beyond the frame, at its edges and at exact zeros."""
+    cal = Calibration.straight_down(*size, W, H)
+    assert cal._axis_scales is not None  # the shortcut is taken
+    rng = np.random.default_rng(size[0])
+    w, h = size
+    us = np.concatenate([rng.uniform(-w, 2 * w, 20000), [0.0, -0.0, -0.5, w - 0.5, w, 1e-300, -1e-300]])
+    vs = np.concatenate([rng.uniform(-h, 2 * h, 20000), [0.0, -0.0, -0.5, h - 0.5, h, -1e-300, 1e-300]])
+    for u, v in zip(us.tolist(), vs.tolist()):
+        got = cal.to_arena((u, v))
+        want = Calibration._apply(cal.arena_from_pixel, (u, v))
+        assert got.shape == want.shape == (2,) and got.tobytes() == want.tobytes(), (u, v)
+
+
+def test_an_oblique_calibration_takes_no_shortcut():
+    cal = Calibration.from_corners(OBLIQUE, W, H)
+    assert cal._axis_scales is None

@@ -1,17 +1,22 @@
-"""The colour-marker finder as it was before it was made faster (commit 8c6a53c), kept as the
+"""The colour-marker locator as it was before it was made faster (commit 8c6a53c), kept as the
 reference the fast one must agree with bit for bit.
 
-`ReferenceColourMarkers` is `ColourMarkers` with that version's search, step for step:
-tests/test_vision_identity.py checks that both give equal `BlobSearch`es (and a `Locator` equal
-`Detection`s) on tracking sequences and cold frames, and benchmarks/bench_vision.py times both in
-the same run. Nothing else uses it; do not change it to follow the fast version.
+`ReferenceColourMarkers` is `ColourMarkers` with that version's search, step for step, and
+`ReferenceLocator` a Locator that uses it and maps pixels to the arena as was done then (always
+Calibration._apply). tests/test_vision_identity.py checks that the fast and the reference finders
+give equal `BlobSearch`es and the two locators equal `Detection`s on tracking sequences and cold
+frames; benchmarks/bench_vision.py times both in the same run. Nothing else uses this module; do
+not change it to follow the fast version.
 """
 
 from __future__ import annotations
 
+import copy
+
 import cv2
 import numpy as np
 
+from .calibration import Calibration
 from .colour_markers import _STRONG_HI, _STRONG_LO, Blob, BlobSearch, ColourMarkers
 from .config import VisionConfig
 from .locator import Locator
@@ -148,12 +153,28 @@ class ReferenceColourMarkers(ColourMarkers):
         return Blob(u, v, total)
 
 
+class ReferenceLocator(Locator):
+    """A Locator as it was before: colour markers found by ReferenceColourMarkers, and pixels
+    mapped to the arena always through Calibration._apply (no shortcut for one point)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        if self._colour is not None:
+            self._colour = ReferenceColourMarkers(self.config)
+        self._plain: dict[int, Calibration] = {}
+
+    def calibration_for(self, width_px: int, height_px: int) -> Calibration:
+        cal = super().calibration_for(width_px, height_px)
+        if id(cal) not in self._plain:
+            plain = copy.copy(cal)
+            plain._axis_scales = None
+            self._plain[id(cal)] = plain
+        return self._plain[id(cal)]
+
+
 def reference_locator(
     config: VisionConfig | None = None, arena_w_m: float | None = None, arena_h_m: float | None = None
 ) -> Locator:
-    """A Locator that finds colour markers with ReferenceColourMarkers (the same as Locator otherwise)."""
+    """A ReferenceLocator (arena size as for Locator: the defaults when not given)."""
     kw = {k: v for k, v in (("arena_w_m", arena_w_m), ("arena_h_m", arena_h_m)) if v is not None}
-    loc = Locator(config, **kw)
-    if loc._colour is not None:
-        loc._colour = ReferenceColourMarkers(loc.config)
-    return loc
+    return ReferenceLocator(config, **kw)
