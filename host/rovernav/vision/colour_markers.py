@@ -265,7 +265,7 @@ class ColourMarkers:
         # float32 division (double rounding is innocuous for a quotient: 53 >= 2 * 24 + 2 bits).
         grey = cv2.transform(winf, _ONES_1X3)
         grey /= _THREE
-        chroma = winf - grey[..., None]
+        chroma = cv2.subtract(winf, cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))  # a float32 difference, as numpy's
         in_core = np.compress(core.reshape(-1), chroma.reshape(-1, 3), axis=0)
         ref = np.add.reduce(in_core, axis=0)
         ref /= np.float32(len(in_core))
