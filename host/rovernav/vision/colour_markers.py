@@ -266,16 +266,17 @@ class ColourMarkers:
         grey = cv2.transform(winf, _ONES_1X3)
         grey /= _THREE
         chroma = cv2.subtract(winf, cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))  # a float32 difference, as numpy's
-        in_core = np.compress(core.reshape(-1), chroma.reshape(-1, 3), axis=0)
+        in_core = chroma.reshape(-1, 3).compress(core.reshape(-1), axis=0)  # chroma[core > 0], rows in order
         ref = np.add.reduce(in_core, axis=0)
         ref /= np.float32(len(in_core))
         ref_sq = float(ref @ ref)
         if ref_sq < 1e-6:
             return None
         weight = (chroma @ (ref / ref_sq)) * (use > 0)
-        total = float(weight.sum())
+        # np.add.reduce is what weight.sum() calls, without the Python wrapper.
+        total = float(np.add.reduce(weight, axis=None))
         if total <= 0:
             return None
-        u = float(weight.sum(axis=0) @ np.arange(x0, x1, dtype=np.float32)) / total
-        v = float(weight.sum(axis=1) @ np.arange(y0, y1, dtype=np.float32)) / total
+        u = float(np.add.reduce(weight, axis=0) @ np.arange(x0, x1, dtype=np.float32)) / total
+        v = float(np.add.reduce(weight, axis=1) @ np.arange(y0, y1, dtype=np.float32)) / total
         return Blob(u, v, total)
