@@ -15,6 +15,13 @@ Two passes, for speed and precision:
    that moves by a tenth of a pixel moves the centroid with it; nothing is ever rounded to whole
    pixels (the seed's int() centroids made a still rover's heading jump by 2.5 degrees).
    The backgrounds the markers sit on (floor, dark rover body) must be near-neutral for this.
+
+While tracking, each marker is first looked for in a window around where it was in the last frame
+(`find`'s hints). The code takes shortcuts there that give the same values bit for bit as the
+plain version, kept as ReferenceColourMarkers in colour_markers_reference.py, which
+tests/test_vision_identity.py runs beside this one: the opening and closing on a crop of the mask,
+colour conversions on strips 32k pixels wide cut to the window, numpy's means without their
+wrappers. Each shortcut says why it changes no value.
 """
 
 from __future__ import annotations
@@ -138,10 +145,11 @@ class ColourMarkers:
         non-zero, at (x, y) in the whole; (None, 0, 0) when it is zero everywhere.
 
         The thresholded mask is mostly zero (a marker or three, a speck or two), so the opening and
-        the closing run only on its non-zero pixels' bounding box grown by `_margin`, which holds
-        everything they can turn non-zero and everything that decides those pixels (outside it the
-        mask stays zero, which erode and dilate read as they read what lies beyond the image's
-        edge, except where erode meets a non-zero pixel: the margin keeps those out of its reach).
+        the closing run only on a crop of it: its non-zero pixels' bounding box grown by `_margin`.
+        That is the whole mask's result, cut out: erode and dilate ignore what lies beyond a
+        crop's edge, where the whole mask has zeros; to a dilation zeros are nothing either, and an
+        erosion can only tell them apart next to a pixel that is non-zero, which at every step the
+        margin keeps more than a kernel's reach inside the crop. Outside the crop the result is zero.
         """
         lo, hi = self.ranges[name]
         mask = cv2.inRange(hsv, lo, hi)
