@@ -10,9 +10,9 @@ alone, random poses, no memory: the whole frame is searched). Times are the medi
 percentile over a run's frames, then the median of those over the runs (each run a new seed: new
 light, new poses). Accuracy is over all runs' frames together.
 
-For the colour markers the previous implementation of the finder
-(rovernav.vision.colour_markers_reference) locates every frame too, its order with the current one
-alternating from frame to frame: "ref ms" is its median time, "speed-up" the median over the runs
+For the colour markers the previous implementation (rovernav.vision.colour_markers_reference:
+the marker finder and the pixel-to-arena mapping as they were before they were made faster)
+locates every frame too, its order with the current one alternating from frame to frame: "ref ms" is its median time, "speed-up" the median over the runs
 of its median divided by the current one's, both measured on the same frames in the same run; the
 two must give the same detections, bit for bit ("differ" counts the frames where they do not).
 """
