@@ -12,9 +12,10 @@ light, new poses). Accuracy is over all runs' frames together.
 
 For the colour markers the previous implementation (rovernav.vision.colour_markers_reference:
 the marker finder and the pixel-to-arena mapping as they were before they were made faster)
-locates every frame too, its order with the current one alternating from frame to frame: "ref ms" is its median time, "speed-up" the median over the runs
-of its median divided by the current one's, both measured on the same frames in the same run; the
-two must give the same detections, bit for bit ("differ" counts the frames where they do not).
+locates every frame too, its order with the current one alternating from frame to frame. "ref ms"
+is its median time, "speed-up" the median over the runs of its median divided by the current
+one's, both measured on the same frames in the same run; the two must give the same detections,
+bit for bit ("differ" counts the frames where they do not).
 """
 
 from __future__ import annotations
