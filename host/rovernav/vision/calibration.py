@@ -36,6 +36,7 @@ class Calibration:
             raise ValueError(f"pixel_from_arena: expected an invertible 3x3 matrix, got {m!r}")
         self.pixel_from_arena = m / m[2, 2]
         self.arena_from_pixel = np.linalg.inv(self.pixel_from_arena)
+        self._axis_scales = _axis_scales(self.arena_from_pixel)
         self.arena_w_m = float(arena_w_m)
         self.arena_h_m = float(arena_h_m)
 
@@ -68,6 +69,11 @@ class Calibration:
 
     def to_arena(self, pts_px) -> np.ndarray:
         """(u, v) pixels, shape (2,) or (N, 2) -> (x, y) metres, same shape."""
+        if self._axis_scales is not None and type(pts_px) is tuple and len(pts_px) == 2:
+            # One point (the locator's markers) through a mapping that only scales and shifts each
+            # axis (a camera straight down): what _apply computes, without its array overhead.
+            ax, bx, ay, by = self._axis_scales
+            return np.array((pts_px[0] * ax + bx, pts_px[1] * ay + by))
         return self._apply(self.arena_from_pixel, pts_px)
 
     def to_pixels(self, pts_m) -> np.ndarray:
@@ -85,6 +91,16 @@ class Calibration:
         num = m[:2, :2] @ np.array([x_m, y_m]) + m[:2, 2]
         den = float(m[2, :2] @ np.array([x_m, y_m]) + m[2, 2])
         return (m[:2, :2] * den - np.outer(num, m[2, :2])) / (den * den)
+
+
+def _axis_scales(m: np.ndarray) -> tuple[float, float, float, float] | None:
+    """(ax, bx, ay, by) when m maps (u, v) to (ax * u + bx, ay * v + by), with bx and by not zero;
+    else None. For such an m, _apply gives those values bit for bit: the products with m's zeros
+    are zeros, which change no sum with a non-zero term however the matrix product orders or fuses
+    its operations, the denominator is exactly 1 and a division by 1 is exact."""
+    if m[0, 1] == 0 and m[1, 0] == 0 and m[2, 0] == 0 and m[2, 1] == 0 and m[2, 2] == 1 and m[0, 2] and m[1, 2]:
+        return float(m[0, 0]), float(m[0, 2]), float(m[1, 1]), float(m[1, 2])
+    return None
 
 
 def heading_deg(back_m, front_m) -> float:

@@ -15,6 +15,13 @@ Two passes, for speed and precision:
    that moves by a tenth of a pixel moves the centroid with it; nothing is ever rounded to whole
    pixels (the seed's int() centroids made a still rover's heading jump by 2.5 degrees).
    The backgrounds the markers sit on (floor, dark rover body) must be near-neutral for this.
+
+While tracking, each marker is first looked for in a window around where it was in the last frame
+(`find`'s hints). The code takes shortcuts there that give the same values bit for bit as the
+plain version, kept as ReferenceColourMarkers in colour_markers_reference.py, which
+tests/test_vision_identity.py runs beside this one: the opening and closing on a crop of the mask,
+colour conversions on strips 32k pixels wide cut to the window, numpy's means without their
+wrappers. Each shortcut says why it changes no value.
 """
 
 from __future__ import annotations
@@ -31,6 +38,8 @@ _HUE_MARGIN = 4
 # "Clearly coloured": saturated and bright enough for the hue to mean something (HSV bounds).
 _STRONG_LO = np.array([0, 60, 60], np.uint8)
 _STRONG_HI = np.array([179, 255, 255], np.uint8)
+_THREE = np.float32(3)
+_ONES_1X3 = np.ones((1, 3), np.float32)  # cv2.transform: the sum of a pixel's channels
 
 
 @dataclass(frozen=True)
@@ -87,6 +96,12 @@ class ColourMarkers:
         self._open = cv2.getStructuringElement(cv2.MORPH_RECT, (config.open_kernel_px,) * 2)
         self._close = cv2.getStructuringElement(cv2.MORPH_RECT, (config.close_kernel_px,) * 2)
         self._kernel3 = np.ones((3, 3), np.uint8)
+        # How far beyond the thresholded mask's non-zero pixels the opening and closing can reach or
+        # look (a rect kernel of k pixels reaches k // 2 either way): the opening's dilation, the
+        # closing's dilation, and its erosion looking one reach further (see _mask).
+        k_open = config.open_kernel_px // 2 if config.open_kernel_px > 1 else 0
+        k_close = config.close_kernel_px // 2 if config.close_kernel_px > 1 else 0
+        self._margin = k_open + 2 * k_close + 1
         self._gate_lo = {
             n: np.array([max(int(lo[0]) - _HUE_MARGIN, 0), 0, 0], np.uint8) for n, (lo, hi) in self.ranges.items()
         }
@@ -121,18 +136,35 @@ class ColourMarkers:
             hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
             for name in rest:
                 out[name] = self._choose(
-                    name, frame_bgr, self._mask(name, hsv), self.config.min_blob_area_px / (s * s), s
+                    name, frame_bgr, hsv.shape[:2], self._mask(name, hsv), self.config.min_blob_area_px / (s * s), s
                 )
         return out
 
-    def _mask(self, name: str, hsv: np.ndarray) -> np.ndarray:
+    def _mask(self, name: str, hsv: np.ndarray) -> tuple[np.ndarray | None, int, int]:
+        """The colour's mask, opened and closed, as (crop, x, y): the part of it where it can be
+        non-zero, at (x, y) in the whole; (None, 0, 0) when it is zero everywhere.
+
+        The thresholded mask is mostly zero (a marker or three, a speck or two), so the opening and
+        the closing run only on a crop of it: its non-zero pixels' bounding box grown by `_margin`.
+        That is the whole mask's result, cut out: erode and dilate ignore what lies beyond a
+        crop's edge, where the whole mask has zeros; to a dilation zeros are nothing either, and an
+        erosion can only tell them apart next to a pixel that is non-zero, which at every step the
+        margin keeps more than a kernel's reach inside the crop. Outside the crop the result is zero.
+        """
         lo, hi = self.ranges[name]
         mask = cv2.inRange(hsv, lo, hi)
+        x, y, w, h = cv2.boundingRect(mask)
+        if w == 0:
+            return None, 0, 0
+        m = self._margin
+        mh, mw = mask.shape[:2]
+        x0, y0 = max(x - m, 0), max(y - m, 0)
+        crop = mask[y0 : min(y + h + m, mh), x0 : min(x + w + m, mw)]
         if self.config.open_kernel_px > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open)
+            crop = cv2.morphologyEx(crop, cv2.MORPH_OPEN, self._open)
         if self.config.close_kernel_px > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close)
-        return mask
+            crop = cv2.morphologyEx(crop, cv2.MORPH_CLOSE, self._close)
+        return crop, x0, y0
 
     def _find_in_window(self, name: str, frame: np.ndarray, hint: tuple[float, float]) -> BlobSearch | None:
         s = self.config.downscale
@@ -145,9 +177,16 @@ class ColourMarkers:
             return None
         win = frame[y0:y1, x0:x1]
         small = win if s == 1 else cv2.resize(win, ((x1 - x0) // s, (y1 - y0) // s), interpolation=cv2.INTER_AREA)
-        mask = self._mask(name, cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
+        hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
         found = self._choose(
-            name, frame, mask, self.config.min_blob_area_px / (s * s), s, origin=(x0, y0), edge_ok=False
+            name,
+            frame,
+            hsv.shape[:2],
+            self._mask(name, hsv),
+            self.config.min_blob_area_px / (s * s),
+            s,
+            (x0, y0),
+            False,
         )
         return found if found.blob is not None else None
 
@@ -155,18 +194,24 @@ class ColourMarkers:
         self,
         name: str,
         frame: np.ndarray,
-        mask: np.ndarray,
+        mask_hw: tuple[int, int],
+        cleaned: tuple[np.ndarray | None, int, int],
         min_area_small: float,
         s: int,
         origin: tuple[int, int] = (0, 0),
         edge_ok: bool = True,
     ) -> BlobSearch:
+        """The one plausible blob of a mask of mask_hw pixels, given as `_mask` crops it."""
+        mask, cx, cy = cleaned
+        if mask is None:
+            return BlobSearch(None, "not found", 0)
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         blobs = []
-        mh, mw = mask.shape[:2]
+        mh, mw = mask_hw
         for c in contours:
             x, y, w, h = cv2.boundingRect(c)
             area = cv2.countNonZero(mask[y : y + h, x : x + w])
+            x, y = x + cx, y + cy
             if area >= min_area_small:
                 if not edge_ok and (x == 0 or y == 0 or x + w >= mw or y + h >= mh):
                     return BlobSearch(None, "at the window's edge", 0)  # let the whole frame decide
@@ -191,9 +236,19 @@ class ColourMarkers:
         x0, y0 = max(x - pad, 0), max(y - pad, 0)
         x1, y1 = min(x + w + pad, fw), min(y + h + pad, fh)
         win = frame[y0:y1, x0:x1]
-        hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
+        # The colour masks are per pixel: they are made on a strip of whole multiples of 32 pixels
+        # holding the window, where OpenCV's HSV conversion and inRange run at full SIMD width
+        # (several times faster than on a window some 26 pixels wide, whose rows end in scalar
+        # code), then cut to the window. The two paths convert every BGR colour alike (a test goes
+        # through all 2^24); the erosion and dilation run on the window's own extent (a view: they
+        # read nothing beyond it), as before.
+        wide = -(-(x1 - x0) // 32) * 32
+        sx0 = min(x0, fw - wide) if wide <= fw else x0
+        sx1 = max(sx0 + wide, x1)
+        hsv = cv2.cvtColor(frame[y0:y1, sx0:sx1], cv2.COLOR_BGR2HSV)
+        cut = slice(x0 - sx0, x1 - sx0)
         lo, hi = self.ranges[name]
-        strict = cv2.inRange(hsv, lo, hi)
+        strict = cv2.inRange(hsv, lo, hi)[:, cut]
         if not cv2.countNonZero(strict):
             return None
         core = cv2.erode(strict, self._kernel3)
@@ -205,21 +260,31 @@ class ColourMarkers:
         # (say the yellow target under the orange front marker, whose chroma points much the same
         # way) are left out.
         support = cv2.dilate(strict, self._kernel3)
-        foreign = cv2.bitwise_and(
-            cv2.inRange(hsv, _STRONG_LO, _STRONG_HI),
-            cv2.bitwise_not(cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])),
+        # use = support and not foreign, foreign = strong and not gate: on 0/255 masks a saturating
+        # a - b is a and not b.
+        foreign = cv2.subtract(
+            cv2.inRange(hsv, _STRONG_LO, _STRONG_HI), cv2.inRange(hsv, self._gate_lo[name], self._gate_hi[name])
         )
-        use = cv2.bitwise_and(support, cv2.bitwise_not(foreign))
+        use = cv2.subtract(support, foreign[:, cut])
         winf = win.astype(np.float32)
-        chroma = winf - winf.mean(axis=2, keepdims=True)
-        ref = chroma[core > 0].mean(axis=0)
+        # chroma and ref are what winf - winf.mean(axis=2, keepdims=True) and chroma[core > 0].mean(axis=0)
+        # give, bit for bit, with less overhead: numpy's mean is a float32 sum (here of three integers,
+        # exact in any order) divided by intp(n) in float64 and rounded to float32, which equals the
+        # float32 division (double rounding is innocuous for a quotient: 53 >= 2 * 24 + 2 bits).
+        grey = cv2.transform(winf, _ONES_1X3)
+        grey /= _THREE
+        chroma = cv2.subtract(winf, cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))  # a float32 difference, as numpy's
+        in_core = chroma.reshape(-1, 3).compress(core.reshape(-1), axis=0)  # chroma[core > 0], rows in order
+        ref = np.add.reduce(in_core, axis=0)
+        ref /= np.float32(len(in_core))
         ref_sq = float(ref @ ref)
         if ref_sq < 1e-6:
             return None
         weight = (chroma @ (ref / ref_sq)) * (use > 0)
-        total = float(weight.sum())
+        # np.add.reduce is what weight.sum() calls, without the Python wrapper.
+        total = float(np.add.reduce(weight, axis=None))
         if total <= 0:
             return None
-        u = float(weight.sum(axis=0) @ np.arange(x0, x1, dtype=np.float32)) / total
-        v = float(weight.sum(axis=1) @ np.arange(y0, y1, dtype=np.float32)) / total
+        u = float(np.add.reduce(weight, axis=0) @ np.arange(x0, x1, dtype=np.float32)) / total
+        v = float(np.add.reduce(weight, axis=1) @ np.arange(y0, y1, dtype=np.float32)) / total
         return Blob(u, v, total)
