@@ -11,6 +11,7 @@ import pytest
 from mcap.reader import make_reader
 
 from rovernav.evaluation.report import build_report
+from rovernav.runlog.images import encode_jpeg
 from rovernav.scenario import load_scenario
 from rovernav.sim.camera import Camera, Lighting, Renderer, RoverLook, Scene
 from rovernav.sim.camera_process import CameraProcess, CameraProcessError
@@ -90,9 +91,12 @@ def test_the_process_draws_and_locates_the_frames_the_loop_would():
                 pose = (-1.0, -1.0, 0.0)  # out of sight: a frame with no rover
             s = dataclasses.replace(scene, rover=pose)
             want_frame = here_r.render(s, rng_here)
-            jpeg = proc.submit(i / 30, scene, s.rover, s.hidden, here_r.noise_offsets(rng_there), keep_image=i % 7 == 0)
+            proc.submit(i / 30, scene, s.rover, s.hidden, here_r.noise_offsets(rng_there), keep_image=i % 7 == 0)
+            det, jpeg = proc.take()
+            assert det == here_l.locate(want_frame, i / 30)
             assert (jpeg is not None) == (i % 7 == 0)
-            assert proc.take() == here_l.locate(want_frame, i / 30)
+            if jpeg is not None:
+                assert jpeg == encode_jpeg(want_frame)
         with pytest.raises(CameraProcessError, match="no frame is waiting"):
             proc.take()
     finally:

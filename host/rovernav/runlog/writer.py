@@ -330,15 +330,13 @@ class RunLog(Recorder):
         self._next_image_s = t_s + self.image_period_s
         return True
 
-    def camera_jpeg(self, t_s: float, jpeg: bytes) -> None:
-        """A kept camera frame, already JPEG (`encode_jpeg`)."""
+    def camera_jpeg(self, t_s: float, jpeg: bytes, taken_s: float | None = None) -> None:
+        """A kept camera frame, already JPEG (`encode_jpeg`), logged at t_s; its stamp says when it
+        was taken (taken_s, the simulator's: it logs a frame when the host gets it), else t_s."""
         from foxglove.messages import CompressedImage
 
-        self._log(
-            "/camera/image",
-            t_s,
-            CompressedImage(timestamp=self._stamp(t_s), frame_id="camera", data=jpeg, format="jpeg"),
-        )
+        stamp = self._stamp(t_s if taken_s is None else taken_s)
+        self._log("/camera/image", t_s, CompressedImage(timestamp=stamp, frame_id="camera", data=jpeg, format="jpeg"))
 
     def true_pose(self, t_s: float, x_m: float, y_m: float, heading_deg: float) -> None:
         """The simulated rover's pose (thinned to TRUE_POSE_EVERY_S)."""
@@ -421,7 +419,9 @@ class RunLog(Recorder):
         self._log(
             "/rover/driven_path",
             t_s,
-            PosesInFrame(timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=self._driven_poses.poses(self._driven)),
+            PosesInFrame(
+                timestamp=self._stamp(t_s), frame_id=ARENA_FRAME, poses=self._driven_poses.poses(self._driven)
+            ),
         )
 
     def _arena(self, t_s: float) -> None:

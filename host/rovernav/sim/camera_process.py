@@ -13,7 +13,8 @@ Nothing changes but where the work is done. The loop draws the frame's noise off
 simulation's generator at the moment it would have drawn them (`Renderer.noise_offsets`), the
 worker draws with `Renderer.render_at` and locates with a `Locator` made from the same
 configuration, frames are taken back in the order they were sent, and a frame the log keeps is
-encoded in the worker and waited for at once, so the log gets it at the same instant as before.
+encoded in the worker and comes back with its detection (the log takes a kept frame as the host
+does, after the latency, stamped with the time it was taken, in both ways of running).
 tests/test_camera_process.py checks that a mission's samples, events, report and log channels
 are identical with and without it.
 
@@ -23,8 +24,6 @@ It pays on a machine with a core to spare: `rovernav sim` uses it when it writes
 
 from __future__ import annotations
 
-import collections
-import multiprocessing as mp
 import os
 import socket
 import subprocess
@@ -70,9 +69,8 @@ def _serve(conn) -> None:
         taken_s, rover, hidden, offsets, keep_image = job
         try:
             frame = renderer.render_at(dataclasses.replace(base, rover=rover, hidden=hidden), offsets)
-            if keep_image:
-                conn.send(("image", encode_jpeg(frame)))
-            conn.send(("detection", locator.locate(frame, taken_s)))
+            jpeg = encode_jpeg(frame) if keep_image else None
+            conn.send(("frame", (locator.locate(frame, taken_s), jpeg)))
         except Exception as exc:  # noqa: BLE001
             conn.send(("error", f"{type(exc).__name__}: {exc}"))
             return
@@ -81,9 +79,8 @@ def _serve(conn) -> None:
 class CameraProcess:
     """Renders and locates frames in a worker process (see the module's doc).
 
-    submit(taken_s, base, rover, hidden, offsets, keep_image) -> the JPEG of the frame when
-        keep_image, else None
-    take() -> the Detection of the oldest frame submitted and not yet taken
+    submit(taken_s, base, rover, hidden, offsets, keep_image)
+    take() -> (Detection, JPEG bytes when keep_image else None) of the oldest frame not yet taken
     close()
     """
 
@@ -106,7 +103,6 @@ class CameraProcess:
             theirs.close()
         self._conn = Connection(ours.detach())
         self._conn.send((renderer_args, locator_args))
-        self._detections: collections.deque = collections.deque()
         self._outstanding = 0
         self._base = None
         # Its "ready" is read with the first answer: the child's start (imports, the arena's floor)
@@ -123,31 +119,23 @@ class CameraProcess:
             if kind != "ready":
                 return kind, what
 
-    def submit(self, taken_s: float, base, rover, hidden, offsets, keep_image: bool) -> bytes | None:
+    def submit(self, taken_s: float, base, rover, hidden, offsets, keep_image: bool) -> None:
         """A frame taken at taken_s of the scene `base` with the rover at `rover` (x_m, y_m,
-        heading_deg) and its `hidden` markers, noise `offsets` (Renderer.noise_offsets)."""
+        heading_deg) and its `hidden` markers, noise `offsets` (Renderer.noise_offsets); its JPEG
+        too when keep_image."""
         if base is not self._base:  # the arena, sent when it is a new one: a frame then costs a pose
             self._conn.send(("scene", base))
             self._base = base
         self._conn.send((taken_s, rover, hidden, offsets, keep_image))
         self._outstanding += 1
-        if not keep_image:
-            return None
-        while True:  # the detections of earlier frames may come first
-            kind, what = self._recv()
-            if kind == "image":
-                return what
-            self._detections.append(what)
-            self._outstanding -= 1
 
     def take(self):
-        if self._detections:
-            return self._detections.popleft()
+        """(the Detection, the JPEG or None) of the oldest frame submitted and not yet taken."""
         if self._outstanding <= 0:
             raise CameraProcessError("no frame is waiting to be located")
         kind, what = self._recv()
-        if kind != "detection":
-            raise CameraProcessError(f"the camera process sent {kind!r} where a detection was due")
+        if kind != "frame":
+            raise CameraProcessError(f"the camera process sent {kind!r} where a frame was due")
         self._outstanding -= 1
         return what
 
@@ -165,13 +153,12 @@ class CameraProcess:
 
 
 def spare_core() -> bool:
-    """Whether this process may start a camera process: a machine with more than one core that
-    it may use, and not itself a daemonic worker (a trials pool's: those cannot have children)."""
+    """Whether this process has a core to spare for a camera process: two usable cores or more."""
     try:
         usable = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         usable = os.cpu_count() or 1
-    return usable >= 2 and not mp.current_process().daemon
+    return usable >= 2
 
 
 if __name__ == "__main__":  # the camera process: python -m rovernav.sim.camera_process FD

@@ -30,6 +30,7 @@ from ..mission import Detection, Mission, Outcome, leg_goal, leg_origin
 from ..mission.spec import MissionSpec, start_host
 from ..planning import NoPathError, OccupancyGrid, plan
 from ..radio import ChannelConfig
+from ..runlog.images import encode_jpeg
 from ..vehicle_gen import STEP_PERIOD_MS
 from ..vision import Locator
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
@@ -383,30 +384,33 @@ class Simulation:
                 p = self.plant
                 rover = (p.x, p.y, p.heading)
                 hidden = _ALL_MARKERS if out == "no_markers" else _NO_MARKERS
+                keep = self.runlog is not None and self.runlog.take_image(now)
                 if self._camera_proc is not None:
-                    # The same draw, the same frame, rendered in the camera process.
-                    keep = self.runlog is not None and self.runlog.take_image(now)
+                    # The same draw, the same frame, rendered and located in the camera process.
                     offsets = self.renderer.noise_offsets(self.rng)
-                    jpeg = self._camera_proc.submit(now, self.scene_base, rover, hidden, offsets, keep)
+                    self._camera_proc.submit(now, self.scene_base, rover, hidden, offsets, keep)
                     self.frames_rendered += 1
-                    if jpeg is not None:
-                        self.runlog.camera_jpeg(now, jpeg)  # type: ignore[union-attr]
-                    self._pending_frames.append((now, None))
+                    self._pending_frames.append((now, None, keep))
                 else:
                     scene = dataclasses.replace(self.scene_base, rover=rover, hidden=hidden)
                     frame = self.renderer.render(scene, self.rng)
                     self.frames_rendered += 1
-                    if self.runlog is not None:
-                        self.runlog.camera_image(now, frame)
-                    self._pending_frames.append((now, frame))
+                    self._pending_frames.append((now, frame, keep))
                     if self.frame_sink is not None:
                         self.frame_sink(now, frame, self)
         processed = False
         while self._pending_frames and self._pending_frames[0][0] + self.opt.camera_latency_s <= now + 1e-9:
             processed = True
             self.transport.set_time(now)
-            taken, frame = self._pending_frames.popleft()
-            det = self.locator.locate(frame, taken) if frame is not None else self._camera_proc.take()  # type: ignore[union-attr]
+            taken, frame, keep = self._pending_frames.popleft()
+            # A kept frame goes in the log as it reaches the host (stamped when it was taken).
+            if frame is not None:
+                jpeg = encode_jpeg(frame) if keep else None
+                det = self.locator.locate(frame, taken)
+            else:
+                det, jpeg = self._camera_proc.take()  # type: ignore[union-attr]
+            if jpeg is not None:
+                self.runlog.camera_jpeg(now, jpeg, taken_s=taken)  # type: ignore[union-attr]
             if det.rover is not None:
                 x, y, h = det.rover
                 self.mission.on_detection(Detection(taken, x, y, h), now)
