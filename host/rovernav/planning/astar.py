@@ -221,7 +221,7 @@ class _Workspace(threading.local):
         self.cells = 0
         self.arrays = ()
 
-    def get(self, cells: int, compiled: bool = True):
+    def get(self, cells: int):
         # Reused while big enough and not over 4 times too big (one large search need not pin
         # its 29 bytes a cell for good).
         if not (cells <= self.cells <= 4 * cells + 4096):
