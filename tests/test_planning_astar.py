@@ -2,7 +2,9 @@
 
 A*'s optimality is checked against a Dijkstra written plainly here, over the same 16 moves,
 with the cells each move touches found independently (by sampling the segment), and against
-scipy's csgraph on a larger grid.
+scipy's csgraph on a larger grid; and its search against the implementation before issue 29
+(`astar_cells_reference`), cell for cell, on random grids, boxes, mazes, empty grids and
+grids with no way through.
 
 The rest of what was test_planning.py: test_planning_grid.py (the occupancy grid),
 test_planning_paths.py (plans on the shared scenarios, Table 4.2, errors), test_planning_cli.py
@@ -20,7 +22,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from tests.planning_checks import sampled_cells_free
 
-from rovernav.planning.astar import astar_cells, path_cost
+from rovernav.planning import OccupancyGrid, PlannerConfig
+from rovernav.planning.astar import astar_cells, astar_cells_reference, path_cost
 from rovernav.planning.moves import MOVE_DX, MOVE_DY, N_MOVES, free_space_distance, move_allowed
 from rovernav.planning.segment import segment_clear
 
@@ -209,3 +212,146 @@ def test_astar_matches_scipy_dijkstra_on_a_larger_grid():
             assert cost == -1.0
         else:
             assert cost == pytest.approx(expected, abs=1e-6)
+
+
+# --- the search is the previous implementation's, cell for cell ------------------------------------
+# astar_cells (issue 29: padded grid, state bytes, a reused workspace, keys in the heap) must expand
+# the same cells in the same order as astar_cells_reference, so every path, cost and expansion count
+# is the same, ties included: the missions must not change at all.
+
+
+def assert_same_search(blocked: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> None:
+    path, cost, expansions = astar_cells(blocked, *start, *goal)
+    ref_path, ref_cost, ref_expansions = astar_cells_reference(blocked, *start, *goal)
+    assert path.tolist() == ref_path.tolist(), (blocked.shape, start, goal)
+    assert cost == ref_cost and expansions == ref_expansions, (blocked.shape, start, goal)
+    assert path.dtype == ref_path.dtype and path.shape[1:] == (2,)
+
+
+def box_grid(rng: np.random.Generator, nx: int, ny: int, n_boxes: int) -> np.ndarray:
+    blocked = np.zeros((ny, nx), dtype=bool)
+    for _ in range(n_boxes):
+        x, y = rng.integers(0, nx), rng.integers(0, ny)
+        blocked[y : y + rng.integers(1, max(2, nx // 4)), x : x + rng.integers(1, max(2, ny // 4))] = True
+    return blocked
+
+
+def maze_grid(rng: np.random.Generator, nx_rooms: int, ny_rooms: int, extra_openings: int) -> np.ndarray:
+    """A perfect maze (depth-first carving) on (2·n + 1) cells a side, then a few more walls knocked
+    through so that there are loops (and equal-cost ways round them)."""
+    blocked = np.ones((2 * ny_rooms + 1, 2 * nx_rooms + 1), dtype=bool)
+    seen = np.zeros((ny_rooms, nx_rooms), dtype=bool)
+    stack = [(0, 0)]
+    seen[0, 0] = True
+    blocked[1, 1] = False
+    while stack:
+        x, y = stack[-1]
+        nexts = [
+            (x + dx, y + dy)
+            for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))
+            if 0 <= x + dx < nx_rooms and 0 <= y + dy < ny_rooms and not seen[y + dy, x + dx]
+        ]
+        if not nexts:
+            stack.pop()
+            continue
+        x1, y1 = nexts[rng.integers(len(nexts))]
+        seen[y1, x1] = True
+        blocked[2 * y1 + 1, 2 * x1 + 1] = False
+        blocked[y + y1 + 1, x + x1 + 1] = False
+        stack.append((x1, y1))
+    ny, nx = blocked.shape
+    for _ in range(extra_openings):
+        blocked[rng.integers(1, ny - 1), rng.integers(1, nx - 1)] = False
+    return blocked
+
+
+def free_cells(blocked: np.ndarray) -> list[tuple[int, int]]:
+    return [(int(x), int(y)) for y, x in np.argwhere(~blocked)]
+
+
+def some_ends(rng: np.random.Generator, blocked: np.ndarray, n: int) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """n random (start, goal) pairs of free cells, and the free corners and edge cells paired up."""
+    free = free_cells(blocked)
+    if not free:
+        return []
+    pairs = [(free[rng.integers(len(free))], free[rng.integers(len(free))]) for _ in range(n)]
+    ny, nx = blocked.shape
+    rim = [
+        c
+        for c in ((0, 0), (nx - 1, 0), (0, ny - 1), (nx - 1, ny - 1), (nx // 2, 0), (0, ny // 2))
+        if not blocked[c[1], c[0]]
+    ]
+    pairs += [(a, b) for a in rim for b in rim]  # start == goal among them
+    return pairs
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), nx=st.integers(1, 40), ny=st.integers(1, 40), density=st.floats(0.0, 0.6))
+def test_the_search_is_the_reference_search_on_random_grids(seed, nx, ny, density):
+    blocked, start, goal = random_grid(seed, nx, ny, density)
+    assert_same_search(blocked, start, goal)
+    assert_same_search(blocked, goal, start)
+
+
+def test_the_search_is_the_reference_search_on_many_generated_grids():
+    rng = np.random.default_rng(29)
+    checked = unreachable = 0
+    grids = []
+    for _ in range(60):  # boxes, as the arenas have them
+        nx, ny = rng.integers(2, 120, 2)
+        grids.append(box_grid(rng, nx, ny, rng.integers(0, 30)))
+    for _ in range(30):  # mazes, with and without loops
+        grids.append(maze_grid(rng, rng.integers(1, 30), rng.integers(1, 30), rng.integers(0, 40)))
+    for nx, ny in ((1, 1), (1, 17), (23, 1), (2, 2), (5, 3), (64, 64), (97, 31)):  # empty: ties everywhere
+        grids.append(np.zeros((ny, nx), dtype=bool))
+    wall = np.zeros((40, 50), dtype=bool)
+    wall[:, 24] = True  # no way across
+    grids.append(wall)
+    corner = np.zeros((40, 50), dtype=bool)
+    corner[20, :26] = True
+    corner[:21, 25] = True  # a closed room: reachable only from inside
+    grids.append(corner)
+    for blocked in grids:
+        for start, goal in some_ends(rng, blocked, 6):
+            assert_same_search(blocked, start, goal)
+            checked += 1
+            unreachable += astar_cells(blocked, *start, *goal)[1] == -1.0
+    assert checked > 1500 and unreachable > 20
+
+
+def test_the_search_is_the_reference_search_on_the_benchmarks_400_by_400_arena():
+    rng = np.random.default_rng(2024)
+    grid = OccupancyGrid(20.0, 20.0, PlannerConfig(resolution_m=0.05))
+    while len(grid.boxes) < 40:
+        x, y = rng.uniform(0.5, 19.5, 2)
+        w, h = rng.uniform(0.3, 2.0, 2)
+        if all(abs(x - c) > w / 2 + 0.5 or abs(y - c) > h / 2 + 0.5 for c in (0.6, 19.4)):
+            grid.add_box(x, y, w, h)
+    ends = [(grid.world_to_cell(0.6, 0.6), grid.world_to_cell(19.4, 19.4))]
+    ends += some_ends(rng, grid.inflated, 4)[:4]
+    for start, goal in ends:
+        assert_same_search(grid.inflated, start, goal)
+
+
+def test_the_search_outside_its_contract_is_still_the_reference_search():
+    """A blocked start (plan() refuses it first) and a non-contiguous grid: the same answers."""
+    rng = np.random.default_rng(5)
+    blocked = box_grid(rng, 30, 20, 12)
+    blocked[3, 4] = True
+    assert_same_search(blocked, (4, 3), (25, 15))
+    assert_same_search(blocked, (25, 15) if not blocked[15, 25] else (0, 0), (4, 3))
+    wide = box_grid(rng, 60, 40, 20)
+    assert_same_search(wide[::2, ::3], (0, 0), (19, 19))
+    assert_same_search(np.asfortranarray(wide), (1, 1), (58, 38))
+
+
+def test_the_search_gives_each_thread_its_own_workspace():
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(11)
+    cases = [(box_grid(rng, n, n, n // 3), (0, 0), (n - 1, n - 1)) for n in (150, 90, 150, 40) * 4]
+    expected = [astar_cells_reference(b, *s, *g) for b, s, g in cases]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda c: astar_cells(c[0], *c[1], *c[2]), cases))
+    for (path, cost, expansions), (ref_path, ref_cost, ref_expansions) in zip(got, expected):
+        assert path.tolist() == ref_path.tolist() and cost == ref_cost and expansions == ref_expansions

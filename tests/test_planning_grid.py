@@ -1,6 +1,6 @@
 """The occupancy grid: world and cell coordinates, obstacles inflated by the robot radius plus
 the sonar margin (boxes, oblique walls and posts, each by its exact distance, incrementally as
-from scratch), the planner's configuration, and a scenario's known and unknown obstacles.
+from scratch; boxes compiled exactly as numpy), the planner's configuration, and a scenario's known and unknown obstacles.
 (Split from test_planning.py.)"""
 
 from __future__ import annotations
@@ -80,6 +80,44 @@ def test_incremental_inflation_equals_inflating_from_scratch():
     assert (grid.inflated == grid.blocked_within(grid.config.inflation_m)).all()
     new, newly = grid.add_disks(np.array([[-0.1, -0.2], [3.5, 1.0]]), 0.02)  # off the arena: dropped
     assert len(new) == 0 and newly == 0
+
+
+def test_compiled_box_inflation_blocks_exactly_the_cells_of_numpys_distances():
+    """add_box inflates with a compiled loop (issue 29); it must block the very cells the numpy
+    distances (`_box_distance`, then `_grow`) did, the borderline ones included, with the same
+    counts: boxes on cell edges and centres, and inflations that are whole numbers of cells."""
+    rng = np.random.default_rng(29)
+    for res, radius, margin in (
+        (0.03, 0.12, 0.05),
+        (0.05, 0.12, 0.05),
+        (0.05, 0.1, 0.05),
+        (0.02, 0.1, 0.0),
+        (0.1, 0.3, 0.0),
+    ):
+        config = PlannerConfig(resolution_m=res, robot_radius_m=radius, sonar_margin_m=margin)
+        grid = OccupancyGrid(4.0, 3.0, config)
+        numpy_grid = OccupancyGrid(4.0, 3.0, config)
+        for i in range(120):
+            if i % 3 == 0:  # edges on cell edges or centres: distances land on the limit exactly
+                x, y = rng.integers(-5, 85, 2) * res / 2
+                w, h = rng.integers(1, 30, 2) * res / 2
+            else:
+                x, y = rng.uniform(-0.3, 4.3), rng.uniform(-0.3, 3.3)
+                w, h = rng.uniform(0.01, 1.0, 2)
+            newly = grid.add_box(x, y, w, h)
+            expected = numpy_grid._grow(
+                numpy_grid._box_distance((float(x), float(y), float(w), float(h)), config.inflation_m)
+            )
+            assert newly == expected
+            assert (grid.inflated == numpy_grid.inflated).all()
+        assert (grid.inflated == grid.blocked_within(config.inflation_m)).all()
+
+
+def test_the_wall_band_is_the_cells_within_the_radius_of_the_wall():
+    for width_m, height_m, res in ((2.36, 1.75, 0.03), (3.0, 2.0, 0.05), (20.0, 20.0, 0.05), (0.5, 7.0, 0.1)):
+        grid = OccupancyGrid(width_m, height_m, PlannerConfig(resolution_m=res))
+        for radius_m in (0.0, res / 2, res, 0.17, 2.5 * res, 3 * res, 1.0):
+            assert (grid.wall_band(radius_m) == (grid.wall_distance() <= radius_m + 1e-12)).all()
 
 
 # --- walls and posts ----------------------------------------------------------------------------

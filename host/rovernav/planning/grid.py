@@ -18,7 +18,8 @@ Obstacles and layers
     `config.inflation_m` (robot radius + sonar margin) of an obstacle, or of the arena's
     wall. The distance is exact (the seed's rule: a cell centre within the robot radius of
     an obstacle), computed per obstacle in a window around it, so a gap the rover fits
-    through is not closed by rounding to cells, and a new obstacle re-inflates only its window.
+    through is not closed by rounding to cells, and a new obstacle re-inflates only its window
+    (a box's window with a compiled loop, `_grow_box`, the same float operations as numpy's).
     (A disk dilation of the raw cells rounds each obstacle out by up to a cell, 0.03 m, and
     measured no faster: 0.06 to 0.1 ms for the seed's arena, 0.8 ms for 40 boxes on 400 × 400.)
 """
@@ -32,11 +33,30 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..validate import check_grid
+from ._jit import njit
 from .config import PlannerConfig
 from .segment import polyline_clear, segment_clear
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..scenario import Scenario
+
+
+@njit
+def _grow_box(inflated, xs, ys, x, y, half_w, half_h, limit, r0, r1, c0, c1):
+    """Block the cells of rows r0:r1, columns c0:c1 whose centre lies within `limit` [m] of the
+    box (centre x, y, half sizes [m]); returns how many were free. The same float operations as
+    `_box_distance` and `_grow` with numpy, so the same cells."""
+    newly = 0
+    for r in range(r0, r1):
+        dy = max(abs(ys[r] - y) - half_h, 0.0)
+        dy2 = dy * dy
+        row = inflated[r]
+        for c in range(c0, c1):
+            dx = max(abs(xs[c] - x) - half_w, 0.0)
+            if math.sqrt(dx * dx + dy2) <= limit and not row[c]:
+                row[c] = True
+                newly += 1
+    return newly
 
 
 class OccupancyGrid:
@@ -221,7 +241,11 @@ class OccupancyGrid:
 
     def wall_band(self, radius_m: float) -> np.ndarray:
         """Cells whose centre lies within `radius_m` of the wall (or past it)."""
-        return self.wall_distance() <= radius_m + 1e-12
+        # min(dx, dy) <= r exactly when dx <= r or dy <= r: the same cells, no (ny, nx) distances.
+        dx = np.maximum(np.minimum(self.xs, self.width_m - self.xs), 0.0)
+        dy = np.maximum(np.minimum(self.ys, self.height_m - self.ys), 0.0)
+        limit = radius_m + 1e-12
+        return (dx <= limit)[None, :] | (dy <= limit)[:, None]
 
     def blocked_within(self, radius_m: float) -> np.ndarray:
         """Cells whose centre lies within `radius_m` of an obstacle or the wall: the inflated layer for that radius."""
@@ -248,7 +272,26 @@ class OccupancyGrid:
         self.raw[r0 : max(r1, r0), c0 : max(c1, c0)] = True
         self.boxes.append(box)
         self.version += 1
-        return self._grow(self._box_distance(box, self.config.inflation_m))
+        # self._grow(self._box_distance(box, inflation)) compiled: the same cells, 6 µs a box
+        # instead of 14 (40 boxes of up to 2 m on 400 × 400 cells).
+        reach = self.config.inflation_m
+        rows, cols = self._window(
+            box[0] - box[2] / 2, box[1] - box[3] / 2, box[0] + box[2] / 2, box[1] + box[3] / 2, reach
+        )
+        return _grow_box(
+            self.inflated,
+            self.xs,
+            self.ys,
+            box[0],
+            box[1],
+            box[2] / 2,
+            box[3] / 2,
+            reach + 1e-12,
+            rows.start,
+            rows.stop,
+            cols.start,
+            cols.stop,
+        )
 
     def add_wall(self, x0_m: float, y0_m: float, x1_m: float, y1_m: float, thickness_m: float) -> int:
         """Add a wall: the rectangle `thickness_m` wide centred on the segment from (x0, y0) to
