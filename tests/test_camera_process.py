@@ -112,3 +112,19 @@ def test_a_camera_process_that_fails_says_why():
             proc.take()
     finally:
         proc.close()
+
+
+@pytest.mark.mission
+def test_one_camera_process_serves_simulations_one_after_another(tmp_path, monkeypatch):
+    # The second simulation is set up while the first one's last frames are still in flight
+    # (a mission ends with frames not yet located): the process forgets them and starts afresh.
+    from rovernav.sim import camera_process
+
+    kw = {"seed": 2, "max_time_s": 12.0}  # cut short: frames in flight at the end
+    first, first_report, _ = _run(tmp_path, monkeypatch, "seed-small-obstacles", True, **kw)
+    pid = camera_process._shared._proc.pid
+    second, second_report, _ = _run(tmp_path, monkeypatch, "seed-large-obstacles", True, **kw)
+    assert camera_process._shared._proc.pid == pid
+    inline, inline_report, _ = _run(tmp_path, monkeypatch, "seed-large-obstacles", False, **kw)
+    assert second.samples == inline.samples and second_report == inline_report
+    assert first_report["mission_time_s"] == 12.0

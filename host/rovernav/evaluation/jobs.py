@@ -146,6 +146,7 @@ def run_trial(
     run_timeout_s: float | None = None,
     radio: dict | None = None,
     planner: str = "astar",
+    camera_process: bool = False,
 ) -> dict:
     """Simulate one mission headless and return its row (ROW_FIELDS).
 
@@ -156,6 +157,8 @@ def run_trial(
     and keeps no state. Exceptions from the simulator propagate (the caller records an error).
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     `planner`: the host's global planner ([mission] planner: "astar" or "theta").
+    `camera_process`: render and locate frames in a second process (sim/camera_process.py; the
+    serial runner's, on a machine with a core to spare).
     """
     from ..radio import ChannelConfig, radio_config
     from ..scenario import load_scenario
@@ -182,6 +185,7 @@ def run_trial(
             max_time_s=max_time_s,
             channel=channel,
             config=None if planner == "astar" else _planner_config(planner),
+            camera_process=camera_process,
         ),
         progress=guard,
     )

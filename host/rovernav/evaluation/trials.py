@@ -59,11 +59,13 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import functools
 import os
 import sys
 import time
 from pathlib import Path
 
+from ..sim.camera_process import spare_core
 from ..validate import MAX_SIM_TIME_S, number, out_dir, seconds
 from .jobs import TrialJob, TrialsError, failure_row, find_arenas, make_jobs, run_trial, sample_arenas
 from .pool import HANG_GRACE_S, POLL_S, run_jobs
@@ -222,7 +224,12 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
         metavar="N",
         help="local dask worker processes (default: one per CPU, here %(default)s); 0 = --serial",
     )
-    where.add_argument("--serial", action="store_true", help="run in this process, one run after another (no dask)")
+    where.add_argument(
+        "--serial",
+        action="store_true",
+        help="run in this process, one run after another (no dask); on a machine with two cores or more "
+        "each run renders and locates its frames in a second process (sim/camera_process.py)",
+    )
     where.add_argument(
         "--scheduler",
         metavar="ADDRESS",
@@ -332,10 +339,14 @@ def cmd_trials(args: argparse.Namespace) -> int:
         arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout, radio, args.planner
     )
     workers = 0 if args.serial else args.workers
+    trial = run_trial
     if args.scheduler:
         runner, runner_flag = f"the dask cluster at {args.scheduler}", f"--scheduler {args.scheduler}"
     elif workers == 0:
         runner, runner_flag = "serial, in one process", "--serial"
+        if spare_core():  # one run at a time: a second core renders and locates its frames
+            runner += ", the camera on a second core"
+            trial = functools.partial(run_trial, camera_process=True)
     else:
         runner, runner_flag = f"a local dask cluster of {workers} worker processes", f"--workers {workers}"
     args.out.mkdir(parents=True, exist_ok=True)
@@ -361,7 +372,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
 
     started_utc = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     started = time.monotonic()
-    rows = run_jobs(jobs, workers, args.scheduler, start, progress)
+    rows = run_jobs(jobs, workers, args.scheduler, start, progress, trial=trial)
     wall_time_s = time.monotonic() - started
     out = args.out.resolve()
     for row in rows:

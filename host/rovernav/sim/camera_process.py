@@ -24,6 +24,7 @@ It pays on a machine with a core to spare: `rovernav sim` uses it when it writes
 
 from __future__ import annotations
 
+import atexit
 import os
 import socket
 import subprocess
@@ -40,22 +41,17 @@ class CameraProcessError(RovernavError):
 
 
 def _serve(conn) -> None:
-    """The worker: render and locate frames until told to stop (None) or the socket closes."""
+    """The worker: set up by ("camera", renderer_args, locator_args), told the arena by ("scene",
+    Scene), then renders and locates frames until told to stop (None) or the socket closes. An
+    error is said once; the worker then waits for the next camera."""
     import dataclasses
 
     from ..runlog.images import encode_jpeg
     from ..vision import Locator
     from .camera import Renderer
 
-    base = None  # the scene without the rover (sent when it changes)
-    try:
-        renderer_args, locator_args = conn.recv()
-        renderer = Renderer(*renderer_args)
-        locator = Locator(*locator_args)
-        conn.send(("ready", None))
-    except Exception as exc:  # noqa: BLE001 - said to the parent, which raises it there
-        conn.send(("error", f"{type(exc).__name__}: {exc}"))
-        return
+    renderer = locator = base = None
+    failed = False
     while True:
         try:
             job = conn.recv()
@@ -63,31 +59,36 @@ def _serve(conn) -> None:
             return
         if job is None:
             return
-        if job[0] == "scene":
-            base = job[1]
-            continue
-        taken_s, rover, hidden, offsets, keep_image = job
         try:
-            frame = renderer.render_at(dataclasses.replace(base, rover=rover, hidden=hidden), offsets)
-            jpeg = encode_jpeg(frame) if keep_image else None
-            conn.send(("frame", (locator.locate(frame, taken_s), jpeg)))
-        except Exception as exc:  # noqa: BLE001
+            if job[0] == "camera":
+                renderer, locator, base, failed = Renderer(*job[1]), Locator(*job[2]), None, False
+            elif job[0] == "scene":
+                base = job[1]
+            elif not failed:
+                taken_s, rover, hidden, offsets, keep_image = job
+                frame = renderer.render_at(dataclasses.replace(base, rover=rover, hidden=hidden), offsets)
+                jpeg = encode_jpeg(frame) if keep_image else None
+                conn.send(("frame", (locator.locate(frame, taken_s), jpeg)))
+        except Exception as exc:  # noqa: BLE001 - said to the parent, which raises it there
+            failed = True
             conn.send(("error", f"{type(exc).__name__}: {exc}"))
-            return
 
 
 class CameraProcess:
     """Renders and locates frames in a worker process (see the module's doc).
 
+    configure(renderer_args, locator_args): a new camera (a Renderer's and a Locator's arguments)
     submit(taken_s, base, rover, hidden, offsets, keep_image)
     take() -> (Detection, JPEG bytes when keep_image else None) of the oldest frame not yet taken
+    drain(): forget the frames not taken (a run that ended)
     close()
     """
 
-    def __init__(self, renderer_args: tuple, locator_args: tuple):
+    def __init__(self, renderer_args: tuple | None = None, locator_args: tuple | None = None):
         # A plain child interpreter on one end of a socket pair (not multiprocessing's spawn, which
         # imports the caller's __main__ again, nor a fork of a process with OpenCV's, numba's and
         # the log's threads), running this module; it imports the same rovernav as this process.
+        # Its start (imports, the arena's floor) overlaps the simulation's own.
         ours, theirs = socket.socketpair()
         package_root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
@@ -102,22 +103,36 @@ class CameraProcess:
         finally:
             theirs.close()
         self._conn = Connection(ours.detach())
-        self._conn.send((renderer_args, locator_args))
         self._outstanding = 0
         self._base = None
-        # Its "ready" is read with the first answer: the child's start (imports, the arena's floor)
-        # overlaps the simulation's own.
+        self._failed = False
+        if renderer_args is not None and locator_args is not None:
+            self.configure(renderer_args, locator_args)
+
+    def configure(self, renderer_args: tuple, locator_args: tuple) -> None:
+        self.drain()
+        self._conn.send(("camera", renderer_args, locator_args))
+        self._base = None
+        self._failed = False
+
+    def alive(self) -> bool:
+        return self._proc.poll() is None and not self._conn.closed
+
+    def drain(self) -> None:
+        if self._failed:  # it said why, and sends nothing more for this camera
+            self._outstanding = 0
+        while self._outstanding > 0:
+            self.take()
 
     def _recv(self) -> tuple[str, Any]:
-        while True:
-            try:
-                kind, what = self._conn.recv()
-            except (EOFError, OSError) as exc:
-                raise CameraProcessError(f"the camera process stopped (exit code {self._proc.poll()})") from exc
-            if kind == "error":
-                raise CameraProcessError(f"the camera process failed: {what}")
-            if kind != "ready":
-                return kind, what
+        try:
+            kind, what = self._conn.recv()
+        except (EOFError, OSError) as exc:
+            raise CameraProcessError(f"the camera process stopped (exit code {self._proc.poll()})") from exc
+        if kind == "error":
+            self._failed = True
+            raise CameraProcessError(f"the camera process failed: {what}")
+        return kind, what
 
     def submit(self, taken_s: float, base, rover, hidden, offsets, keep_image: bool) -> None:
         """A frame taken at taken_s of the scene `base` with the rover at `rover` (x_m, y_m,
@@ -150,6 +165,21 @@ class CameraProcess:
             self._proc.kill()
             self._proc.wait(timeout=2.0)
         self._conn.close()
+
+
+_shared: CameraProcess | None = None
+
+
+def shared(renderer_args: tuple, locator_args: tuple) -> CameraProcess:
+    """This process's camera process, set up for a new camera: started on first use and kept for
+    the next simulation (one after another in a process, as trials' workers and the benchmarks
+    run them, each then pays no start-up); closed when the process exits."""
+    global _shared
+    if _shared is None or not _shared.alive():
+        _shared = CameraProcess()
+        atexit.register(_shared.close)
+    _shared.configure(renderer_args, locator_args)
+    return _shared
 
 
 def spare_core() -> bool:

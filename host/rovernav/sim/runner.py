@@ -33,8 +33,8 @@ from ..radio import ChannelConfig
 from ..runlog.images import encode_jpeg
 from ..vehicle_gen import STEP_PERIOD_MS
 from ..vision import Locator
+from . import camera_process
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
-from .camera_process import CameraProcess
 from .channel import SimTransport, channel_pair, radio_figures
 from .plant import PlantConfig, RoverPlant
 from .setup import Setup
@@ -167,9 +167,9 @@ class Simulation:
         locator_args = (self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m)
         self.renderer = Renderer(*renderer_args)
         self.locator = Locator(*locator_args)
-        self._camera_proc: CameraProcess | None = None
+        self._camera_proc: camera_process.CameraProcess | None = None
         if options.camera_process and frame_sink is None:
-            self._camera_proc = CameraProcess(renderer_args, locator_args)
+            self._camera_proc = camera_process.shared(renderer_args, locator_args)
             # While the camera process starts (its imports, the arena's floor), load the compiled
             # planner here: the first plan would otherwise pay for it in the loop.
             from ..planning import warm_up
@@ -315,7 +315,10 @@ class Simulation:
             self._run()
         finally:
             if self._camera_proc is not None:
-                self._camera_proc.close()
+                try:
+                    self._camera_proc.drain()  # the frames in flight when the run ended
+                except camera_process.CameraProcessError:
+                    self._camera_proc.close()  # the next simulation starts another
                 self._camera_proc = None
 
     def _run(self) -> None:
