@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import math
 import os
 import platform
@@ -179,7 +180,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=21, help="timed runs per case (default 21)")
     parser.add_argument("--no-plain", action="store_true", help="skip the plain-Python run")
+    parser.add_argument("--json", type=Path, help="also write each case's figures here (benchmarks/speed_table.py)")
     args = parser.parse_args()
+    rows = []
     warm_up()
 
     affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
@@ -253,6 +256,18 @@ def main() -> int:
         if not (same and identical):
             return 1
         failed = failed or met != "ok"
+        rows.append(
+            {
+                "case": name,
+                "cells": f"{grid.nx}×{grid.ny}",
+                "ours_ms": ours_ms,
+                "previous_ms": prev_ms,
+                "astar_ms": astar_ms,
+                "grid_ms": grid_ms,
+                "scipy_ms": scipy_ms,
+                "target_ms": target_ms,
+            }
+        )
     print(
         "\ngrid: building the occupancy grid from the boxes; A*: plan() on it (search + simplification);"
         "\nours: both; target: issue 29's bound on ours (! missed); exp.: cells A* expanded;"
@@ -262,6 +277,8 @@ def main() -> int:
         "\ngraph+dijk.: scipy on our grid (graph built from it, then Dijkstra from the start);"
         "\nscipy: grid + graph + Dijkstra; ×scipy: scipy / ours; plain Py: our A* kernel uncompiled, one run."
     )
+    if args.json:
+        args.json.write_text(json.dumps({"runs": args.runs, "cases": rows}, indent=1))
     return 2 if failed else 0
 
 

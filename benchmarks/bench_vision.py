@@ -21,10 +21,12 @@ bit for bit ("differ" counts the frames where they do not).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -115,7 +117,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300, help="frames per run (default 300)")
     ap.add_argument("--runs", type=int, default=3, help="runs, each with its own seed (default 3)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the first run (default 1)")
+    ap.add_argument("--json", type=Path, help="also write each row's figures here (benchmarks/speed_table.py)")
     args = ap.parse_args()
+    rows = []
     print(
         f"{os.cpu_count()} cores; {args.runs} runs of {args.frames} frames, 640x480, noise sigma 3, uneven light; "
         f"times: median over runs of each run's median / 95th percentile"
@@ -127,6 +131,7 @@ def main() -> None:
     for kind in ("colour", "aruco"):
         for tracking in (True, False):
             r = combine([run(kind, args.frames, args.seed + i, tracking) for i in range(args.runs)])
+            rows.append({k: v for k, v in r.items() if isinstance(v, (int, float, str)) or v is None})
             ref = "-" if r["ref_ms_median"] is None else f"{r['ref_ms_median']:.3f}"
             up = "-" if r["speed_up"] is None else f"{r['speed_up']:.2f}x"
             differ = "-" if r["ref_ms_median"] is None else str(r["differ"])
@@ -135,6 +140,8 @@ def main() -> None:
                 f"{up:>9} {differ:>7} {r['render_ms_median']:10.2f} {r['pos_mm_median']:7.2f} {r['pos_mm_max']:6.2f} "
                 f"{r['heading_deg_median']:9.2f} {r['heading_deg_max']:6.2f} {r['misses']:7d}"
             )
+    if args.json:
+        args.json.write_text(json.dumps({"runs": args.runs, "frames": args.frames, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":
