@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -28,7 +29,8 @@ HERE = Path(__file__).resolve().parent
 def _run(script: str, args: list[str], out: Path) -> dict:
     cmd = [sys.executable, str(HERE / script), *args, "--json", str(out)]
     print(f"$ {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
-    proc = subprocess.run(cmd, stdout=sys.stderr)
+    env = dict(os.environ, PYTHONPATH=str(HERE.parent / "host"))  # this tree's rovernav
+    proc = subprocess.run(cmd, stdout=sys.stderr, env=env)
     if proc.returncode not in (0, 2) or not out.exists():  # bench_planning: 2 = a target missed
         raise SystemExit(f"speed_table: {script} failed (exit {proc.returncode})")
     return json.loads(out.read_text())
