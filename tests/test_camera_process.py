@@ -128,3 +128,51 @@ def test_one_camera_process_serves_simulations_one_after_another(tmp_path, monke
     inline, inline_report, _ = _run(tmp_path, monkeypatch, "seed-large-obstacles", False, **kw)
     assert second.samples == inline.samples and second_report == inline_report
     assert first_report["mission_time_s"] == 12.0
+
+
+def test_a_camera_process_killed_mid_run_ends_the_command_as_an_internal_error(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rovernav.cli",
+            "sim",
+            "out-and-back",
+            "--no-video",
+            "--quiet",
+            "--no-log",
+            "--out",
+            str(tmp_path / "out"),
+            "--camera-process",
+            "on",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+    def kill_the_camera() -> None:
+        for _ in range(200):
+            time.sleep(0.05)
+            found = subprocess.run(
+                ["pgrep", "-P", str(proc.pid), "-f", "rovernav.sim.camera_process"], capture_output=True, text=True
+            ).stdout.split()
+            if found:
+                time.sleep(0.5)
+                os.kill(int(found[0]), signal.SIGKILL)
+                return
+
+    threading.Thread(target=kill_the_camera, daemon=True).start()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 3
+    assert (
+        err.strip()
+        .splitlines()[-1]
+        .startswith("rovernav sim: internal error: CameraProcessError: the camera process stopped")
+    )

@@ -33,11 +33,10 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-from ..errors import RovernavError
 
-
-class CameraProcessError(RovernavError):
-    """The camera process stopped or failed (its error is in the message)."""
+class CameraProcessError(RuntimeError):
+    """The camera process stopped or failed (its error is in the message). Not a RovernavError:
+    nothing the user gave is wrong, so the command line reports it as an internal error (exit 3)."""
 
 
 def _serve(conn) -> None:
