@@ -176,3 +176,11 @@ def test_the_mission_s_planner_is_chosen_by_configuration():
     assert MissionSpec.for_run(scenario, cfg).planner_name == "theta"
     with pytest.raises(ConfigError, match=r"\[mission\] planner = 'potential' must be one of astar, theta"):
         config_from_dict({"mission": {"planner": "potential"}})
+
+
+def test_the_fix_rate_is_every_frame_by_default_and_at_least_four_a_second_when_set():
+    assert config_from_dict({}).mission.fix_hz == 0.0
+    assert config_from_dict({"mission": {"fix_hz": 10}}).mission.fix_hz == 10.0
+    for bad in (2, 3.9, -1, 121):
+        with pytest.raises(ConfigError, match=r"\[mission\] fix_hz"):
+            config_from_dict({"mission": {"fix_hz": bad}}, where="rover.toml: ")

@@ -325,3 +325,30 @@ def test_cellular_arena_38_where_a_rover_backed_out_into_what_it_never_saw_is_re
     sim = Simulation(generate_arena(2611, 38, "cellular").scenario, SimOptions(seed=1, max_time_s=400))
     sim.run()
     assert sim.outcome == "reached" and sim.collisions == 0
+
+
+@pytest.mark.mission
+def test_a_host_that_sends_ten_fixes_a_second_uses_less_than_half_the_air_and_still_arrives():
+    from rovernav.config import config_from_dict
+
+    def run(fix_hz: float):
+        cfg = config_from_dict({"arena": {"width_m": 2.36, "height_m": 1.75}, "mission": {"fix_hz": fix_hz}})
+        sim = Simulation(load_scenario("seed-fig4-8-unknown-obstacle"), SimOptions(seed=2, config=cfg))
+        sim.run()
+        return build_report(sim, 1.0), sim
+
+    every, every_sim = run(0.0)
+    ten, ten_sim = run(10.0)
+    assert ten["reached"] and ten["collisions"] == 0
+    t = ten["mission_time_s"]
+    fixes_per_s = ten["radio"]["to_rover"]["frames"]["fix"]["sent"] / t
+    assert 9.0 <= fixes_per_s <= 10.5  # 10 Hz, not aliased down to 7.5 by frames on the loop's ticks
+    assert every["radio"]["to_rover"]["frames"]["fix"]["sent"] / every["mission_time_s"] > 27.0
+    assert (
+        ten["radio"]["to_rover"]["bytes_sent"] / t
+        < 0.5 * every["radio"]["to_rover"]["bytes_sent"] / every["mission_time_s"]
+    )
+    assert ten_sim.spec.fix_hz == 10.0 and every_sim.spec.fix_hz == 0.0  # replay builds the same host
+    from rovernav.mission.spec import MissionSpec
+
+    assert MissionSpec.from_json(ten_sim.spec.to_json()) == ten_sim.spec

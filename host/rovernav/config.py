@@ -5,7 +5,7 @@
     [camera]   source (index or video file), fps       the overhead camera
     [vision]   markers, HSV ranges, calibration, ...   (rovernav.vision.config.VisionConfig)
     [planner]  resolution_m, robot_radius_m, ...       (rovernav.planning.PlannerConfig)
-    [mission]  trips, heartbeat_hz, fix_sd_mm, map, planner   what the mission does
+    [mission]  trips, heartbeat_hz, fix_sd_mm, fix_hz, map, planner   what the mission does
     [rover]    any CONFIG parameter by name = value    sent to the rover at the start
     [radio]    loss_pct, ber_pct, burst_mean_s,        the simulated radio (`rovernav sim`; its
                burst_share, jitter_ms, half_duplex     --radio-* flags win over these)
@@ -58,11 +58,17 @@ class CameraConfig:
     fps: float = 30.0
 
 
+MIN_FIX_HZ = 4.0  # [mission] fix_hz: fixes far enough apart that frame drops do not starve the rover
+
+
 @dataclasses.dataclass(frozen=True)
 class MissionConfig:
     trips: int = 0  # 0: as the scenario says
     heartbeat_hz: float = 5.0
     fix_sd_mm: int = 3  # one-sigma of a camera fix, sent in FIX
+    # FIXes a second at most (a fleet's or a slow radio's airtime); 0: one for every camera frame
+    # that sees the rover. At least MIN_FIX_HZ: the rover dead-reckons after fix_timeout_ms (500).
+    fix_hz: float = 0.0
     map: str = ""  # a learned map to load at the start and save at the end
     planner: str = "astar"  # the host's global planner: "astar" (16 directions) or "theta" (any angle, Theta*)
 
@@ -169,9 +175,15 @@ def config_from_dict(data: dict, where: str = "") -> Config:
             "trips": (0, MAX_TRIPS, False),
             "heartbeat_hz": (0.0, 50.0, True),
             "fix_sd_mm": (1, 255, False),
+            "fix_hz": (0.0, 120.0, False),
             "planner": frozenset(MISSION_PLANNERS),
         },
     )
+    if 0.0 < mission.fix_hz < MIN_FIX_HZ:
+        raise ConfigError(
+            f"{where}[mission] fix_hz = {mission.fix_hz:g}: 0 (a fix for every frame) or at least "
+            f"{MIN_FIX_HZ:g} a second (the rover dead-reckons after fix_timeout_ms, 500 ms by default)"
+        )
     try:
         vision = VisionConfig.from_dict(data.get("vision", {}))
     except ValueError as exc:

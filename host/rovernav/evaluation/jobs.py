@@ -35,6 +35,7 @@ class TrialJob:
     meta: dict | None = None
     radio: tuple = ()  # the simulated radio's settings, (name, value) pairs for radio_config (): defaults
     planner: str = "astar"  # the host's global planner ([mission] planner)
+    fix_hz: float = 0.0  # the host's FIX rate ([mission] fix_hz; 0: every frame)
 
     @property
     def arena(self) -> str:
@@ -48,6 +49,8 @@ class TrialJob:
     def args(self) -> tuple:
         """run_trial's arguments, plain values that pickle to any worker."""
         args = (str(self.arena_path), self.strategy, self.seed, str(self.run_dir), self.max_time_s, self.run_timeout_s)
+        if self.fix_hz:
+            return args + (dict(self.radio) or None, self.planner, self.fix_hz)
         if self.planner != "astar":
             return args + (dict(self.radio) or None, self.planner)
         return args + (dict(self.radio),) if self.radio else args
@@ -103,6 +106,7 @@ def make_jobs(
     run_timeout_s: float | None,
     radio: dict | None = None,
     planner: str = "astar",
+    fix_hz: float = 0.0,
 ) -> list[TrialJob]:
     """One job per arena, strategy and seed; runs go to out_dir/runs/<strategy>/<arena>-s<seed>/.
     `radio`: radio_config's settings for the simulated radio (None: its defaults); `planner`: the
@@ -120,6 +124,7 @@ def make_jobs(
             meta,
             radio_items,
             planner,
+            fix_hz,
         )
         for path, meta in arenas
         for strategy in strategies
@@ -130,11 +135,11 @@ def make_jobs(
 # ---------------------------------------------------------------- one run
 
 
-def _planner_config(planner: str):
-    """The default configuration with [mission] planner set."""
+def _mission_config(planner: str, fix_hz: float = 0.0):
+    """The default configuration with [mission] planner and fix_hz set."""
     from ..config import config_from_dict
 
-    return config_from_dict({"mission": {"planner": planner}})
+    return config_from_dict({"mission": {"planner": planner, "fix_hz": float(fix_hz)}})
 
 
 def run_trial(
@@ -146,6 +151,7 @@ def run_trial(
     run_timeout_s: float | None = None,
     radio: dict | None = None,
     planner: str = "astar",
+    fix_hz: float = 0.0,
     camera_process: bool = False,
 ) -> dict:
     """Simulate one mission headless and return its row (ROW_FIELDS).
@@ -157,6 +163,7 @@ def run_trial(
     and keeps no state. Exceptions from the simulator propagate (the caller records an error).
     `radio`: the simulated radio's settings as radio_config takes them (None: the defaults).
     `planner`: the host's global planner ([mission] planner: "astar" or "theta").
+    `fix_hz`: the host's FIX rate ([mission] fix_hz; 0: a FIX for every frame that sees the rover).
     `camera_process`: render and locate frames in a second process (sim/camera_process.py; the
     serial runner's, on a machine with a core to spare).
     """
@@ -184,7 +191,7 @@ def run_trial(
             strategy=strategy,
             max_time_s=max_time_s,
             channel=channel,
-            config=None if planner == "astar" else _planner_config(planner),
+            config=None if planner == "astar" and not fix_hz else _mission_config(planner, fix_hz),
             camera_process=camera_process,
         ),
         progress=guard,

@@ -266,6 +266,14 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
         help="the host's global planner for every run, as [mission] planner sets it: astar (16 directions, "
         "the default) or theta (any angle, Theta*)",
     )
+    p.add_argument(
+        "--fix-hz",
+        type=number(0.0, 120.0),
+        default=0.0,
+        metavar="HZ",
+        help="the host sends at most HZ camera fixes a second, as [mission] fix_hz sets it (0, the "
+        "default: one for every frame that sees the rover; else at least 4)",
+    )
     from ..radio_flags import add_radio_flags
 
     add_radio_flags(p, config=False)  # every run's radio; trials.json's settings.radio says what it was
@@ -278,6 +286,8 @@ def _command_line(args: argparse.Namespace, runner_flag: str) -> str:
         parts += ["--sample", str(args.sample)]
     if getattr(args, "planner", "astar") != "astar":
         parts += ["--planner", args.planner]
+    if getattr(args, "fix_hz", 0.0):
+        parts += ["--fix-hz", f"{args.fix_hz:g}"]
     parts += [
         "--out",
         str(args.out),
@@ -322,6 +332,10 @@ def cmd_trials(args: argparse.Namespace) -> int:
         raise TrialsError(f"--sample must be >= 1, got {args.sample}")
     if args.workers < 0:
         raise TrialsError(f"--workers must be >= 0, got {args.workers}")
+    from ..config import MIN_FIX_HZ
+
+    if 0.0 < args.fix_hz < MIN_FIX_HZ:
+        raise TrialsError(f"--fix-hz {args.fix_hz:g}: 0 (a fix for every frame) or at least {MIN_FIX_HZ:g}")
     if args.max_time <= 0 or args.run_timeout <= 0:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)
@@ -336,7 +350,15 @@ def cmd_trials(args: argparse.Namespace) -> int:
         arenas = sample_arenas(arenas, args.sample)
     strategies = list(STRATEGIES) if args.strategy == "both" else [args.strategy]
     jobs = make_jobs(
-        arenas, strategies, range(1, args.seeds + 1), args.out, args.max_time, args.run_timeout, radio, args.planner
+        arenas,
+        strategies,
+        range(1, args.seeds + 1),
+        args.out,
+        args.max_time,
+        args.run_timeout,
+        radio,
+        args.planner,
+        args.fix_hz,
     )
     workers = 0 if args.serial else args.workers
     trial = run_trial
@@ -394,6 +416,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
             "runner": runner,
             "radio": channel.settings(),
             "planner": args.planner,
+            "fix_hz": args.fix_hz,
         },
     }
     summary = write_outputs(args.out, rows, context, fail_on)

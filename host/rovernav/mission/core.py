@@ -21,6 +21,7 @@ what a strategy may see of the mission (interface.py).
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -60,6 +61,8 @@ from .strategies import RovernavStrategy
 
 log = logging.getLogger("rovernav.mission")
 
+FIX_SLACK_S = 0.005  # [mission] fix_hz: a frame this early for its FIX's turn is on time (see Mission)
+
 
 class Mission(RoverFrames, LegControl):
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
@@ -76,6 +79,7 @@ class Mission(RoverFrames, LegControl):
         planner: str = "astar",
         fix_sd_mm: int = 3,
         heartbeat_hz: float = 5.0,
+        fix_hz: float = 0.0,
         host_replan: bool = True,
         on_event: Callable[[float, str], None] | None = None,
         map_file: str | Path | None = None,
@@ -98,6 +102,11 @@ class Mission(RoverFrames, LegControl):
         self.planner = planner
         self.fix_sd_mm = fix_sd_mm
         self.heartbeat_period_s = 1.0 / heartbeat_hz
+        # At most fix_hz FIXes a second (0: every frame that sees the rover). A frame that comes within
+        # FIX_SLACK_S of its turn counts as on time: frames reach the host on the loop's ticks, and
+        # without it 10 Hz at 30 frames a second would alias down to 7.5.
+        self.fix_period_s = 1.0 / fix_hz if fix_hz > 0 else 0.0
+        self._last_fix_s = -math.inf
         self.host_replan = host_replan
         self.deadlines = deadlines
         say = on_event or (lambda t, text: log.info("%.2f s %s", t, text))
@@ -231,6 +240,9 @@ class Mission(RoverFrames, LegControl):
         self._last_detection = detection
         if self.phase is Phase.HELLO:
             return
+        if now_s - self._last_fix_s < self.fix_period_s - FIX_SLACK_S:
+            return
+        self._last_fix_s = now_s
         age_ms = max(0, min(65535, round((now_s - detection.t_s) * 1000)))
         self._send(
             mg.Fix(

@@ -40,6 +40,7 @@ class MissionSpec:
     rover_params: tuple[tuple[int, int], ...]  # (Param, value) the caller adds to the planner's and the strategy's
     fix_sd_mm: int = 3
     heartbeat_hz: float = 5.0
+    fix_hz: float = 0.0  # 0: a FIX for every frame that sees the rover
     host_replan: bool = True
     strategy: str = "rovernav"
     planner_name: str = "astar"
@@ -87,6 +88,7 @@ class MissionSpec:
             rover_params=tuple((int(p), int(v)) for p, v in params),
             fix_sd_mm=cfg.mission.fix_sd_mm,
             heartbeat_hz=cfg.mission.heartbeat_hz,
+            fix_hz=cfg.mission.fix_hz,
             host_replan=host_replan,
             strategy=strategy,
             planner_name=cfg.mission.planner,
@@ -133,6 +135,7 @@ class MissionSpec:
             planner=self.planner_name,
             fix_sd_mm=self.fix_sd_mm,
             heartbeat_hz=self.heartbeat_hz,
+            fix_hz=self.fix_hz,
             host_replan=self.host_replan,
             on_event=on_event,
             map_file=map_file,
