@@ -160,13 +160,15 @@ class Renderer:
                         b1, b0 = half - r * cell_m, half - (r + 1) * cell_m  # along forward
                         quads.append(np.array([(b1, a0), (b1, a1), (b0, a1), (b0, a0)]))
             return np.array(quads), [(1, (235, 235, 235)), (len(quads) - 1, (20, 20, 20))]
-        # The rover: its body, then its colour squares (back, front) or its tag.
-        _, marker_kind, hidden = key
+        # The rover: its body, then its colour squares (back, front) or its tag. A fleet's other
+        # rovers: ("rover", "aruco", hidden, their tag id; below 0: no tag).
+        _, marker_kind, hidden, *other = key
+        tag_id = other[0] if other else look.rover_tag_id
         quads = [_rect_local(look.body_offset_m, look.body_length_m, look.body_width_m)]
         groups: list[tuple[int, BGR]] = [(1, look.body_bgr)]
         if marker_kind == "aruco":
-            if "tag" not in hidden:
-                tag_quads, tag_groups = self._template(("tag", look.rover_tag_id))
+            if "tag" not in hidden and tag_id >= 0:
+                tag_quads, tag_groups = self._template(("tag", tag_id))
                 quads += list(tag_quads)
                 groups += tag_groups
         else:
@@ -235,10 +237,21 @@ class Renderer:
                 markers += self._place(mapping, ("square", look.target_size_m, look.target_bgr), scene.target, 0.0)
         return boxes, markers
 
+    @staticmethod
+    def _rovers(scene: Scene) -> list[tuple[tuple[float, float, float], tuple]]:
+        """Every rover in drawing order, (pose, template key): the rover, then the fleet's."""
+        out = [] if scene.rover is None else [(scene.rover, ("rover", scene.marker_kind, scene.hidden))]
+        if scene.fleet and scene.marker_kind != "aruco":
+            raise ValueError("a fleet's rovers are told apart by their ArUco tags: marker_kind 'aruco'")
+        out += [((x, y, h), ("rover", "aruco", scene.hidden, int(tag))) for x, y, h, tag in scene.fleet]
+        return out
+
     def _rover_shapes(self, scene: Scene, mapping: Calibration) -> list[_Shape]:
-        """The rover in drawing order: its body, then its colour squares or its tag."""
-        x, y, heading = scene.rover  # type: ignore[misc]
-        return self._place(mapping, ("rover", scene.marker_kind, scene.hidden), (x, y), heading)
+        """The rovers in drawing order: each one's body, then its colour squares or its tag."""
+        shapes: list[_Shape] = []
+        for (x, y, heading), key in self._rovers(scene):
+            shapes += self._place(mapping, key, (x, y), heading)
+        return shapes
 
     def _static_albedo(self, scene: Scene, mapping: Calibration) -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
         """The unlit arena without the rover, and the windows round its markers."""
@@ -258,7 +271,7 @@ class Renderer:
         mapping = self.camera.mapping(scene.arena_w_m, scene.arena_h_m)
         img = self._floor(mapping, scene.arena_w_m, scene.arena_h_m).copy()
         boxes, markers = self._static_shapes(scene, mapping)
-        shapes = boxes + markers + (self._rover_shapes(scene, mapping) if scene.rover is not None else [])
+        shapes = boxes + markers + self._rover_shapes(scene, mapping)
         for polys, bgr in shapes:
             _paint(img, polys, bgr)
         return _light_up(img, self._light)
@@ -307,11 +320,10 @@ class Renderer:
             self._static_key = key
         lit = self._lit
         assert lit is not None
-        rover = self._rover_patch(scene, mapping) if scene.rover is not None else None
+        rovers = self._rover_patches(scene, mapping)
         if cam.noise_sigma <= 0:
             frame = lit.copy()
-            if rover is not None:
-                (x0, y0, x1, y1), patch = rover
+            for (x0, y0, x1, y1), patch in rovers:
                 frame[y0:y1, x0:x1] = patch
             return frame
         assert offsets is not None, "a camera with noise needs the frame's noise offsets"
@@ -326,8 +338,7 @@ class Renderer:
 
         for x0, y0, x1, y1 in self._fresh:
             fresh(x0, y0, x1, y1, lit[y0:y1, x0:x1])
-        if rover is not None:
-            (x0, y0, x1, y1), patch = rover
+        for (x0, y0, x1, y1), patch in rovers:
             m = _FRESH_MARGIN_PX
             h, w = self._shape_hw
             gx0, gy0, gx1, gy1 = max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, w), min(y1 + m, h)
@@ -335,21 +346,41 @@ class Renderer:
             fresh(x0, y0, x1, y1, patch)
         return frame
 
-    def _rover_patch(self, scene: Scene, mapping: Calibration):
-        """The rover drawn and lit in the smallest window that holds it: ((x0, y0, x1, y1), uint8
-        patch), or None when it is out of sight. Painted on the kept unlit floor exactly as
-        `reference_frame` paints it on the whole frame (window-relative coordinates are exact)."""
-        x, y, heading = scene.rover  # type: ignore[misc]
-        quads, groups = self._template(("rover", scene.marker_kind, scene.hidden))
-        corners = self._corners(mapping, quads, (x, y), heading)
-        box = _window([corners.reshape(-1, 2)], 0, self._shape_hw)
-        if box is None:
-            return None
-        x0, y0, x1, y1 = box
-        patch = self._albedo[:, y0:y1, x0:x1].copy()  # type: ignore[index]
-        for polys, bgr in _group(corners - (x0, y0), groups):
-            _paint(patch, polys, bgr)
-        return box, _light_up(patch, self._light[y0:y1, x0:x1])
+    def _rover_patches(self, scene: Scene, mapping: Calibration) -> list:
+        """The rovers drawn and lit in the smallest windows that hold them: [((x0, y0, x1, y1), uint8
+        patch)], none for a rover out of sight; rovers whose windows overlap share one, painted in
+        `_rovers`' order. Painted on the kept unlit floor exactly as `reference_frame` paints them
+        on the whole frame (window-relative coordinates are exact)."""
+        drawn = []  # [(box, [(corners, groups)])]: windows not overlapping, each with its rovers
+        for (x, y, heading), key in self._rovers(scene):
+            quads, groups = self._template(key)
+            corners = self._corners(mapping, quads, (x, y), heading)
+            box = _window([corners.reshape(-1, 2)], 0, self._shape_hw)
+            if box is None:
+                continue
+            mine = [(corners, groups)]
+            while True:  # a fleet's rovers side by side: one window, until none overlaps another
+                others = [d for d in drawn if _overlap(d[0], box)]
+                if not others:
+                    break
+                for other in others:
+                    drawn.remove(other)
+                    box = (
+                        min(box[0], other[0][0]),
+                        min(box[1], other[0][1]),
+                        max(box[2], other[0][2]),
+                        max(box[3], other[0][3]),
+                    )
+                mine = [r for other in others for r in other[1]] + mine  # in drawing order
+            drawn.append((box, mine))
+        out = []
+        for (x0, y0, x1, y1), rovers in drawn:
+            patch = self._albedo[:, y0:y1, x0:x1].copy()  # type: ignore[index]
+            for corners, groups in rovers:
+                for polys, bgr in _group(corners - (x0, y0), groups):
+                    _paint(patch, polys, bgr)
+            out.append(((x0, y0, x1, y1), _light_up(patch, self._light[y0:y1, x0:x1])))
+        return out
 
     def _pool_frame(self, k: int) -> np.ndarray:
         """The k-th noisy copy of the lit arena (made when first asked for)."""
@@ -368,6 +399,12 @@ class Renderer:
                 cv2.add(self._lit, plus[oy : oy + h, ox : ox + w]), minus[oy : oy + h, ox : ox + w]
             )
         return got
+
+
+def _overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> bool:
+    """Whether two pixel windows (x0, y0, x1, y1) share a pixel, or their fresh noise's margins do."""
+    m = 2 * _FRESH_MARGIN_PX
+    return a[0] < b[2] + m and b[0] < a[2] + m and a[1] < b[3] + m and b[1] < a[3] + m
 
 
 _RENDERERS: dict[tuple, Renderer] = {}

@@ -34,6 +34,8 @@ class Scene:
         (colour squares) or "tag" (the rover's ArUco tag).
     decoys: extra markers lying on the floor, each (kind, x_m, y_m) with kind "front", "back" or
         "target" (a colour square like that marker) or an int (an ArUco tag with that id).
+    fleet: more rovers, each (x_m, y_m, heading_deg, tag_id): drawn like the rover, with its own
+        ArUco tag (marker_kind "aruco" only: a fleet is told apart by its tags).
     """
 
     arena_w_m: float = DEFAULT_ARENA_WIDTH_MM / 1000.0  # protocol/vehicle.toml
@@ -46,6 +48,7 @@ class Scene:
     marker_kind: str = "colour"
     hidden: frozenset[str] = frozenset()
     decoys: tuple[tuple[str | int, float, float], ...] = ()
+    fleet: tuple[tuple[float, float, float, int], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -162,10 +162,14 @@ class Locator:
 
     # -- checks shared by both marker kinds ---------------------------------------------------------
 
-    def _jump_problem(self, x_m: float, y_m: float, t_s: float | None) -> str | None:
-        if self._last is None or t_s is None or self._last[2] is None:
+    def _jump_problem(
+        self, x_m: float, y_m: float, t_s: float | None, last: tuple[float, float, float | None] | None = None
+    ) -> str | None:
+        """Why a fix at (x_m, y_m) at t_s is too far from the last one (`last`, else the rover's), or None."""
+        last = self._last if last is None else last
+        if last is None or t_s is None or last[2] is None:
             return None
-        lx, ly, lt = self._last
+        lx, ly, lt = last
         dt = max(t_s - lt, 0.0)
         dist = math.hypot(x_m - lx, y_m - ly)
         allowed = self.config.max_rover_speed_m_s * dt + self.config.jump_slack_m
@@ -237,20 +241,7 @@ class Locator:
 
         def one(tag_id: int, label: str):
             """(arena corners, None) or (None, problem) for the tag with this id."""
-            seen = tags.get(tag_id, [])
-            if not seen:
-                return None, f"{label} tag (id {tag_id}) not found"
-            if len(seen) > 1:
-                n = "two" if len(seen) == 2 else str(len(seen))
-                return None, f"{n} candidate {label} tags (id {tag_id})"
-            px = seen[0]
-            pixels[label] = tuple(float(v) for v in _diagonal_crossing(px))  # type: ignore[assignment]
-            areas[label] = float(_polygon_area(px))
-            corners = cal.to_arena(px)
-            side = float(np.mean(np.hypot(*(corners - np.roll(corners, -1, axis=0)).T)))
-            if abs(side - acfg.size_m) > acfg.size_tolerance_m:
-                return None, f"{label} tag {side:.2f} m wide, expected {acfg.size_m:.2f} ± {acfg.size_tolerance_m:.2f}"
-            return corners, None
+            return tag_corners(tags.get(tag_id, []), tag_id, label, cal, acfg, pixels, areas)
 
         target = None
         t_corners, target_reason = one(acfg.target_id, "target")
@@ -261,14 +252,39 @@ class Locator:
         rover = None
         r_corners, reason = one(acfg.rover_id, "rover")
         if r_corners is not None:
-            # In the arena plane the tag is a true square: its centre is its corners' mean.
-            centre = r_corners.mean(axis=0)
-            top = (r_corners[0] + r_corners[1]) / 2
-            bottom = (r_corners[2] + r_corners[3]) / 2
-            reason = self._jump_problem(float(centre[0]), float(centre[1]), t_s)
+            pose = tag_pose(r_corners)
+            reason = self._jump_problem(pose.x_m, pose.y_m, t_s)
             if reason is None:
-                rover = RoverPose(float(centre[0]), float(centre[1]), heading_deg(bottom, top))
+                rover = pose
         return Detection(rover, target, reason, target_reason, pixels, areas, t_s)
+
+
+def tag_corners(seen: list[np.ndarray], tag_id: int, label: str, cal: Calibration, acfg, pixels: dict, areas: dict):
+    """(arena corners, None), or (None, the problem), for the tag with this id given the tags of
+    that id found in a frame (`seen`, pixel corners); its centre's pixel and its area go into
+    `pixels` and `areas` under `label`."""
+    if not seen:
+        return None, f"{label} tag (id {tag_id}) not found"
+    if len(seen) > 1:
+        n = "two" if len(seen) == 2 else str(len(seen))
+        return None, f"{n} candidate {label} tags (id {tag_id})"
+    px = seen[0]
+    pixels[label] = tuple(float(v) for v in _diagonal_crossing(px))
+    areas[label] = float(_polygon_area(px))
+    corners = cal.to_arena(px)
+    side = float(np.mean(np.hypot(*(corners - np.roll(corners, -1, axis=0)).T)))
+    if abs(side - acfg.size_m) > acfg.size_tolerance_m:
+        return None, f"{label} tag {side:.2f} m wide, expected {acfg.size_m:.2f} ± {acfg.size_tolerance_m:.2f}"
+    return corners, None
+
+
+def tag_pose(corners: np.ndarray) -> RoverPose:
+    """A rover's pose from its tag's arena corners (top edge first, facing forward). In the arena
+    plane the tag is a true square: its centre is its corners' mean."""
+    centre = corners.mean(axis=0)
+    top = (corners[0] + corners[1]) / 2
+    bottom = (corners[2] + corners[3]) / 2
+    return RoverPose(float(centre[0]), float(centre[1]), heading_deg(bottom, top))
 
 
 def _box_around(corners_px: np.ndarray) -> tuple[int, int, int, int]:
