@@ -124,7 +124,7 @@ def test_one_camera_process_serves_simulations_one_after_another(tmp_path, monke
     first, first_report, _ = _run(tmp_path, monkeypatch, "seed-small-obstacles", True, **kw)
     pid = camera_process._shared._proc.pid
     second, second_report, _ = _run(tmp_path, monkeypatch, "seed-large-obstacles", True, **kw)
-    assert camera_process._shared._proc.pid == pid
+    assert camera_process._shared._proc.pid == pid and not camera_process._shared.in_use
     inline, inline_report, _ = _run(tmp_path, monkeypatch, "seed-large-obstacles", False, **kw)
     assert second.samples == inline.samples and second_report == inline_report
     assert first_report["mission_time_s"] == 12.0
@@ -176,3 +176,52 @@ def test_a_camera_process_killed_mid_run_ends_the_command_as_an_internal_error(t
         .splitlines()[-1]
         .startswith("rovernav sim: internal error: CameraProcessError: the camera process stopped")
     )
+
+
+def _small_camera():
+    return (RoverLook(), Camera(noise_sigma=3.0), 5), (VisionConfig(), 2.36, 1.75)
+
+
+def test_a_camera_process_that_dies_or_stops_answering_is_a_camera_process_error(monkeypatch):
+    import os
+    import signal
+
+    from rovernav.sim import camera_process
+
+    scene = Scene(arena_w_m=2.36, arena_h_m=1.75, target=(2.0, 1.4))
+    proc = CameraProcess(*_small_camera())
+    try:
+        proc.submit(0.0, scene, (0.5, 0.5, 0.0), frozenset(), (1, 2), keep_image=False)
+        proc.take()
+        os.kill(proc._proc.pid, signal.SIGSTOP)  # alive, but answers nothing
+        monkeypatch.setattr(camera_process, "ANSWER_TIMEOUT_S", 0.5)
+        proc.submit(0.1, scene, (0.5, 0.5, 0.0), frozenset(), (1, 2), keep_image=False)
+        with pytest.raises(CameraProcessError, match="did not answer in 0.5 s"):
+            proc.take()
+        os.kill(proc._proc.pid, signal.SIGKILL)
+        proc._proc.wait()
+        with pytest.raises(CameraProcessError, match=r"stopped \(exit code -9\)"):  # a send, not a BrokenPipeError
+            for _ in range(50):  # the socket's buffer takes a few sends before it fails
+                proc.submit(0.2, scene, (0.5, 0.5, 0.0), frozenset(), (1, 2), keep_image=False)
+    finally:
+        proc.close()
+
+
+@pytest.mark.mission
+def test_two_simulations_made_before_either_runs_get_a_camera_process_each(tmp_path, monkeypatch):
+    from rovernav.sim import camera_process
+
+    kw = {"seed": 4, "max_time_s": 8.0}
+    monkeypatch.setattr("rovernav.sim.runner.time.time", lambda: 1_795_000_000.0)
+    a = Simulation(load_scenario("seed-small-obstacles"), SimOptions(camera_process=True, **kw))
+    b = Simulation(load_scenario("seed-large-obstacles"), SimOptions(camera_process=True, **kw))
+    assert a._camera_proc is not b._camera_proc and a._camera_proc is camera_process._shared
+    private = b._camera_proc
+    b.run()
+    a.run()
+    assert private._conn.closed  # b's own process: closed when b was done
+    assert not camera_process._shared.in_use
+    for sim, name in ((a, "seed-small-obstacles"), (b, "seed-large-obstacles")):
+        inline = Simulation(load_scenario(name), SimOptions(camera_process=False, **kw))
+        inline.run()
+        assert sim.samples == inline.samples

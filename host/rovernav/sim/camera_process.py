@@ -42,8 +42,12 @@ class CameraProcessError(RuntimeError):
 def _serve(conn) -> None:
     """The worker: set up by ("camera", renderer_args, locator_args), told the arena by ("scene",
     Scene), then renders and locates frames until told to stop (None) or the socket closes. An
-    error is said once; the worker then waits for the next camera."""
+    error is said once; the worker then waits for the next camera. Ctrl-C is the parent's to
+    handle (it closes the socket, and the worker ends)."""
     import dataclasses
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     from ..runlog.images import encode_jpeg
     from ..vision import Locator
@@ -73,6 +77,11 @@ def _serve(conn) -> None:
             conn.send(("error", f"{type(exc).__name__}: {exc}"))
 
 
+# How long the loop waits for a frame's answer before it calls the camera process stuck: a frame
+# takes under a millisecond, a new arena's floor some tens of milliseconds.
+ANSWER_TIMEOUT_S = 60.0
+
+
 class CameraProcess:
     """Renders and locates frames in a worker process (see the module's doc).
 
@@ -81,6 +90,7 @@ class CameraProcess:
     take() -> (Detection, JPEG bytes when keep_image else None) of the oldest frame not yet taken
     drain(): forget the frames not taken (a run that ended)
     close()
+    Every failure of the process (it died, it failed, it did not answer) is a CameraProcessError.
     """
 
     def __init__(self, renderer_args: tuple | None = None, locator_args: tuple | None = None):
@@ -99,18 +109,38 @@ class CameraProcess:
                 env=env,
                 stdin=subprocess.DEVNULL,
             )
+        except BaseException:
+            ours.close()
+            raise
         finally:
             theirs.close()
         self._conn = Connection(ours.detach())
         self._outstanding = 0
         self._base = None
         self._failed = False
+        self.in_use = False  # a simulation holds it (see `acquire`)
         if renderer_args is not None and locator_args is not None:
             self.configure(renderer_args, locator_args)
 
+    def _stopped(self, exc: BaseException | None = None) -> CameraProcessError:
+        try:
+            code = self._proc.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        what = f"exit code {code}" if code is not None else "still running, but its socket failed"
+        err = CameraProcessError(f"the camera process stopped ({what})")
+        err.__cause__ = exc
+        return err
+
+    def _send(self, message) -> None:
+        try:
+            self._conn.send(message)
+        except (OSError, ValueError) as exc:  # a closed socket: the process died
+            raise self._stopped(exc) from exc
+
     def configure(self, renderer_args: tuple, locator_args: tuple) -> None:
         self.drain()
-        self._conn.send(("camera", renderer_args, locator_args))
+        self._send(("camera", renderer_args, locator_args))
         self._base = None
         self._failed = False
 
@@ -125,9 +155,11 @@ class CameraProcess:
 
     def _recv(self) -> tuple[str, Any]:
         try:
+            if not self._conn.poll(ANSWER_TIMEOUT_S):
+                raise CameraProcessError(f"the camera process did not answer in {ANSWER_TIMEOUT_S:g} s")
             kind, what = self._conn.recv()
         except (EOFError, OSError) as exc:
-            raise CameraProcessError(f"the camera process stopped (exit code {self._proc.poll()})") from exc
+            raise self._stopped(exc) from exc
         if kind == "error":
             self._failed = True
             raise CameraProcessError(f"the camera process failed: {what}")
@@ -138,9 +170,9 @@ class CameraProcess:
         heading_deg) and its `hidden` markers, noise `offsets` (Renderer.noise_offsets); its JPEG
         too when keep_image."""
         if base is not self._base:  # the arena, sent when it is a new one: a frame then costs a pose
-            self._conn.send(("scene", base))
+            self._send(("scene", base))
             self._base = base
-        self._conn.send((taken_s, rover, hidden, offsets, keep_image))
+        self._send((taken_s, rover, hidden, offsets, keep_image))
         self._outstanding += 1
 
     def take(self):
@@ -154,6 +186,7 @@ class CameraProcess:
         return what
 
     def close(self) -> None:
+        """Stop the process (at once if it does not stop when asked) and close the socket."""
         try:
             self._conn.send(None)
         except (OSError, ValueError):
@@ -164,21 +197,43 @@ class CameraProcess:
             self._proc.kill()
             self._proc.wait(timeout=2.0)
         self._conn.close()
+        self.in_use = False
 
 
 _shared: CameraProcess | None = None
 
 
-def shared(renderer_args: tuple, locator_args: tuple) -> CameraProcess:
-    """This process's camera process, set up for a new camera: started on first use and kept for
-    the next simulation (one after another in a process, as trials' workers and the benchmarks
-    run them, each then pays no start-up); closed when the process exits."""
+def acquire(renderer_args: tuple, locator_args: tuple) -> CameraProcess:
+    """A camera process set up for a new camera, for one simulation until `release`: this
+    process's shared one, started on first use and kept for the next simulation (one after
+    another in a process, as trials' workers and the benchmarks run them, each then pays no
+    start-up; closed when the process exits), or a process of its own when a simulation holds the
+    shared one already."""
     global _shared
-    if _shared is None or not _shared.alive():
-        _shared = CameraProcess()
-        atexit.register(_shared.close)
-    _shared.configure(renderer_args, locator_args)
-    return _shared
+    if _shared is not None and _shared.in_use:
+        proc = CameraProcess(renderer_args, locator_args)
+    else:
+        if _shared is None or not _shared.alive():
+            _shared = CameraProcess()
+            atexit.register(_shared.close)
+        proc = _shared
+        proc.configure(renderer_args, locator_args)
+    proc.in_use = True
+    return proc
+
+
+def release(proc: CameraProcess, ended_well: bool) -> None:
+    """The simulation is done with `proc`. After a run that ended well, the frames still in flight
+    are forgotten and the shared process waits for the next simulation; after one that did not
+    (an error, Ctrl-C: a message may be half read), the process is closed."""
+    if ended_well and proc is _shared:
+        try:
+            proc.drain()
+            proc.in_use = False
+            return
+        except CameraProcessError:
+            pass
+    proc.close()
 
 
 def spare_core() -> bool:

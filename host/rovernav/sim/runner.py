@@ -169,7 +169,7 @@ class Simulation:
         self.locator = Locator(*locator_args)
         self._camera_proc: camera_process.CameraProcess | None = None
         if options.camera_process and frame_sink is None:
-            self._camera_proc = camera_process.shared(renderer_args, locator_args)
+            self._camera_proc = camera_process.acquire(renderer_args, locator_args)
             # While the camera process starts (its imports, the arena's floor), load the compiled
             # planner here: the first plan would otherwise pay for it in the loop.
             from ..planning import warm_up
@@ -311,14 +311,13 @@ class Simulation:
     # ---------------------------------------------------------------- the loop
 
     def run(self) -> None:
+        ended_well = False
         try:
             self._run()
+            ended_well = True
         finally:
             if self._camera_proc is not None:
-                try:
-                    self._camera_proc.drain()  # the frames in flight when the run ended
-                except camera_process.CameraProcessError:
-                    self._camera_proc.close()  # the next simulation starts another
+                camera_process.release(self._camera_proc, ended_well)
                 self._camera_proc = None
 
     def _run(self) -> None:
