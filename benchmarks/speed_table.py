@@ -40,11 +40,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="one run each, 4 arenas: a check, not the figures")
     args = ap.parse_args(argv)
-    tmp = Path(tempfile.mkdtemp(prefix="rovernav-speed-"))
     runs = ["--runs", "1"] if args.quick else []
-    sim = _run("bench_sim_speed.py", runs + (["--arenas", "4"] if args.quick else []), tmp / "sim.json")
-    planning = _run("bench_planning.py", (["--runs", "3"] if args.quick else []) + ["--no-plain"], tmp / "plan.json")
-    vision = _run("bench_vision.py", (["--runs", "1", "--frames", "60"] if args.quick else []), tmp / "vision.json")
+    with tempfile.TemporaryDirectory(prefix="rovernav-speed-") as where:
+        tmp = Path(where)
+        sim = _run("bench_sim_speed.py", runs + (["--arenas", "4"] if args.quick else []), tmp / "sim.json")
+        planning = _run(
+            "bench_planning.py", (["--runs", "3"] if args.quick else []) + ["--no-plain"], tmp / "plan.json"
+        )
+        vision = _run("bench_vision.py", (["--runs", "1", "--frames", "60"] if args.quick else []), tmp / "vision.json")
 
     lines = ["| what | now | before (same run) | goal | command |", "|---|---|---|---|---|"]
     ref = {r["missions"]: r["speedup"] for r in sim["rows"] if r["configuration"] == "reference"}

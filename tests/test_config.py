@@ -178,9 +178,13 @@ def test_the_mission_s_planner_is_chosen_by_configuration():
         config_from_dict({"mission": {"planner": "potential"}})
 
 
-def test_the_fix_rate_is_every_frame_by_default_and_at_least_four_a_second_when_set():
+def test_the_fix_rate_is_every_frame_by_default_and_three_within_the_rovers_fix_timeout_when_set():
     assert config_from_dict({}).mission.fix_hz == 0.0
     assert config_from_dict({"mission": {"fix_hz": 10}}).mission.fix_hz == 10.0
-    for bad in (2, 3.9, -1, 121):
+    for bad in (2, 5.9, -1, 121):  # the rover's fix_timeout_ms is 500 by default: at least 6 a second
         with pytest.raises(ConfigError, match=r"\[mission\] fix_hz"):
             config_from_dict({"mission": {"fix_hz": bad}}, where="rover.toml: ")
+    slow = {"mission": {"fix_hz": 4}, "rover": {"fix_timeout_ms": 1000}}
+    assert config_from_dict(slow).mission.fix_hz == 4.0
+    with pytest.raises(ConfigError, match=r"at least 15 a second \(3 within the rover's fix_timeout_ms, 200 ms"):
+        config_from_dict({"mission": {"fix_hz": 10}, "rover": {"fix_timeout_ms": 200}})

@@ -103,6 +103,11 @@ def test_a_fleet_needs_tags_of_its_own():
         FleetLocator(_config(), 2.36, 1.75, {1: 1, 2: 1})
     with pytest.raises(ValueError, match="the target's"):
         FleetLocator(_config(), 2.36, 1.75, {1: 1, 2: 2})
+    with pytest.raises(ValueError, match="a fleet of no rovers"):
+        FleetLocator(_config(), 2.36, 1.75, {})
+    for bad in (-1, 50, 3.0, True):
+        with pytest.raises(ValueError, match=r"tag id .* is not one of DICT_4X4_50's \(0 to 49\)"):
+            FleetLocator(_config(), 2.36, 1.75, {1: 1, 2: bad})
     with pytest.raises(ValueError, match="told apart by ArUco tags"):
         FleetLocator(VisionConfig(), 2.36, 1.75, {1: 1})
     with pytest.raises(ValueError, match="marker_kind 'aruco'"):

@@ -515,3 +515,15 @@ def test_the_driven_path_made_as_it_grows_is_the_whole_path_made_again():
             points.append((rnd.uniform(0, 2), rnd.uniform(0, 2), n))
         assert values(growing.poses(points)) == values(poses_along(points))
     assert len(points) > 50
+
+
+def test_a_mission_spec_from_before_the_fix_rate_reads_as_a_fix_every_frame(fig48_run):
+    import json as _json
+
+    sim, _path = fig48_run
+    old = _json.loads(sim.spec.to_json())
+    del old["fix_hz"]  # a log written before [mission] fix_hz
+    spec = MissionSpec.from_json(_json.dumps(old))
+    assert spec.fix_hz == 0.0 and spec == sim.spec
+    with pytest.raises(ValueError, match="fix_hz 2: 0, or 6 to 120"):
+        MissionSpec.from_json(_json.dumps({**old, "fix_hz": 2}))

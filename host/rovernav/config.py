@@ -58,7 +58,19 @@ class CameraConfig:
     fps: float = 30.0
 
 
-MIN_FIX_HZ = 4.0  # [mission] fix_hz: fixes far enough apart that frame drops do not starve the rover
+# [mission] fix_hz: the rover must get FIXES_PER_TIMEOUT fixes inside its fix_timeout_ms (500 ms
+# by default: at least 6 a second), so that two lost in a row (a signed FIX is 30 bytes: at 1 % of
+# bytes lost a quarter of them are) do not put it into dead reckoning; at most MAX_FIX_HZ.
+FIXES_PER_TIMEOUT = 3
+MAX_FIX_HZ = 120.0
+
+
+def min_fix_hz(fix_timeout_ms: int = mg.PARAMS[mg.Param.FIX_TIMEOUT_MS].default) -> float:
+    """The least [mission] fix_hz for a rover whose fix_timeout_ms is this."""
+    return FIXES_PER_TIMEOUT * 1000.0 / fix_timeout_ms
+
+
+MIN_FIX_HZ = min_fix_hz()  # with the rover's default fix_timeout_ms
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,7 +79,7 @@ class MissionConfig:
     heartbeat_hz: float = 5.0
     fix_sd_mm: int = 3  # one-sigma of a camera fix, sent in FIX
     # FIXes a second at most (a fleet's or a slow radio's airtime); 0: one for every camera frame
-    # that sees the rover. At least MIN_FIX_HZ: the rover dead-reckons after fix_timeout_ms (500).
+    # that sees the rover. At least min_fix_hz(the rover's fix_timeout_ms): 6 by default.
     fix_hz: float = 0.0
     map: str = ""  # a learned map to load at the start and save at the end
     planner: str = "astar"  # the host's global planner: "astar" (16 directions) or "theta" (any angle, Theta*)
@@ -175,15 +187,10 @@ def config_from_dict(data: dict, where: str = "") -> Config:
             "trips": (0, MAX_TRIPS, False),
             "heartbeat_hz": (0.0, 50.0, True),
             "fix_sd_mm": (1, 255, False),
-            "fix_hz": (0.0, 120.0, False),
+            "fix_hz": (0.0, MAX_FIX_HZ, False),
             "planner": frozenset(MISSION_PLANNERS),
         },
     )
-    if 0.0 < mission.fix_hz < MIN_FIX_HZ:
-        raise ConfigError(
-            f"{where}[mission] fix_hz = {mission.fix_hz:g}: 0 (a fix for every frame) or at least "
-            f"{MIN_FIX_HZ:g} a second (the rover dead-reckons after fix_timeout_ms, 500 ms by default)"
-        )
     try:
         vision = VisionConfig.from_dict(data.get("vision", {}))
     except ValueError as exc:
@@ -213,6 +220,13 @@ def config_from_dict(data: dict, where: str = "") -> Config:
             raise ConfigError(f"{where}[rover] {key} = {value} is outside [{spec.min}, {spec.max}] ({spec.unit})")
         rover[by_name[key]] = value
     _check_pose_gains(rover, where)
+    timeout_ms = rover.get(mg.Param.FIX_TIMEOUT_MS, mg.PARAMS[mg.Param.FIX_TIMEOUT_MS].default)
+    if 0.0 < mission.fix_hz < min_fix_hz(timeout_ms):
+        raise ConfigError(
+            f"{where}[mission] fix_hz = {mission.fix_hz:g}: 0 (a fix for every frame) or at least "
+            f"{min_fix_hz(timeout_ms):g} a second ({FIXES_PER_TIMEOUT} within the rover's fix_timeout_ms, "
+            f"{timeout_ms} ms, after which it dead-reckons)"
+        )
     radio = _radio(data.get("radio", {}), where)
     return Config(arena, link, camera, mission, vision, planner, rover, radio)
 

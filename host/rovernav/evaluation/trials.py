@@ -272,7 +272,8 @@ CI: rovernav trials ARENAS --sample 20 --strategy rovernav --seeds 1 --workers 2
         default=0.0,
         metavar="HZ",
         help="the host sends at most HZ camera fixes a second, as [mission] fix_hz sets it (0, the "
-        "default: one for every frame that sees the rover; else at least 4)",
+        "default: one for every frame that sees the rover; else at least 6, three within the rover's "
+        "fix_timeout_ms of 500 ms)",
     )
     from ..radio_flags import add_radio_flags
 
@@ -335,7 +336,10 @@ def cmd_trials(args: argparse.Namespace) -> int:
     from ..config import MIN_FIX_HZ
 
     if 0.0 < args.fix_hz < MIN_FIX_HZ:
-        raise TrialsError(f"--fix-hz {args.fix_hz:g}: 0 (a fix for every frame) or at least {MIN_FIX_HZ:g}")
+        raise TrialsError(
+            f"--fix-hz {args.fix_hz:g}: 0 (a fix for every frame) or at least {MIN_FIX_HZ:g} (3 within the "
+            "rover's fix_timeout_ms, 500 ms)"
+        )
     if args.max_time <= 0 or args.run_timeout <= 0:
         raise TrialsError("--max-time and --run-timeout must be > 0")
     fail_on = _fail_on(args.fail_on)

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..config import MAX_FIX_HZ, min_fix_hz
 from ..link import messages_gen as mg
 from ..planning import OccupancyGrid, PlannerConfig
 from .core import Mission
@@ -164,6 +165,9 @@ class MissionSpec:
         if data.get("version") != SPEC_VERSION:
             raise ValueError(f"mission spec version {data.get('version')!r}; this rovernav reads {SPEC_VERSION}")
         fields = {f.name for f in dataclasses.fields(cls)}
+        # A field added since version 1 is read with its default from a log written before it.
+        for name, default in _ADDED_SINCE_VERSION_1.items():
+            data.setdefault(name, default)
         missing = fields - set(data)
         if missing:
             raise ValueError(f"the mission spec lacks {', '.join(sorted(missing))}")
@@ -174,10 +178,17 @@ class MissionSpec:
             values["rover_params"] = tuple((int(p), int(v)) for p, v in values["rover_params"])
             PlannerConfig.from_dict(values["planner"])
             make_strategy(values["strategy"])
+            values["fix_hz"] = float(values["fix_hz"])
+            low = min_fix_hz(dict(values["rover_params"]).get(int(mg.Param.FIX_TIMEOUT_MS), 500))
+            if values["fix_hz"] != 0.0 and not low <= values["fix_hz"] <= MAX_FIX_HZ:
+                raise ValueError(f"fix_hz {values['fix_hz']:g}: 0, or {low:g} to {MAX_FIX_HZ:g}")
         except (TypeError, ValueError) as exc:
             raise ValueError(f"the mission spec has a bad value: {exc}") from None
         return cls(**values)
 
+
+#: Fields a spec of version 1 may lack (a log written before them), with the value that run had.
+_ADDED_SINCE_VERSION_1 = {"fix_hz": 0.0}
 
 #: The files a host keeps in its working folder, so that a restarted host takes up the mission.
 MAP_FILE = "learned-map.json"

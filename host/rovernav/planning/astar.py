@@ -147,7 +147,7 @@ def _search(blocked, sx, sy, gx, gy, state, g, parent, pos, heap_key, heap_cell)
         row[w - _PAD :] = _BLOCKED
         src = blocked[iy]
         for ix in range(nx):
-            row[ix + _PAD] = np.uint8(src[ix])
+            row[ix + _PAD] = _BLOCKED if src[ix] else 0  # any truthy cell, never the open/closed bits
     step = MOVE_DY * w + MOVE_DX
     mid1 = MID1_DY * w + MID1_DX
     mid2 = MID2_DY * w + MID2_DX

@@ -52,7 +52,8 @@ def poses_along(points) -> list:
 class GrowingPoses:
     """`poses_along` of a list of points that only grows (the driven path), made as it grows: a
     point's pose is made once its next point is known, and only the last one each time (the whole
-    path again each time made a run's log cost grow with the square of its length)."""
+    path again each time made a run's log cost grow with the square of its length; each publish
+    still hands the log the whole path)."""
 
     def __init__(self) -> None:
         self._done: list = []

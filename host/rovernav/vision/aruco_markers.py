@@ -38,6 +38,7 @@ class ArucoMarkers:
         self._params = params
         self._detector = cv2.aruco.ArucoDetector(dictionary, params)
         self._cells = dictionary.markerSize + 2
+        self.dictionary_size = int(dictionary.bytesList.shape[0])  # its ids are 0 to this - 1
 
     def find(self, frame_bgr: np.ndarray) -> dict[int, list[np.ndarray]]:
         """Tags found in a BGR uint8 frame: id -> list of (4, 2) float64 corner arrays, in pixels."""

@@ -59,7 +59,15 @@ class FleetLocator(Locator):
         if config.markers != "aruco":
             raise ValueError(f"a fleet is told apart by ArUco tags: [vision] markers = 'aruco', not {config.markers!r}")
         super().__init__(config, arena_w_m, arena_h_m)
-        tags = dict(tag_ids) if tag_ids else {1: config.aruco.rover_id}
+        tags = {1: config.aruco.rover_id} if tag_ids is None else dict(tag_ids)
+        if not tags:
+            raise ValueError("a fleet of no rovers")
+        for rover, tag in tags.items():
+            if not isinstance(tag, int) or isinstance(tag, bool) or not 0 <= tag < self._aruco.dictionary_size:
+                raise ValueError(
+                    f"rover {rover}: tag id {tag!r} is not one of {config.aruco.dictionary}'s "
+                    f"(0 to {self._aruco.dictionary_size - 1})"
+                )
         if len(set(tags.values())) != len(tags):
             raise ValueError(f"two rovers with one tag id: {tags}")
         if config.aruco.target_id in tags.values():

@@ -85,6 +85,9 @@ _COLOUR_LABEL = {"target": "target marker", "rover_front": "rover front marker",
 _PIXEL_NAME = {"target": "target", "rover_front": "front", "rover_back": "back"}
 
 
+_THE_ROVERS = object()  # Locator._jump_problem's default: the rover's own last fix
+
+
 class Locator:
     """Locates the rover and the target in frames of one camera.
 
@@ -162,14 +165,13 @@ class Locator:
 
     # -- checks shared by both marker kinds ---------------------------------------------------------
 
-    def _jump_problem(
-        self, x_m: float, y_m: float, t_s: float | None, last: tuple[float, float, float | None] | None = None
-    ) -> str | None:
-        """Why a fix at (x_m, y_m) at t_s is too far from the last one (`last`, else the rover's), or None."""
-        last = self._last if last is None else last
-        if last is None or t_s is None or last[2] is None:
+    def _jump_problem(self, x_m: float, y_m: float, t_s: float | None, last: object = _THE_ROVERS) -> str | None:
+        """Why a fix at (x_m, y_m) at t_s is too far from the last one (`last`: (x_m, y_m, t_s) or
+        None for none yet; by default the rover's own), or None when it is not."""
+        last = self._last if last is _THE_ROVERS else last
+        if last is None or t_s is None or last[2] is None:  # type: ignore[index]
             return None
-        lx, ly, lt = last
+        lx, ly, lt = last  # type: ignore[misc]
         dt = max(t_s - lt, 0.0)
         dist = math.hypot(x_m - lx, y_m - ly)
         allowed = self.config.max_rover_speed_m_s * dt + self.config.jump_slack_m
