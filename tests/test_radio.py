@@ -467,3 +467,68 @@ def test_trials_carry_the_radio_settings_to_every_run_and_the_summary(tmp_path, 
     assert "Radio: 57,600 baud, 15 ms latency, byte loss 1 %" in (out / "trials.md").read_text()
     run = json.loads((out / "runs" / "rovernav" / "fig-s1" / "report.json").read_text())
     assert run["radio"]["settings"] == st
+
+
+# ---------------------------------------------------------------- a fleet on one radio (issue 30)
+
+
+def _fleet(rovers: int, **settings):
+    from rovernav.sim.channel import fleet_channels
+
+    return fleet_channels(radio_config(**settings), np.random.default_rng(5), rovers)
+
+
+def test_the_hosts_broadcast_reaches_every_rover_once_and_never_collides_with_itself():
+    host, to_rovers, to_host = _fleet(3, half_duplex=True)
+    f = encode_frame(mg.Fix(), 1)
+    for i in range(20):
+        host.write(f, i * 0.05)
+    got = [c.receive(2.0) for c in to_rovers]
+    assert got == [f * 20] * 3
+    assert all(c.bytes_lost == 0 for c in to_rovers) and host.queued() == 0
+
+
+def test_two_rovers_answering_at_once_collide_and_so_does_the_host_over_them():
+    host, to_rovers, to_host = _fleet(3, half_duplex=True)
+    s = encode_frame(mg.Status(), 2)
+    to_host[0].write(s, 0.0)
+    to_host[1].write(s, 0.0)  # both at once: both lost at the host
+    assert to_host[0].receive(1.0) == b"" and to_host[1].receive(1.0) == b""
+    assert to_host[0].lost_by["collision"] == to_host[1].lost_by["collision"] == len(s)
+    to_host[2].write(s, 2.0)
+    host.write(encode_frame(mg.Fix(), 3), 2.0)  # the host speaks over rover 3
+    assert to_host[2].receive(3.0) == s[len(encode_frame(mg.Fix(), 3)) :]  # its first bytes lost
+    assert all(c.receive(3.0) == b"" for c in to_rovers)  # the host's FIX lost at every rover
+
+
+def test_rovers_in_turn_lose_nothing_and_each_receiver_draws_its_own_losses():
+    host, to_rovers, to_host = _fleet(3, half_duplex=True)
+    s = encode_frame(mg.Status(), 4)
+    for i in range(30):
+        for r in range(3):
+            to_host[r].write(s, i * 0.1 + r * 0.025)  # slots 25 ms apart: a STATUS takes 9 ms
+    assert [len(c.receive(5.0)) for c in to_host] == [30 * len(s)] * 3
+    host, to_rovers, _ = _fleet(3, loss_pct=30.0)
+    host.write(bytes(range(1, 201)), 0.0)
+    got = [c.receive(1.0) for c in to_rovers]
+    assert all(30 <= c.bytes_lost <= 90 for c in to_rovers)  # 30 % of 200, each by its own draws
+    assert len({g for g in got}) == 3  # three receivers, three different sets of bytes lost
+
+
+def test_a_fleet_of_one_is_a_host_and_its_rover_as_before():
+    from rovernav.sim.channel import channel_pair
+
+    config = radio_config(half_duplex=True, loss_pct=1.0)
+    pair = channel_pair(config, np.random.default_rng(9))
+    _host, (to_rover,), (to_host,) = _fleet(1, half_duplex=True, loss_pct=1.0)
+    _host.channels[0].rng = to_host.rng = np.random.default_rng(9)  # the same draws as the pair's
+    for a, b in ((pair[0], to_rover), (pair[1], to_host)):
+        for i in range(40):
+            a.write(encode_frame(mg.Fix(), i), i * 0.02)
+            b.write(encode_frame(mg.Fix(), i), i * 0.02)
+    for i in range(40):
+        pair[1].write(encode_frame(mg.Status(), i), 0.005 + i * 0.02)
+        to_host.write(encode_frame(mg.Status(), i), 0.005 + i * 0.02)
+    assert pair[0].receive(3.0) == to_rover.receive(3.0) and pair[1].receive(3.0) == to_host.receive(3.0)
+    with pytest.raises(ValueError, match="a fleet of 0 rovers"):
+        _fleet(0)

@@ -163,24 +163,56 @@ class BurstView:
 
 
 class Medium:
-    """One half-duplex radio medium that both directions' Channels transmit on. It puts their
-    bytes on the air in the order their stop bits go out, and a byte whose time on the air
-    [end - 1/bytes_per_s, end) overlaps one from the other end is lost, with that one."""
+    """One half-duplex radio medium that every transmitter's Channels share. It puts their bytes on
+    the air in the order their stop bits go out, and a byte whose time on the air
+    [end - 1/bytes_per_s, end) overlaps one from another transmitter is lost, with that one.
+
+    Two ends (a host and its rover: `channel_pair`), or a fleet's (`fleet_channels`): each
+    Channel is one transmitter's bytes to one receiver, and the Channels of one transmitter (the
+    host's to each rover, which carry the very same bytes at the same times) are attached with one
+    `group` and never collide with each other."""
 
     def __init__(self) -> None:
         self.ends: list[Channel] = []
+        self.groups: list[object] = []
 
-    def attach(self, channel: Channel) -> None:
-        if len(self.ends) == 2:
-            raise ValueError("a half-duplex medium has two ends")
+    def attach(self, channel: Channel, group: object = None) -> None:
+        """One more end; `group`: the transmitter it shares with the ends attached with the same
+        group (None: a transmitter of its own)."""
         self.ends.append(channel)
+        self.groups.append(object() if group is None else group)
 
     def advance(self, now_s: float) -> None:
         ends = self.ends
         if len(ends) == 1:
             ends[0]._advance_alone(now_s)
             return
-        a, b = ends
+        if len(ends) == 2:
+            self._advance_two(now_s)
+            return
+        groups = self.groups
+        while True:
+            # The end whose next stop bit goes out first (the earlier attached on a tie).
+            k, start, end = -1, math.inf, math.inf
+            for i, e in enumerate(ends):
+                s_i = e._next_start()
+                t_i = s_i + e._per_byte
+                if t_i < end:
+                    k, start, end = i, s_i, t_i
+            if end > now_s:  # also when every end is idle (inf)
+                return
+            x, group = ends[k], groups[k]
+            # Another transmitter's last byte ended after this one started, or its next starts
+            # before this one ends.
+            collided = any(
+                groups[i] is not group and (y._last_end > start or y._next_start() < end) for i, y in enumerate(ends)
+            )
+            x._take(end, collided)
+
+    def _advance_two(self, now_s: float) -> None:
+        """`advance` for two ends, as it was before fleets (the same draws, the same order)."""
+        a, b = self.ends
+        same = self.groups[0] is self.groups[1]
         while True:
             sa, sb = a._next_start(), b._next_start()
             ta, tb = sa + a._per_byte, sb + b._per_byte
@@ -191,7 +223,7 @@ class Medium:
             if t > now_s:  # also when both are idle (inf)
                 return
             # y's last byte ended after x's started, or y's next starts before x's ends.
-            collided = y._last_end > s or y._next_start() < t
+            collided = not same and (y._last_end > s or y._next_start() < t)
             x._take(t, collided)
 
 
@@ -221,6 +253,7 @@ class Channel:
         *,
         bursts: BurstProcess | None = None,
         medium: Medium | None = None,
+        group: object = None,
     ):
         self.config = config
         self.rng = rng
@@ -256,7 +289,7 @@ class Channel:
         self._last_end = -math.inf  # when this end's last byte left the air (the medium's)
         if config.half_duplex:
             self.medium = medium or Medium()
-            self.medium.attach(self)
+            self.medium.attach(self, group)
         # The frames: kinds of those the sender finished writing, in order, and the one on the air.
         self._partial = bytearray()
         self._partial_over = False
@@ -416,6 +449,38 @@ def channel_pair(
         Channel(config, rng, outages, bursts=bursts, medium=medium),
         Channel(config, rng, outages, bursts=bursts, medium=medium),
     )
+
+
+class Broadcast:
+    """One transmitter heard by several receivers: the host's radio in a fleet. `write` puts the
+    same bytes, at the same time, in each receiver's Channel (one transmitter on the medium: they
+    do not collide with each other); each receiver loses or keeps them by its own draws."""
+
+    def __init__(self, channels: list[Channel]):
+        self.channels = channels
+
+    def write(self, data: bytes, now_s: float) -> None:
+        for c in self.channels:
+            c.write(data, now_s)
+
+    def queued(self) -> int:
+        return max((c.queued() for c in self.channels), default=0)
+
+
+def fleet_channels(
+    config: ChannelConfig, rng: np.random.Generator, rovers: int, outages: list[tuple[float, float]] = ()
+) -> tuple[Broadcast, list[Channel], list[Channel]]:
+    """A fleet's radio: the host's Broadcast, its Channel to each rover, and each rover's Channel
+    to the host, all on one half-duplex medium when the config says half duplex (a rover's bytes
+    then collide with the host's and with every other rover's), one burst process for all."""
+    if rovers < 1:
+        raise ValueError(f"a fleet of {rovers} rovers")
+    bursts = BurstProcess(config.burst_mean_s, config.burst_share, rng) if config.bursts else None
+    medium = Medium() if config.half_duplex else None
+    host = object()  # the host's transmitter: one group on the medium
+    to_rovers = [Channel(config, rng, outages, bursts=bursts, medium=medium, group=host) for _ in range(rovers)]
+    to_host = [Channel(config, rng, outages, bursts=bursts, medium=medium) for _ in range(rovers)]
+    return Broadcast(to_rovers), to_rovers, to_host
 
 
 def radio_figures(to_rover: Channel, to_host: Channel, t_s: float) -> dict:
