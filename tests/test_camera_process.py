@@ -27,9 +27,8 @@ def _messages(path) -> list[tuple[str, int, bytes]]:
 
 def _run(tmp_path, monkeypatch, name: str, camera_process: bool, **kw):
     log = tmp_path / f"{name}-{camera_process}.mcap"
-    # The log's epoch and the host's signing clock's (simulated time from the wall clock's start).
+    # The log's epoch (wall clock); the host's signing clock is simulated time already.
     monkeypatch.setattr("rovernav.runlog.writer.time.time_ns", lambda: 1_795_000_000_000_000_000)
-    monkeypatch.setattr("rovernav.sim.runner.time.time", lambda: 1_795_000_000.0)
     sim = Simulation(load_scenario(name), SimOptions(camera_process=camera_process, log=log, **kw))
     assert (sim._camera_proc is not None) == camera_process
     sim.run()
@@ -212,7 +211,6 @@ def test_two_simulations_made_before_either_runs_get_a_camera_process_each(tmp_p
     from rovernav.sim import camera_process
 
     kw = {"seed": 4, "max_time_s": 8.0}
-    monkeypatch.setattr("rovernav.sim.runner.time.time", lambda: 1_795_000_000.0)
     a = Simulation(load_scenario("seed-small-obstacles"), SimOptions(camera_process=True, **kw))
     b = Simulation(load_scenario("seed-large-obstacles"), SimOptions(camera_process=True, **kw))
     assert a._camera_proc is not b._camera_proc and a._camera_proc is camera_process._shared

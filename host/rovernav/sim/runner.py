@@ -45,6 +45,7 @@ HOST_PERIOD_S = 0.030
 ROVER_CLOCK_SKEW = 0.005  # the rover's clock against the host's (half-duplex runs: when its bytes go on the air)
 _NO_MARKERS: frozenset[str] = frozenset()
 _ALL_MARKERS = frozenset({"front", "back", "tag"})  # a camera that sees no markers (--camera-outage-kind)
+SIM_SIGN_CLOCK_START_S = mg.SIGN_EPOCH_UNIX_S + 86_400.0  # the simulated host's clock at t = 0 (Unix s)
 HOST_BOOT_ID = 0x484F5354  # "HOST": the simulated host's boot id (+1 per restart)
 
 
@@ -186,9 +187,11 @@ class Simulation:
             decoys=setup.decoys(w_m, h_m) if setup is not None else (),
         )
         self.t = 0.0
-        # The host's clock for its signing counter: simulated time from the wall clock at the start,
-        # so a restarted host's counters do not depend on how fast this machine simulates.
-        self._clock_epoch_s = time.time()
+        # The host's clock for its signing counter: simulated time from a fixed instant, so a run's
+        # bytes are the same on every machine and every time (the rover, native or the Uno image,
+        # starts each simulation with its counters at 0), and a restarted host's counters do not
+        # depend on how fast this machine simulates.
+        self._clock_epoch_s = SIM_SIGN_CLOCK_START_S
         self.samples: list[Sample] = []
         self.frames_rendered = 0
         self.frames_dropped = 0
