@@ -3,7 +3,6 @@ that every configuration ran the same missions."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -12,13 +11,6 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _module():
-    spec = importlib.util.spec_from_file_location("bench_sim_speed", ROOT / "benchmarks" / "bench_sim_speed.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 @pytest.mark.slow
@@ -40,8 +32,8 @@ def test_the_worker_runs_missions_one_after_another_with_and_without_the_camera_
     assert got["on"]["mission_s"] == got["off"]["mission_s"]
 
 
-def test_the_options_are_checked():
-    mod = _module()
+def test_the_options_are_checked(benchmark_module):
+    mod = benchmark_module("bench_sim_speed")
     with pytest.raises(SystemExit):
         mod.main(["--runs", "0"])
     with pytest.raises(SystemExit):
