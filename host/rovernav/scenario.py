@@ -11,6 +11,10 @@
     [[walls]]      x0_m, y0_m, x1_m, y1_m (the centre line's ends, apart), thickness_m (> 0),
                    known = true                                               (optional)
     [[posts]]      x_m, y_m (centre), radius_m (> 0), known = true            (optional)
+    [[starts]]     x_m, y_m, heading_deg = 0: a fleet's more starts (rovers 2, 3, ...; rover 1
+                   starts at [start]); optional, apart from each other by a body's diagonal
+    [[sites]]      x_m, y_m: a fleet's more sites (rover k shuttles between its start and site
+                   k of [target] and these, in turn); optional
     [generated]    optional: how `rovernav arenas` made the file (see below)
 
 Metres and degrees; origin at the arena's bottom-left corner, x right, y up. `known = false`
@@ -52,6 +56,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from .errors import InputError
+from .vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 from .validate import MAX_ARENA_M, MAX_TRIPS, read_text_file, show
 
 FORMAT_VERSION = 1
@@ -62,6 +67,8 @@ DEFAULT_SCENARIO = "out-and-back"
 
 # A shape's centre or a wall's end may sit this far outside the arena (a wall along its edge).
 _EDGE_M = 0.05
+# Two starts nearer than a body's diagonal would let two rovers touch, whatever their headings.
+START_SPACING_M = math.hypot(BODY_LENGTH_MM, BODY_WIDTH_MM) / 1000.0
 
 
 class ScenarioError(InputError):
@@ -209,6 +216,32 @@ class Scenario:
     posts: tuple[Post, ...] = ()
     # The [generated] table of a generated arena, else None (a dict: left out of the hash).
     generated: dict | None = dataclasses.field(default=None, hash=False)
+    more_starts: tuple[Pose, ...] = ()  # [[starts]]: a fleet's rovers 2, 3, ...
+    more_sites: tuple[Target, ...] = ()  # [[sites]]
+
+    @property
+    def starts(self) -> tuple[Pose, ...]:
+        """Every rover's start: [start] (rover 1), then [[starts]]."""
+        return (self.start, *self.more_starts)
+
+    @property
+    def sites(self) -> tuple[Target, ...]:
+        """Every site: [target], then [[sites]]."""
+        return (self.target, *self.more_sites)
+
+    def fleet_legs(self, rovers: int) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+        """Each rover's (start, site) for a fleet of `rovers`: rover k starts at starts[k - 1] and
+        shuttles to sites[(k - 1) % len(sites)]. ScenarioError (one line) when the scenario names
+        fewer starts than rovers."""
+        starts = self.starts
+        if not 1 <= rovers <= len(starts):
+            where = self.path or self.name
+            raise ScenarioError(
+                f"{where}: {rovers} rovers but the scenario names {len(starts)} start"
+                f"{'s' if len(starts) != 1 else ''} ([start] and [[starts]]): one a rover"
+            )
+        sites = self.sites
+        return [(starts[k].xy, sites[k % len(sites)].xy) for k in range(rovers)]
 
     @property
     def known_obstacles(self) -> tuple[Obstacle, ...]:
@@ -370,6 +403,8 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
             "obstacles",
             "walls",
             "posts",
+            "starts",
+            "sites",
             "generated",
         ),
     )
@@ -457,6 +492,24 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
             )
         )
 
+    more_starts = []
+    for prefix, o, _known in r.array(doc, "starts", ("x_m", "y_m", "heading_deg")):
+        more_starts.append(Pose(*on_arena(o, prefix), r.number(o, prefix, "heading_deg", default=0.0)))
+    more_sites = []
+    for prefix, o, _known in r.array(doc, "sites", ("x_m", "y_m")):
+        more_sites.append(Target(*on_arena(o, prefix)))
+    # Two rovers cannot stand where their bodies would touch, whatever their headings.
+    starts_named = [("start", start)] + [(f"starts[{i}]", p) for i, p in enumerate(more_starts)]
+    for i, (a_name, a) in enumerate(starts_named):
+        for b_name, b in starts_named[:i]:
+            gap = math.hypot(a.x_m - b.x_m, a.y_m - b.y_m)
+            if gap < START_SPACING_M:
+                raise r.fail(
+                    a_name,
+                    f"({a.x_m:g}, {a.y_m:g}) m overlaps {b_name} ({b.x_m:g}, {b.y_m:g}) m: two rovers' starts must "
+                    f"be {START_SPACING_M:.2f} m apart at least (a body's diagonal), got {gap:.2f} m",
+                )
+
     # Every shape on the arena (its centre, a wall's ends); the start and the target in the open.
     def within(prefix: str, points) -> None:
         for x, y in points:
@@ -472,7 +525,10 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
         within(f"walls[{i}]", [(w.x0_m, w.y0_m), (w.x1_m, w.y1_m)])
     for i, p in enumerate(posts):
         within(f"posts[{i}]", [(p.x_m, p.y_m)])
-    for what, (x, y) in (("start", (start.x_m, start.y_m)), ("target", (target.x_m, target.y_m))):
+    places = [("start", (start.x_m, start.y_m)), ("target", (target.x_m, target.y_m))]
+    places += [(f"starts[{i}]", p.xy) for i, p in enumerate(more_starts)]
+    places += [(f"sites[{i}]", p.xy) for i, p in enumerate(more_sites)]
+    for what, (x, y) in places:
         for kind, shapes in (("obstacles", obstacles), ("walls", walls), ("posts", posts)):
             for i, shape in enumerate(shapes):
                 if shape.distance_m(x, y) <= 0.0:
@@ -494,6 +550,8 @@ def parse_scenario(text: str, source: str | os.PathLike[str] = "<scenario>") -> 
         walls=tuple(walls),
         posts=tuple(posts),
         generated=generated,
+        more_starts=tuple(more_starts),
+        more_sites=tuple(more_sites),
     )
 
 
@@ -597,4 +655,8 @@ def scenario_toml(scenario: Scenario) -> str:
             for f in dataclasses.fields(shape):
                 value = getattr(shape, f.name)
                 lines.append(f"{f.name} = {('true' if value else 'false') if isinstance(value, bool) else num(value)}")
+    for p in scenario.more_starts:
+        lines += ["", "[[starts]]", f"x_m = {num(p.x_m)}", f"y_m = {num(p.y_m)}", f"heading_deg = {num(p.heading_deg)}"]
+    for p in scenario.more_sites:
+        lines += ["", "[[sites]]", f"x_m = {num(p.x_m)}", f"y_m = {num(p.y_m)}"]
     return "\n".join(lines) + "\n"
