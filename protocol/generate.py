@@ -95,8 +95,16 @@ def _reference_body(d: dict, message: dict, seq: int, fields: dict, version: int
     return body
 
 
-def reference_frame(d: dict, message: dict, seq: int, fields: dict) -> bytes:
-    body = _reference_body(d, message, seq, fields, d["protocol"]["version"])
+def _version_byte(d: dict, address: int) -> int:
+    """The version byte of a frame to or from the rover at `address` ([fleet]; 0: a lone rover)."""
+    fleet = d["fleet"]
+    if not 0 <= address < fleet["max_rovers"]:
+        raise DefinitionError(f"address {address} is not 0..{fleet['max_rovers'] - 1}")
+    return d["protocol"]["version"] | address << fleet["address_shift"]
+
+
+def reference_frame(d: dict, message: dict, seq: int, fields: dict, address: int = 0) -> bytes:
+    body = _reference_body(d, message, seq, fields, _version_byte(d, address))
     body += _crc16_ccitt_false(bytes(body)).to_bytes(2, "little")
     return _cobs(bytes(body)) + b"\x00"
 
@@ -162,7 +170,7 @@ def check_reference_siphash() -> None:
 
 
 def reference_signed_frame(
-    d: dict, message: dict, seq: int, fields: dict, key: bytes, counter: int, direction: str
+    d: dict, message: dict, seq: int, fields: dict, key: bytes, counter: int, direction: str, address: int = 0
 ) -> tuple[bytes, bytes, bytes]:
     """A signed frame ([signing]): its bytes on the wire (delimiter included), its tag, and what
     the tag is SipHash-2-4 of (the direction byte, then version|flag .. counter)."""
@@ -174,7 +182,7 @@ def reference_signed_frame(
     if not 0 <= counter < 1 << (8 * sig["counter_bytes"]):
         raise DefinitionError(f"signed vector for {message['name']}: counter {counter} out of range")
     check_reference_siphash()
-    body = _reference_body(d, message, seq, fields, d["protocol"]["version"] | sig["flag"])
+    body = _reference_body(d, message, seq, fields, _version_byte(d, address) | sig["flag"])
     body += counter.to_bytes(sig["counter_bytes"], "little")
     mac_input = bytes((sig[direction],)) + bytes(body)
     tag = reference_siphash24(key, mac_input)[: sig["tag_bytes"]]
@@ -219,6 +227,24 @@ def update_vectors(d: dict, vectors: dict) -> dict:
             d, by_name[s["message"]], s["seq"], s["fields"], bytes.fromhex(s["key_hex"]), s["counter"], s["direction"]
         )
         s["frame_hex"], s["tag_hex"], s["mac_input_hex"] = frame.hex(), tag.hex(), mac_input.hex()
+    for a in vectors.get("addressed_frames", []):
+        message = by_name[a["message"]]
+        if message["direction"] not in (a["direction"], "both"):
+            raise DefinitionError(f"addressed vector {a['name']}: {a['message']} is not sent {a['direction']}")
+        if "key_hex" in a:
+            frame, tag, mac_input = reference_signed_frame(
+                d,
+                message,
+                a["seq"],
+                a["fields"],
+                bytes.fromhex(a["key_hex"]),
+                a["counter"],
+                a["direction"],
+                a["address"],
+            )
+            a["frame_hex"], a["tag_hex"], a["mac_input_hex"] = frame.hex(), tag.hex(), mac_input.hex()
+        else:
+            a["frame_hex"] = reference_frame(d, message, a["seq"], a["fields"], a["address"]).hex()
     return vectors
 
 

@@ -10,7 +10,7 @@ from tests.core_transport import CoreTransport
 
 from rovernav.cores import NativeCore
 from rovernav.link import messages_gen as mg
-from rovernav.link.framing import FrameDecoder, Signer, Verifier, encode_frame
+from rovernav.link.framing import FrameDecoder, Signer, Verifier, cobs_decode, encode_frame
 from rovernav.link.provision import NeedsConsent, ProvisionError, WrongCurrentKey, provision
 
 KEY = bytes(range(50, 66))
@@ -172,3 +172,99 @@ def test_the_commands_help_names_the_current_key_file_and_the_consent_pin(capsys
         main(["provision", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "--current-key-file FILE" in out and "pin D7 held to GND" in out
+
+
+# ---------------------------------------------------------------- the fleet id ([fleet], issue 30)
+
+
+def _addresses(wire: bytes) -> list[int]:
+    """The address in every frame's version byte (signed or not, under whatever key)."""
+    return [(cobs_decode(body)[0] & mg.ADDRESS_MASK) >> mg.ADDRESS_SHIFT for body in wire.split(b"\x00") if body]
+
+
+@pytest.mark.parametrize("fleet_id", [1, 2, 3, 4])
+def test_a_rover_is_made_rover_k_of_a_fleet_and_answers_from_its_new_address(fleet_id):
+    port = CoreTransport(NativeCore())
+    line = provision(port, KEY, clock=port.clock, fleet_id=fleet_id)
+    assert line.startswith("stored the key")
+    assert f"rover {fleet_id} of a fleet (address {fleet_id - 1}): it speaks only when spoken to" in line
+    assert port.core.take_key_change() == ("store", KEY)
+    assert port.core.fleet_id == fleet_id
+    assert _addresses(port.sent_to_rover) == [0]  # sent where the rover was: a lone rover
+    # From now on it waits to be spoken to at its new address, and answers from there (its queue
+    # full of the STATUS frames it could not say: the host asks again, as it does, until answered).
+    port.from_rover = b""
+    port.run_ms(2000)
+    assert port.from_rover == b""
+    signer, heard = (
+        Signer(KEY, mg.SIGN_HOST_TO_ROVER),
+        FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST), address=fleet_id - 1),
+    )
+    acked = []
+    for seq in range(5, 10):
+        port.write(encode_frame(mg.Stop(reason=0), seq, signer, address=fleet_id - 1))
+        port.run_ms(100)
+        acked += [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)]
+        port.from_rover = b""
+    assert acked and heard.counters.dropped == 0
+
+
+def test_a_fleet_rovers_boot_hello_names_its_address_and_provision_sends_there():
+    port = CoreTransport(NativeCore(key=KEY, fleet_id=3, reset_cause=1))  # a keyed rover 3 (address 2)
+    line = provision(port, NEW_KEY, clock=port.clock, current_key=KEY, fleet_id=0)
+    assert "with its current key's signature" in line and "of a fleet" not in line
+    assert _addresses(port.sent_to_rover) == [2]
+    assert port.core.take_key_change() == ("store", NEW_KEY)
+    assert port.core.fleet_id == 0  # a lone rover again: it talks unasked
+    port.from_rover = b""
+    port.run_ms(1000)
+    assert _addresses(port.from_rover) and set(_addresses(port.from_rover)) == {0}
+
+
+def test_an_erase_keeps_the_fleet_id_it_is_given():
+    port = CoreTransport(NativeCore(fleet_id=2))
+    assert "rover 4 of a fleet (address 3)" in provision(port, None, clock=port.clock, fleet_id=4)
+    assert port.core.take_key_change() == ("erase", None) and port.core.fleet_id == 4
+
+
+def test_a_lone_rover_is_provisioned_byte_for_byte_as_before():
+    port = CoreTransport(NativeCore())
+    provision(port, KEY, clock=port.clock)
+    frame = encode_frame(mg.Provision(key=tuple(KEY)), 0)
+    assert port.sent_to_rover == frame and port.core.fleet_id == 0
+
+
+@pytest.mark.parametrize("bad", [-1, 5, True])
+def test_provision_refuses_a_fleet_id_outside_0_to_4_before_sending_anything(bad):
+    from rovernav.errors import InputError
+
+    port = CoreTransport(NativeCore())
+    with pytest.raises(InputError, match=r"fleet id is 0 \(a lone rover\) or 1\.\.4"):
+        provision(port, KEY, clock=port.clock, fleet_id=bad)
+    assert port.sent_to_rover == b""
+
+
+def test_the_command_takes_fleet_id_and_refuses_one_outside_0_to_4_in_one_line(tmp_path, monkeypatch, capsys):
+    import rovernav.link.transport as transport
+    from rovernav.cli import main
+
+    cores = []
+
+    def rover(spec):
+        cores.append(NativeCore(reset_cause=2))
+        return CoreTransport(cores[-1])
+
+    monkeypatch.setattr(transport, "open_transport", rover)
+    key = _key_file(tmp_path / "k.key", KEY)
+    assert main(["provision", "--port", "/dev/ttyACM0", "--key-file", key, "--fleet-id", "2"]) == 0
+    assert cores[-1].fleet_id == 2 and "rover 2 of a fleet (address 1)" in capsys.readouterr().out
+    for bad in ("5", "-1", "two"):
+        with pytest.raises(SystemExit) as exc:
+            main(["provision", "--port", "/dev/ttyACM0", "--key-file", key, "--fleet-id", bad])
+        assert exc.value.code == 2
+        err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+        assert len(err) == 1 and "--fleet-id" in err[0] and "a fleet id is 0 (a lone rover) or 1..4" in err[0]
+    assert len(cores) == 1  # nothing opened for a bad fleet id
+    with pytest.raises(SystemExit):
+        main(["provision", "--help"])
+    assert "--fleet-id K" in " ".join(capsys.readouterr().out.split())

@@ -30,8 +30,10 @@ void* rover_new(uint32_t boot_id, uint16_t reset_cause) {
 }
 
 void* rover_new_keyed(uint32_t boot_id, uint16_t reset_cause, const uint8_t* key, uint64_t tx_counter,
-                      uint64_t rx_counter) {
+                      uint64_t rx_counter, uint8_t fleet_id) {
+  if (fleet_id > rovernav::kMaxRovers) return nullptr;
   rovernav::core::LinkSecrets s{};
+  s.fleet_id = fleet_id;
   s.has_key = key != nullptr;
   for (uint8_t k = 0; key != nullptr && k < rovernav::kSipKeyBytes; ++k) s.key[k] = key[k];
   for (uint8_t k = 0; k < rovernav::kSignCounterBytes; ++k) {
@@ -53,6 +55,8 @@ int rover_take_persist(void* rover, uint64_t* tx_counter, uint64_t* rx_counter) 
   }
   return 1;
 }
+
+int rover_fleet_id(const void* rover) { return static_cast<const Rover*>(rover)->fleet_id(); }
 
 int rover_take_key_change(void* rover, uint8_t* key_out) {
   Rover* r = static_cast<Rover*>(rover);

@@ -22,9 +22,13 @@ uint32_t rover_abi_version(void);
 uint32_t rover_abi_layout(uint32_t* out, uint32_t n);
 uint32_t rover_schema_hash(void);
 void* rover_new(uint32_t boot_id, uint16_t reset_cause);
-/* A rover with a link key (16 bytes; NULL: none) and its stored signing counters. */
+/* A rover with a link key (16 bytes; NULL: none), its stored signing counters and its fleet id
+ * (0: a lone rover; 1..4: rover k of a fleet, protocol/messages.toml [fleet]); NULL for a fleet id
+ * past 4. */
 void* rover_new_keyed(uint32_t boot_id, uint16_t reset_cause, const uint8_t* key, uint64_t tx_counter,
-                      uint64_t rx_counter);
+                      uint64_t rx_counter, uint8_t fleet_id);
+/* The fleet id the rover holds (begin's, or the last PROVISION's): what its shell stores with the key. */
+int rover_fleet_id(const void* rover);
 /* What the rover asks its shell to store: 1 and the counters when they are due (else 0). */
 int rover_take_persist(void* rover, uint64_t* tx_counter, uint64_t* rx_counter);
 /* A PROVISION taken: 1 store (key written to key_out, 16 bytes), 2 erase, 0 none. */

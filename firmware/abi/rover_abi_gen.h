@@ -5,7 +5,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define ROVER_ABI_VERSION 2
+#define ROVER_ABI_VERSION 3
 #define ROVER_TX_PER_STEP 64     /* bytes a step may hand the shell: one UART buffer (vehicle.toml's uart_buffer_bytes) */
 
 /* One tick of sensor readings and received bytes, for rover_step(). */

@@ -144,7 +144,7 @@ void loop() {
     const uint8_t change = rover.take_key_change();
     Counter48 tx_counter, rx_counter;
     if (change != 0) {
-      link_store.store_key(change == core::Rover::kKeyStore ? rover.link_key() : nullptr);
+      link_store.store_key(change == core::Rover::kKeyStore ? rover.link_key() : nullptr, rover.fleet_id());
     } else if (rover.persist_due(tx_counter, rx_counter)) {
       link_store.store_counters(tx_counter, rx_counter);
     }

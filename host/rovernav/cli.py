@@ -25,7 +25,17 @@ import logging
 import sys
 
 from . import __version__
-from .validate import EXIT_CODES, MAX_SIM_TIME_S, ArgParser, input_file, number, output_file, port_spec, seconds
+from .validate import (
+    EXIT_CODES,
+    MAX_SIM_TIME_S,
+    ArgParser,
+    input_file,
+    number,
+    output_file,
+    port_spec,
+    seconds,
+    show,
+)
 from .vehicle_gen import LINK_BAUD
 
 log = logging.getLogger("rovernav")
@@ -107,6 +117,19 @@ def _cmd_keygen(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fleet_id(text: str) -> int:
+    """An argparse type: a fleet id, 0 (a lone rover) or 1..MAX_ROVERS."""
+    from .link.messages_gen import MAX_ROVERS
+    from .link.provision import check_fleet_id
+
+    try:
+        return check_fleet_id(int(text))
+    except ValueError:  # InputError is one
+        raise argparse.ArgumentTypeError(
+            f"{show(text)}: a fleet id is 0 (a lone rover) or 1..{MAX_ROVERS} (rover K of a fleet)"
+        ) from None
+
+
 def _cmd_provision(args: argparse.Namespace) -> int:
     from .link.keys import load_key_file
     from .link.provision import ProvisionError, provision
@@ -117,7 +140,7 @@ def _cmd_provision(args: argparse.Namespace) -> int:
     transport = open_transport(args.port)
     try:
         print(f"opened {args.port}: waiting up to {args.boot_wait:g} s for the rover to boot ...")
-        print(provision(transport, key, boot_wait_s=args.boot_wait, current_key=current_key))
+        print(provision(transport, key, boot_wait_s=args.boot_wait, current_key=current_key, fleet_id=args.fleet_id))
     except ProvisionError as exc:
         print(f"rovernav provision: {exc}", file=sys.stderr)
         return exc.exit_code
@@ -374,7 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace an existing key file")
     p.set_defaults(func=_cmd_keygen)
 
-    from .link.messages_gen import SIGN_CONSENT_PIN
+    from .link.messages_gen import MAX_ROVERS, SIGN_CONSENT_PIN
 
     pin = f"D{SIGN_CONSENT_PIN}"
     p = sub.add_parser(
@@ -420,6 +443,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=4.0,
         metavar="S",
         help="how long to wait for the rover's boot HELLO after opening the port, up to 60 s (default 4)",
+    )
+    p.add_argument(
+        "--fleet-id",
+        type=_fleet_id,
+        default=0,
+        metavar="K",
+        help=f"0 (the default): a lone rover, which talks freely; 1..{MAX_ROVERS}: rover K of a fleet sharing "
+        "one radio, at address K - 1, which speaks only when spoken to ([fleet] of protocol/messages.toml). "
+        "Stored with the key (also with --erase)",
     )
     p.set_defaults(func=_cmd_provision)
 

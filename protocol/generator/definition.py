@@ -181,6 +181,32 @@ def load(path: Path = DEFINITION, vehicle_path: Path | None = None) -> dict:
             f"a signed frame of max_payload bytes would pass vehicle.toml's uart_buffer_bytes "
             f"({vehicle['uart_buffer_bytes']}) on the wire"
         )
+    fleet = d.get("fleet")
+    if not isinstance(fleet, dict):
+        raise DefinitionError("[fleet] is missing")
+    for key in ("max_rovers", "address_shift", "grant_bytes", "grant_ms"):
+        if not isinstance(fleet.get(key), int) or isinstance(fleet.get(key), bool) or fleet[key] <= 0:
+            raise DefinitionError(f"[fleet].{key} must be a positive integer")
+    rovers = fleet["max_rovers"]
+    if rovers & (rovers - 1) or rovers < 2:
+        raise DefinitionError("[fleet].max_rovers must be a power of two, 2 or more: the addresses fill their bits")
+    mask = (rovers - 1) << fleet["address_shift"]
+    if mask > 0xFF or mask & sig["flag"] or proto["version"] >= 1 << fleet["address_shift"]:
+        raise DefinitionError(
+            "[fleet]: the address bits (max_rovers - 1) << address_shift must lie in the version byte, "
+            "above [protocol].version's bits and apart from [signing].flag"
+        )
+    if (
+        not max_encoded_frame(proto["max_payload"] + sig["counter_bytes"] + sig["tag_bytes"])
+        <= fleet["grant_bytes"]
+        <= 0xFF
+    ):
+        raise DefinitionError(
+            "[fleet].grant_bytes must let the largest signed frame through, and be at most 255 (the rover "
+            "counts it in a byte)"
+        )
+    if fleet["grant_ms"] > 250:
+        raise DefinitionError("[fleet].grant_ms must be at most 250: a grant is one slot of the host's round")
     enum_names = set()
     for e in d.get("enums", []):
         if not IDENT.match(e.get("name", "")) or e["name"] in enum_names:
@@ -237,6 +263,7 @@ def schema_hash(d: dict) -> int:
         ],
         "params": [[p["id"], p["name"], p["unit"], p["min"], p["max"]] for p in d.get("params", [])],
         "signing": {k: v for k, v in d["signing"].items()},
+        "fleet": dict(d["fleet"]),
         "sensors": wire_facts["sensors"],
     }
     text = json.dumps(canon, sort_keys=True, separators=(",", ":"))

@@ -157,6 +157,15 @@ def render_cpp(d: dict) -> str:
         + " || ".join(f"id == 0x{by_name[n]:02X}" for n in sig.get("unsigned", []))
         + ";\n}\n\n"
     )
+    fleet = d["fleet"]
+    out.append(
+        "// A fleet ([fleet] in protocol/messages.toml): a rover's address in bits kAddressShift.. of the\n"
+        "// version byte, and a fleet rover's grant to speak (bytes, and ms from the step that opened it).\n"
+        f"enum : uint8_t {{\n  kMaxRovers = {fleet['max_rovers']},\n  kAddressShift = {fleet['address_shift']},\n"
+        f"  kAddressMask = 0x{(fleet['max_rovers'] - 1) << fleet['address_shift']:02X},\n"
+        f"  kVersionMask = 0x{(1 << fleet['address_shift']) - 1:02X},\n"
+        f"  kGrantBytes = {fleet['grant_bytes']},\n  kGrantMs = {fleet['grant_ms']}\n}};\n\n"
+    )
     for e in d.get("enums", []):
         out.append(f"/// {e.get('doc', '')}\n")
         if e.get("bitmask"):
@@ -306,6 +315,28 @@ def render_vectors_h(d: dict, vectors: dict) -> str:
             f"   {{{_hex_bytes(counter)}}},  // {s['counter']}\n"
             f"   kSignedWire{i}, sizeof kSignedWire{i}, {{{_hex_bytes(bytes.fromhex(s['tag_hex']))}}},\n"
             f"   kSignedMacInput{i}, sizeof kSignedMacInput{i}}},\n"
+        )
+    tables.append("};\n\n")
+    addressed = vectors.get("addressed_frames", [])
+    tables.append(
+        "// Frames of a fleet (vectors.json addressed_frames): the rover's address in the version byte; signed\n"
+        "// ones with their key and counter (little-endian, as on the wire); the bytes on the wire, delimiter included.\n"
+        f"struct AddressedVector {{ const char* name; uint8_t direction; uint8_t address; uint8_t msg_id; bool is_signed; "
+        f"uint8_t key[16]; uint8_t counter[{sig['counter_bytes']}]; const uint8_t* wire; uint8_t wire_len; }};\n"
+    )
+    for i, a in enumerate(addressed):
+        tables.append(f"static const uint8_t kAddressedWire{i}[] = {{{_hex_bytes(bytes.fromhex(a['frame_hex']))}}};\n")
+    tables.append(f"static const AddressedVector kAddressedVectors[{max(1, len(addressed))}] = {{\n")
+    for i, a in enumerate(addressed):
+        signed_ = "key_hex" in a
+        key = bytes.fromhex(a["key_hex"]) if signed_ else bytes(16)
+        counter = (a["counter"] if signed_ else 0).to_bytes(sig["counter_bytes"], "little")
+        tables.append(
+            f'  {{"{a["name"]}", {sig[a["direction"]]}, {a["address"]}, 0x{by_name[a["message"]]["id"]:02X}, '
+            f"{'true' if signed_ else 'false'},\n"
+            f"   {{{_hex_bytes(key)}}},\n"
+            f"   {{{_hex_bytes(counter)}}},\n"
+            f"   kAddressedWire{i}, sizeof kAddressedWire{i}}},\n"
         )
     tables.append("};\n\n")
     tables.append(

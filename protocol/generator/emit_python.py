@@ -32,6 +32,14 @@ def render_py(d: dict) -> str:
         "SIGN_UNSIGNED_IDS = frozenset({"
         + ", ".join(f"0x{m['id']:02X}" for m in d["messages"] if m["name"] in d["signing"].get("unsigned", []))
         + "})\n",
+        "# A fleet ([fleet] in protocol/messages.toml): a rover's address in bits ADDRESS_SHIFT.. of the version\n"
+        "# byte (ADDRESS_MASK; VERSION_MASK the version's bits), and a fleet rover's grant to speak\n"
+        f"MAX_ROVERS = {d['fleet']['max_rovers']}\n",
+        f"ADDRESS_SHIFT = {d['fleet']['address_shift']}\n",
+        f"ADDRESS_MASK = 0x{(d['fleet']['max_rovers'] - 1) << d['fleet']['address_shift']:02X}\n",
+        f"VERSION_MASK = 0x{(1 << d['fleet']['address_shift']) - 1:02X}\n",
+        f"GRANT_BYTES = {d['fleet']['grant_bytes']}\n",
+        f"GRANT_MS = {d['fleet']['grant_ms']}\n",
         f"MAX_SIGNED_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES + d['signing']['counter_bytes'] + d['signing']['tag_bytes']}\n",
         f"MAX_PAYLOAD = {p['max_payload']}\n",
         f"MAX_RAW_FRAME = {HEADER_BYTES + p['max_payload'] + CRC_BYTES}\n",

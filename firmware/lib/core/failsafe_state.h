@@ -15,7 +15,6 @@ struct FailsafeState {
   FaultCode fault = FaultCode::None;
   uint32_t gyro_last_ms = 0;
   uint16_t gyro_good_since_ms = 0;       ///< modulo 65,536: a faulted gyro's good run (cleared at 500 ms)
-  bool gyro_good_run = false;
   int32_t rate_mdps = 0;                 ///< the gyro's last good yaw rate, as it came
   uint32_t last_rx_ms = 0;
   uint32_t last_fix_ms = 0;
@@ -24,6 +23,7 @@ struct FailsafeState {
   bool had_fix = false;
   bool radio_lost : 1;                   ///< nothing taken from the radio for radio_timeout_ms
   bool look_after_outage : 1;            ///< the radio came back mid-mission: sweep before moving on
+  bool gyro_good_run : 1;                ///< a faulted gyro is on a good run (since gyro_good_since_ms)
 
   void start(uint32_t now_ms) { last_rx_ms = gyro_last_ms = now_ms; }
   void heard(uint32_t now_ms) { last_rx_ms = now_ms; }

@@ -29,10 +29,11 @@ ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
   if (link_.auth.keyed() && ((step_.work & kWorkReserved) || in.sonar_valid)) return 0;
   uint8_t used = 0;
   while (used < in.rx_len) {
-    if (!decoder_.push(in.rx[used++])) continue;
+    if (!decoder_.push(in.rx[used++], link_.auth.address_bits())) continue;   // another rover's: dropped there
     const AuthResult r = link_.auth.check(decoder_.frame());
     if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
-      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not)
+      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not) ...
+      link_.grant_opens();    // ... and open a fleet rover's grant to speak (from this step: rover.cpp)
       if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {
         link_.fix_verified = true;   // a tag and an estimator update do not fit one step
         step_.defer();
@@ -224,7 +225,8 @@ void Rover::on_config(const msg::Config& m, uint8_t seq) {
 // door, and behind the Uno's optiboot the sketch cannot tell them from the reset button anyway.
 // A rover with no key takes it unsigned (first use). Unsigned, only within kSignProvisionWindowMs
 // of a reset: the radio cannot reset the rover; a person can (the reset button, or opening the
-// USB port, which resets the Uno through DTR: `rovernav provision`). The new key signs the ACK.
+// USB port, which resets the Uno through DTR: `rovernav provision`). The new key signs the ACK,
+// which goes out at the address of the new fleet id ([fleet]; stored with the key, erased or not).
 void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now, bool verified) {
   const uint8_t id = msg::Provision::kId;
   if (!verified) {
@@ -236,9 +238,11 @@ void Rover::on_provision(const msg::Provision& m, uint8_t seq, uint32_t now, boo
     }
   }
   if (m.erase > 1) return nack(id, seq, NackReason::BadValue, 2);
+  if (m.fleet_id > kMaxRovers) return nack(id, seq, NackReason::BadValue, 3);
   const Counter48 tx = link_.auth.tx_last(), rx = link_.auth.rx_last();
   link_.auth.begin(m.erase ? nullptr : m.key);
   link_.auth.resume(tx, rx);   // past every counter of the old key too
+  link_.set_fleet(m.fleet_id);   // the ACK goes out at the new address (and signed with the new key)
   link_.key_change = m.erase ? kKeyErase & 3u : kKeyStore & 3u;
   link_.persisted_once = false;  // the counters are stored again with the key
   ack(id, seq);

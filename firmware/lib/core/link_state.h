@@ -36,20 +36,40 @@ struct LinkState {
   uint8_t stored_tx_b2 = 0;              ///< byte 2 of the tx counter last handed to the shell to store
   uint8_t stored_rx_hi[4] = {};          ///< bytes 2-5 of the rx counter last handed to the shell
   uint16_t auth_reported = 0;            ///< refusals counted when LINK_AUTH last went out
+  uint8_t grant_left = 0;                ///< a fleet rover's bytes left in its grant ([fleet]); 0: none
   bool schema_ok : 1;                    ///< the host's HELLO carried our schema hash
   bool persist_due : 1;                  ///< the counters are to be stored (Rover::persist_due())
   bool persisted_once : 1;               ///< ... and have been since boot
   bool fix_verified : 1;                 ///< the decoder holds a FIX whose tag passed: next step's job
   uint8_t key_change : 2;                ///< a PROVISION for the shell to store: kKeyStore / kKeyErase
+  bool fleet : 1;                        ///< a rover of a fleet (fleet_id 1..4): it speaks only in a grant
 
   void begin(uint32_t boot, uint16_t cause) {
     boot_id = boot;
     reset_cause = cause;
   }
-  /// The first step: PROVISION's window and STATUS's period start.
+  /// The first step: PROVISION's window and STATUS's period start, and a fleet rover's first grant
+  /// opens (its boot HELLO and EVENT go out unasked: the host learns it reset, and `rovernav
+  /// provision` that it has just booted).
   void first_step(uint32_t now_ms) {
     boot_ms = now_ms;
     status_sent(now_ms);
+    grant_opens();
+  }
+  /// A frame from the host taken (or the first step): a fleet rover's grant opens ([fleet]).
+  void grant_opens() { grant_left = kGrantBytes; }
+  /// fleet_id 0: a lone rover (address 0, talks freely); k = 1..kMaxRovers: rover k of a fleet,
+  /// address k - 1, speaking only in its grants. The caller has checked fleet_id <= kMaxRovers.
+  void set_fleet(uint8_t fleet_id) {
+    fleet = fleet_id != 0;
+    auth.set_address(fleet ? static_cast<uint8_t>(fleet_id - 1) : 0);
+  }
+  uint8_t fleet_id() const { return fleet ? static_cast<uint8_t>((auth.address_bits() >> kAddressShift) + 1) : 0; }
+  /// The bytes a fleet rover may hand its UART this step, of `room`, `since_ms` after the step that
+  /// opened its grant: none past kGrantMs (the grant closes for good), none past kGrantBytes.
+  uint8_t grant_room(uint8_t room, uint16_t since_ms) {
+    if (since_ms > kGrantMs) grant_left = 0;
+    return room < grant_left ? room : grant_left;
   }
   void status_sent(uint32_t now_ms) { last_status_ms = static_cast<uint16_t>(now_ms); }
 

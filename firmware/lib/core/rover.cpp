@@ -38,7 +38,10 @@ void Rover::begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* sec
   link_.begin(boot_id, reset_cause);
   const bool keyed = secrets != nullptr && secrets->has_key;
   link_.auth.begin(keyed ? secrets->key : nullptr);
-  if (secrets != nullptr) link_.auth.resume(secrets->tx_counter, secrets->rx_counter);
+  if (secrets != nullptr) {
+    link_.auth.resume(secrets->tx_counter, secrets->rx_counter);
+    link_.set_fleet(secrets->fleet_id);   // 0..kMaxRovers (link_store, rover_abi check it)
+  }
 }
 
 bool Rover::persist_due(Counter48& tx_counter, Counter48& rx_counter) { return link_.take_persist(tx_counter, rx_counter); }
@@ -116,10 +119,15 @@ ROVERNAV_NOINLINE void Rover::step(const Inputs& in, Outputs& out) {
       if (!send_link_auth()) send_status();
     }
   }
-  const uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
+  uint8_t room = in.tx_room < kTxPerStep ? in.tx_room : static_cast<uint8_t>(kTxPerStep);
+  // A rover of a fleet speaks only when spoken to ([fleet]): whole frames, in the grant the host's
+  // last frame (or the reset) opened, which the step that took it and those within kGrantMs of it
+  // share, kGrantBytes at most.
+  if (link_.fleet) room = link_.grant_room(room, static_cast<uint16_t>(now - failsafe_.last_rx_ms));
   // Frames are framed (signed) on their way out, and not in a step that took a FIX, a sonar
   // result or a planner slice: what that step said leaves a step later (TxQueue).
-  out.tx = link_.tx.take(link_.auth, room, !(step_.work & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len);
+  out.tx = link_.tx.take(link_.auth, room, !(step_.work & (kWorkFix | kWorkOther | kWorkPlanned)), out.tx_len, link_.fleet);
+  link_.grant_left = static_cast<uint8_t>(link_.grant_left - out.tx_len);   // a lone rover's is not read
 }
 
 // The mode's work this step. Motors are off unless the mode drives them.

@@ -66,6 +66,7 @@ struct LinkSecrets {
   uint8_t key[kSipKeyBytes];
   Counter48 tx_counter;   ///< the counters as last stored (0, 0 if never); rx_counter follows
   Counter48 rx_counter;   ///< tx_counter (link_store reads both at once)
+  uint8_t fleet_id;       ///< 0: a lone rover; 1..kMaxRovers: rover k of a fleet ([fleet]), stored with the key
 };
 
 class Rover : private RoverFields {
@@ -123,7 +124,7 @@ class Rover : private RoverFields {
   /// boot_id must change at every reset; reset_cause goes out in the boot EVENT: the reset's
   /// flags, and kSignConsentResetBit when the shell found the consent pin held to GND at start-up
   /// (a keyed rover then takes an unsigned PROVISION; see on_provision). secrets: the stored link
-  /// key and counters (nullptr: no key, the link unsigned).
+  /// key and counters and the fleet id (nullptr: no key, the link unsigned, a lone rover).
   void begin(uint32_t boot_id, uint16_t reset_cause, const LinkSecrets* secrets = nullptr);
   void step(const Inputs& in, Outputs& out);
 
@@ -135,6 +136,8 @@ class Rover : private RoverFields {
   /// A PROVISION was taken: kKeyStore (store link_key()) or kKeyErase; 0 if none.
   uint8_t take_key_change();
   const uint8_t* link_key() const { return link_.auth.key(); }
+  /// The fleet id to store with the key (PROVISION's, or begin()'s): 0 a lone rover, k rover k of a fleet.
+  uint8_t fleet_id() const { return link_.fleet_id(); }
   bool signing() const { return link_.auth.keyed(); }
   const AuthCounters& auth_counters() const { return link_.auth.counters(); }
 

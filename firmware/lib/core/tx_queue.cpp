@@ -60,16 +60,20 @@ ROVERNAV_NOINLINE bool TxQueue::frame_next(FrameAuth& auth) {
   return true;
 }
 
-const uint8_t* TxQueue::take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n) {
+const uint8_t* TxQueue::take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n, bool whole) {
   drop_taken();
+  const uint8_t frame_to = whole ? static_cast<uint8_t>(kCapacity) : max;
   if (auth.keyed()) {
-    if (may_frame && ready_ < max) frame_next(auth);
+    if (may_frame && ready_ < frame_to) frame_next(auth);
   } else {
-    while (ready_ < max && frame_next(auth)) {   // a CRC, 1.3 us a byte: all that fit go at once
+    while (ready_ < frame_to && frame_next(auth)) {   // a CRC, 1.3 us a byte: all that fit go at once
     }
   }
-  n = ready_ < max ? ready_ : max;
-  taken_ = n;
+  uint8_t k = ready_ < max ? ready_ : max;
+  if (whole) {
+    while (k > 0 && buf_[k - 1] != 0x00) --k;   // back to the last frame's delimiter (COBS: its only 0x00)
+  }
+  n = taken_ = k;
   return buf_;
 }
 

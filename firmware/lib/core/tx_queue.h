@@ -7,6 +7,10 @@
 // sonar result, a planner slice), so what a step says does not add to its worst case (a FIX
 // step that also reaches a waypoint sends its EVENT a step later). Without a key every frame is
 // framed at once.
+//
+// A rover of a fleet ([fleet]) takes whole frames only (another rover's bytes may follow its own
+// on the air: never half a frame), within what its grant leaves; it frames what it can between
+// grants, so that a grant's bytes are ready when it opens.
 #pragma once
 #include <stdint.h>
 
@@ -31,8 +35,9 @@ class TxQueue {
   /// Frames what is due, signed with auth's key when it has one (then one frame at most, none if
   /// !may_frame), then takes up to max framed bytes: n of them at the pointer returned, valid
   /// until the next send_payload() or take() (the shell writes them to the serial port right
-  /// after the step).
-  const uint8_t* take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n);
+  /// after the step). whole (a fleet's rover): only whole frames, and it frames whatever the
+  /// queue has room for, whatever max is (0 between grants).
+  const uint8_t* take(FrameAuth& auth, uint8_t max, bool may_frame, uint8_t& n, bool whole = false);
   uint16_t dropped() const { return dropped_; }
   /// A keyed queue whose framed bytes have all gone and whose next frame waits to be signed: a
   /// step that can do without its heavy job (a planner slice) leaves the time to take() for it.

@@ -20,13 +20,14 @@ void read(uint16_t addr, uint8_t* out, uint8_t n) {
   eeprom_read_block(out, reinterpret_cast<const void*>(addr), n);
 }
 
-bool crc_ok(const uint8_t* rec, uint8_t n) {
-  return crc16_ccitt_false(rec, n) == static_cast<uint16_t>(rec[n] | (rec[n + 1] << 8));
+/// The record's CRC field xor the CRC of its n bytes: 0 for a whole record (the key record: its fleet id).
+uint16_t crc_off(const uint8_t* rec, uint8_t n) {
+  return static_cast<uint16_t>(crc16_ccitt_false(rec, n) ^ static_cast<uint16_t>(rec[n] | (rec[n + 1] << 8)));
 }
 
-void put_crc(uint8_t* rec, uint8_t n) {
+void put_crc(uint8_t* rec, uint8_t n, uint8_t xor_low = 0) {
   const uint16_t crc = crc16_ccitt_false(rec, n);
-  rec[n] = static_cast<uint8_t>(crc);
+  rec[n] = static_cast<uint8_t>(crc ^ xor_low);
   rec[n + 1] = static_cast<uint8_t>(crc >> 8);
 }
 }  // namespace
@@ -37,14 +38,17 @@ static_assert(offsetof(core::LinkSecrets, rx_counter) == offsetof(core::LinkSecr
 void LinkStore::load(core::LinkSecrets& out) {
   uint8_t* rec = buf_;   // nothing is being written yet: the write buffer holds what is read
   read(kKeyAddr, rec, kKeyRecord);
-  out.has_key = rec[0] == kKeyMagic && crc_ok(rec, 17);
+  const uint16_t fleet = crc_off(rec, 17);
+  const bool whole = fleet <= kMaxRovers;
+  out.has_key = rec[0] == kKeyMagic && whole;
+  out.fleet_id = whole ? static_cast<uint8_t>(fleet) : 0;
   memcpy(out.key, rec + 1, kSipKeyBytes);
   memset(&out.tx_counter, 0, 2 * sizeof(Counter48));
   bool found = false;
   for (uint8_t s = 0; s < 2; ++s) {
     read(static_cast<uint16_t>(kSlotAddr + s * kSlotBytes), rec, kSlotBytes);
     // ages are 8-bit and each write adds one: the newer slot is a small step ahead
-    if (!crc_ok(rec, kSlotData) || (found && static_cast<uint8_t>(rec[12] - age_) >= 128)) continue;
+    if (crc_off(rec, kSlotData) != 0 || (found && static_cast<uint8_t>(rec[12] - age_) >= 128)) continue;
     found = true;
     age_ = rec[12];
     next_slot_ = static_cast<uint8_t>(s ^ 1);
@@ -58,11 +62,11 @@ __attribute__((noinline)) void LinkStore::start(uint16_t addr, uint8_t n) {
   done_ = 0;
 }
 
-bool LinkStore::store_key(const uint8_t* key) {
+bool LinkStore::store_key(const uint8_t* key, uint8_t fleet_id) {
   if (busy()) return false;
   buf_[0] = key != nullptr ? kKeyMagic : 0xFF;
   for (uint8_t i = 0; i < kSipKeyBytes; ++i) buf_[1 + i] = key != nullptr ? key[i] : 0xFF;
-  put_crc(buf_, 17);
+  put_crc(buf_, 17, fleet_id);
   start(kKeyAddr, kKeyRecord);
   return true;
 }

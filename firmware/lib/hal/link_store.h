@@ -3,7 +3,11 @@
 //   offset  bytes  what
 //   0       1      key record: 0xA5 when a key is stored (anything else: none)
 //   1       16     the key
-//   17      2      CRC-16/CCITT-FALSE of the 17 bytes before it
+//   17      2      CRC-16/CCITT-FALSE of the 17 bytes before it, xor the fleet id ([fleet]: 0 a lone
+//                  rover, 1..kMaxRovers rover k of a fleet): the CRC covers it and the record keeps
+//                  its size, so that a record written before fleets is a lone rover's, byte for
+//                  byte (its key kept, the counter slots where they were); a record whose CRC is off
+//                  by more than kMaxRovers is broken (no key, a lone rover)
 //   19      2x15   counter slots A and B: tx counter (6), rx counter (6), age (1, +1 a write,
 //                  wrapping), CRC-16 of the 13 (2)
 //
@@ -25,11 +29,12 @@ namespace hal {
 
 class LinkStore {
  public:
-  /// The stored key and counters (no key: has_key false; counters 0 if no slot is valid).
+  /// The stored key, fleet id and counters (no key: has_key false; no valid key record: fleet 0;
+  /// counters 0 if no slot is valid).
   void load(core::LinkSecrets& out);
-  /// Queue a record: the key (nullptr erases it), or the counters. False while one is still
-  /// being written (call again next step).
-  bool store_key(const uint8_t* key);
+  /// Queue a record: the key (nullptr erases it) and the fleet id (0..kMaxRovers), or the counters.
+  /// False while one is still being written (call again next step).
+  bool store_key(const uint8_t* key, uint8_t fleet_id);
   bool store_counters(const Counter48& tx, const Counter48& rx);
   /// One byte a call, when the EEPROM is free; call every step.
   void poll();

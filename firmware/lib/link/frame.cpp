@@ -13,9 +13,9 @@ void FrameDecoder::reset() {
   overlong_ = false;
 }
 
-bool FrameDecoder::push(uint8_t byte) {
+bool FrameDecoder::push(uint8_t byte, uint8_t address_bits) {
   if (byte == 0x00) {
-    const bool ok = finish();
+    const bool ok = finish(address_bits);
     reset();
     return ok;
   }
@@ -45,23 +45,25 @@ __attribute__((noinline)) bool FrameDecoder::drop(uint16_t& counter) {
   return false;
 }
 
-bool FrameDecoder::finish() {
+bool FrameDecoder::finish(uint8_t address_bits) {
   if (overlong_) return drop(counters_.overlong);
   if (encoded_len_ == 0) return false;  // two delimiters in a row
   if (block_left_ != 0 || raw_len_ < kFrameHeader + kFrameCrc) return drop(counters_.malformed);
   const uint8_t body_len = static_cast<uint8_t>(raw_len_ - kFrameCrc);
   const uint16_t crc = static_cast<uint16_t>(raw_[body_len] | (raw_[body_len + 1] << 8));
   if (crc16_ccitt_false(raw_, body_len) != crc) return drop(counters_.bad_crc);
-  const bool is_signed = raw_[0] == (kProtocolVersion | kSignFlag);
-  if ((raw_[0] != kProtocolVersion && !is_signed) ||
-      (is_signed && body_len < kFrameHeader + kFrameSignature)) {
+  const uint8_t version = raw_[0];
+  const bool is_signed = (version & kSignFlag) != 0;
+  if ((version & kVersionMask) != kProtocolVersion || (is_signed && body_len < kFrameHeader + kFrameSignature)) {
     return drop(counters_.malformed);
   }
+  // Another rover's (a fleet shares the radio): not ours to read, nor a fault of the link's.
+  if ((version & kAddressMask) != address_bits) return false;
   const int16_t expected = payload_size(raw_[1]);
   if (expected < 0) return drop(counters_.unknown_id);
   const uint8_t payload_len = static_cast<uint8_t>(body_len - kFrameHeader - (is_signed ? kFrameSignature : 0));
   if (payload_len != expected) return drop(counters_.malformed);
-  frame_.version = raw_[0];
+  frame_.version = version;
   frame_.msg_id = raw_[1];
   frame_.seq = raw_[2];
   frame_.payload_len = payload_len;
@@ -86,9 +88,8 @@ uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_
 
 uint8_t frame_in_place(uint8_t* out, uint8_t n, FrameAuth* auth) {
   uint8_t* raw = out + 1;
-  const bool sign = auth != nullptr && auth->keyed();
-  raw[0] = sign ? static_cast<uint8_t>(kProtocolVersion | kSignFlag) : static_cast<uint8_t>(kProtocolVersion);
-  if (sign) n = auth->sign(raw, n);
+  raw[0] = auth != nullptr ? auth->version_byte() : static_cast<uint8_t>(kProtocolVersion);
+  if (raw[0] & kSignFlag) n = auth->sign(raw, n);
   const uint16_t crc = crc16_ccitt_false(raw, n);
   raw[n++] = static_cast<uint8_t>(crc & 0xFFu);
   raw[n++] = static_cast<uint8_t>(crc >> 8);

@@ -5,6 +5,7 @@
 //   crc   = CRC-16/CCITT-FALSE over version..payload
 //   signed: version|kSignFlag ... payload | counter:u48le | tag:6 | crc (frame_auth.h checks
 //   the counter and the tag; the decoder only finds them)
+//   a fleet: bits kAddressShift.. of the version byte are the rover's address ([fleet]; 0 alone)
 //
 // FrameDecoder takes one byte at a time, decodes COBS as it goes into a single buffer,
 // allocates nothing, resynchronises at the next 0x00 after garbage, and counts what it
@@ -13,7 +14,8 @@
 //   malformed   broken COBS, shorter than header + CRC, wrong version, wrong payload length
 //   bad_crc     CRC mismatch
 //   unknown_id  well-formed, but no message has that id
-// An empty frame (two delimiters in a row) is not counted.
+// An empty frame (two delimiters in a row) is not counted, nor is a frame for another address (a
+// fleet's other rovers'), dropped after the version's check and before anything reads its id.
 #pragma once
 #include <stdint.h>
 
@@ -59,8 +61,10 @@ struct FrameCounters {
 class FrameDecoder {
  public:
 
-  /// Feeds one byte. Returns true when it completes a valid frame, then readable by frame().
-  bool push(uint8_t byte);
+  /// Feeds one byte. Returns true when it completes a valid frame for `address_bits` (the
+  /// receiver's address in the version byte's bits, kAddressMask: FrameAuth::address_bits()),
+  /// then readable by frame().
+  bool push(uint8_t byte, uint8_t address_bits = 0);
 
   const Frame& frame() const { return frame_; }
   const FrameCounters& counters() const { return counters_; }
@@ -68,7 +72,7 @@ class FrameDecoder {
   void reset();
 
  private:
-  bool finish();
+  bool finish(uint8_t address_bits);
   /// Counts a dropped frame in counter; returns false (finish()'s result).
   bool drop(uint16_t& counter);
 
@@ -86,13 +90,14 @@ class FrameDecoder {
 class FrameAuth;
 
 /// Writes the frame for (msg_id, seq, payload) to out, which must hold kMaxEncodedFrame bytes;
-/// signed (counter and tag) when auth holds a key. Returns the bytes written, delimiter
-/// included, or 0 if payload_len > kMaxPayload.
+/// with auth's address, signed (counter and tag) when auth holds a key. Returns the bytes
+/// written, delimiter included, or 0 if payload_len > kMaxPayload.
 uint8_t encode_frame(uint8_t msg_id, uint8_t seq, const uint8_t* payload, uint8_t payload_len,
                      uint8_t* out, FrameAuth* auth = nullptr);
 
 /// Frames in place the body whose msg_id, seq and payload are at out + 2 (n bytes with the
-/// version byte at out + 1, which this writes): signed when auth holds a key, then the CRC, then
+/// version byte at out + 1, which this writes: auth's, FrameAuth::version_byte(), else the bare
+/// version): signed when auth holds a key, then the CRC, then
 /// COBS from out on. out must hold kMaxEncodedFrame bytes. Returns the bytes written, delimiter
 /// included. (encode_frame's second half: the TX queue frames its raw frames where they lie.)
 uint8_t frame_in_place(uint8_t* out, uint8_t n, FrameAuth* auth);

@@ -20,8 +20,9 @@ bool counter_above(const Counter48& a, const Counter48& b) {
 }
 
 __attribute__((noinline)) void FrameAuth::begin(const uint8_t* key) {
-  keyed_ = key != nullptr;
-  for (uint8_t i = 0; i < kSipKeyBytes; ++i) key_[i] = keyed_ ? key[i] : 0;
+  const bool keyed = key != nullptr;
+  head_ = static_cast<uint8_t>((head_ & kAddressMask) | (keyed ? kSignFlag : 0));
+  for (uint8_t i = 0; i < kSipKeyBytes; ++i) key_[i] = keyed ? key[i] : 0;
 }
 
 __attribute__((noinline)) void FrameAuth::resume(const Counter48& tx_persisted, const Counter48& rx_persisted) {
@@ -40,7 +41,7 @@ void FrameAuth::tag_of(uint8_t direction, const uint8_t* data, uint8_t len, uint
 }
 
 AuthResult FrameAuth::check(const Frame& f) {
-  if (!keyed_) {
+  if (!keyed()) {
     if (f.signed_len == 0) return AuthResult::Accepted;
     ++counters_.unverified;
     return AuthResult::Refused;

@@ -1,5 +1,6 @@
 // The link's signatures ([signing] in protocol/messages.toml): one end's key, the counter of
-// the frames it signs and the last counter it accepted from the other end.
+// the frames it signs and the last counter it accepted from the other end; and its address
+// ([fleet]), which with the key makes the version byte its frames carry.
 //
 // Receiving (check): a rover with no key takes unsigned frames and refuses signed ones
 // (unverified); with a key it refuses unsigned commands but the few listed in [signing].unsigned
@@ -55,8 +56,17 @@ class FrameAuth {
  public:
   /// key: 16 bytes, or nullptr for none. The rover's end: it checks kSignHostToRover frames and
   /// signs kSignRoverToHost ones.
+  /// The address it keeps (set_address).
   void begin(const uint8_t* key);
-  bool keyed() const { return keyed_; }
+  bool keyed() const { return (head_ & kSignFlag) != 0; }
+  /// This end's address in a fleet ([fleet]: 0..kMaxRovers - 1; a lone rover's is 0), as it lies
+  /// in the version byte (address_bits(): what FrameDecoder::push() takes).
+  void set_address(uint8_t address) {
+    head_ = static_cast<uint8_t>((head_ & kSignFlag) | ((address << kAddressShift) & kAddressMask));
+  }
+  uint8_t address_bits() const { return static_cast<uint8_t>(head_ & kAddressMask); }
+  /// The version byte of the frames this end sends: the version, its address, kSignFlag with a key.
+  uint8_t version_byte() const { return static_cast<uint8_t>(kProtocolVersion | head_); }
   const uint8_t* key() const { return key_; }
 
   /// Counters resumed after a reset: each the stored one plus kSignResetMargin. Call after begin().
@@ -77,7 +87,9 @@ class FrameAuth {
   void tag_of(uint8_t direction, const uint8_t* data, uint8_t len, uint8_t* tag) const;
 
   uint8_t key_[kSipKeyBytes] = {};
-  bool keyed_ = false;
+  uint8_t head_ = 0;   ///< kSignFlag (a key) | the address's bits: all of the version byte but the version
+  static_assert((kSignFlag & kAddressMask) == 0 && ((kSignFlag | kAddressMask) & kVersionMask) == 0,
+                "the flag, the address and the version have their own bits");
   Counter48 tx_last_ = {};
   Counter48 rx_last_ = {};
   AuthCounters counters_ = {};

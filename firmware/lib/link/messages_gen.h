@@ -9,7 +9,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x3BF68CB5UL;
+static const uint32_t kSchemaHash = 0x02173D8DUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -37,6 +37,17 @@ static const uint16_t kSignConsentResetBit = 0x80;
 inline bool may_be_unsigned(uint8_t id) {
   return id == 0x01 || id == 0x08;
 }
+
+// A fleet ([fleet] in protocol/messages.toml): a rover's address in bits kAddressShift.. of the
+// version byte, and a fleet rover's grant to speak (bytes, and ms from the step that opened it).
+enum : uint8_t {
+  kMaxRovers = 4,
+  kAddressShift = 5,
+  kAddressMask = 0x60,
+  kVersionMask = 0x1F,
+  kGrantBytes = 96,
+  kGrantMs = 25
+};
 
 /// Which end of the link sent a HELLO.
 enum class Role : uint8_t {
@@ -422,11 +433,12 @@ struct Config {
 };
 static_assert(sizeof(Config) == Config::kPayloadSize, "config: its layout is its payload");
 
-/// Store (or erase) the link key ([signing]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio. (host to rover)
+/// Store (or erase) the link key ([signing]), and the rover's fleet id ([fleet]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio. (host to rover)
 struct Provision {
-  enum : uint8_t { kId = 0x08, kPayloadSize = 17 };
+  enum : uint8_t { kId = 0x08, kPayloadSize = 18 };
   uint8_t key[16];  ///< the 128-bit key, as in the key file
   uint8_t erase;  ///< 1: forget the key (key ignored); the rover talks unsigned again
+  uint8_t fleet_id;  ///< 0: a lone rover (address 0, talks freely); k = 1..[fleet].max_rovers: rover k of a fleet, address k - 1, which speaks only when spoken to ([fleet]); stored with the key (also with erase), in force from the ACK on; more: NACK bad_value, detail 3
   /// Writes kPayloadSize bytes to p.
   void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
@@ -551,7 +563,7 @@ static const uint8_t kPayloadSizes[14][2] ROVERNAV_PROGMEM = {
   {0x05, 2},  // start
   {0x06, 1},  // stop
   {0x07, 5},  // config
-  {0x08, 17},  // provision
+  {0x08, 18},  // provision
   {0x10, 45},  // status
   {0x11, 14},  // obstacle
   {0x12, 2},  // ack

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "frame.h"
+#include "frame_auth.h"
 #include "angles.h"
 #include "sonar_geometry.h"
 #include "rover.h"
@@ -79,6 +80,7 @@ class Bench {
   bool stream_fixes = false;    // a FIX every fix_period_ms from the plant's true pose
   uint16_t fix_period_ms = 33;
   bool heartbeats = false;
+  uint8_t address = 0;          // the rover's address the host talks to and listens for ([fleet]; 0 alone)
   // The host's word in its HEARTBEATs: it heard every sweep whole (scan_heard: the last sweep whose
   // SCAN_DONE it was said) and holds the last path loaded; false: it heard none (a lossy radio).
   bool hears_sweeps = true;
@@ -238,7 +240,7 @@ class Bench {
       ++pings;
     }
     for (uint8_t i = 0; i < out.tx_len; ++i) {
-      if (radio && decoder_.push(out.tx[i]) && said_count < 512) {
+      if (radio && decoder_.push(out.tx[i], static_cast<uint8_t>(address << kAddressShift)) && said_count < 512) {
         Said& s = said[said_count++];
         s.msg_id = decoder_.frame().msg_id;
         s.seq = decoder_.frame().seq;
@@ -339,8 +341,12 @@ class Bench {
  private:
   template <typename Msg>
   void send_auto(const Msg& m) {
+    uint8_t payload[Msg::kPayloadSize];
+    m.encode(payload);
+    FrameAuth host;   // no key: the host's frames unsigned, to the rover at `address`
+    host.set_address(address);
     uint8_t buf[kMaxEncodedFrame];
-    const uint8_t n = encode_message(m, host_seq_++, buf);
+    const uint8_t n = encode_frame(Msg::kId, host_seq_++, payload, Msg::kPayloadSize, buf, &host);
     queue(buf, n);
   }
 

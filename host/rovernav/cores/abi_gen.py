@@ -9,7 +9,7 @@ import ctypes
 # ---------------------------------------------------------------------------- [rover]
 # the rover core's C ABI (firmware/abi/rover_abi.h, built as build/native/librovernav_rover.so)
 
-ROVER_ABI_VERSION = 2
+ROVER_ABI_VERSION = 3
 ROVER_TX_PER_STEP = 64   # bytes a step may hand the shell: one UART buffer (vehicle.toml's uart_buffer_bytes)
 ROVER_ABI_CONSTANTS = {"ROVER_TX_PER_STEP": ROVER_TX_PER_STEP}
 

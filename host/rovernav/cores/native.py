@@ -15,6 +15,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from ..link.messages_gen import MAX_ROVERS
 from .abi_gen import (
     ROVER_ABI_CONSTANTS,
     ROVER_ABI_STRUCTS,
@@ -128,7 +129,16 @@ def load_library() -> ctypes.CDLL:
     lib.rover_new.restype = ctypes.c_void_p
     lib.rover_new.argtypes = [ctypes.c_uint32, ctypes.c_uint16]
     lib.rover_new_keyed.restype = ctypes.c_void_p
-    lib.rover_new_keyed.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_char_p, ctypes.c_uint64, ctypes.c_uint64]
+    lib.rover_new_keyed.argtypes = [
+        ctypes.c_uint32,
+        ctypes.c_uint16,
+        ctypes.c_char_p,
+        ctypes.c_uint64,
+        ctypes.c_uint64,
+        ctypes.c_uint8,
+    ]
+    lib.rover_fleet_id.restype = ctypes.c_int
+    lib.rover_fleet_id.argtypes = [ctypes.c_void_p]
     lib.rover_take_persist.restype = ctypes.c_int
     lib.rover_take_persist.argtypes = [
         ctypes.c_void_p,
@@ -168,18 +178,29 @@ class NativeCore:
     RX_HELD_MAX = 255  # bytes held for the core, like the Uno's buffers: more are dropped
 
     def __init__(
-        self, boot_id: int = 1, reset_cause: int = 0, *, key: bytes | None = None, counters: tuple[int, int] = (0, 0)
+        self,
+        boot_id: int = 1,
+        reset_cause: int = 0,
+        *,
+        key: bytes | None = None,
+        counters: tuple[int, int] = (0, 0),
+        fleet_id: int = 0,
     ):
         """key: the 16-byte link key in the rover's store (None: none, the link unsigned);
-        counters: its stored signing counters (tx, rx), as `take_persist` last gave them."""
+        counters: its stored signing counters (tx, rx), as `take_persist` last gave them;
+        fleet_id: the fleet id stored with the key (0: a lone rover; 1..4: rover k of a fleet, at
+        address k - 1, which speaks only when spoken to: [fleet] of protocol/messages.toml)."""
+        self._handle = None
+        if isinstance(fleet_id, bool) or not isinstance(fleet_id, int) or not 0 <= fleet_id <= MAX_ROVERS:
+            raise ValueError(f"a fleet id is 0 (a lone rover) or 1..{MAX_ROVERS}, got {fleet_id!r}")
         self._lib = load_library()
-        if key is None and counters == (0, 0):
+        if key is None and counters == (0, 0) and fleet_id == 0:
             self._handle = self._lib.rover_new(boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF)
         else:
             if key is not None and len(key) != 16:
                 raise ValueError(f"a link key is 16 bytes, got {len(key)}")
             self._handle = self._lib.rover_new_keyed(
-                boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key, counters[0], counters[1]
+                boot_id & 0xFFFFFFFF, reset_cause & 0xFFFF, key, counters[0], counters[1], fleet_id
             )
         self._in = RoverInputs()
         self._out = RoverOutputs()
@@ -193,6 +214,12 @@ class NativeCore:
         if self._lib.rover_take_persist(self._handle, ctypes.byref(tx), ctypes.byref(rx)):
             return tx.value, rx.value
         return None
+
+    @property
+    def fleet_id(self) -> int:
+        """The fleet id the rover holds: its store's, or the last PROVISION's (what its shell would store
+        with the key): 0 a lone rover, k rover k of a fleet (address k - 1)."""
+        return self._lib.rover_fleet_id(self._handle)
 
     def take_key_change(self) -> tuple[str, bytes | None] | None:
         """A PROVISION the rover took: ("store", key) or ("erase", None); else None."""

@@ -128,10 +128,14 @@ def board_constants(path: Path = BOARD_H) -> Board:
     )
 
 
-def link_key_record(key: bytes) -> bytes:
-    """The key record firmware/lib/hal/link_store.h keeps in EEPROM: 0xA5, the key, its CRC-16."""
-    rec = b"\xa5" + bytes(key)
-    return rec + crc16(rec).to_bytes(2, "little")
+def link_key_record(key: bytes | None, fleet_id: int = 0) -> bytes:
+    """The key record firmware/lib/hal/link_store.h keeps in EEPROM: 0xA5 and the key (0xFF and
+    0xFF's: none), and their CRC-16 xor the fleet id ([fleet]: 0 a lone rover, 1..MAX_ROVERS rover
+    k of a fleet; a lone rover's record is the one written before fleets)."""
+    if not 0 <= fleet_id <= mg.MAX_ROVERS:
+        raise ValueError(f"a fleet id is 0..{mg.MAX_ROVERS}, got {fleet_id}")
+    rec = b"\xa5" + bytes(key) if key is not None else b"\xff" * 17
+    return rec + (crc16(rec) ^ fleet_id).to_bytes(2, "little")
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -187,7 +191,12 @@ class UnoCore:
         fast_forward: bool | None = None,
         profile: bool = False,
         key: bytes | None = None,
+        fleet_id: int = 0,
     ):
+        """key: the link key in the image's EEPROM (None: none); fleet_id: the fleet id stored with
+        it (0: a lone rover; 1..4: rover k of a fleet, at address k - 1, which speaks only when
+        spoken to: [fleet] of protocol/messages.toml)."""
+        record = link_key_record(key, fleet_id) if key is not None or fleet_id else None  # checked first
         self.elf, _ = ensure_built(elf or ELF)
         self._lib = load_library()
         self.board = board_constants()
@@ -224,8 +233,8 @@ class UnoCore:
         self._decoder = self._new_decoder()
         self._status: mg.Status | None = None
         self.link_auth: mg.LinkAuth | None = None
-        if key is not None:
-            self.eeprom(self.board.eeprom_link_addr, link_key_record(key))
+        if record is not None:
+            self.eeprom(self.board.eeprom_link_addr, record)
         self.sonar_ranges: list[int] = []
         self.wall_s = 0.0  # spent inside the AVR simulation
         self._records: list[tuple[int, int, int, int, int]] = []  # rise, fall, desc, has_desc, boot
@@ -408,7 +417,10 @@ class UnoCore:
                 break
 
     def _new_decoder(self) -> FrameDecoder:
-        return FrameDecoder(None if self._key is None else Verifier(self._key, SIGN_ROVER_TO_HOST, require=False))
+        # Any address: the image's UART carries its frames only (at the address a PROVISION may change).
+        return FrameDecoder(
+            None if self._key is None else Verifier(self._key, SIGN_ROVER_TO_HOST, require=False), address=None
+        )
 
     def auth_counters(self) -> dict[str, int]:
         """Frames the image refused for their signature, as its last LINK_AUTH said."""

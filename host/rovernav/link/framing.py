@@ -16,6 +16,14 @@ at the next 0x00 after garbage, and counts what it drops exactly as the rover's 
 
 Checks run in that order; an empty frame (two delimiters in a row) is not counted.
 
+A fleet ([fleet] in protocol/messages.toml): bits ADDRESS_SHIFT.. of the version byte are the
+address of the rover a frame is to or from (0..MAX_ROVERS - 1; a lone rover's is 0, so its frames
+are what they were before addresses). encode_frame() writes its `address`; a decoder for one
+address drops the frames of the others after the version's check, before anything reads their id
+or checks their tag, and counts them apart (`other_address`: someone else's frames, not damage,
+so not in `dropped`); a decoder for address None takes any (`rovernav provision`, which learns the
+rover's address from its HELLO).
+
 Signed frames ([signing] in protocol/messages.toml; the rover checks them the same way,
 firmware/lib/link/frame_auth.cpp): the version byte carries SIGN_FLAG, and a counter and a
 SipHash-2-4 tag follow the payload. A decoder given a Verifier checks them after the CRC and
@@ -35,6 +43,9 @@ import hmac
 import time
 
 from .messages_gen import (
+    ADDRESS_MASK,
+    ADDRESS_SHIFT,
+    MAX_ROVERS,
     MAX_SIGNED_RAW_FRAME,
     MESSAGES,
     PROTOCOL_VERSION,
@@ -44,6 +55,7 @@ from .messages_gen import (
     SIGN_TAG_BYTES,
     SIGN_UNSIGNED_IDS,
     UART_BUFFER_BYTES,
+    VERSION_MASK,
 )
 from .schema import Message
 from .siphash import KEY_BYTES, siphash24
@@ -151,15 +163,29 @@ class Signer:
         self.last_counter = max(self.last_counter, counter)
 
 
-def encode_frame(message: Message, seq: int, signer: Signer | None = None) -> bytes:
-    """The bytes to send for message with sequence number seq (0..255), delimiter included;
-    signed (a counter and a tag before the CRC) when a Signer is given."""
+def check_address(address: int) -> int:
+    """`address` if it is a rover's address (0..MAX_ROVERS - 1), else ValueError naming the range."""
+    if isinstance(address, bool) or not isinstance(address, int) or not 0 <= address < MAX_ROVERS:
+        raise ValueError(f"a rover's address is 0..{MAX_ROVERS - 1} (fleet id - 1; 0 alone), got {address!r}")
+    return address
+
+
+def frame_address(version: int) -> int:
+    """The rover's address a frame's version byte carries."""
+    return (version & ADDRESS_MASK) >> ADDRESS_SHIFT
+
+
+def encode_frame(message: Message, seq: int, signer: Signer | None = None, address: int = 0) -> bytes:
+    """The bytes to send for message with sequence number seq (0..255), delimiter included, to
+    (or from) the rover at `address` ([fleet]; 0: a lone rover); signed (a counter and a tag before
+    the CRC) when a Signer is given."""
     if not 0 <= seq <= 0xFF:
         raise ValueError(f"sequence number {seq} is not a byte")
+    version = PROTOCOL_VERSION | check_address(address) << ADDRESS_SHIFT
     if signer is None:
-        body = bytes((PROTOCOL_VERSION, message.ID, seq)) + message.pack()
+        body = bytes((version, message.ID, seq)) + message.pack()
     else:
-        body = bytes((PROTOCOL_VERSION | SIGN_FLAG, message.ID, seq)) + message.pack()
+        body = bytes((version | SIGN_FLAG, message.ID, seq)) + message.pack()
         body += signer.next_counter().to_bytes(SIGN_COUNTER_BYTES, "little")
         body += frame_tag(signer.key, signer.direction, body)
     body += crc16(body).to_bytes(2, "little")
@@ -190,6 +216,8 @@ class DecoderCounters:
     replayed: int = 0
     not_signed: int = 0
     unverified: int = 0
+    #: Whole frames for another rover's address ([fleet]): not damage, so not in `dropped`.
+    other_address: int = 0
 
     @property
     def dropped(self) -> int:
@@ -214,18 +242,21 @@ class Frame:
     payload: bytes
     message: Message
     counter: int | None = None  # a signed frame's counter (its tag checked), else None
+    address: int = 0  # the rover's address in its version byte ([fleet]; 0 alone)
 
 
 class FrameDecoder:
     """Turns a byte stream into frames; counts and drops everything else.
 
     feed() may be given any slice of the stream: a byte, a partial frame, several frames. It
-    holds at most MAX_ENCODED_BODY bytes between calls, whatever it is fed.
+    holds at most MAX_ENCODED_BODY bytes between calls, whatever it is fed. `address`: the
+    rover's whose frames it takes (0..MAX_ROVERS - 1); None takes every address's.
     """
 
-    def __init__(self, verifier: Verifier | None = None) -> None:
+    def __init__(self, verifier: Verifier | None = None, address: int | None = 0) -> None:
         self.counters = DecoderCounters()
         self.verifier = verifier
+        self.address = None if address is None else check_address(address)
         self._buf = bytearray()
         self._overlong = False
 
@@ -267,14 +298,16 @@ class FrameDecoder:
             self.counters.bad_crc += 1
             return None
         version, msg_id, seq = raw[0], raw[1], raw[2]
-        signed = version == PROTOCOL_VERSION | SIGN_FLAG
+        signed = bool(version & SIGN_FLAG)
         payload = raw[HEADER_BYTES : -CRC_BYTES - (SIGNATURE_BYTES if signed else 0)]
-        if (
-            version != PROTOCOL_VERSION
-            and not signed
-            or len(raw) < HEADER_BYTES + CRC_BYTES + (SIGNATURE_BYTES if signed else 0)
+        if (version & VERSION_MASK) != PROTOCOL_VERSION or len(raw) < HEADER_BYTES + CRC_BYTES + (
+            SIGNATURE_BYTES if signed else 0
         ):
             self.counters.malformed += 1
+            return None
+        address = frame_address(version)
+        if self.address is not None and address != self.address:
+            self.counters.other_address += 1  # another rover's: dropped before its id or its tag is read
             return None
         cls = MESSAGES.get(msg_id)
         if cls is None:
@@ -306,4 +339,4 @@ class FrameDecoder:
             self.counters.not_signed += 1
             return None
         self.counters.frames_ok += 1
-        return Frame(msg_id, seq, payload, cls.unpack(payload), counter)
+        return Frame(msg_id, seq, payload, cls.unpack(payload), counter, address)

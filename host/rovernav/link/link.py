@@ -1,6 +1,7 @@
 """The Link: messages over a Transport, with sequence numbers, ACK/NACK requests and the HELLO handshake.
 
     Link(transport)            wraps any Transport (serial port, pty, pipe to the simulator)
+    Link(..., address=k)       talks to the rover at address k of a fleet ([fleet]; 0: a lone rover)
     send(message) -> seq       fire and forget (FIX, HEARTBEAT)
     recv(timeout_s)            next decoded frame, or None after timeout_s seconds
     messages(timeout_s)        frames as they arrive, until timeout_s passes with nothing new
@@ -11,7 +12,8 @@ Frames that arrive while request() or handshake() waits for their answer are kep
 and returned by later recv() calls: nothing the rover says is lost, up to MAX_PENDING_FRAMES
 kept unread. Past that (a peer flooding the line while nobody calls recv) the oldest are
 dropped and counted in `pending_dropped`, so memory stays bounded. Corrupt or unknown frames
-are dropped and counted in `counters` (the decoder's, named as on the rover).
+are dropped and counted in `counters` (the decoder's, named as on the rover); frames of another
+rover of a fleet (another address) are dropped too, counted in `counters.other_address`.
 
 Every wait respects its timeout, also under a continuous flood of bytes: after a deadline the
 Link reads on only what had already arrived, for at most _LATE_POLLS reads and _LATE_POLL_S
@@ -36,7 +38,7 @@ from types import TracebackType
 from .. import __version__
 from ..validate import check_number
 from .errors import LinkTimeout, Nacked, SchemaMismatch, SigningMismatch
-from .framing import DecoderCounters, Frame, FrameDecoder, Signer, Verifier, encode_frame
+from .framing import DecoderCounters, Frame, FrameDecoder, Signer, Verifier, check_address, encode_frame
 from .messages_gen import SCHEMA_HASH, SIGN_HOST_TO_ROVER, SIGN_ROVER_TO_HOST, Hello, Nack, Role
 from .requests import RequestTracker
 from .schema import Message
@@ -89,6 +91,7 @@ class Link:
         hello_resend_s: float = 0.5,
         key: bytes | None = None,
         clock: Callable[[], float] = time.time,
+        address: int = 0,
     ) -> None:
         """hello_resend_s: how often handshake() repeats its HELLO while waiting [s]
         (an Uno resets when its port is opened and misses what is sent during boot).
@@ -96,14 +99,19 @@ class Link:
         rover's signed frames (and its HELLO) are taken; handshake() refuses a rover that says it
         holds no key (a downgrade is not accepted).
         clock: the signing counter's clock, Unix seconds (the wall clock; the simulator's
-        simulated one, so that a run does not depend on how fast the machine runs it)."""
+        simulated one, so that a run does not depend on how fast the machine runs it).
+        address: the rover's address in a fleet ([fleet]: 0..MAX_ROVERS - 1, its fleet id - 1; 0 a
+        lone rover): every frame sent carries it, and frames of other addresses are dropped (counted
+        in counters.other_address). ValueError outside 0..MAX_ROVERS - 1."""
+        #: The rover's address this Link talks to ([fleet]).
+        self.address = check_address(address)
         self.transport = transport
         self.signer = None if key is None else Signer(key, SIGN_HOST_TO_ROVER, clock=clock)
         verifier = None if key is None else Verifier(key, SIGN_ROVER_TO_HOST, require=True)
         self.hello_resend_s = check_number("hello_resend_s", hello_resend_s, 0.0, MAX_TIMEOUT_S, lo_open=True)
         #: The rover's HELLO from the last successful handshake(), else None.
         self.peer_hello: Hello | None = None
-        self._decoder = FrameDecoder(verifier)
+        self._decoder = FrameDecoder(verifier, address=self.address)
         self._pending: collections.deque[Frame] = collections.deque()
         self._pending_dropped = 0
         self._next_seq = 0
@@ -151,7 +159,9 @@ class Link:
         """
         with self._tx_lock:
             seq = self._next_seq
-            frame = encode_frame(message, seq, None if isinstance(message, Hello) else self.signer)
+            frame = encode_frame(
+                message, seq, None if isinstance(message, Hello) else self.signer, address=self.address
+            )
             self.transport.write(frame)
             self._next_seq = (seq + 1) & 0xFF
             self._tx_frames += 1

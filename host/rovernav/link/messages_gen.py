@@ -12,7 +12,7 @@ from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the 
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x3BF68CB5
+SCHEMA_HASH = 0x02173D8D
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -26,6 +26,14 @@ SIGN_ROVER_TO_HOST = 2
 SIGN_CONSENT_PIN = 7
 SIGN_CONSENT_RESET_BIT = 0x80
 SIGN_UNSIGNED_IDS = frozenset({0x01, 0x08})
+# A fleet ([fleet] in protocol/messages.toml): a rover's address in bits ADDRESS_SHIFT.. of the version
+# byte (ADDRESS_MASK; VERSION_MASK the version's bits), and a fleet rover's grant to speak
+MAX_ROVERS = 4
+ADDRESS_SHIFT = 5
+ADDRESS_MASK = 0x60
+VERSION_MASK = 0x1F
+GRANT_BYTES = 96
+GRANT_MS = 25
 MAX_SIGNED_RAW_FRAME = 62
 MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50
@@ -418,19 +426,21 @@ class Config(Message):
 
 @dataclasses.dataclass
 class Provision(Message):
-    """Store (or erase) the link key ([signing]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio."""
+    """Store (or erase) the link key ([signing]), and the rover's fleet id ([fleet]). A rover with no key takes it unsigned within provision_window_ms of a reset (first use: the radio cannot reset the rover, so it comes over the USB cable, whose opening resets the Uno; rovernav provision). A rover with a key takes it only with its owner's consent: signed with the key it holds (at any time), or unsigned within provision_window_ms of a reset with the consent pin held to GND; else NACK needs_consent. It carries the new key in the clear: send it over the USB cable, never the radio."""
 
     ID: ClassVar[int] = 0x08
     NAME: ClassVar[str] = 'provision'
     DIRECTION: ClassVar[str] = 'host_to_rover'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<BBBBBBBBBBBBBBBBB')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<BBBBBBBBBBBBBBBBBB')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('key', 'u8', 16, '', 'the 128-bit key, as in the key file'),
         FieldSpec('erase', 'u8', 0, '', '1: forget the key (key ignored); the rover talks unsigned again'),
+        FieldSpec('fleet_id', 'u8', 0, '', '0: a lone rover (address 0, talks freely); k = 1..[fleet].max_rovers: rover k of a fleet, address k - 1, which speaks only when spoken to ([fleet]); stored with the key (also with erase), in force from the ACK on; more: NACK bad_value, detail 3'),
     )
 
     key: tuple[int, ...] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
     erase: int = 0
+    fleet_id: int = 0
 
 
 @dataclasses.dataclass

@@ -13,6 +13,11 @@ signed with the key it holds (`current_key`: its boot HELLO, signed with that ke
 first, so a wrong key file is named before anything is sent), or the consent pin
 ([signing].consent_pin, D7) held to GND while it reset. Without either it answers NACK
 needs_consent, and this says the two ways in one line (NeedsConsent).
+
+PROVISION carries the rover's fleet id too ([fleet]): 0 a lone rover (address 0, talks freely), k
+= 1..MAX_ROVERS rover k of a fleet (address k - 1), which speaks only when spoken to. The rover's
+boot HELLO comes at the address it holds (a rover of a fleet says it unasked: its reset opens a
+grant), the PROVISION goes to that address, and the ACK comes from the new one, which confirms it.
 """
 
 from __future__ import annotations
@@ -33,12 +38,14 @@ from .framing import (
     encode_frame,
 )
 from .messages_gen import (
+    MAX_ROVERS,
     PROTOCOL_VERSION,
     SIGN_CONSENT_PIN,
     SIGN_FLAG,
     SIGN_HOST_TO_ROVER,
     SIGN_PROVISION_WINDOW_MS,
     SIGN_ROVER_TO_HOST,
+    VERSION_MASK,
     Ack,
     Hello,
     Nack,
@@ -75,6 +82,15 @@ class WrongCurrentKey(ProvisionError):
     exit_code = 2
 
 
+def check_fleet_id(fleet_id: int) -> int:
+    """`fleet_id` if it is one (0: a lone rover; 1..MAX_ROVERS: rover k of a fleet), else InputError."""
+    if isinstance(fleet_id, bool) or not isinstance(fleet_id, int) or not 0 <= fleet_id <= MAX_ROVERS:
+        raise InputError(
+            f"a fleet id is 0 (a lone rover) or 1..{MAX_ROVERS} (rover k of a fleet, address k - 1), got {fleet_id!r}"
+        )
+    return fleet_id
+
+
 class _Refusals:
     """The rover's NACKs, read without checking a tag: a keyed rover signs its refusal with the key
     it holds, which the host may not have (that is why it refuses). A forged NACK can only make
@@ -95,9 +111,9 @@ class _Refusals:
                 or crc16(raw[:-CRC_BYTES]) != int.from_bytes(raw[-CRC_BYTES:], "little")
             ):
                 continue
-            end = len(raw) - CRC_BYTES - (SIGNATURE_BYTES if raw[0] == PROTOCOL_VERSION | SIGN_FLAG else 0)
+            end = len(raw) - CRC_BYTES - (SIGNATURE_BYTES if raw[0] & SIGN_FLAG else 0)
             if (
-                raw[0] in (PROTOCOL_VERSION, PROTOCOL_VERSION | SIGN_FLAG)
+                raw[0] & VERSION_MASK == PROTOCOL_VERSION  # at any address: the rover's, old or new
                 and raw[1] == Nack.ID
                 and end - HEADER_BYTES == Nack.STRUCT.size
             ):
@@ -114,19 +130,26 @@ def provision(
     *,
     current_key: bytes | None = None,
     wall_clock=time.time,
+    fleet_id: int = 0,
 ) -> str:
-    """Store `key` (16 bytes; None erases the rover's key) on the rover behind `transport`, which
-    must have just reset it. `current_key`: the key the rover holds, to sign the PROVISION with
-    (its owner's consent; ignored by a rover that holds none). `wall_clock` drives the signing
-    counter (Signer). Returns a line saying what was done; raises ProvisionError."""
+    """Store `key` (16 bytes; None erases the rover's key) and `fleet_id` (0: a lone rover; k =
+    1..MAX_ROVERS: rover k of a fleet, [fleet]) on the rover behind `transport`, which must have
+    just reset it. `current_key`: the key the rover holds, to sign the PROVISION with (its owner's
+    consent; ignored by a rover that holds none). `wall_clock` drives the signing counter
+    (Signer). Returns a line saying what was done; raises ProvisionError."""
     for name, k in (("link key", key), ("current link key", current_key)):
         if k is not None and len(k) != 16:
             raise InputError(f"a {name} is 16 bytes, got {len(k)}")
-    plain = FrameDecoder()  # a keyed rover's HELLO is readable unchecked: enough to see it boot
+    check_fleet_id(fleet_id)
+    # Frames at any address: the rover's boot HELLO says the one it holds, its ACK the new one.
+    plain = FrameDecoder(address=None)  # a keyed rover's HELLO is readable unchecked: enough to see it boot
     # ... and checked with the current key, when one is given: a wrong key file is named here
-    checked = FrameDecoder(Verifier(current_key, SIGN_ROVER_TO_HOST, require=False)) if current_key else None
+    checked = (
+        FrameDecoder(Verifier(current_key, SIGN_ROVER_TO_HOST, require=False), address=None) if current_key else None
+    )
     deadline = clock() + boot_wait_s
     hello: Hello | None = None
+    address = 0
     hello_signed_by_current = False
     while hello is None and clock() < deadline:
         data = transport.read(256, timeout_s=0.05)
@@ -137,7 +160,7 @@ def provision(
             )
         for frame in plain.feed(data):
             if isinstance(frame.message, Hello) and frame.message.role == Role.ROVER:
-                hello = frame.message
+                hello, address = frame.message, frame.address
     if hello is None:
         raise ProvisionError(
             f"no rover booted on {transport} within {boot_wait_s:g} s of opening it, so the key was not sent. "
@@ -157,10 +180,11 @@ def provision(
             )
         signer = Signer(current_key, SIGN_HOST_TO_ROVER, clock=wall_clock)
         signer.jump_past((hello.min_counter_hi << 32 | hello.min_counter_lo) - 1)
-    message = Provision(key=tuple(key) if key is not None else (0,) * 16, erase=int(key is None))
-    transport.write(encode_frame(message, 0, signer))
+    message = Provision(key=tuple(key) if key is not None else (0,) * 16, erase=int(key is None), fleet_id=fleet_id)
+    transport.write(encode_frame(message, 0, signer, address=address))
     # The ACK of a stored key is signed with it (checked); a NACK comes as the rover signed before.
-    answers = FrameDecoder(Verifier(key, SIGN_ROVER_TO_HOST, require=False) if key is not None else None)
+    answers = FrameDecoder(Verifier(key, SIGN_ROVER_TO_HOST, require=False) if key is not None else None, address=None)
+    new_address = fleet_id - 1 if fleet_id else 0
     refusals = _Refusals()
     deadline = clock() + answer_wait_s
     while clock() < deadline:
@@ -169,6 +193,11 @@ def provision(
         for ack in acks:
             if key is not None and ack.counter is None:
                 raise ProvisionError("the rover acknowledged the key unsigned: it does not hold it as sent")
+            if ack.address != new_address:
+                raise ProvisionError(
+                    f"the rover acknowledged from address {ack.address}, not {new_address}: it does not hold "
+                    f"fleet id {fleet_id} as sent (a firmware without fleets?)"
+                )
             how = (
                 " with its current key's signature"
                 if signer is not None
@@ -176,10 +205,15 @@ def provision(
                 if keyed
                 else ""
             )
+            fleet = (
+                f"; it is rover {fleet_id} of a fleet (address {new_address}): it speaks only when spoken to"
+                if fleet_id
+                else ""
+            )
             if key is None:
-                return f"the rover's link key is erased{how}: it takes unsigned commands again"
+                return f"the rover's link key is erased{how}: it takes unsigned commands again{fleet}"
             return (
-                f"stored the key on the rover (boot id {hello.boot_id}){how}; its answer is signed with it. "
+                f"stored the key on the rover (boot id {hello.boot_id}){how}; its answer is signed with it{fleet}. "
                 "The host that commands it needs the same key file ([link] key_file)"
             )
         for m in refusals.feed(data):

@@ -93,7 +93,7 @@ def sent_frame(data: bytes) -> tuple[int, int, int | None] | None:
     raw = cobs_decode(data[:-1])
     if raw is None or len(raw) < HEADER_BYTES + CRC_BYTES:
         return None
-    version, msg_id, seq = raw[0], raw[1], raw[2]
+    version, msg_id, seq = raw[0] & ~mg.ADDRESS_MASK, raw[1], raw[2]  # at any rover's address ([fleet])
     if version == mg.PROTOCOL_VERSION:
         return msg_id, seq, None
     end = len(raw) - CRC_BYTES - mg.SIGN_TAG_BYTES  # the counter ends where the tag begins
