@@ -12,7 +12,7 @@ namespace rovernav {
 namespace core {
 
 /// Written by link_in.cpp and link_out.cpp. rover.cpp's begin() and step() through the functions
-/// below (begin, first_step, status_sent, watch_counters; take_persist and take_key_change for
+/// below (begin, first_step, set_fleet, grant_room, status_sent, watch_counters; take_persist and take_key_change for
 /// Rover::persist_due() and Rover::take_key_change()) and the queue's and the key's own interfaces
 /// (tx.take, auth.begin, auth.resume). (The store's bookkeeping is here, inline, not moved to
 /// link_out.cpp: out of rover.cpp's unit, the same code cost the 7.3 image 8 bytes, its functions
