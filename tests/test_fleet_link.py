@@ -67,10 +67,10 @@ def test_the_fleet_constants_are_the_definitions():
         fleet["grant_ms"],
     )
     assert (mg.MAX_ROVERS, mg.ADDRESS_SHIFT, mg.ADDRESS_MASK, mg.VERSION_MASK) == (4, 5, 0x60, 0x1F)
-    assert (mg.GRANT_BYTES, mg.GRANT_MS) == (96, 25)
+    assert (mg.GRANT_BYTES, mg.GRANT_MS) == (128, 20)
     assert mg.ADDRESS_MASK & mg.SIGN_FLAG == 0 and mg.ADDRESS_MASK & mg.PROTOCOL_VERSION == 0
     header = (ROOT / "firmware/lib/link/messages_gen.h").read_text()
-    for line in ("kMaxRovers = 4", "kAddressShift = 5", "kAddressMask = 0x60", "kGrantBytes = 96", "kGrantMs = 25"):
+    for line in ("kMaxRovers = 4", "kAddressShift = 5", "kAddressMask = 0x60", "kGrantBytes = 128", "kGrantMs = 20"):
         assert line in header
     assert [f.name for f in mg.Provision.FIELDS][-1] == "fleet_id"  # appended, never reordered
 
@@ -84,7 +84,7 @@ def test_the_schema_hash_covers_the_fleet_and_the_generator_refuses_address_bits
     for edit, complaint in (
         (("address_shift = 5", "address_shift = 6"), "apart from \\[signing\\].flag"),
         (("max_rovers = 4 ", "max_rovers = 3 "), "power of two"),
-        (("grant_bytes = 96", "grant_bytes = 40"), "largest signed frame"),
+        (("grant_bytes = 128", "grant_bytes = 40"), "largest signed frame"),
     ):
         assert edit[0] in text
         bad = tmp_path / "messages.toml"
@@ -224,7 +224,8 @@ def test_a_lone_core_talks_unasked_as_before():
 
 def test_a_link_at_the_rovers_address_shakes_hands_and_commands_it_and_one_at_another_does_not():
     port = CoreTransport(NativeCore(key=KEY, fleet_id=4))  # address 3
-    link = Link(port, key=KEY, address=3, clock=lambda: mg.SIGN_EPOCH_UNIX_S + port.clock())
+    # It answers only when polled: a Link on its own polls behind each frame (polls=True).
+    link = Link(port, key=KEY, address=3, clock=lambda: mg.SIGN_EPOCH_UNIX_S + port.clock(), polls=True)
     hello = link.handshake(boot_id=5, timeout_s=2.0)
     assert hello.role == mg.Role.ROVER and hello.signing == 1
     ack = link.request(mg.Config(param=mg.Param.STATUS_PERIOD_MS, value=400))
@@ -250,6 +251,9 @@ def test_the_rover_nacks_a_provision_whose_fleet_id_is_past_4_and_keeps_its_own(
     try:
         _bytes_by_step(core, 0, 100)
         frame = encode_frame(mg.Provision(key=tuple(range(16)), fleet_id=5), 9, address=1)
+        frame += encode_frame(
+            mg.Heartbeat(host_time_ms=0, camera=0, scan_heard=0, path_id=0), 10, address=1
+        )  # the poll
         said = _bytes_by_step(core, 100, 100, frame)
         answers = [f.message for _, b in said for f in FrameDecoder(address=1).feed(b)]
         nack = next(m for m in answers if isinstance(m, mg.Nack))

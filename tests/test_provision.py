@@ -5,6 +5,8 @@ its current key, or the consent pin held to GND at its reset)."""
 
 from __future__ import annotations
 
+import time
+
 import pytest
 from tests.core_transport import CoreTransport
 
@@ -177,9 +179,11 @@ def test_the_commands_help_names_the_current_key_file_and_the_consent_pin(capsys
 # ---------------------------------------------------------------- the fleet id ([fleet], issue 30)
 
 
-def _addresses(wire: bytes) -> list[int]:
-    """The address in every frame's version byte (signed or not, under whatever key)."""
-    return [(cobs_decode(body)[0] & mg.ADDRESS_MASK) >> mg.ADDRESS_SHIFT for body in wire.split(b"\x00") if body]
+def _addresses(wire: bytes, msg_id: int | None = None) -> list[int]:
+    """The address in every frame's version byte (signed or not, under whatever key); only the
+    frames of message `msg_id` when it is given (PROVISION: not the polls that follow it)."""
+    raws = [cobs_decode(body) for body in wire.split(b"\x00") if body]
+    return [(r[0] & mg.ADDRESS_MASK) >> mg.ADDRESS_SHIFT for r in raws if msg_id is None or r[1] == msg_id]
 
 
 @pytest.mark.parametrize("fleet_id", [1, 2, 3, 4])
@@ -190,7 +194,9 @@ def test_a_rover_is_made_rover_k_of_a_fleet_and_answers_from_its_new_address(fle
     assert f"rover {fleet_id} of a fleet (address {fleet_id - 1}): it speaks only when spoken to" in line
     assert port.core.take_key_change() == ("store", KEY)
     assert port.core.fleet_id == fleet_id
-    assert _addresses(port.sent_to_rover) == [0]  # sent where the rover was: a lone rover
+    assert _addresses(port.sent_to_rover, mg.Provision.ID) == [0]  # sent where the rover was: a lone rover
+    # ... and polled where it now is: a rover of a fleet answers only when polled ([fleet])
+    assert set(_addresses(port.sent_to_rover, mg.Heartbeat.ID)) == {fleet_id - 1}
     # From now on it waits to be spoken to at its new address, and answers from there (its queue
     # full of the STATUS frames it could not say: the host asks again, as it does, until answered).
     port.from_rover = b""
@@ -200,9 +206,12 @@ def test_a_rover_is_made_rover_k_of_a_fleet_and_answers_from_its_new_address(fle
         Signer(KEY, mg.SIGN_HOST_TO_ROVER),
         FrameDecoder(Verifier(KEY, mg.SIGN_ROVER_TO_HOST), address=fleet_id - 1),
     )
+    signer.jump_past(int((time.time() - mg.SIGN_EPOCH_UNIX_S) * 1000) + 10_000)  # past provision's polls
     acked = []
+    poll = mg.Heartbeat(host_time_ms=0, camera=0, scan_heard=0, path_id=0)
     for seq in range(5, 10):
         port.write(encode_frame(mg.Stop(reason=0), seq, signer, address=fleet_id - 1))
+        port.write(encode_frame(poll, seq + 100, signer, address=fleet_id - 1))  # the slot's poll: its grant
         port.run_ms(100)
         acked += [f.message.seq for f in heard.feed(port.from_rover) if isinstance(f.message, mg.Ack)]
         port.from_rover = b""
@@ -213,7 +222,7 @@ def test_a_fleet_rovers_boot_hello_names_its_address_and_provision_sends_there()
     port = CoreTransport(NativeCore(key=KEY, fleet_id=3, reset_cause=1))  # a keyed rover 3 (address 2)
     line = provision(port, NEW_KEY, clock=port.clock, current_key=KEY, fleet_id=0)
     assert "with its current key's signature" in line and "of a fleet" not in line
-    assert _addresses(port.sent_to_rover) == [2]
+    assert _addresses(port.sent_to_rover, mg.Provision.ID) == [2]
     assert port.core.take_key_change() == ("store", NEW_KEY)
     assert port.core.fleet_id == 0  # a lone rover again: it talks unasked
     port.from_rover = b""

@@ -185,8 +185,9 @@ def load(path: Path = DEFINITION, vehicle_path: Path | None = None) -> dict:
     if not isinstance(fleet, dict):
         raise DefinitionError("[fleet] is missing")
     for key in ("max_rovers", "address_shift", "grant_bytes", "grant_ms"):
-        if not isinstance(fleet.get(key), int) or isinstance(fleet.get(key), bool) or fleet[key] <= 0:
-            raise DefinitionError(f"[fleet].{key} must be a positive integer")
+        least = 0 if key == "grant_ms" else 1  # grant_ms 0: the step that opened the grant only
+        if not isinstance(fleet.get(key), int) or isinstance(fleet.get(key), bool) or fleet[key] < least:
+            raise DefinitionError(f"[fleet].{key} must be a whole number, {least} or more")
     rovers = fleet["max_rovers"]
     if rovers & (rovers - 1) or rovers < 2:
         raise DefinitionError("[fleet].max_rovers must be a power of two, 2 or more: the addresses fill their bits")

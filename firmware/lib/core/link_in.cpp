@@ -32,8 +32,11 @@ ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
     if (!decoder_.push(in.rx[used++], link_.auth.address_bits())) continue;   // another rover's: dropped there
     const AuthResult r = link_.auth.check(decoder_.frame());
     if (r == AuthResult::Accepted || r == AuthResult::AcceptedAfterTag) {
-      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not) ...
-      link_.grant_opens();    // ... and open a fleet rover's grant to speak (from this step: rover.cpp)
+      failsafe_.heard(now);   // only frames we take keep the link alive (a forger's do not)
+      // The host's poll, the last frame of its slot (a FIX, else a HEARTBEAT), opens a fleet
+      // rover's grant to speak, in this step only (rover.cpp): the host's frames are off the air.
+      const uint8_t id = decoder_.frame().msg_id;
+      if (id == msg::Fix::kId || id == msg::Heartbeat::kId) link_.grant_opens();
       if (r == AuthResult::AcceptedAfterTag && decoder_.frame().msg_id == msg::Fix::kId) {
         link_.fix_verified = true;   // a tag and an estimator update do not fit one step
         step_.defer();

@@ -9,7 +9,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x02173D8DUL;
+static const uint32_t kSchemaHash = 0x382FB40CUL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -45,8 +45,8 @@ enum : uint8_t {
   kAddressShift = 5,
   kAddressMask = 0x60,
   kVersionMask = 0x1F,
-  kGrantBytes = 96,
-  kGrantMs = 25
+  kGrantBytes = 128,
+  kGrantMs = 20
 };
 
 /// Which end of the link sent a HELLO.

@@ -37,8 +37,8 @@ TEST_CASE("the [fleet] constants: four addresses in bits 5-6, apart from the ver
   CHECK((kAddressMask & kSignFlag) == 0);
   CHECK((kAddressMask & kProtocolVersion) == 0);
   CHECK(static_cast<int>(kGrantBytes) >= static_cast<int>(kMaxEncodedFrame));   // the largest frame fits one grant
-  CHECK(kGrantBytes == 96);
-  CHECK(kGrantMs == 25);
+  CHECK(kGrantBytes == 128);
+  CHECK(kGrantMs == 20);
 }
 
 TEST_CASE("addressed vectors: the decoder at the frame's address takes it, at every other address drops it uncounted") {

@@ -39,7 +39,7 @@ from .. import __version__
 from ..validate import check_number
 from .errors import LinkTimeout, Nacked, SchemaMismatch, SigningMismatch
 from .framing import DecoderCounters, Frame, FrameDecoder, Signer, Verifier, check_address, encode_frame
-from .messages_gen import SCHEMA_HASH, SIGN_HOST_TO_ROVER, SIGN_ROVER_TO_HOST, Hello, Nack, Role
+from .messages_gen import SCHEMA_HASH, SIGN_HOST_TO_ROVER, SIGN_ROVER_TO_HOST, Fix, Heartbeat, Hello, Nack, Role
 from .requests import RequestTracker
 from .schema import Message
 from .transport import DEFAULT_BAUD, MAX_TIMEOUT_S, Transport, check_timeout
@@ -92,6 +92,7 @@ class Link:
         key: bytes | None = None,
         clock: Callable[[], float] = time.time,
         address: int = 0,
+        polls: bool = False,
     ) -> None:
         """hello_resend_s: how often handshake() repeats its HELLO while waiting [s]
         (an Uno resets when its port is opened and misses what is sent during boot).
@@ -102,9 +103,15 @@ class Link:
         simulated one, so that a run does not depend on how fast the machine runs it).
         address: the rover's address in a fleet ([fleet]: 0..MAX_ROVERS - 1, its fleet id - 1; 0 a
         lone rover): every frame sent carries it, and frames of other addresses are dropped (counted
-        in counters.other_address). ValueError outside 0..MAX_ROVERS - 1."""
+        in counters.other_address). ValueError outside 0..MAX_ROVERS - 1.
+        polls: follow each frame but a FIX or a HEARTBEAT with a HEARTBEAT (a rover of a fleet
+        speaks only when polled)."""
         #: The rover's address this Link talks to ([fleet]).
         self.address = check_address(address)
+        #: Every frame but a FIX or a HEARTBEAT is followed by a HEARTBEAT, the poll a rover of a
+        #: fleet waits for before it speaks ([fleet]): a Link on its own to a fleet rover (a
+        #: fleet's host schedules its polls itself: fleet/radio.py).
+        self.polls = polls
         self.transport = transport
         self.signer = None if key is None else Signer(key, SIGN_HOST_TO_ROVER, clock=clock)
         verifier = None if key is None else Verifier(key, SIGN_ROVER_TO_HOST, require=True)
@@ -162,8 +169,14 @@ class Link:
             frame = encode_frame(
                 message, seq, None if isinstance(message, Hello) else self.signer, address=self.address
             )
-            self.transport.write(frame)
             self._next_seq = (seq + 1) & 0xFF
+            if self.polls and message.ID not in (Fix.ID, Heartbeat.ID):
+                # A rover of a fleet answers only when polled ([fleet]): the poll right behind.
+                poll = Heartbeat(host_time_ms=0, camera=0, scan_heard=0, path_id=0)
+                frame += encode_frame(poll, self._next_seq, self.signer, address=self.address)
+                self._next_seq = (self._next_seq + 1) & 0xFF
+                self._tx_frames += 1
+            self.transport.write(frame)
             self._tx_frames += 1
             self._tx_bytes += len(frame)
         log.debug("tx %s seq=%d %s", message.NAME.upper(), seq, message)

@@ -12,7 +12,7 @@ from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the 
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x02173D8D
+SCHEMA_HASH = 0x382FB40C
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -32,8 +32,8 @@ MAX_ROVERS = 4
 ADDRESS_SHIFT = 5
 ADDRESS_MASK = 0x60
 VERSION_MASK = 0x1F
-GRANT_BYTES = 96
-GRANT_MS = 25
+GRANT_BYTES = 128
+GRANT_MS = 20
 MAX_SIGNED_RAW_FRAME = 62
 MAX_PAYLOAD = 45
 MAX_RAW_FRAME = 50

@@ -47,6 +47,7 @@ from .messages_gen import (
     SIGN_ROVER_TO_HOST,
     VERSION_MASK,
     Ack,
+    Heartbeat,
     Hello,
     Nack,
     NackReason,
@@ -80,6 +81,11 @@ class WrongCurrentKey(ProvisionError):
     """The rover's boot HELLO is signed, but not with the key given as its current one."""
 
     exit_code = 2
+
+
+#: While it waits for the rover's answer, `provision` polls it this often (a fleet's rover speaks
+#: only when polled) [s].
+POLL_EVERY_S = 0.1
 
 
 def check_fleet_id(fleet_id: int) -> int:
@@ -187,7 +193,21 @@ def provision(
     new_address = fleet_id - 1 if fleet_id else 0
     refusals = _Refusals()
     deadline = clock() + answer_wait_s
+    # A rover of a fleet answers only when polled (a HEARTBEAT to it: [fleet]), at the address and
+    # with the key it now holds; a lone rover takes the polls too and answers anyway.
+    poller = None
+    if key is not None and fleet_id:
+        poller = Signer(key, SIGN_HOST_TO_ROVER, clock=wall_clock)
+        poller.jump_past(signer.last_counter if signer is not None else 0)
+        if hello.signing:  # past the least counter the rover takes (it keeps it across a new key)
+            poller.jump_past((hello.min_counter_hi << 32 | hello.min_counter_lo) - 1)
+    polled_at, polls = -1.0, 0
     while clock() < deadline:
+        if fleet_id and clock() - polled_at >= POLL_EVERY_S:
+            polled_at = clock()
+            polls += 1
+            poll = Heartbeat(host_time_ms=0, camera=0, scan_heard=0, path_id=0)
+            transport.write(encode_frame(poll, polls & 0xFF, poller, address=new_address))
         data = transport.read(256, timeout_s=0.05)
         acks = [f for f in answers.feed(data) if isinstance(f.message, Ack) and f.message.msg_id == Provision.ID]
         for ack in acks:
