@@ -36,6 +36,7 @@ from ..link.quality import LinkQuality
 from ..link.requests import RequestTracker
 from ..mapping import Echo, LearnedMap
 from ..planning import OccupancyGrid
+from .fleet_control import FleetControl
 from .interface import Strategy
 from .leg_control import LegControl
 from .legs import Deadlines, Leg, LegRecord
@@ -64,7 +65,7 @@ log = logging.getLogger("rovernav.mission")
 FIX_SLACK_S = 0.005  # [mission] fix_hz: a frame this early for its FIX's turn is on time (see Mission)
 
 
-class Mission(RoverFrames, LegControl):
+class Mission(RoverFrames, LegControl, FleetControl):
     """One mission over `link` (a rovernav.link.link.Link): `legs` legs alternating start -> target
     and target -> start (a reach mission is 1 leg; an out-and-back mission of N trips is 2N legs)."""
 
@@ -238,7 +239,7 @@ class Mission(RoverFrames, LegControl):
             self._last_detection = detection if self._last_detection is None else self._last_detection
             return
         self._last_detection = detection
-        if self.phase is Phase.HELLO:
+        if self.phase is Phase.HELLO or self.slot_fixes:  # a fleet's FIX waits for its slot (slot_frame)
             return
         if now_s - self._last_fix_s < self.fix_period_s - FIX_SLACK_S:
             return
@@ -288,7 +289,8 @@ class Mission(RoverFrames, LegControl):
                     **self.link_summary(),
                 },
             )
-        if now_s - self._heartbeat_at >= self.heartbeat_period_s:
+        # (A fleet's HEARTBEAT is its rover's poll when due: fleet_control.py's slot_frame.)
+        if not self.slot_fixes and now_s - self._heartbeat_at >= self.heartbeat_period_s:
             self._heartbeat_at = now_s
             self._send(
                 mg.Heartbeat(
@@ -342,6 +344,8 @@ class Mission(RoverFrames, LegControl):
                     self._next_leg()
             elif in_phase_s > d.locate_s:
                 self._fail(f"the camera has not seen the rover for {d.locate_s:.0f} s", Failure.NO_CAMERA)
+        if self.held:  # stopped for another rover (fleet_control.py): its leg waits
+            return
         if self.phase is Phase.LOAD:
             if self.upload is not None and self.upload.complete and not self.requests:
                 if self._start_sent_for != self.path_id:

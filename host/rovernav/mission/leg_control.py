@@ -95,7 +95,7 @@ class LegControl:
         heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
         refused = self.current_leg.refused_twice() if self.legs else []
         path, reason = plan_leg(
-            self.map,
+            self._planning_map(),
             start,
             goal,
             planner=self.planner,
@@ -103,6 +103,18 @@ class LegControl:
             refused=refused,
             say=lambda text: self.on_event(self._now, text),
         )
+        if path is None and self.planning_map is not None:
+            # No way round the fleet's other rovers: a path as if they were not there (the traffic
+            # rules hold the rover until they have moved: fleet/traffic.py), and no verdict on them.
+            path, reason = plan_leg(
+                self.map,
+                start,
+                goal,
+                planner=self.planner,
+                heading=heading,
+                refused=refused,
+                say=lambda text: self.on_event(self._now, text),
+            )
         if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return path

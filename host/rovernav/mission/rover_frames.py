@@ -133,7 +133,7 @@ class RoverFrames:
             and m.state != mg.RoverState.BACK_OFF
         )
         self.last_status = m
-        if backed_out and self.host_replan and self._leg_open():
+        if backed_out and self.host_replan and self._leg_open() and not self.held:
             # The rover backed out to make room for a turn (TURN_REFUSED) and heads for its next
             # waypoint from off its path, along a line no planner chose.
             self.strategy.backed_out(self)
@@ -169,6 +169,8 @@ class RoverFrames:
             self.sonar_report_m,
             m.sd_mm / 1000,
         )
+        if self._rover_echo(reading):  # a fleet's other rover, not an obstacle
+            return
         changed = self.map.add(reading)
         self.recorder.host_sonar(self._now, reading, changed)
         self._map_unsaved = True
@@ -211,6 +213,8 @@ class RoverFrames:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
 
     def _arrived(self) -> None:
+        if self.aside_arrived():  # out of another rover's way (fleet_control.py), not at the leg's end
+            return
         if self.path_rest:  # the end of a part of a long path: the next part, from here
             rest = self.path_rest
             self.on_event(self._now, f"part of the path done: the next {len(rest)} of its waypoints")
@@ -226,6 +230,7 @@ class RoverFrames:
             self._map_unsaved = False
 
     def _leg_done(self) -> None:
+        self._held_since = None  # a leg done while held for another rover (fleet_control.py) is done
         self._save_map()
         leg = self.current_leg
         leg.finished_s, leg.reached = self._now, True
@@ -253,5 +258,5 @@ class RoverFrames:
 
     def _map_changed(self) -> None:
         self._map_changed_at = None
-        if self.host_replan and self._leg_open():
+        if self.host_replan and self._leg_open() and not self.held:
             self.strategy.map_changed(self)

@@ -70,6 +70,22 @@ def add_sim_parser(sub) -> None:
         "--camera-fps", type=number(1.0, 120.0), default=30.0, help="camera frame rate, 1 to 120 (default 30)"
     )
     p.add_argument(
+        "--rovers",
+        type=number(1, 4, integer=True),
+        default=None,
+        help="a fleet of N rovers, 1 to 4, under one camera on one half-duplex radio: rover k starts at the "
+        "scenario's k-th start ([start], then [[starts]]) and shuttles to its site ([target], then "
+        "[[sites]], in turn); a scenario with fewer starts is refused (try fleet-out-and-back). Each rover "
+        "has its own ArUco tag, key and radio address; the host gives each its slot on the air, plans "
+        "each round the others and holds one still for another (report.json: per-rover and fleet figures)",
+    )
+    p.add_argument(
+        "--trips",
+        type=number(1, 100, integer=True),
+        default=None,
+        help="round trips each rover of a fleet makes (default: the scenario's [mission] trips)",
+    )
+    p.add_argument(
         "--no-host-replan",
         action="store_true",
         help="the host never replans: only the rover's own detours get it round obstacles",
@@ -251,6 +267,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if args.calibration_frames is not None:
         return _write_calibration_frames(args, scenario, setup)
     channel = radio_from_args(args, config.radio if config else None, f"{args.config}: " if args.config else "")
+    if args.rovers is not None:
+        return cmd_sim_fleet(args, scenario, config, channel)
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
     modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]  # None: the config's
     runs = [(st, mode) for st in strategies for mode in modes]
@@ -440,3 +458,114 @@ def comparison_table(reports: list[dict]) -> str:
     ]
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)) for row in rows)
+
+
+# ---------------------------------------------------------------- a fleet (--rovers N)
+
+#: What `rovernav sim` can do for one rover and not yet for a fleet: said in one line.
+_LONE_ONLY = (
+    ("strategy", "rovernav", "--strategy"),
+    ("drive_mode", None, "--drive-mode"),
+    ("link_outage", [], "--link-outage"),
+    ("camera_outage", [], "--camera-outage"),
+    ("host_restart", [], "--host-restart"),
+    ("firmware_reset", [], "--firmware-reset"),
+    ("gyro_dies", None, "--gyro-dies"),
+    ("attacker", False, "--attacker"),
+    ("live", False, "--live"),
+    ("setup", None, "--setup"),
+    ("profile", False, "--profile"),
+    ("calibration_frames", None, "--calibration-frames"),
+)
+
+
+def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
+    import dataclasses
+
+    from ..evaluation.report import VideoWriter
+    from ..files import remove_stale, write_json_atomic
+    from ..scenario import ScenarioError
+    from .fleet_runner import FleetOptions, FleetSimulation
+
+    for attr, lone, flag in _LONE_ONLY:
+        if getattr(args, attr, lone) not in (lone, None) and getattr(args, attr, lone) != lone:
+            print(
+                f"rovernav sim: {flag} is for one rover; a fleet (--rovers {args.rovers}) runs without it",
+                file=sys.stderr,
+            )
+            return 2
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    remove_stale(out, ("report.json", "summary.png", "video.mp4", "run.mcap", "comparison.json"))
+    opts = FleetOptions(
+        rovers=args.rovers,
+        seed=args.seed,
+        camera_fps=args.camera_fps,
+        max_time_s=args.max_time,
+        trips=args.trips,
+        channel=dataclasses.replace(channel, half_duplex=True),
+        config=config,
+        signed=not args.unsigned,
+        rover1=args.rover,  # --rover uno: rover 1 is the Uno image
+    )
+
+    def progress(t: float, text: str | None) -> None:
+        if args.quiet:
+            return
+        if text is None:
+            print(f"  ... {t:6.1f} s simulated", file=sys.stderr, flush=True)
+        else:
+            print(f"[fleet {t:7.2f} s] {text}", flush=True)
+
+    try:
+        sim = FleetSimulation(scenario, opts, progress=progress)
+    except ScenarioError as exc:
+        print(f"rovernav sim: {exc}", file=sys.stderr)
+        return 2
+    video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
+    if video is not None:
+        sim.frame_sink = lambda t, frame: video.write(frame)
+    if not args.quiet:
+        print(f"simulating {scenario.name} with {args.rovers} rovers (seed {args.seed}) ...", flush=True)
+    started = time.monotonic()
+    try:
+        sim.run()
+    except BaseException:
+        if video is not None:
+            video.close(keep=False)
+        raise
+    if video is not None:
+        video.close()
+    report = sim.report()
+    report["scenario"] = scenario.name
+    report["seed"] = args.seed
+    report["wall_time_s"] = round(time.monotonic() - started, 1)
+    report["speedup"] = round(sim.t / max(report["wall_time_s"], 1e-9), 1)
+    write_json_atomic(out / "report.json", report)
+    from .fleet_picture import fleet_picture
+
+    fleet_picture(sim, report, out / "summary.png")
+    print(fleet_summary(report))
+    timing = report.get("uno_timing")
+    if timing:
+        worst = timing.get("worst_step") or {}
+        print(f"  rover 1, the Uno image: worst step {worst.get('us', 0) / 1000:.2f} ms (of the 5 ms allowed)")
+    print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}"))
+    return 0 if report["outcome"] == "reached" and report["contacts"] == 0 else 1
+
+
+def fleet_summary(r: dict) -> str:
+    lines = [
+        f"{r['outcome'].upper()}: {r['rovers']} rovers, {r['trips_done']} round trips in {r['mission_time_s']:.1f} s "
+        f"({r['trips_per_hour']} an hour), {r['contacts']} contacts, closest two rovers came "
+        f"{r['min_rover_separation_m']} m apart (centres); air {r['radio']['air_bytes_per_s']:.0f} B/s of 5,760"
+    ]
+    for x in r["per_rover"]:
+        link = x["link"]
+        lines.append(
+            f"  rover {x['rover']}: {x['outcome']}, {x['trips_done']}/{x['trips_asked']} trips, "
+            f"{x['distance_m']:.1f} m, held {x['held']['times']}x ({x['held']['seconds']:.0f} s); "
+            f"to it {link['to_rover_bytes_per_s']:.0f} B/s, from it {link['from_rover_bytes_per_s']:.0f} B/s, "
+            f"{link['slots_per_s']:.1f} slots/s" + (f"; {x['error']}" if x["error"] else "")
+        )
+    return "\n".join(lines)

@@ -1,0 +1,221 @@
+"""A fleet's shuttle in the simulator (issue 30's acceptance): several rovers under one camera on one
+half-duplex radio, each between its start at the base and its site, round trip after round trip.
+
+    python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
+                                       [--radio clean|loss1] [--uno] [--jobs 2] [--json FILE]
+
+Two parts, each printed as a table with the command's figures:
+  out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
+                 each, rover 1 alone on the same arena (a fleet of one, the same radio discipline)
+                 and the lone rover of `rovernav sim` (its own radio, no slots): trips an hour, the
+                 fleet's over one rover's, contacts, runs stuck (a deadlock: no leg done for 150 s).
+  arenas         ARENAS generated arenas (`rovernav arenas --count 200 --seed 1`, sampled evenly,
+                 the solvable ones), each given starts and sites for 3 rovers
+                 (evaluation/fleet_arenas.py), ARENA_TRIPS round trips each: trips done of asked,
+                 contacts, stuck runs.
+
+--radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 %; --uno
+makes rover 1 the Uno image in simavr (its worst step is printed). Exit status 1 when an
+acceptance figure is missed: 0 contacts and 0 stuck anywhere, throughput >= 2.5x one rover's on
+every seed, >= 99 % of the arenas' trips.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from lossy_radio import arenas as sample_arenas  # noqa: E402  (the same sample of generated arenas)
+from lossy_radio import solvable  # noqa: E402
+
+RADIOS = {"clean": {}, "loss1": {"byte_loss": 0.01, "bit_error": 0.001}}
+FLEET = "fleet-out-and-back"
+MAX_TIME_S = 3600.0
+THROUGHPUT_GOAL = 2.5
+TRIPS_GOAL = 0.99
+
+
+def run_fleet(job: tuple) -> dict:
+    scenario, rovers, seed, trips, radio, uno = job
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.evaluation.fleet_arenas import FleetPlacementError, fleet_scenario
+    from rovernav.radio import ChannelConfig
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
+
+    sc = load_scenario(scenario)
+    try:
+        sc = fleet_scenario(sc, rovers)
+    except FleetPlacementError as exc:
+        return {"scenario": sc.name, "rovers": rovers, "seed": seed, "placed": False, "why": str(exc)}
+    sim = FleetSimulation(
+        sc,
+        FleetOptions(
+            rovers=rovers,
+            seed=seed,
+            trips=trips,
+            max_time_s=MAX_TIME_S,
+            channel=ChannelConfig(half_duplex=True, **RADIOS[radio]),
+            rover1="uno" if uno else "native",
+        ),
+    )
+    sim.run()
+    r = sim.report()
+    worst = (r.get("uno_timing") or {}).get("worst_step") or {}
+    return {
+        "scenario": sc.name,
+        "rovers": rovers,
+        "seed": seed,
+        "placed": True,
+        "outcome": r["outcome"],
+        "trips_done": r["trips_done"],
+        "trips_asked": rovers * trips,
+        "time_s": r["mission_time_s"],
+        "trips_per_hour": r["trips_per_hour"],
+        "contacts": r["contacts"],
+        "crash": r["crash"],
+        "stuck": r["outcome"] == "stuck",
+        "min_separation_m": r["min_rover_separation_m"],
+        "holds": sum(x["held"]["times"] for x in r["per_rover"]),
+        "air_bytes_per_s": r["radio"]["air_bytes_per_s"],
+        "per_rover_link": [x["link"] for x in r["per_rover"]],
+        "errors": [x["error"] for x in r["per_rover"] if x["error"]],
+        "uno_worst_step_us": worst.get("us"),
+        "wall_s": r["wall_time_s"],
+    }
+
+
+def run_lone(job: tuple) -> dict:
+    """The lone rover of `rovernav sim` on rover 1's start and site: trips an hour."""
+    seed, trips, radio = job
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.config import config_from_dict
+    from rovernav.radio import ChannelConfig
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.runner import SimOptions, Simulation
+
+    sc = load_scenario(FLEET)
+    cfg = config_from_dict(
+        {"arena": {"width_m": sc.arena.width_m, "height_m": sc.arena.height_m}, "mission": {"trips": trips}}
+    )
+    sim = Simulation(
+        sc,
+        SimOptions(
+            seed=seed, max_time_s=MAX_TIME_S, config=cfg, channel=ChannelConfig(half_duplex=True, **RADIOS[radio])
+        ),
+    )
+    sim.run()
+    done = sum(1 for leg in sim.mission.legs if leg.reached) // 2
+    return {
+        "seed": seed,
+        "outcome": sim.outcome,
+        "trips_done": done,
+        "time_s": sim.t,
+        "trips_per_hour": done * 3600 / sim.t,
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--trips", type=int, default=5, help="round trips a rover on out-and-back (default 5)")
+    ap.add_argument("--arenas", type=int, default=20, help="generated arenas (default 20; 0: none)")
+    ap.add_argument("--arena-trips", type=int, default=3, help="round trips a rover on an arena (default 3)")
+    ap.add_argument("--radio", choices=sorted(RADIOS), default="clean")
+    ap.add_argument("--uno", action="store_true", help="rover 1 is the Uno image")
+    ap.add_argument("--skip-out-and-back", action="store_true")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args()
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.evaluation.pool import map_runs
+
+    seeds = [int(s) for s in a.seeds.split(",") if s]
+    started = time.monotonic()
+    out: dict = {"radio": a.radio, "uno": a.uno}
+    ok = True
+    if not a.skip_out_and_back:
+        jobs = [(FLEET, n, s, a.trips, a.radio, a.uno and n == 3) for s in seeds for n in (3, 1)]
+        rows = []
+        for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
+            rows.append(row)
+            print(
+                f"  {row['scenario']} {row['rovers']} rover(s) seed {row['seed']}: {row['outcome']}, "
+                f"{row['trips_done']}/{row['trips_asked']} trips in {row['time_s']:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+        lone = {r["seed"]: r for _, r in map_runs(run_lone, [(s, a.trips, a.radio) for s in seeds], a.jobs)}
+        print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
+        print(
+            "| seed | 3 rovers | trips/h | 1 rover (fleet of one) | trips/h | ratio | lone `rovernav sim` trips/h | contacts | stuck | holds | air B/s |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        table = []
+        for s in seeds:
+            three = next(r for r in rows if r["seed"] == s and r["rovers"] == 3)
+            one = next(r for r in rows if r["seed"] == s and r["rovers"] == 1)
+            ratio = three["trips_per_hour"] / one["trips_per_hour"] if one["trips_per_hour"] else 0.0
+            table.append({"seed": s, "three": three, "one": one, "lone": lone[s], "ratio": ratio})
+            print(
+                f"| {s} | {three['outcome']} {three['trips_done']}/{three['trips_asked']} in {three['time_s']:.0f} s | "
+                f"{three['trips_per_hour']:.1f} | {one['outcome']} {one['trips_done']}/{one['trips_asked']} in {one['time_s']:.0f} s | "
+                f"{one['trips_per_hour']:.1f} | **{ratio:.2f}x** | {lone[s]['trips_per_hour']:.1f} ({lone[s]['outcome']}) | "
+                f"{three['contacts']} | {int(three['stuck'])} | {three['holds']} | {three['air_bytes_per_s']:.0f} |"
+            )
+            ok &= three["contacts"] == 0 and not three["stuck"] and ratio >= THROUGHPUT_GOAL
+            ok &= three["trips_done"] == three["trips_asked"]
+        worst = [r["uno_worst_step_us"] for r in rows if r.get("uno_worst_step_us")]
+        if worst:
+            print(f"rover 1 as the Uno image: worst step {max(worst):.0f} us (goal 5,000)")
+            ok &= max(worst) <= 5000
+        ratios = [t["ratio"] for t in table]
+        print(f"throughput, 3 rovers over 1: median {statistics.median(ratios):.2f}x (goal {THROUGHPUT_GOAL}x)")
+        out["out_and_back"] = table
+    if a.arenas:
+        paths = [p for p in sample_arenas(a.arenas * 2) if solvable(p)][: a.arenas]
+        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno) for p in paths]
+        rows = []
+        for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
+            rows.append(row)
+            print(
+                f"  {row['scenario']}: {row.get('outcome', row.get('why'))}, "
+                f"{row.get('trips_done')}/{row.get('trips_asked')} trips",
+                file=sys.stderr,
+                flush=True,
+            )
+        placed = [r for r in rows if r["placed"]]
+        done = sum(r["trips_done"] for r in placed)
+        asked = sum(r["trips_asked"] for r in placed)
+        contacts = sum(r["contacts"] for r in placed)
+        stuck = sum(1 for r in placed if r["stuck"])
+        print(
+            f"\n{len(placed)} generated arenas with a shuttle for 3 rovers ({len(rows) - len(placed)} without room "
+            f"for one), {a.arena_trips} round trips each, radio {a.radio}:"
+        )
+        print(
+            f"trips done {done}/{asked} ({100 * done / max(asked, 1):.1f} %), contacts {contacts}, stuck {stuck}, "
+            f"median time {statistics.median([r['time_s'] for r in placed]):.0f} s"
+        )
+        for r in sorted(placed, key=lambda r: r["scenario"]):
+            if r["trips_done"] < r["trips_asked"] or r["contacts"]:
+                print(
+                    f"  {r['scenario']}: {r['outcome']} {r['trips_done']}/{r['trips_asked']}; "
+                    f"{r['crash'] or ''} {'; '.join(e for e in r['errors'] if e)}"
+                )
+        ok &= contacts == 0 and stuck == 0 and done >= TRIPS_GOAL * asked
+        out["arenas"] = rows
+    print(f"({time.monotonic() - started:.0f} s wall)")
+    if a.json:
+        a.json.write_text(json.dumps(out, indent=1))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

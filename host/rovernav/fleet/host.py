@@ -1,0 +1,117 @@
+"""A fleet's host (issue 30): one mission per rover, one map, one radio, one camera.
+
+Each rover has its own `Mission` (the one `rovernav run` gives a lone rover: its HELLO, its
+parameters, its legs between its start and its site, its replanning), over its own `Link`
+(its own key, its own address on the shared radio). What they share:
+
+- **the air** (`FleetRadio`): each mission's frames wait for its rover's slot; the slot carries its
+  freshest FIX; a rover speaks only in its slot;
+- **the map**: one `LearnedMap`, fed by every rover's sonar (a box one rover found is known to
+  all), and a rover whose path the map now blocks is replanned, whoever found it;
+- **the traffic** (`Traffic`): the rovers plan round each other and wait for each other.
+
+Whoever runs it (the simulator; one day `rovernav run` with one camera and one radio) calls
+`on_frame` with each camera frame's detections, `tick(now_s)` once a frame, and `air(now_s)`
+every 10 ms step, the radio's slots being shorter than a frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from ..link import messages_gen as mg
+from ..link.link import Link
+from ..mission import Detection, Mission
+from ..mission.spec import MissionSpec, start_host
+from .radio import FleetRadio
+from .traffic import Traffic
+
+#: How often the other rovers' paths are checked against a map another rover changed [s].
+MAP_SHARE_S = 0.5
+#: A fleet rover's parameters beside the configuration's: STATUS less often (each is 64 bytes of
+#: its share of the air), fixes allowed further apart (its slot comes about 5 times a second with
+#: three rovers, rather than a FIX every camera frame), and a slower sweep (each echo is said three
+#: times, 102 bytes: at the usual 90 ms a step, a sweep says more than a rover's slots carry, and
+#: what its TX queue cannot hold is lost, and the host never hears the sweep whole).
+FLEET_ROVER_PARAMS = (
+    (mg.Param.STATUS_PERIOD_MS, 500),
+    (mg.Param.FIX_TIMEOUT_MS, 1000),
+    (mg.Param.SWEEP_STEP_MS, 300),
+    (mg.Param.SONAR_REPORT_MM, 400),
+)
+
+
+class FleetHost:
+    def __init__(
+        self,
+        specs: list[MissionSpec],
+        radio: FleetRadio,
+        keys: list[bytes | None],
+        workdir: Path,
+        *,
+        clock: Callable[[], float] | None = None,
+        on_event: Callable[[int, float, str], None] | None = None,
+    ):
+        if len(specs) != radio.rovers or len(keys) != radio.rovers:
+            raise ValueError(f"{len(specs)} missions and {len(keys)} keys for a radio of {radio.rovers} rovers")
+        self.radio = radio
+        say = on_event or (lambda k, t, text: None)
+        self.links = [Link(radio.ports[k], key=keys[k], clock=clock, address=k) for k in range(radio.rovers)]
+        self.missions: list[Mission] = []
+        for k, spec in enumerate(specs):
+            folder = Path(workdir) / f"rover{k + 1}"
+            folder.mkdir(parents=True, exist_ok=True)
+            m = start_host(spec, self.links[k], folder, on_event=lambda t, text, k=k: say(k, t, text))
+            self.missions.append(m)
+        shared = self.missions[0].map
+        for m in self.missions[1:]:
+            m.map = shared  # one map: what any rover's sonar finds, every rover plans round
+        self.map = shared
+        self.traffic = Traffic(self.missions, on_event=lambda t, text: say(-1, t, text))
+        for k, m in enumerate(self.missions):
+            m.slot_fixes = True
+            m.planning_map = lambda k=k: self.traffic.planning_map(k)
+            m.echo_is_rover = lambda reading, k=k: self.traffic.echo_is_rover(k, reading)
+        self._map_version = shared.grid.version
+        self._map_checked_s = 0.0
+
+    @property
+    def finished(self) -> bool:
+        return all(m.finished for m in self.missions)
+
+    def on_frame(self, detections: list[Detection], now_s: float) -> None:
+        """One camera frame: rover k's detection (found or not, with why) to mission k."""
+        for m, d in zip(self.missions, detections):
+            m.on_detection(d, now_s)
+
+    def tick(self, now_s: float) -> None:
+        """Every mission reads its rover's frames and acts; the traffic rules; the shared map."""
+        self.radio.pump()
+        for m in self.missions:
+            m.tick(now_s)
+        self.traffic.tick(now_s)
+        version = self.map.grid.version
+        if version != self._map_version and now_s - self._map_checked_s >= MAP_SHARE_S:
+            # Another rover's sonar changed the map: each rover's path checked against it (its own
+            # rover's sweep already checked it, and a second look at a clear path changes nothing).
+            self._map_version, self._map_checked_s = version, now_s
+            for m in self.missions:
+                if m.host_replan and not m.held and m.moving_leg and m.phase.value == "run":
+                    m.strategy.map_changed(m)
+
+    def air(self, now_s: float) -> int | None:
+        """A slot on the radio when the air is free (see FleetRadio.slot)."""
+        return self.radio.slot(now_s, self._fill)
+
+    def _fill(self, k: int, now_s: float) -> None:
+        """Rover k's slot: what waits for it, then its poll last (its freshest FIX, else a
+        HEARTBEAT): the rover speaks after the poll, when the host's frames are off the air."""
+        m = self.missions[k]
+        if not m.finished:
+            m.slot_frame(now_s)
+
+    def fail(self, why: str) -> None:
+        for m in self.missions:
+            if not m.done:
+                m.fail(why)

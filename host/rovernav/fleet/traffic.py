@@ -1,0 +1,320 @@
+"""Rovers as moving obstacles (issue 30): who drives and who waits, and what a rover plans round.
+
+The host sees every rover in each camera frame and knows the path each is driving. Three rules,
+in the order the rovers' ids give them (rover 1 first):
+
+- **A path is planned round the rovers that stand still** (parked at a base or a site, or held):
+  their bodies are drawn into the map the planner sees (`planning_map`), with the planner's own
+  margin round them. Rovers on the move are not drawn in: they will be elsewhere.
+- **A rover drives only while the stretch just ahead of it is clear** (`AHEAD_M` of its path):
+  clear of every other rover's body, and of the stretch ahead of every rover before it in the
+  order. Otherwise it is held where it is (STOP; its leg waits) and the others go on.
+- **A held rover goes on** when its stretch has been clear for `CLEAR_FOR_S`, on its path; when
+  it has waited `REPLAN_AFTER_S`, on a path planned round the rovers then in its way, if there is
+  one. Only one held rover is let go a tick, the first in the order, so that two never pull out
+  into each other. A rover that has been held for `GIVE_WAY_AFTER_S` by a rover that is itself
+  held by it gives way: the later in the order moves aside, off the other's path, to the nearest
+  free spot `SIDE_STEP_M` or so away, and waits there.
+
+The rover's own reflex still stops it for a rover its sonar sees; what it reports of another
+rover is kept out of the shared map (`echo_is_rover`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..mapping import Echo
+from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+
+HALF_DIAGONAL_M = math.hypot(BODY_LENGTH_MM, BODY_WIDTH_MM) / 2000.0
+#: Two rovers' centres nearer than this may touch (two half-diagonals and a margin) [m].
+CLEAR_M = 2 * HALF_DIAGONAL_M + 0.04
+#: The stretch of its path ahead of a rover that must be clear for it to drive [m].
+AHEAD_M = 0.45
+#: A held rover's stretch must be clear this long before it goes on [s].
+CLEAR_FOR_S = 0.5
+#: A held rover plans round what holds it after this long [s].
+REPLAN_AFTER_S = 2.0
+#: Two rovers that hold each other this long: the later in the order gives way [s].
+GIVE_WAY_AFTER_S = 4.0
+SIDE_STEP_M = 0.35
+TRACK_STEP_M = 0.04
+TRACK_KEEP = 100  # points: 4 m of track a rover
+#: A held rover tries a way round at most this often [s].
+RETRY_S = 1.0
+#: A moving rover's path drawn into another's planning map: a disk every this far along it [m].
+LANE_STEP_M = 0.05
+#: An echo this near another rover's centre is that rover [m].
+ECHO_ON_ROVER_M = HALF_DIAGONAL_M + 0.08
+#: A standing rover drawn into another's planning map: a disk this wide, grown by the planner's own
+#: margin (robot radius + sonar margin, 0.17 m): paths keep 0.27 m from its centre, past two
+#: half-diagonals (0.26 m), and a rover at a start 0.32 m from it is not shut in [m].
+BODY_DISK_M = 0.10
+
+
+def _point_segment_m(p, a, b) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    l2 = dx * dx + dy * dy
+    t = 0.0 if l2 == 0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / l2))
+    return math.hypot(p[0] - ax - t * dx, p[1] - ay - t * dy)
+
+
+def polyline_point_m(line: list, p) -> float:
+    """The distance from point p to a polyline (one point: to that point) [m]."""
+    if len(line) == 1:
+        return math.dist(line[0], p)
+    return min(_point_segment_m(p, line[i], line[i + 1]) for i in range(len(line) - 1))
+
+
+def polylines_m(a: list, b: list, step_m: float = 0.05) -> float:
+    """The least distance between two polylines, sampled every step_m along a [m]."""
+    return min(polyline_point_m(b, p) for p in sample(a, step_m))
+
+
+def sample(line: list, step_m: float) -> list:
+    """Points along a polyline, step_m apart and its ends."""
+    out = [tuple(line[0])]
+    for a, b in zip(line, line[1:]):
+        n = max(1, int(math.dist(a, b) / step_m))
+        out += [(a[0] + (b[0] - a[0]) * i / n, a[1] + (b[1] - a[1]) * i / n) for i in range(1, n + 1)]
+    return out
+
+
+def ahead(path: list, length_m: float) -> list:
+    """The first length_m of a path."""
+    if not path:
+        return []
+    out = [tuple(path[0])]
+    left = length_m
+    for a, b in zip(path, path[1:]):
+        d = math.dist(a, b)
+        if d >= left:
+            t = left / d if d > 0 else 0.0
+            out.append((a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t))
+            return out
+        out.append(tuple(b))
+        left -= d
+    return out
+
+
+class PlanningMap:
+    """A learned map as one rover's planner sees it: the shared map, with other rovers' bodies
+    drawn in (what `plan_leg` reads of a LearnedMap: its grids, its known grid and echoes)."""
+
+    def __init__(self, learned, disks: list[tuple[float, float]], extra_m: float):
+        self._map = learned
+        self._disks = np.asarray(disks, dtype=np.float64).reshape(-1, 2)
+        self._extra_m = extra_m
+        self.known_grid = learned.known_grid
+        self.echoes = learned.echoes
+
+    def _with_rovers(self, grid):
+        if grid is None or not len(self._disks):
+            return grid
+        g = grid.copy()
+        g.add_disks(self._disks, self._extra_m)
+        return g
+
+    @property
+    def grid(self):
+        return self._with_rovers(self._map.grid)
+
+    def lenient_grid(self):
+        return self._with_rovers(self._map.lenient_grid() or self._map.grid)
+
+    def open_grids(self):
+        return [self._with_rovers(g) for g in self._map.open_grids()]
+
+    def point(self, e):
+        return self._map.point(e)
+
+
+class Traffic:
+    """The fleet's traffic rules over its missions (see the module's doc)."""
+
+    def __init__(self, missions: list, on_event=None):
+        self.missions = missions
+        self.on_event = on_event or (lambda t, text: None)
+        self._clear_since: dict[int, float] = {}
+        self._tried_at: dict[int, float] = {}  # when a held rover last tried a way round
+        # Where each rover has been (the camera's fixes, TRACK_STEP_M apart): free ground to back
+        # along when it must give way in a passage.
+        self.tracks: list[list[tuple[float, float]]] = [[] for _ in missions]
+        self.holds_by_rover = [0] * len(missions)
+        self.give_ways = 0
+
+    # ---------------------------------------------------------------- what each sees
+
+    def position(self, k: int) -> tuple[float, float]:
+        return self.missions[k].rover_xy()
+
+    def standing(self, k: int) -> bool:
+        m = self.missions[k]
+        return not m.moving_leg
+
+    def planning_map(self, k: int, also_moving: bool = False) -> PlanningMap:
+        """Rover k's planner's map: the shared map with the other rovers drawn in: the standing ones'
+        bodies, and the moving ones' paths (their lanes: where two rovers can keep apart, they do);
+        with `also_moving`, the moving ones' bodies too (a held rover's plan round what holds it)."""
+        disks = []
+        for j, m in enumerate(self.missions):
+            if j == k:
+                continue
+            disks.append(self.position(j))
+            if not self.standing(j) and not also_moving:
+                disks += sample(m.rest_of_leg(), LANE_STEP_M)[1:]
+        return PlanningMap(self.missions[k].map, disks, BODY_DISK_M)
+
+    def echo_is_rover(self, k: int, reading) -> bool:
+        """Whether rover k's echo lies on another rover's body."""
+        m = self.missions[k]
+        p = m.map.point(Echo(reading.x_m, reading.y_m, reading.heading_deg, reading.bearing_deg, reading.range_m))
+        return any(math.dist(p, self.position(j)) < ECHO_ON_ROVER_M for j in range(len(self.missions)) if j != k)
+
+    # ---------------------------------------------------------------- the rules
+
+    def _stretch(self, k: int) -> list:
+        m = self.missions[k]
+        rest = m.rest_of_leg()
+        return ahead(rest, AHEAD_M) if rest else [self.position(k)]
+
+    def blockers(self, k: int, stretch: list | None = None) -> list[int]:
+        """The rovers in the way of rover k's stretch ahead (its own, or `stretch`): a rover the
+        stretch would bring nearer than CLEAR_M (two rovers already that near, side by side at
+        their starts, may move apart), or the stretch of a rover before k in the order."""
+        stretch = stretch if stretch is not None else self._stretch(k)
+        here = self.position(k)
+        points = sample(stretch, 0.03)[1:] if len(stretch) > 1 else []
+        out = []
+        for j in range(len(self.missions)):
+            if j == k:
+                continue
+            there = self.position(j)
+            now_m = math.dist(here, there)
+            if points and min(math.dist(p, there) for p in points) < min(CLEAR_M, now_m - 0.005):
+                out.append(j)
+            elif j < k and self.missions[j].moving_leg and points:
+                theirs = self._stretch(j)
+                if len(theirs) > 1 and polylines_m(points, theirs) < CLEAR_M:
+                    out.append(j)
+        return out
+
+    def _follow(self) -> None:
+        for k, track in enumerate(self.tracks):
+            p = self.position(k)
+            if not track or math.dist(track[-1], p) >= TRACK_STEP_M:
+                track.append(p)
+                del track[:-TRACK_KEEP]
+
+    def tick(self, now_s: float) -> None:
+        """Hold whoever must wait, let go whoever may go (one a tick)."""
+        self._follow()
+        missions = self.missions
+        for k, m in enumerate(missions):
+            if m.moving_leg and m.phase.value == "run" and m.path:
+                who = self.blockers(k)
+                if who:
+                    self.holds_by_rover[k] += 1
+                    m.hold(now_s, f"rover {who[0] + 1} is in the way (at {_xy(self.position(who[0]))})")
+                    self._clear_since.pop(k, None)
+        for k, m in enumerate(missions):
+            if not m.held or m.done:
+                continue
+            if self._try_let_go(k, now_s):
+                return
+
+    def _try_let_go(self, k: int, now_s: float) -> bool:
+        m = self.missions[k]
+        who = self.blockers(k)
+        if not who:
+            since = self._clear_since.setdefault(k, now_s)
+            if now_s - since >= CLEAR_FOR_S:
+                self._clear_since.pop(k, None)
+                m.let_go(now_s, self._path_or_none(k, m.rest_of_leg()))
+                return True
+            return False
+        self._clear_since.pop(k, None)
+        waited = m.held_for_s(now_s)
+        # A way round only what stands still (held, or parked at its base or site): a rover on the
+        # move is waited for, it will be gone.
+        standing = all(self.standing(j) for j in who)
+        if standing and waited >= REPLAN_AFTER_S and now_s - self._tried_at.get(k, -math.inf) >= RETRY_S:
+            self._tried_at[k] = now_s
+            path = self._plan_round(k)
+            if path is not None and not self.blockers(k, ahead(path, AHEAD_M)):
+                self.on_event(now_s, f"rover {k + 1}: planned round rover {who[0] + 1}")
+                m.let_go(now_s, path)
+                return True
+        if waited >= GIVE_WAY_AFTER_S:
+            j = who[0]
+            other = self.missions[j]
+            if other.held and k in self.blockers(j) and k > j:
+                spot = self._back_away(k, j) or self._side_step(k, j)
+                if spot is not None:
+                    self.give_ways += 1
+                    self.on_event(now_s, f"rover {k + 1} gives way to rover {j + 1}: back to {_xy(spot[-1])}")
+                    m.let_go(now_s, spot, aside=True)
+                    return True
+        return False
+
+    def _path_or_none(self, k: int, rest: list) -> list | None:
+        """The rest of the leg as it was (None: replan it, when it is no path any more)."""
+        return [tuple(p) for p in rest] if len(rest) >= 2 else None
+
+    def _plan_round(self, k: int):
+        m = self.missions[k]
+        pm = self.planning_map(k, also_moving=True)
+        saved = m.planning_map
+        m.planning_map = lambda: pm
+        try:
+            return m.plan_from(m.rover_xy(), m.current_leg.goal, verdict=False)
+        finally:
+            m.planning_map = saved
+
+    def _back_away(self, k: int, j: int):
+        """Rover k's way back along its own track (ground it has just driven) to the first point
+        clear of rover j's path and of every other rover (None: none in the track it keeps)."""
+        here = self.position(k)
+        theirs = self.missions[j].rest_of_leg() or [self.position(j)]
+        others = [self.position(i) for i in range(len(self.missions)) if i != k]
+        way = [here]
+        for p in reversed(self.tracks[k][:-1]):
+            if math.dist(way[-1], p) >= 0.10:
+                way.append(p)
+            if polyline_point_m(theirs, p) >= CLEAR_M + 0.05 and all(math.dist(p, q) >= CLEAR_M for q in others):
+                if way[-1] != p:
+                    way.append(p)
+                return way if len(way) >= 2 else None
+        return None
+
+    def _side_step(self, k: int, j: int):
+        """A short path for rover k off rover j's way: to the free spot nearest k, SIDE_STEP_M or
+        so away, that leaves j's path clear (None: none)."""
+        here = self.position(k)
+        theirs = self.missions[j].rest_of_leg() or [self.position(j)]
+        grid = self.planning_map(k, also_moving=True).grid
+        best = None
+        for r in (SIDE_STEP_M, SIDE_STEP_M * 1.5, SIDE_STEP_M * 2):
+            for a in range(0, 360, 30):
+                p = (here[0] + r * math.sin(math.radians(a)), here[1] + r * math.cos(math.radians(a)))
+                if not grid.contains(*p) or not grid.is_free(*p):
+                    continue
+                if polyline_point_m(theirs, p) < CLEAR_M:
+                    continue
+                if not grid.segment_clear(here, p):
+                    continue
+                best = p
+                break
+            if best is not None:
+                break
+        if best is None:
+            return None
+        return [here, best]
+
+
+def _xy(p) -> str:
+    return f"({p[0]:.2f}, {p[1]:.2f}) m"

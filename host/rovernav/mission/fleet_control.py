@@ -1,0 +1,180 @@
+"""What a mission does differently as one of a fleet's (issue 30): its FIX goes out in its rover's
+slot on the shared radio, its rover may be held still for another and let go again, and what it
+plans round includes the other rovers.
+
+`FleetControl` is a part of `Mission` (core.py), as `RoverFrames` and `LegControl` are: its
+methods read and change the mission's own state. A lone rover's mission never calls them: every
+default here leaves the mission as it was (`slot_fixes` False, no planning overlay, no echo
+filter, never held).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from ..angles import heading_cdeg
+from ..link import messages_gen as mg
+from .phases import Phase
+
+#: A detection older than this is not sent as a FIX in a slot [s] (the camera's latency is 60 ms).
+SLOT_FIX_MAX_AGE_S = 0.25
+
+
+class FleetControl:
+    """A fleet's hooks in a mission (a base class of Mission; the defaults change nothing)."""
+
+    #: True: the camera's fixes wait for the rover's slot (`slot_frame`), the freshest one going.
+    slot_fixes: bool = False
+    #: The learned map with the other rovers drawn in, for this mission's planning (None: its own map).
+    planning_map: Callable[[], object] | None = None
+    #: Whether an echo the rover reports is another rover (then it is no obstacle for the map).
+    echo_is_rover: Callable[[object], bool] | None = None
+    _held_since: float | None = None
+    _slot_sent_for: float | None = None  # the detection (taken at) the last slot's FIX carried
+    _aside_path_id: int | None = None  # the path that takes the rover out of another's way
+    _aside_done = False
+    _last_poll = "heartbeat"  # what the last slot's poll was
+    _held_rest: list = []  # the waypoints the rover had still to reach when it was held  # ... it is there: when let go, its leg is planned afresh
+    echoes_of_rovers: int = 0
+    holds: int = 0
+    held_s: float = 0.0
+
+    # ---------------------------------------------------------------- the slot
+
+    def slot_frame(self, now_s: float) -> str:
+        """The rover's slot on the shared radio has come: its poll, the slot's last frame, after
+        which the rover may speak: a HEARTBEAT when one is due (heartbeat_hz), else its freshest
+        FIX (its age counted to now), else a HEARTBEAT. Returns which ("heartbeat" or "fix")."""
+        self._now = now_s
+        d = self._last_detection
+        fresh = (
+            d is not None
+            and d.x_m is not None
+            and d.t_s != self._slot_sent_for
+            and now_s - d.t_s < SLOT_FIX_MAX_AGE_S
+            and self.phase is not Phase.HELLO
+            and not self.done
+        )
+        # A HEARTBEAT when one is due, but never two polls running while a FIX waits: a FIX at
+        # least every other slot (fixes matter more; the HEARTBEAT's word keeps a second longer).
+        heartbeat_due = now_s - self._heartbeat_at >= self.heartbeat_period_s and self._last_poll == "fix"
+        if not fresh or heartbeat_due:
+            self.poll_frame(now_s)
+            self._last_poll = "heartbeat"
+            return "heartbeat"
+        self._last_poll = "fix"
+        self._slot_sent_for = d.t_s
+        self._send(
+            mg.Fix(
+                x_mm=_mm(d.x_m),
+                y_mm=_mm(d.y_m),
+                heading_cdeg=heading_cdeg(d.heading_deg),
+                age_ms=max(0, min(65535, round((now_s - d.t_s) * 1000))),
+                sd_mm=self.fix_sd_mm,
+                frame_seq=self.fixes_sent & 0xFFFF,
+            )
+        )
+        self.fixes_sent += 1
+        return "fix"
+
+    def poll_frame(self, now_s: float) -> None:
+        """A HEARTBEAT now, as the rover's poll."""
+        self._now = now_s
+        self._heartbeat_at = now_s
+        self._send(
+            mg.Heartbeat(
+                host_time_ms=int(now_s * 1000) & 0xFFFFFFFF,
+                camera=self._camera_state(),
+                scan_heard=self.scan_heard,
+                path_id=self.path_id & 0xFFFF,
+            )
+        )
+
+    # ---------------------------------------------------------------- held for another rover
+
+    @property
+    def held(self) -> bool:
+        return self._held_since is not None
+
+    @property
+    def moving_leg(self) -> bool:
+        """Whether the rover is on a leg it drives now (loading or running it, not held)."""
+        return (
+            self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached and not self.held
+        )
+
+    def hold(self, now_s: float, why: str) -> None:
+        """Stop the rover where it is for another rover (STOP, replanning): its leg waits, its
+        deadline with it, until `let_go`."""
+        if self.held or self.done:
+            return
+        self._now = now_s
+        self._held_rest = self.remaining_path()[1:]
+        self._held_since = now_s
+        self.holds += 1
+        self.upload = None
+        for pending in self.requests:
+            if isinstance(pending.message, (mg.Path, mg.Start)):
+                self.requests.drop(pending)
+        self._request(mg.Stop(reason=mg.StopReason.REPLANNING))
+        self.on_event(now_s, f"held: {why}")
+
+    def let_go(self, now_s: float, path: list[tuple[float, float]] | None = None, aside: bool = False) -> None:
+        """The held rover goes on with its leg: on `path` (planned round the others), else
+        replanned from where it stands. `aside`: the path only takes it out of another rover's
+        way; arrived there, it is held again (its leg is not done)."""
+        if not self.held:
+            return
+        self._now = now_s
+        waited = now_s - self._held_since
+        self.held_s += waited
+        self._held_since = None
+        if self.done or not self.legs or self.current_leg.reached:
+            return
+        leg = self.current_leg
+        if self._aside_done:  # from where it stood aside: the leg afresh
+            self._aside_done, path = False, None
+        leg.deadline_s += waited  # the wait is no lateness of the leg's
+        self.on_event(now_s, f"let go after {waited:.1f} s")
+        if path is None:
+            path = self.strategy.leg_path(self, self.rover_xy(), leg.goal)
+            if path is None:
+                return
+        self.strategy.start_leg(self, path)
+        self._aside_path_id = self.path_id if aside else None
+
+    def aside_arrived(self) -> bool:
+        """The rover arrived where it was sent out of another's way: held there again."""
+        if self._aside_path_id is None or self._aside_path_id != self.path_id:
+            return False
+        self._aside_path_id = None
+        self._aside_done = True
+        self._held_since = self._now
+        self.holds += 1
+        self.on_event(self._now, "aside: waits there")
+        return True
+
+    def rest_of_leg(self) -> list[tuple[float, float]]:
+        """From where the rover is through the waypoints it has still to reach: those it had when
+        it was held, while it is (a STOP ends the rover's path, and its STATUS says waypoint 0)."""
+        if self.held:
+            return [self.rover_xy(), *self._held_rest]
+        return self.remaining_path()
+
+    def held_for_s(self, now_s: float) -> float:
+        return 0.0 if self._held_since is None else now_s - self._held_since
+
+    def _planning_map(self):
+        return self.map if self.planning_map is None else self.planning_map()
+
+    def _rover_echo(self, reading) -> bool:
+        """An echo another rover made (the fleet says so): counted, kept out of the map."""
+        if self.echo_is_rover is not None and reading.range_m is not None and self.echo_is_rover(reading):
+            self.echoes_of_rovers += 1
+            return True
+        return False
+
+
+def _mm(v_m: float) -> int:
+    return max(-32768, min(32767, round(v_m * 1000))) if math.isfinite(v_m) else 0

@@ -1,0 +1,127 @@
+"""Issue 30's rovers as moving obstacles: the traffic rules' geometry (a rover's stretch ahead,
+who is in its way, a rover drawn into another's planning map, an echo off another rover), and a
+short fleet in the simulator: every rover on its own address and slot, no byte collided after
+the boot, no contact, each rover's figures in the report."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from rovernav.fleet.traffic import CLEAR_M, Traffic, ahead, polyline_point_m, polylines_m, sample
+from rovernav.mapping import LearnedMap
+from rovernav.mapping.sonar_map import SonarReading
+from rovernav.planning import OccupancyGrid, PlannerConfig
+
+
+def test_ahead_cuts_a_path_at_its_length_and_sample_walks_it():
+    path = [(0.0, 0.0), (0.3, 0.0), (0.3, 0.4)]
+    cut = ahead(path, 0.45)
+    assert cut[:2] == [(0.0, 0.0), (0.3, 0.0)] and math.isclose(cut[-1][1], 0.15)
+    pts = sample(path, 0.05)
+    assert pts[0] == (0.0, 0.0) and pts[-1] == (0.3, 0.4)
+    assert all(math.dist(a, b) <= 0.0601 for a, b in zip(pts, pts[1:])) and len(pts) >= 14
+    assert math.isclose(polyline_point_m(path, (0.1, 0.2)), 0.2)
+    assert math.isclose(polylines_m([(0.0, 1.0), (1.0, 1.0)], path), 0.6, abs_tol=1e-9)
+
+
+class _Mission(SimpleNamespace):
+    """What the traffic rules read of a mission."""
+
+    def rover_xy(self):
+        return self.xy
+
+    def rest_of_leg(self):
+        return [self.xy, *self.rest]
+
+
+def _traffic(*rovers):
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    shared = LearnedMap(grid)
+    missions = [_Mission(xy=xy, rest=rest, moving_leg=bool(rest), map=shared) for xy, rest in rovers]
+    return Traffic(missions), shared
+
+
+def test_a_rover_heading_at_another_is_blocked_and_one_moving_away_from_a_neighbour_is_not():
+    # Rover 1 drives east at rover 2, which stands 0.8 m ahead; rover 3 stands 0.32 m beside
+    # rover 1's start (their berths) and rover 1 moves away from it.
+    t, _ = _traffic(((0.5, 0.5), [(1.5, 0.5)]), ((1.3, 0.5), []), ((0.5, 0.18), []))
+    assert t.blockers(0) == []  # its 0.45 m ahead ends 0.35 m from rover 2: past CLEAR_M
+    t.missions[0].xy = (0.6, 0.5)
+    assert t.blockers(0) == [1]
+    assert 2 not in t.blockers(0)  # its neighbour at the berth is left behind, not approached
+
+
+def test_of_two_rovers_whose_stretches_meet_the_later_in_the_order_waits():
+    t, _ = _traffic(((0.5, 0.5), [(1.5, 0.5)]), ((0.9, 0.9), [(0.9, 0.1)]))
+    assert t.blockers(1) == [0]  # rover 2's stretch crosses rover 1's: rover 2 waits
+    assert t.blockers(0) == []  # rover 1 goes first
+
+
+def test_standing_rovers_are_drawn_into_a_planners_map_and_moving_ones_as_their_lanes():
+    t, shared = _traffic(((0.5, 0.5), [(1.5, 0.5)]), ((1.2, 1.2), []), ((2.0, 0.3), [(2.0, 1.4)]))
+    grid = t.planning_map(0).grid
+    assert not grid.is_free(1.2, 1.2)  # the standing rover 2's body
+    assert not grid.is_free(2.0, 0.9)  # rover 3's lane
+    assert grid.is_free(0.5, 0.5)  # rover 1 itself is not drawn in
+    assert shared.grid.is_free(1.2, 1.2)  # the shared map itself is left as it was
+    assert t.planning_map(1).grid.is_free(1.2, 1.2) and not t.planning_map(1).grid.is_free(0.5, 0.5)
+
+
+def test_an_echo_off_another_rovers_body_is_that_rover():
+    t, shared = _traffic(((0.5, 0.5), [(1.5, 0.5)]), ((1.0, 0.5), []))
+    offset = shared.grid.config.sonar_offset_m
+    at_rover = SonarReading(0.5, 0.5, 90.0, 0.0, 0.5 - offset - 0.07, 0.6, 0.003)
+    beside = SonarReading(0.5, 0.5, 0.0, 0.0, 0.4, 0.6, 0.003)  # straight up, nowhere near rover 2
+    assert t.echo_is_rover(0, at_rover) and not t.echo_is_rover(0, beside)
+
+
+def test_clear_m_keeps_two_bodies_apart_at_any_heading():
+    # Two rovers' rectangles (0.21 x 0.15 m) cannot touch when their centres are CLEAR_M apart.
+    assert CLEAR_M > math.hypot(0.21, 0.15)
+
+
+@pytest.mark.slow
+def test_a_short_fleet_run_keeps_every_rover_on_its_own_address_and_slot():
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
+
+    sim = FleetSimulation(load_scenario("fleet-out-and-back"), FleetOptions(rovers=3, trips=1, max_time_s=20.0))
+    sim.run()
+    report = sim.report()
+    assert report["contacts"] == 0 and report["rovers"] == 3
+    for k, rover in enumerate(report["per_rover"]):
+        assert rover["rover"] == k + 1
+        assert rover["link"]["slots"] > 50  # about 4 a second each
+        assert rover["link"]["from_rover_frames"] > 20
+        assert sim.host.missions[k].legs, "every rover was configured and started its first leg"
+        assert sim.host.links[k].counters.dropped == 0  # no damaged frame reached any rover's link
+    # The rovers speak only when polled: after the boot (all three at once) no byte collided.
+    collided = sum(r.to_host.lost_by["collision"] for r in sim.rovers)
+    boot_bytes = sum(r.to_host.frames.get("hello", [0])[0] for r in sim.rovers) * 64
+    assert collided <= boot_bytes
+    assert sim.radio.unroutable <= 3
+
+
+def test_rovernav_sim_refuses_more_rovers_than_starts_in_one_line():
+    out = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "rovernav"),
+            "sim",
+            "out-and-back",
+            "--rovers",
+            "3",
+            "--no-video",
+            "--out",
+            "/tmp/x",
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1 and "3 rovers but the scenario names 1 start" in out.stderr
