@@ -49,10 +49,10 @@ RETRY_S = 1.0
 LANE_STEP_M = 0.05
 #: An echo this near another rover's centre is that rover [m].
 ECHO_ON_ROVER_M = HALF_DIAGONAL_M + 0.08
-#: A standing rover drawn into another's planning map: a disk this wide, grown by the planner's own
-#: margin (robot radius + sonar margin, 0.17 m): paths keep 0.27 m from its centre, past two
-#: half-diagonals (0.26 m), and a rover at a start 0.32 m from it is not shut in [m].
-BODY_DISK_M = 0.10
+#: Another rover drawn into a planning map: a disk that the planner's own margin (robot radius +
+#: sonar margin, 0.17 m) grows to this far from its centre: a path planned round it is clear by
+#: the rules' own distance, and a rover at a start 0.36 m from it is not shut in [m].
+PLAN_CLEAR_M = CLEAR_M + 0.01
 
 
 def _point_segment_m(p, a, b) -> float:
@@ -167,7 +167,8 @@ class Traffic:
             disks.append(self.position(j))
             if not self.standing(j) and not also_moving:
                 disks += sample(m.rest_of_leg(), LANE_STEP_M)[1:]
-        return PlanningMap(self.missions[k].map, disks, BODY_DISK_M)
+        shared = self.missions[k].map
+        return PlanningMap(shared, disks, PLAN_CLEAR_M - shared.grid.config.inflation_m)
 
     def echo_is_rover(self, k: int, reading) -> bool:
         """Whether rover k's echo lies on another rover's body."""
@@ -234,7 +235,9 @@ class Traffic:
             since = self._clear_since.setdefault(k, now_s)
             if now_s - since >= CLEAR_FOR_S:
                 self._clear_since.pop(k, None)
-                m.let_go(now_s, self._path_or_none(k, m.rest_of_leg()))
+                # Planned afresh from where it stands (it may have stopped off its line, or backed
+                # out): the straight line from there to its next waypoint was never checked.
+                m.let_go(now_s, None)
                 return True
             return False
         self._clear_since.pop(k, None)
@@ -260,10 +263,6 @@ class Traffic:
                     m.let_go(now_s, spot, aside=True)
                     return True
         return False
-
-    def _path_or_none(self, k: int, rest: list) -> list | None:
-        """The rest of the leg as it was (None: replan it, when it is no path any more)."""
-        return [tuple(p) for p in rest] if len(rest) >= 2 else None
 
     def _plan_round(self, k: int):
         m = self.missions[k]
