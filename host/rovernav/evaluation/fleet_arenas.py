@@ -5,10 +5,12 @@ more sites round its target, so that N rovers can each shuttle between a start a
     sc.starts, sc.sites        # 3 of each (or FleetPlacementError: no room for them)
 
 A start is a spot the planner's grid (every obstacle known) keeps free (its margin, 0.17 m, is past
-the body's half-diagonal: the body touches nothing there at any heading), and every other start is `START_SPACING_M` + `GAP_M` away;
+the body's half-diagonal: the body touches nothing there at any heading), and every other start is `SPACING_M` away;
 the same for sites round the target. Each rover's start and site are joined by a path with every
-obstacle known (the arena is solvable for every rover, not for rover 1 alone). Spots are tried on
-rings round the base, nearest first, so that the base stays a base; the first that fit are taken.
+obstacle known (the arena is solvable for every rover, not for rover 1 alone). Spots are tried in
+a row through the base, across the way to the target, nearest first on alternate sides, so that
+each berth is reached from in front without passing another (rings round the base let parked
+rovers wall one in).
 """
 
 from __future__ import annotations
@@ -18,36 +20,43 @@ import math
 
 from ..errors import InputError
 from ..planning import NoPathError, OccupancyGrid, PlannerConfig, plan
-from ..scenario import START_SPACING_M, Pose, Scenario, Target
+from ..scenario import Pose, Scenario, Target
 
-#: Room between two rovers' bodies at neighbouring starts (or sites) beyond a body's diagonal [m].
-GAP_M = 0.06
-#: The rings round the base tried, in turn [m].
-RINGS_M = (0.32, 0.40, 0.50, 0.62, 0.75, 0.9)
+#: Neighbouring starts (or sites) this far apart: a body's diagonal (0.26 m), the traffic rules'
+#: margin, and room for a rover parked a little off its berth (its arrival radius) [m].
+SPACING_M = 0.40
+#: The row's turns from straight across the way, tried in turn [deg].
+ROW_TURNS_DEG = (0, 20, -20, 40, -40, 60, -60)
 
 
 class FleetPlacementError(InputError):
     """No room for the fleet's starts or sites in this arena."""
 
 
-def _spots(centre, count: int, grid: OccupancyGrid, taken=()):
-    spacing = START_SPACING_M + GAP_M
-    chosen = [tuple(centre)] + list(taken)
-    out = []
-    for r in RINGS_M:
-        n = max(8, int(2 * math.pi * r / 0.08))
-        for i in range(n):
+def _spots(centre, towards, count: int, grid: OccupancyGrid, taken=()):
+    """`count` free spots in a row through `centre`, across the way to `towards`, SPACING_M apart,
+    nearest first and on alternate sides: each is reached from the way in front without passing
+    another's (rings round the base let parked rovers wall one in)."""
+    way = math.atan2(towards[1] - centre[1], towards[0] - centre[0])
+    for turn_deg in ROW_TURNS_DEG:  # the row straight across first, then turned a little
+        a = way + math.pi / 2 + math.radians(turn_deg)
+        across = (math.cos(a), math.sin(a))
+        chosen = [tuple(centre)] + list(taken)
+        out = []
+        for i in range(1, 4 * count + 1):
             if len(out) == count:
                 return out
-            a = 2 * math.pi * i / n
-            p = (centre[0] + r * math.cos(a), centre[1] + r * math.sin(a))
+            step = (i + 1) // 2 * SPACING_M * (1 if i % 2 else -1)
+            p = (centre[0] + across[0] * step, centre[1] + across[1] * step)
             if not grid.contains(*p) or not grid.is_free(*p):
                 continue
-            if any(math.dist(p, q) < spacing for q in chosen):
+            if any(math.dist(p, q) < SPACING_M - 1e-9 for q in chosen):
                 continue
             chosen.append(p)
             out.append(p)
-    return out if len(out) == count else None
+        if len(out) == count:
+            return out
+    return None
 
 
 def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None = None) -> Scenario:
@@ -59,14 +68,14 @@ def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None
     more_starts = list(scenario.more_starts)
     need = rovers - len(scenario.starts)
     if need > 0:
-        spots = _spots(scenario.start.xy, need, grid, [p.xy for p in more_starts])
+        spots = _spots(scenario.start.xy, scenario.target.xy, need, grid, [p.xy for p in more_starts])
         if spots is None:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} starts round the base")
         more_starts += [Pose(round(x, 3), round(y, 3), h) for x, y in spots]
     more_sites = list(scenario.more_sites)
     need = rovers - len(scenario.sites)
     if need > 0:
-        spots = _spots(scenario.target.xy, need, grid, [p.xy for p in more_sites])
+        spots = _spots(scenario.target.xy, scenario.start.xy, need, grid, [p.xy for p in more_sites])
         if spots is None:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} sites round the target")
         more_sites += [Target(round(x, 3), round(y, 3)) for x, y in spots]

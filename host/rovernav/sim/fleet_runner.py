@@ -148,6 +148,11 @@ class FleetSimulation:
         self.opt = options
         n = options.rovers
         pairs = scenario.fleet_legs(n)  # ScenarioError (one line) for too few starts
+        if scenario.mission.kind != "out-and-back":  # a shuttle goes out and back, whatever the file asked
+            from ..scenario import Mission as ScenarioMission
+
+            scenario = dataclasses.replace(scenario, mission=ScenarioMission("out-and-back", scenario.mission.trips))
+            self.scenario = scenario
         base = options.config or config_from_dict(
             {"arena": {"width_m": scenario.arena.width_m, "height_m": scenario.arena.height_m}}
         )
