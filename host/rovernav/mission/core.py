@@ -291,15 +291,7 @@ class Mission(RoverFrames, LegControl, FleetControl):
             )
         # (A fleet's HEARTBEAT is its rover's poll when due: fleet_control.py's slot_frame.)
         if not self.slot_fixes and now_s - self._heartbeat_at >= self.heartbeat_period_s:
-            self._heartbeat_at = now_s
-            self._send(
-                mg.Heartbeat(
-                    host_time_ms=int(now_s * 1000) & 0xFFFFFFFF,
-                    camera=self._camera_state(),
-                    scan_heard=self.scan_heard,
-                    path_id=self.path_id & 0xFFFF,
-                )
-            )
+            self._send_heartbeat(now_s)
         if self.phase is not Phase.HELLO and now_s - self._last_heard_s > self.deadlines.silent_s:
             self._fail(f"no word from the rover for {self.deadlines.silent_s:.0f} s", Failure.SILENT)
             return
@@ -398,6 +390,18 @@ class Mission(RoverFrames, LegControl, FleetControl):
         for message in self.upload.due(self._now)[:1]:
             self._chunk_at = self._now
             self.upload.sent(message, self._send(message, again=self.upload.frames_sent > 0), self._now, count=count)
+
+    def _send_heartbeat(self, now_s: float) -> None:
+        """A HEARTBEAT: the host's time, the camera, the sweep heard whole and the path."""
+        self._heartbeat_at = now_s
+        self._send(
+            mg.Heartbeat(
+                host_time_ms=int(now_s * 1000) & 0xFFFFFFFF,
+                camera=self._camera_state(),
+                scan_heard=self.scan_heard,
+                path_id=self.path_id & 0xFFFF,
+            )
+        )
 
     def _send(self, message, again: bool = False) -> int:
         seq = self.link.send(message)

@@ -81,15 +81,7 @@ class FleetControl:
     def poll_frame(self, now_s: float) -> None:
         """A HEARTBEAT now, as the rover's poll."""
         self._now = now_s
-        self._heartbeat_at = now_s
-        self._send(
-            mg.Heartbeat(
-                host_time_ms=int(now_s * 1000) & 0xFFFFFFFF,
-                camera=self._camera_state(),
-                scan_heard=self.scan_heard,
-                path_id=self.path_id & 0xFFFF,
-            )
-        )
+        self._send_heartbeat(now_s)
 
     # ---------------------------------------------------------------- held for another rover
 

@@ -225,15 +225,7 @@ class FleetSimulation:
         self.renderer = Renderer(look, camera, int(self.rng.integers(2**31)))
         self.tags = tag_ids(n)
         self.locator = FleetLocator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m, self.tags)
-        self.scene_base = Scene(
-            arena_w_m=scenario.arena.width_m,
-            arena_h_m=scenario.arena.height_m,
-            obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
-            walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
-            posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
-            target=(scenario.target.x_m, scenario.target.y_m),
-            marker_kind="aruco",
-        )
+        self.scene_base = Scene.of_scenario(scenario, "aruco")
         self._pending: collections.deque = collections.deque()
         self._next_frame_s = 0.0
         self._host_ticked = -1.0

@@ -176,15 +176,8 @@ class Simulation:
             from ..planning import warm_up
 
             warm_up()
-        self.scene_base = Scene(
-            arena_w_m=scenario.arena.width_m,
-            arena_h_m=scenario.arena.height_m,
-            obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
-            walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
-            posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
-            target=(scenario.target.x_m, scenario.target.y_m),
-            marker_kind=self.cfg.vision.markers,
-            decoys=setup.decoys(w_m, h_m) if setup is not None else (),
+        self.scene_base = Scene.of_scenario(
+            scenario, self.cfg.vision.markers, setup.decoys(w_m, h_m) if setup is not None else ()
         )
         self.t = 0.0
         # The host's clock for its signing counter: simulated time from a fixed instant, so a run's

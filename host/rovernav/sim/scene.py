@@ -50,6 +50,20 @@ class Scene:
     decoys: tuple[tuple[str | int, float, float], ...] = ()
     fleet: tuple[tuple[float, float, float, int], ...] = ()
 
+    @classmethod
+    def of_scenario(cls, scenario, marker_kind: str, decoys: tuple = ()) -> Scene:
+        """The scenario's arena, boxes, walls, posts and target, with no rover yet."""
+        return cls(
+            arena_w_m=scenario.arena.width_m,
+            arena_h_m=scenario.arena.height_m,
+            obstacles=tuple((o.x_m, o.y_m, o.w_m, o.h_m) for o in scenario.obstacles),
+            walls=tuple((w.x0_m, w.y0_m, w.x1_m, w.y1_m, w.thickness_m) for w in scenario.walls),
+            posts=tuple((p.x_m, p.y_m, p.radius_m) for p in scenario.posts),
+            target=(scenario.target.x_m, scenario.target.y_m),
+            marker_kind=marker_kind,
+            decoys=decoys,
+        )
+
 
 @dataclass(frozen=True)
 class RoverLook:
