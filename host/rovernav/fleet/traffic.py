@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..mapping import Echo
+from ..mission.legs import path_length_m
 from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
 
 HALF_DIAGONAL_M = math.hypot(BODY_LENGTH_MM, BODY_WIDTH_MM) / 2000.0
@@ -41,6 +42,14 @@ REPLAN_AFTER_S = 2.0
 #: Two rovers that hold each other this long: the later in the order gives way [s].
 GIVE_WAY_AFTER_S = 4.0
 SIDE_STEP_M = 0.35
+#: Where a parked rover may be sent aside: rings this far from its berth [m], in this many
+#: directions, planning a way to at most ASIDE_MAX_PLANS of the free spots (nearest first).
+ASIDE_RINGS_M = (0.35, 0.5, 0.7, 0.9)
+ASIDE_DIRECTIONS = 16
+ASIDE_MAX_PLANS = 24
+#: ... by a way at most this many times as long as the spot is far (a long way round among boxes
+#: and rovers is a drive of its own, with its sweeps and turns, not a step aside).
+ASIDE_DETOUR = 2.0
 TRACK_STEP_M = 0.04
 TRACK_KEEP = 100  # points: 4 m of track a rover
 #: A held rover tries a way round at most this often [s].
@@ -146,6 +155,7 @@ class Traffic:
         self.tracks: list[list[tuple[float, float]]] = [[] for _ in missions]
         self.holds_by_rover = [0] * len(missions)
         self.give_ways = 0
+        self.make_ways = 0  # parked rovers sent aside from home for another
 
     # ---------------------------------------------------------------- what each sees
 
@@ -223,13 +233,15 @@ class Traffic:
                     m.hold(now_s, f"rover {who[0] + 1} is in the way (at {_xy(self.position(who[0]))})")
                     self._clear_since.pop(k, None)
         for k, m in enumerate(missions):
-            if not m.held or m.done:
+            if not m.held or m.done or m.parked_at_rest:  # parked at home: it waits for the fleet
                 continue
             if self._try_let_go(k, now_s):
                 return
 
     def _try_let_go(self, k: int, now_s: float) -> bool:
         m = self.missions[k]
+        if m.parked and self._wanted_home(k):
+            return False  # sent aside from home: back only once no rover's way passes its berth
         who = self.blockers(k)
         if not who:
             since = self._clear_since.setdefault(k, now_s)
@@ -252,6 +264,8 @@ class Traffic:
                 self.on_event(now_s, f"rover {k + 1}: planned round rover {who[0] + 1}")
                 m.let_go(now_s, path)
                 return True
+            if path is None and self._make_way(k, who, now_s):
+                return True
         if waited >= GIVE_WAY_AFTER_S:
             j = who[0]
             other = self.missions[j]
@@ -264,15 +278,73 @@ class Traffic:
                     return True
         return False
 
-    def _plan_round(self, k: int):
+    def _make_way(self, k: int, who: list[int], now_s: float) -> bool:
+        """No way round for rover k: a rover in its way that is parked at home (its trips done)
+        is sent aside, off k's way, to wait there until k has gone by (True: one was)."""
+        for j in who:
+            other = self.missions[j]
+            if not other.parked_at_rest:
+                continue
+            spot = self._aside_spot(j, k)
+            if spot is not None:
+                self.make_ways += 1
+                self.on_event(now_s, f"rover {j + 1} makes way for rover {k + 1}: aside to {_xy(spot[-1])}")
+                other.let_go(now_s, spot, aside=True)
+                return True
+        return False
+
+    def _wanted_home(self, k: int) -> bool:
+        """Whether another rover's way (still to drive, or held) passes rover k's berth."""
+        home = self.missions[k].current_leg.goal
+        for j, other in enumerate(self.missions):
+            if j == k or other.done or other.parked:
+                continue
+            rest = other.rest_of_leg()
+            if len(rest) > 1 and polyline_point_m(rest, home) < CLEAR_M:
+                return True
+        return False
+
+    def _plan_round(self, k: int, goal: tuple[float, float] | None = None):
+        """Rover k's path to its leg's goal (or `goal`) round every other rover (None: none)."""
         m = self.missions[k]
         pm = self.planning_map(k, also_moving=True)
         saved = m.planning_map
         m.planning_map = lambda: pm
         try:
-            return m.plan_from(m.rover_xy(), m.current_leg.goal, verdict=False)
+            return m.plan_from(m.rover_xy(), goal or m.current_leg.goal, verdict=False, round_rovers=True)
         finally:
             m.planning_map = saved
+
+    def _aside_spot(self, j: int, k: int):
+        """A path for parked rover j to a spot off rover k's way (its path as if j were not there)
+        and clear of every other rover, the nearest of those tried that j can reach (None: none)."""
+        here = self.position(j)
+        theirs = self.missions[k].rest_of_leg() or [self.position(k)]
+        others = [self.position(i) for i in range(len(self.missions)) if i != j]
+        grid = self.planning_map(j, also_moving=True).grid
+        tried, best = 0, None
+        for r in ASIDE_RINGS_M:
+            if best is not None and path_length_m(best) <= r:
+                break  # no spot further out has a shorter way
+            for a in range(0, 360, 360 // ASIDE_DIRECTIONS):
+                p = (here[0] + r * math.sin(math.radians(a)), here[1] + r * math.cos(math.radians(a)))
+                if not grid.contains(*p) or not grid.is_free(*p):
+                    continue
+                if polyline_point_m(theirs, p) < CLEAR_M + 0.03 or any(
+                    math.dist(p, q) < PLAN_CLEAR_M + 0.03 for q in others
+                ):
+                    continue
+                if tried >= ASIDE_MAX_PLANS:
+                    break
+                tried += 1
+                path = self._plan_round(j, p)
+                if path is None or self.blockers(j, path):  # (the planner's fallbacks may cut corners)
+                    continue
+                if path_length_m(path) <= ASIDE_DETOUR * r and (
+                    best is None or path_length_m(path) < path_length_m(best)
+                ):
+                    best = path
+        return best  # the shortest way found: the less driving among the others, the better
 
     def _back_away(self, k: int, j: int):
         """Rover k's way back along its own track (ground it has just driven) to the first point

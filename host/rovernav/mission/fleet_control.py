@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 from ..angles import heading_cdeg
 from ..link import messages_gen as mg
+from .legs import path_length_m
 from .phases import Phase
 
 #: A detection older than this is not sent as a FIX in a slot [s] (the camera's latency is 60 ms).
@@ -32,10 +33,15 @@ class FleetControl:
     echo_is_rover: Callable[[object], bool] | None = None
     _held_since: float | None = None
     _slot_sent_for: float | None = None  # the detection (taken at) the last slot's FIX carried
-    _aside_path_id: int | None = None  # the path that takes the rover out of another's way
+    _aside_goal: tuple[float, float] | None = None  # where the rover is on its way to, out of another's way
     _aside_done = False
     _last_poll = "heartbeat"  # what the last slot's poll was
     _held_rest: list = []  # the waypoints the rover had still to reach when it was held  # ... it is there: when let go, its leg is planned afresh
+    #: True (a fleet's rover): arrived home from its last leg, the rover waits there, its leg kept
+    #: open, until `release_park` (every rover of the fleet has done its trips): while it waits it
+    #: can still be sent aside, out of the way of a rover that must pass its berth, and back.
+    park_at_end: bool = False
+    _parked_at: float | None = None  # when the rover first arrived home from its last leg
     echoes_of_rovers: int = 0
     holds: int = 0
     held_s: float = 0.0
@@ -120,7 +126,8 @@ class FleetControl:
             return
         self._now = now_s
         waited = now_s - self._held_since
-        self.held_s += waited
+        if self._parked_at is None:  # waiting at home for the fleet is no hold
+            self.held_s += waited
         self._held_since = None
         if self.done or not self.legs or self.current_leg.reached:
             return
@@ -130,22 +137,71 @@ class FleetControl:
         leg.deadline_s += waited  # the wait is no lateness of the leg's
         self.on_event(now_s, f"let go after {waited:.1f} s")
         if path is None:
-            path = self.strategy.leg_path(self, self.rover_xy(), leg.goal)
+            if self._aside_goal is not None:  # held on its way aside: on there
+                aside = True
+            path = self.strategy.leg_path(self, self.rover_xy(), self.steering_goal())
             if path is None:
                 return
+        if self.parked:  # out of another's way and back home: a drive of its own, with its own deadline
+            leg.deadline_s = now_s + self.deadlines.leg_s(path_length_m(path))
         self.strategy.start_leg(self, path)
-        self._aside_path_id = self.path_id if aside else None
+        self._aside_goal = tuple(path[-1]) if aside else None
+
+    def steering_goal(self) -> tuple[float, float]:
+        """Where the rover's path leads: its leg's goal, or the spot it is on its way to out of
+        another rover's way (a path replanned on the way goes there too)."""
+        return self.current_leg.goal if self._aside_goal is None else self._aside_goal
 
     def aside_arrived(self) -> bool:
         """The rover arrived where it was sent out of another's way: held there again."""
-        if self._aside_path_id is None or self._aside_path_id != self.path_id:
+        if self._aside_goal is None:
             return False
-        self._aside_path_id = None
+        self._aside_goal = None
         self._aside_done = True
         self._held_since = self._now
-        self.holds += 1
+        if self.parked:  # its way back home is what must come clear before it goes
+            self._held_rest = [self.current_leg.goal]
+        else:
+            self.holds += 1
         self.on_event(self._now, "aside: waits there")
         return True
+
+    # ---------------------------------------------------------------- parked at home
+
+    @property
+    def parked(self) -> bool:
+        """Home from its last leg, waiting for the fleet (or sent aside from there, or on its way back)."""
+        return self._parked_at is not None
+
+    @property
+    def parked_at_rest(self) -> bool:
+        """Parked, and standing at its berth (not aside, not on its way)."""
+        return self.parked and self.held and not self._aside_done and self._aside_goal is None
+
+    def park(self) -> bool:
+        """The last leg's end: a fleet's rover waits there for the fleet, its leg open (True), or
+        ends its mission as a lone rover does (False)."""
+        if not self.park_at_end:
+            return False
+        if self._parked_at is None:
+            self._parked_at = self._now
+            self.on_event(self._now, "home from its last trip: parked, waiting for the fleet")
+        self._held_since = self._now
+        self._held_rest = []
+        self._aside_goal, self._aside_done = None, False
+        return True
+
+    def release_park(self, now_s: float) -> None:
+        """Every rover of the fleet has done its trips: the parked leg is done (when the rover first
+        arrived home), and the mission with it."""
+        if not self.parked_at_rest or self.done:
+            return
+        self._now = now_s
+        arrived_s = self._parked_at
+        self._parked_at = None
+        self.park_at_end = False
+        self._leg_done()
+        self.current_leg.finished_s = arrived_s
 
     def rest_of_leg(self) -> list[tuple[float, float]]:
         """From where the rover is through the waypoints it has still to reach: those it had when

@@ -34,6 +34,9 @@ class MissionView(Protocol):
     def arrival_radius_m(self) -> float:
         """The rover's arrival radius, as the mission configured it [m]."""
 
+    def steering_goal(self) -> tuple[float, float]:
+        """Where the rover's path must lead: its leg's goal, or a fleet rover's spot out of another's way."""
+
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix if recent, else its own estimate."""
 

@@ -86,7 +86,7 @@ class LegControl:
         self.on_event(self._now, f"{why}: replanned ({what}, {path_length_m(path):.2f} m)")
 
     def plan_from(
-        self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True
+        self, start: tuple[float, float], goal: tuple[float, float], verdict: bool = True, round_rovers: bool = False
     ) -> list[tuple[float, float]] | None:
         """A* from `start` to `goal`, simplified (leg_plan.plan_leg: its fallbacks, its turns); None
         when there is none (the mission has then ended with the no-path verdict and the planner's
@@ -103,7 +103,7 @@ class LegControl:
             refused=refused,
             say=lambda text: self.on_event(self._now, text),
         )
-        if path is None and self.planning_map is not None:
+        if path is None and self.planning_map is not None and not round_rovers:
             # No way round the fleet's other rovers: a path as if they were not there (the traffic
             # rules hold the rover until they have moved: fleet/traffic.py), and no verdict on them.
             path, reason = plan_leg(

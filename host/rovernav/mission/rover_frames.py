@@ -213,6 +213,8 @@ class RoverFrames:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached
 
     def _arrived(self) -> None:
+        if self.held and (self.parked or self._aside_done):
+            return  # a copy of the word it is home, or aside (fleet_control.py): no leg's end
         if self.aside_arrived():  # out of another rover's way (fleet_control.py), not at the leg's end
             return
         if self.path_rest:  # the end of a part of a long path: the next part, from here
@@ -230,8 +232,10 @@ class RoverFrames:
             self._map_unsaved = False
 
     def _leg_done(self) -> None:
-        self._held_since = None  # a leg done while held for another rover (fleet_control.py) is done
         self._save_map()
+        if len(self.legs) >= self.legs_asked and self.park():  # a fleet's rover waits at home (fleet_control.py)
+            return
+        self._held_since = None  # a leg done while held for another rover (fleet_control.py) is done
         leg = self.current_leg
         leg.finished_s, leg.reached = self._now, True
         self.on_event(self._now, f"leg {leg.index + 1} reached ({leg.goal[0]:.2f}, {leg.goal[1]:.2f}) m")

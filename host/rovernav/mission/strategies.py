@@ -57,7 +57,7 @@ class RovernavStrategy:
             self._replan(m, verdict=False, why="the line on from where the rover backed out scrapes")
 
     def _replan(self, m: MissionView, verdict=True, why="the sonar found the path blocked"):
-        new = m.plan_from(m.rover_xy(), m.current_leg.goal, verdict)
+        new = m.plan_from(m.rover_xy(), m.steering_goal(), verdict)
         if new is not None:
             m.replanned(new, f"{len(new)} waypoints", why)
             m.load_path(new)
