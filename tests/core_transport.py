@@ -105,3 +105,28 @@ class CoreRover:
     @property
     def state(self) -> int:
         return self.core.probe().state
+
+
+class FleetCoreTransport(Transport):
+    """A fleet's rover cores behind one radio: what the host writes reaches every core; a read
+    steps them all (as CoreTransport steps one) and returns what they said, rover after rover."""
+
+    def __init__(self, cores: list):
+        super().__init__("fleet-core://")
+        self.cores, self.t_ms, self.to_rovers, self.from_rovers = cores, 0, b"", b""
+
+    def _write(self, data: bytes) -> None:
+        self.to_rovers += data
+
+    def _read(self, max_bytes: int, timeout_s: float | None) -> bytes:
+        if not self.from_rovers:
+            for _ in range(max(1, int((timeout_s or 0.0) * 100))):
+                rx, self.to_rovers = self.to_rovers, b""
+                for core in self.cores:
+                    self.from_rovers += core.step(self.t_ms, gyro_rate_mdps=0, rx=rx).tx
+                self.t_ms += 10
+        data, self.from_rovers = self.from_rovers[:max_bytes], self.from_rovers[max_bytes:]
+        return data
+
+    def _close(self) -> None:
+        pass

@@ -81,19 +81,75 @@ def test_an_echo_off_another_rovers_body_is_that_rover():
     assert t.echo_is_rover(0, at_rover) and not t.echo_is_rover(0, beside)
 
 
+class _ParkedMission(_Mission):
+    """A mission parked at home (its trips done) or on a leg, that plans in straight lines."""
+
+    planning_map = None
+
+    def plan_from(self, start, goal, verdict=True, round_rovers=False):
+        grid = self.planning_map().grid
+        return [start, goal] if grid.is_free(*goal) and grid.segment_clear(start, goal) else None
+
+
+def test_a_rover_parked_at_home_in_anothers_way_is_sent_aside_off_it_and_back_once_it_is_clear():
+    # Rover 2, home from its trips, stands on rover 1's way to its berth beyond (a pocket with no
+    # way round): it is sent to a spot clear of rover 1's way and of rover 3, by a way clear of
+    # every rover; and it goes home only once no rover's way passes its berth.
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    shared = LearnedMap(grid)
+    home = (0.7, 0.3)
+    m1 = _ParkedMission(xy=(0.5, 1.0), rest=[(0.85, 0.45), (1.1, 0.3)], moving_leg=False, map=shared)
+    m2 = _ParkedMission(xy=home, rest=[], moving_leg=False, map=shared, parked=True, done=False)
+    m2.current_leg = SimpleNamespace(goal=home)
+    m3 = _ParkedMission(xy=(0.3, 0.3), rest=[], moving_leg=False, map=shared)
+    t = Traffic([m1, m2, m3])
+    way = t._aside_spot(1, 0)
+    assert way is not None and way[0] == home
+    spot = way[-1]
+    assert polyline_point_m(m1.rest_of_leg(), spot) >= CLEAR_M  # off rover 1's way
+    assert math.dist(spot, m3.xy) >= CLEAR_M and math.dist(spot, m1.xy) >= CLEAR_M
+    assert t.blockers(1, way) == []  # and the way there passes no rover
+    m2.xy = spot
+    m1.done, m1.parked = False, False
+    m3.done, m3.parked = True, True
+    assert t._wanted_home(1)  # rover 1's way still passes rover 2's berth
+    m1.xy, m1.rest = (1.1, 0.3), []
+    assert not t._wanted_home(1)  # rover 1 is home: rover 2 may go back
+
+
 def test_clear_m_keeps_two_bodies_apart_at_any_heading():
     # Two rovers' rectangles (0.21 x 0.15 m) cannot touch when their centres are CLEAR_M apart.
     assert CLEAR_M > math.hypot(0.21, 0.15)
 
 
 @pytest.mark.slow
-def test_a_short_fleet_run_keeps_every_rover_on_its_own_address_and_slot():
+def test_a_short_fleet_run_keeps_every_rover_on_its_own_address_and_slot(tmp_path):
     from rovernav.scenario import load_scenario
     from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
 
-    sim = FleetSimulation(load_scenario("fleet-out-and-back"), FleetOptions(rovers=3, trips=1, max_time_s=20.0))
+    log = tmp_path / "run.mcap"
+    sim = FleetSimulation(
+        load_scenario("fleet-out-and-back"), FleetOptions(rovers=3, trips=1, max_time_s=20.0, log=log)
+    )
     sim.run()
     report = sim.report()
+    sim.close_log(report)
+    # The run log: the camera and the arena once, each rover's channels under /roverK.
+    from mcap.reader import make_reader
+
+    with open(log, "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {c.id: c.topic for c in summary.channels.values()}
+    counts = {topics[c]: n for c, n in summary.statistics.channel_message_counts.items()}
+    assert counts["/camera/image"] > 0 and counts["/arena"] == 1
+    for k in (1, 2, 3):
+        assert counts[f"/rover{k}/link/rover_to_host"] > 20 and counts[f"/rover{k}/sim/true_pose"] > 100
+        assert counts[f"/rover{k}/camera/fix"] > 100
+    assert not any(t.startswith(("/link/", "/rover/")) for t in counts)  # no channel is nobody's
+    from rovernav.runlog.replay import LogFileError, read_log
+
+    with pytest.raises(LogFileError, match="a fleet's run log"):
+        read_log(log)
     assert report["contacts"] == 0 and report["rovers"] == 3
     for k, rover in enumerate(report["per_rover"]):
         assert rover["rover"] == k + 1

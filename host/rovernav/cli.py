@@ -156,10 +156,32 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from .errors import InputError
     from .hardware import default_log_path, run_hardware
     from .runlog.cli import live_port_of
 
     log_path = None if args.no_log else (args.log or default_log_path())
+    if args.rovers is not None:
+        from .fleet.run import run_fleet_hardware
+
+        for flag, given in (("--map", args.map), ("--live", args.live)):
+            if given:
+                raise InputError(f"{flag} is for one rover; a fleet (--rovers {args.rovers}) runs without it")
+        return run_fleet_hardware(
+            args.rovers,
+            args.port,
+            args.camera,
+            args.config,
+            args.scenario,
+            key_files=args.key_files,
+            max_time_s=args.max_time,
+            log_path=log_path,
+            log_image_hz=args.log_image_hz,
+            trips=args.trips,
+        )
+    for flag, given in (("--key-files", args.key_files), ("--trips", args.trips)):
+        if given:
+            raise InputError(f"{flag} is for a fleet (--rovers N); one rover's key is [link] key_file")
     return run_hardware(
         args.port,
         args.camera,
@@ -273,6 +295,31 @@ def add_run_parser(sub) -> None:
         type=output_file(".mcap"),
         metavar="FILE",
         help="the run log to write (default run-YYYYMMDD-HHMMSS.mcap in this folder)",
+    )
+    from .link.messages_gen import MAX_ROVERS
+
+    p.add_argument(
+        "--rovers",
+        type=number(2, MAX_ROVERS, integer=True),
+        default=None,
+        metavar="N",
+        help=f"a fleet of N rovers, 2 to {MAX_ROVERS}, under this one camera on this one radio (as `rovernav sim "
+        "SCENARIO --rovers N`): needs --scenario, whose k-th start and site are rover k's berth and "
+        "site; rover k is the one provisioned with --fleet-id k and carries ArUco tag 1, 3, 4 or 5 "
+        "(rover 1, 2, 3, 4, with the default [vision.aruco] ids). The log has a channel set per rover",
+    )
+    p.add_argument(
+        "--key-files",
+        type=input_file,
+        nargs="+",
+        metavar="FILE",
+        help="with --rovers: each rover's key file, rover 1's first (none: unsigned rovers)",
+    )
+    p.add_argument(
+        "--trips",
+        type=number(1, 100, integer=True),
+        default=None,
+        help="with --rovers: round trips each rover makes (default: the scenario's [mission] trips)",
     )
     from .runlog.cli import add_log_flags
 

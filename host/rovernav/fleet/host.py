@@ -46,6 +46,21 @@ FLEET_ROVER_PARAMS = (
 )
 
 
+def fleet_specs(scenario, cfg, rovers: int, host_boot_id: int) -> list[MissionSpec]:
+    """Each rover's mission: from its start (its berth at the base) to its site and back, with the
+    configuration's parameters and a fleet rover's (FLEET_ROVER_PARAMS); its host boot id
+    `host_boot_id` + 16 k. ScenarioError (one line) when the scenario has too few starts."""
+    pairs = scenario.fleet_legs(rovers)
+    params = [(p, v) for p, v in cfg.rover_params() if p not in dict(FLEET_ROVER_PARAMS)]
+    params += list(FLEET_ROVER_PARAMS)
+    return [
+        MissionSpec.for_run(
+            scenario, cfg, rover_params=params, start_xy=start, target_xy=site, host_boot_id=host_boot_id + 16 * k
+        )
+        for k, (start, site) in enumerate(pairs)
+    ]
+
+
 class FleetHost:
     def __init__(
         self,
@@ -56,17 +71,22 @@ class FleetHost:
         *,
         clock: Callable[[], float] | None = None,
         on_event: Callable[[int, float, str], None] | None = None,
+        recorders: list | None = None,
     ):
         if len(specs) != radio.rovers or len(keys) != radio.rovers:
             raise ValueError(f"{len(specs)} missions and {len(keys)} keys for a radio of {radio.rovers} rovers")
         self.radio = radio
         say = on_event or (lambda k, t, text: None)
-        self.links = [Link(radio.ports[k], key=keys[k], clock=clock, address=k) for k in range(radio.rovers)]
+        signing = {} if clock is None else {"clock": clock}  # (None: the Link's own, the wall clock)
+        self.links = [Link(radio.ports[k], key=keys[k], address=k, **signing) for k in range(radio.rovers)]
         self.missions: list[Mission] = []
         for k, spec in enumerate(specs):
             folder = Path(workdir) / f"rover{k + 1}"
             folder.mkdir(parents=True, exist_ok=True)
-            m = start_host(spec, self.links[k], folder, on_event=lambda t, text, k=k: say(k, t, text))
+            recorder = None if recorders is None else recorders[k]  # rover k's channels of the run log
+            m = start_host(
+                spec, self.links[k], folder, on_event=lambda t, text, k=k: say(k, t, text), recorder=recorder
+            )
             self.missions.append(m)
         shared = self.missions[0].map
         for m in self.missions[1:]:
@@ -75,6 +95,7 @@ class FleetHost:
         self.traffic = Traffic(self.missions, on_event=lambda t, text: say(-1, t, text))
         for k, m in enumerate(self.missions):
             m.slot_fixes = True
+            m.park_at_end = True
             m.planning_map = lambda k=k: self.traffic.planning_map(k)
             m.echo_is_rover = lambda reading, k=k: self.traffic.echo_is_rover(k, reading)
         self._map_version = shared.grid.version
@@ -89,12 +110,29 @@ class FleetHost:
         for m, d in zip(self.missions, detections):
             m.on_detection(d, now_s)
 
+    def on_seen(self, seen, taken_s: float, now_s: float) -> list[int]:
+        """A FleetLocator's frame (vision/fleet.py's FleetDetection, taken at taken_s): rover k's
+        pose, or why it was not found, to mission k. Returns the rovers (0-based) not found."""
+        detections, lost = [], []
+        for k in range(len(self.missions)):
+            pose = seen.rovers.get(k + 1)
+            if pose is None:
+                lost.append(k)
+                detections.append(Detection(taken_s, None, None, None, seen.reasons.get(k + 1)))
+            else:
+                detections.append(Detection(taken_s, pose.x_m, pose.y_m, pose.heading_deg))
+        self.on_frame(detections, now_s)
+        return lost
+
     def tick(self, now_s: float) -> None:
         """Every mission reads its rover's frames and acts; the traffic rules; the shared map."""
         self.radio.pump()
         for m in self.missions:
             m.tick(now_s)
         self.traffic.tick(now_s)
+        if all(m.done or m.parked_at_rest for m in self.missions):
+            for m in self.missions:  # every rover has done its trips: the parked ones' missions end
+                m.release_park(now_s)
         version = self.map.grid.version
         if version != self._map_version and now_s - self._map_checked_s >= MAP_SHARE_S:
             # Another rover's sonar changed the map: each rover's path checked against it (its own

@@ -109,6 +109,11 @@ def read_log(path: str | Path) -> RecordedRun:
     meta = metas.get(META_RUN)
     if meta is None:
         raise LogFileError(f"{path}: an MCAP file, but not a rovernav run log (no {META_RUN} metadata)")
+    if "rovers" in meta:
+        raise LogFileError(
+            f"{path}: a fleet's run log ({meta['rovers']} rovers, a channel set each under /roverK): "
+            "replay takes a lone rover's log"
+        )
     inputs, sent = [], []
     try:
         summary = {k: json.loads(v) for k, v in metas.get("rovernav.summary", {}).items()}

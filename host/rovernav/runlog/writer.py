@@ -103,7 +103,14 @@ class RunLog(Recorder):
         live_port: int | None = None,
         image_hz: float = DEFAULT_IMAGE_HZ,
         meta: dict | None = None,
+        context=None,
+        topic_prefix: str = "",
+        topics: set[str] | None = None,
+        t0_ns: int | None = None,
     ):
+        """`context`, `topic_prefix`, `topics`, `t0_ns`: one rover's channel set in a fleet's log
+        (FleetRunLog): its channels, those of `topics` (None: all), named `topic_prefix` + topic
+        in another log's `context` and clock; such a log writes no file of its own."""
         import foxglove
         from foxglove.channels import (
             CompressedImageChannel,
@@ -120,7 +127,7 @@ class RunLog(Recorder):
         self.scenario = scenario
         self.sonar_offset_m = float(spec.planner["sonar_offset_m"])
         self.image_period_s = 1.0 / image_hz if image_hz > 0 else math.inf
-        self.t0_ns = time.time_ns()
+        self.t0_ns = time.time_ns() if t0_ns is None else t0_ns
         self.t_s = 0.0
         self.counts: dict[str, int] = {c.topic: 0 for c in CHANNELS}
         self._n = 0
@@ -136,7 +143,7 @@ class RunLog(Recorder):
         self._echoes = 0
         self._sent: tuple[int, int, int | None] | None = None  # the frame the host wrote last (id, seq, counter)
         self._closed = False
-        self.ctx = foxglove.Context()
+        self.ctx = foxglove.Context() if context is None else context
         typed = {
             "foxglove.CompressedImage": CompressedImageChannel,
             "foxglove.PoseInFrame": PoseInFrameChannel,
@@ -147,19 +154,20 @@ class RunLog(Recorder):
         }
         self.channels = {}
         for c in CHANNELS:
-            if c.sim_only and not truth:
+            if (c.sim_only and not truth) or (topics is not None and c.topic not in topics):
                 continue
+            name = topic_prefix + c.topic
             if c.schema in typed:
-                self.channels[c.topic] = typed[c.schema](c.topic, context=self.ctx)
+                self.channels[c.topic] = typed[c.schema](name, context=self.ctx)
             else:
                 schema = foxglove.Schema(
                     name=c.schema, encoding="jsonschema", data=json.dumps(json_schema(c.schema)).encode()
                 )
                 self.channels[c.topic] = foxglove.Channel(
-                    c.topic, schema=schema, message_encoding="json", context=self.ctx
+                    name, schema=schema, message_encoding="json", context=self.ctx
                 )
         self.writer = None
-        if self.path is not None:
+        if self.path is not None and context is None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self.writer = foxglove.open_mcap(self.partial, allow_overwrite=True, context=self.ctx)

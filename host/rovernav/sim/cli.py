@@ -507,6 +507,8 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
         config=config,
         signed=not args.unsigned,
         rover1=args.rover,  # --rover uno: rover 1 is the Uno image
+        log=None if args.no_log else out / "run.mcap",  # a channel set per rover (runlog/fleet.py)
+        log_image_hz=args.log_image_hz,
     )
 
     def progress(t: float, text: str | None) -> None:
@@ -517,9 +519,11 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
         else:
             print(f"[fleet {t:7.2f} s] {text}", flush=True)
 
+    from ..runlog.writer import RunLogError
+
     try:
         sim = FleetSimulation(scenario, opts, progress=progress)
-    except ScenarioError as exc:
+    except (ScenarioError, RunLogError) as exc:
         print(f"rovernav sim: {exc}", file=sys.stderr)
         return 2
     video = None if args.no_video else VideoWriter(out / "video.mp4", args.camera_fps)
@@ -533,6 +537,7 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
     except BaseException:
         if video is not None:
             video.close(keep=False)
+        sim.close_log({"interrupted": True})  # the log of a run cut short is kept: it says how it ended
         raise
     if video is not None:
         video.close()
@@ -541,6 +546,7 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
     report["seed"] = args.seed
     report["wall_time_s"] = round(time.monotonic() - started, 1)
     report["speedup"] = round(sim.t / max(report["wall_time_s"], 1e-9), 1)
+    sim.close_log(report)
     write_json_atomic(out / "report.json", report)
     from .fleet_picture import fleet_picture
 
@@ -550,7 +556,11 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
     if timing:
         worst = timing.get("worst_step") or {}
         print(f"  rover 1, the Uno image: worst step {worst.get('us', 0) / 1000:.2f} ms (of the 5 ms allowed)")
-    print(f"  wrote {out / 'report.json'}, {out / 'summary.png'}" + ("" if video is None else f", {out / 'video.mp4'}"))
+    print(
+        f"  wrote {out / 'report.json'}, {out / 'summary.png'}"
+        + ("" if video is None else f", {out / 'video.mp4'}")
+        + ("" if opts.log is None else f", {opts.log} (a channel set per rover: /rover1/..., /rover2/...)")
+    )
     return 0 if report["outcome"] == "reached" and report["contacts"] == 0 else 1
 
 

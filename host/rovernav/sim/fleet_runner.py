@@ -26,16 +26,15 @@ import numpy as np
 
 from ..config import Config, config_from_dict
 from ..cores import NativeCore
-from ..fleet.host import FLEET_ROVER_PARAMS, FleetHost
+from ..fleet.host import FleetHost, fleet_specs
 from ..fleet.radio import FleetRadio, grant_air_s
 from ..link import messages_gen as mg
 from ..link.transport import Transport
 from ..mapping.sonar_map import sonar_origin
-from ..mission import Detection, Outcome
-from ..mission.spec import MissionSpec
+from ..mission import Outcome
 from ..radio import ChannelConfig
 from ..vehicle_gen import STEP_PERIOD_MS
-from ..vision.fleet import FleetLocator
+from ..vision.fleet import FleetLocator, fleet_tags
 from .camera import Camera, Lighting, Renderer, RoverLook, Scene
 from .channel import Broadcast, Channel, fleet_channels
 from .plant import PlantConfig, RoverPlant
@@ -45,12 +44,6 @@ from .world import World, _corners
 STEP_S = STEP_PERIOD_MS / 1000.0
 #: No leg of any rover done for this long: the fleet is stuck (a deadlock) [s].
 STUCK_S = 150.0
-TARGET_TAG = 2
-
-
-def tag_ids(rovers: int) -> dict[int, int]:
-    """Each rover's ArUco tag: rover 1 has tag 1, the target 2, rovers 2, 3, ... tags 3, 4, ..."""
-    return {k: (1 if k == 1 else k + 1) for k in range(1, rovers + 1)}
 
 
 @dataclasses.dataclass
@@ -67,6 +60,8 @@ class FleetOptions:
     config: Config | None = None
     signed: bool = True
     rover1: str = "native"  # or "uno": rover 1 is the Uno image in simavr (cores/uno.py)
+    log: object | None = None  # the run's MCAP log, a channel set per rover (runlog/fleet.py); None: none
+    log_image_hz: float | None = None  # camera images in the log a second (None: the log's default)
 
 
 class FleetSimTransport(Transport):
@@ -147,7 +142,7 @@ class FleetSimulation:
         self.scenario = scenario
         self.opt = options
         n = options.rovers
-        pairs = scenario.fleet_legs(n)  # ScenarioError (one line) for too few starts
+        scenario.fleet_legs(n)  # ScenarioError (one line) for too few starts
         if scenario.mission.kind != "out-and-back":  # a shuttle goes out and back, whatever the file asked
             from ..scenario import Mission as ScenarioMission
 
@@ -201,17 +196,30 @@ class FleetSimulation:
         cfg = self.cfg
         if trips is not None:
             cfg = dataclasses.replace(cfg, mission=dataclasses.replace(cfg.mission, trips=trips))
-        params = [(p, v) for p, v in cfg.rover_params() if p not in dict(FLEET_ROVER_PARAMS)]
-        params += list(FLEET_ROVER_PARAMS)
-        self.specs = [
-            MissionSpec.for_run(
-                scenario, cfg, rover_params=params, start_xy=start, target_xy=site, host_boot_id=HOST_BOOT_ID + 16 * k
-            )
-            for k, (start, site) in enumerate(pairs)
-        ]
+        self.specs = fleet_specs(scenario, cfg, n, HOST_BOOT_ID)
         self.t = 0.0
         self.radio = FleetRadio(self.host_transport, n)
         self._workdir = tempfile.TemporaryDirectory(prefix="rovernav-fleet-")
+        self.runlog = None
+        if options.log is not None:
+            from ..runlog.fleet import FleetRunLog
+
+            extra = {} if options.log_image_hz is None else {"image_hz": options.log_image_hz}
+            self.runlog = FleetRunLog(
+                options.log,
+                self.specs,
+                source="sim",
+                scenario=scenario,
+                truth=True,
+                meta={
+                    "scenario": scenario.name,
+                    "seed": options.seed,
+                    "rover": options.rover1,
+                    "signed": options.signed,
+                    "radio": options.channel.settings(),
+                },
+                **extra,
+            )
         self.host = FleetHost(
             self.specs,
             self.radio,
@@ -219,11 +227,12 @@ class FleetSimulation:
             self._workdir.name,
             clock=lambda: SIM_SIGN_CLOCK_START_S + self.t,
             on_event=self._host_event,
+            recorders=None if self.runlog is None else self.runlog.rovers,
         )
         look = RoverLook.for_vision(self.cfg.vision)
         camera = Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0)
         self.renderer = Renderer(look, camera, int(self.rng.integers(2**31)))
-        self.tags = tag_ids(n)
+        self.tags = fleet_tags(n, self.cfg.vision.aruco.rover_id, self.cfg.vision.aruco.target_id)
         self.locator = FleetLocator(self.cfg.vision, scenario.arena.width_m, scenario.arena.height_m, self.tags)
         self.scene_base = Scene.of_scenario(scenario, "aruco")
         self._pending: collections.deque = collections.deque()
@@ -250,6 +259,14 @@ class FleetSimulation:
     def _sim_event(self, t: float, text: str) -> None:
         self.events.append((t, -1, text))
         self.progress(t, text)
+        if self.runlog is not None:
+            self.runlog.shared.event(t, text, level="error" if text.startswith(("CRASH", "stuck")) else "info")
+
+    def close_log(self, summary: dict | None = None) -> None:
+        """The run log closed and in place (also after a run cut short)."""
+        if self.runlog is not None:
+            self.runlog.close(summary if summary is not None else self.report())
+            self.runlog = None
 
     # ---------------------------------------------------------------- the loop
 
@@ -263,7 +280,8 @@ class FleetSimulation:
                 self._sim_event(now, f"stopped by the time limit ({self.opt.max_time_s:g} s simulated)")
                 self.host.fail("the simulator's time limit")
                 break
-            done = sum(sum(1 for leg in m.legs if leg.reached) for m in self.host.missions)
+            # (Home from its last leg counts: that leg is marked done when the whole fleet is.)
+            done = sum(sum(1 for leg in m.legs if leg.reached) + m.parked for m in self.host.missions)
             if done != self._legs_done:
                 self._legs_done, self._progress_s = done, now
             elif now - self._progress_s > STUCK_S:
@@ -272,6 +290,8 @@ class FleetSimulation:
                 self.host.fail("the fleet is stuck")
                 break
             self.host_transport.now_s = now
+            if self.runlog is not None:
+                self.runlog.set_time(now)
             processed = self._camera(now)
             if processed or now - self._host_ticked >= HOST_PERIOD_S:
                 self._host_ticked = now
@@ -288,6 +308,9 @@ class FleetSimulation:
             if int(round(now * 1000)) % 100 == 0:
                 for r in self.rovers:
                     self.tracks[r.index].append((r.plant.x, r.plant.y))
+            if self.runlog is not None:
+                for r, log in zip(self.rovers, self.runlog.rovers):
+                    log.true_pose(now + STEP_S, r.plant.x, r.plant.y, r.plant.heading)
             self.t = round(now + STEP_S, 6)
             if self.t >= next_progress:
                 next_progress += 30.0
@@ -312,19 +335,14 @@ class FleetSimulation:
                 self.frames_rendered += 1
                 if self.frame_sink is not None:
                     self.frame_sink(now, frame)
+                if self.runlog is not None:
+                    self.runlog.shared.camera_image(now, frame)
         processed = False
         while self._pending and self._pending[0][0] + self.opt.camera_latency_s <= now + 1e-9:
             taken, frame = self._pending.popleft()
             seen = self.locator.locate(frame, taken)
-            detections = []
-            for k in range(len(self.rovers)):
-                pose = seen.rovers.get(k + 1)
-                if pose is None:
-                    self.lost_by_rover[k] += 1
-                    detections.append(Detection(taken, None, None, None, seen.reasons.get(k + 1)))
-                else:
-                    detections.append(Detection(taken, pose.x_m, pose.y_m, pose.heading_deg))
-            self.host.on_frame(detections, now)
+            for k in self.host.on_seen(seen, taken, now):
+                self.lost_by_rover[k] += 1
             processed = True
         return processed
 
@@ -453,6 +471,7 @@ class FleetSimulation:
             "crash": self.crash,
             "min_rover_separation_m": round(self.min_separation_m, 3) if n > 1 else None,
             "give_ways": self.host.traffic.give_ways,
+            "make_ways": self.host.traffic.make_ways,
             "radio": {
                 "air_bytes_per_s": round(
                     sum(x["link"]["to_rover_bytes_per_s"] + x["link"]["from_rover_bytes_per_s"] for x in rovers), 1

@@ -26,6 +26,18 @@ from .config import VisionConfig
 from .locator import Locator, RoverPose, TargetPosition, tag_corners, tag_pose
 
 
+def fleet_tags(rovers: int, rover_tag: int = 1, target_tag: int = 2) -> dict[int, int]:
+    """Each rover's ArUco tag id: rover 1 has the lone rover's ([vision.aruco] rover_id), rovers
+    2, 3, ... the next ids after it that are not the target's (with the defaults: 1, 3, 4, 5)."""
+    tags, tag = {1: rover_tag}, rover_tag
+    for k in range(2, rovers + 1):
+        tag += 1
+        while tag == target_tag:
+            tag += 1
+        tags[k] = tag
+    return tags
+
+
 @dataclass(frozen=True)
 class FleetDetection:
     """What one frame showed: each rover's pose (None when not found) and, for those, why not;

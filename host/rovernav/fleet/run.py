@@ -1,0 +1,176 @@
+"""`rovernav run --rovers N`: a fleet's shuttle with real rovers, one overhead camera, one radio.
+
+The same FleetHost as the simulator's (`rovernav sim SCENARIO --rovers N`): rover k (provisioned
+with `rovernav provision --fleet-id K`, its own key) shuttles between the scenario's k-th start
+and k-th site, the camera finds each by its own ArUco tag (vision/fleet.py's fleet_tags: with
+the defaults rover 1 tag 1, rover 2 tag 3, rover 3 tag 4, rover 4 tag 5), and the host gives each
+rover its slots on the one half-duplex radio.
+
+As `rovernav run` does for one rover, every input is read and checked before the camera or the
+port is opened (a one-line error, exit 2); Ctrl-C stops every rover and exits with status 130.
+The run log has a channel set per rover (runlog/fleet.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..errors import InputError
+from ..link.errors import LinkError
+from ..link.messages_gen import MAX_ROVERS
+from ..mission import Phase
+
+
+def fleet_keys(key_files: list[str] | None, rovers: int, config_key_file: str) -> list[bytes | None]:
+    """Each rover's link key, from --key-files (one a rover, in order), or None for each (unsigned);
+    InputError when the count is wrong, or when the configuration names one key ([link] key_file):
+    a fleet's rovers have a key each."""
+    from ..link.keys import load_key_file
+
+    if not key_files:
+        if config_key_file:
+            raise InputError(
+                f"[link] key_file names one key; a fleet's rovers each have their own: give --key-files "
+                f"with {rovers} files, rover 1's first"
+            )
+        return [None] * rovers
+    if len(key_files) != rovers:
+        raise InputError(f"--key-files: {len(key_files)} files for {rovers} rovers (one a rover, rover 1's first)")
+    return [load_key_file(Path(f)) for f in key_files]
+
+
+def run_fleet_hardware(
+    rovers: int,
+    port: str,
+    camera: str,
+    config_path: str | None,
+    scenario_path: str | None,
+    key_files: list[str] | None = None,
+    max_time_s: float = 1800.0,
+    log_path: str | Path | None = None,
+    log_image_hz: float = 2.0,
+    trips: int | None = None,
+) -> int:
+    from .. import hardware  # its devices (tests stand in for them there), its checks of inputs
+    from ..config import load_config
+    from ..hardware import _plain_file, _serial_port, camera_source
+    from ..scenario import load_scenario
+    from ..validate import MAX_SIM_TIME_S, check_number
+    from ..vision.fleet import FleetLocator, fleet_tags
+    from .host import FleetHost, fleet_specs
+    from .radio import FleetRadio
+
+    # ---- 1. every input, before any device is opened
+    if not 2 <= rovers <= MAX_ROVERS:
+        raise InputError(f"--rovers {rovers}: a fleet has 2 to {MAX_ROVERS} rovers (one rover: leave --rovers out)")
+    max_time_s = check_number("max_time_s", max_time_s, 0.0, MAX_SIM_TIME_S, lo_open=True)
+    if not scenario_path:
+        raise InputError(
+            "--rovers needs --scenario: its [[starts]] are the rovers' berths and its [[sites]] their sites"
+        )
+    _plain_file(config_path, "configuration file")
+    _plain_file(scenario_path, "scenario file")
+    cfg = load_config(config_path)
+    cfg = dataclasses.replace(cfg, vision=dataclasses.replace(cfg.vision, markers="aruco"))
+    if trips is not None:
+        cfg = dataclasses.replace(cfg, mission=dataclasses.replace(cfg.mission, trips=trips))
+    name, baud = _serial_port(port, cfg, config_path)
+    source = camera_source(camera or cfg.camera.source)
+    scenario = load_scenario(scenario_path)
+    boot = int.from_bytes(os.urandom(4), "little") & 0x0FFFFFFF
+    specs = fleet_specs(scenario, cfg, rovers, boot)  # ScenarioError: too few starts
+    keys = fleet_keys(key_files, rovers, cfg.link.key_file)
+    aruco = cfg.vision.aruco
+    tags = fleet_tags(rovers, aruco.rover_id, aruco.target_id)
+    locator = FleetLocator(cfg.vision, scenario.arena.width_m, scenario.arena.height_m, tags)
+
+    def say(k: int, t: float, text: str) -> None:
+        print(f"[{t:7.2f} s]{'' if k < 0 else f' rover {k + 1}:'} {text}", flush=True)
+
+    say(-1, 0.0, "the rovers' tags: " + ", ".join(f"rover {k} tag {t}" for k, t in tags.items()))
+    # ---- 2. the devices
+    cap = hardware.open_camera(source)
+    transport = host = runlog = None
+    interrupted = False
+    workdir = tempfile.TemporaryDirectory(prefix="rovernav-fleet-")
+    try:
+        transport = hardware.SerialTransport(name, baud)
+        if log_path is not None:
+            from ..runlog.fleet import FleetRunLog
+
+            runlog = FleetRunLog(
+                log_path,
+                specs,
+                source="hardware",
+                scenario=scenario,
+                image_hz=log_image_hz,
+                meta={"port": name, "camera": str(source), "scenario": scenario.name},
+            )
+        radio = FleetRadio(transport, rovers)
+        host = FleetHost(
+            specs,
+            radio,
+            keys,
+            workdir.name,
+            on_event=say,
+            recorders=None if runlog is None else runlog.rovers,
+        )
+        t0 = time.monotonic()
+        try:
+            while not host.finished and time.monotonic() - t0 < max_time_s:
+                ok, frame = cap.read()
+                now = time.monotonic() - t0
+                if runlog is not None:
+                    runlog.set_time(now)
+                    if ok:
+                        runlog.shared.camera_image(now, frame)
+                if ok:
+                    host.on_seen(locator.locate(frame, now), now, now)
+                host.tick(now)
+                host.air(now)  # a slot when the air is free: once a frame (a slot is 60-100 ms long)
+                unheard = [k + 1 for k, m in enumerate(host.missions) if m.phase is Phase.HELLO]
+                if unheard and now > 10.0:
+                    raise LinkError(
+                        f"no HELLO from rover(s) {', '.join(map(str, unheard))} on {name}: powered, flashed, "
+                        f"provisioned with --fleet-id, and on this radio at {baud} baud?"
+                    )
+        except KeyboardInterrupt:
+            interrupted = True
+            say(-1, time.monotonic() - t0, "interrupted: stopping the rovers")
+    finally:
+        ending_with = sys.exc_info()[1]
+        try:
+            if host is not None:
+                from ..link import messages_gen as mg
+
+                for link in host.links:
+                    try:
+                        link.send(mg.Stop(reason=mg.StopReason.OPERATOR))
+                    except LinkError:
+                        pass
+        finally:
+            cap.release()
+            if transport is not None:
+                transport.close()
+            if runlog is not None:
+                runlog.close(
+                    {
+                        "host_outcome": [m.outcome.value for m in host.missions] if host else "not started",
+                        "interrupted": interrupted or ending_with is not None,
+                    }
+                )
+                print(f"run log: {log_path} (a channel set per rover: /rover1/..., /rover2/...)", file=sys.stderr)
+            workdir.cleanup()
+    if interrupted:
+        raise KeyboardInterrupt
+    for k, m in enumerate(host.missions):
+        done = sum(1 for leg in m.legs if leg.reached)
+        print(f"rover {k + 1}: {m.outcome.value}, {done // 2} of {m.legs_asked // 2} round trips", file=sys.stderr)
+    if any(m.phase is Phase.FAILED for m in host.missions):
+        return 1
+    return 0 if all(m.phase is Phase.DONE for m in host.missions) else 1
