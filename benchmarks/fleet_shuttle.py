@@ -8,9 +8,10 @@ Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
                  each, rover 1 alone on the same arena (a fleet of one, the same radio discipline)
                  and the lone rover of `rovernav sim` (its own radio, no slots): trips an hour, the
-                 fleet's over one rover's, contacts, runs stuck (a deadlock: no leg done for 150 s).
+                 fleet's over one rover's, contacts, runs stuck (a deadlock: no leg done for 150 s
+                 and no rover moved 0.2 m in 60 s, or no leg done for 450 s).
   arenas         ARENAS generated arenas (`rovernav arenas --count 200 --seed 1`, sampled evenly,
-                 the solvable ones), each given starts and sites for 3 rovers
+                 the solvable ones with a base for 3 rovers), each given starts and sites for 3 rovers
                  (evaluation/fleet_arenas.py), ARENA_TRIPS round trips each: trips done of asked,
                  contacts, stuck runs.
 
@@ -121,6 +122,19 @@ def run_lone(job: tuple) -> dict:
     }
 
 
+def placement_problem(scenario: str) -> str | None:
+    """Why a generated arena has no base and sites for 3 rovers (None: it has)."""
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.evaluation.fleet_arenas import FleetPlacementError, fleet_scenario
+    from rovernav.scenario import load_scenario
+
+    try:
+        fleet_scenario(load_scenario(scenario), 3)
+    except FleetPlacementError as exc:
+        return str(exc)
+    return None
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1,2,3")
@@ -179,7 +193,16 @@ def main() -> int:
         print(f"throughput, 3 rovers over 1: median {statistics.median(ratios):.2f}x (goal {THROUGHPUT_GOAL}x)")
         out["out_and_back"] = table
     if a.arenas:
-        paths = [p for p in sample_arenas(a.arenas * 2) if solvable(p)][: a.arenas]
+        # The first ARENAS of the sample that are solvable and have a base for 3 rovers (the others
+        # are named, not run: no fleet shuttle fits them).
+        paths, no_room = [], []
+        for p in [p for p in sample_arenas(a.arenas * 3) if solvable(p)]:
+            if len(paths) == a.arenas:
+                break
+            why = placement_problem(p)
+            (no_room if why else paths).append(why or p)
+        for why in no_room:
+            print(f"  not run: {why}", file=sys.stderr)
         jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno) for p in paths]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
@@ -196,8 +219,8 @@ def main() -> int:
         contacts = sum(r["contacts"] for r in placed)
         stuck = sum(1 for r in placed if r["stuck"])
         print(
-            f"\n{len(placed)} generated arenas with a shuttle for 3 rovers ({len(rows) - len(placed)} without room "
-            f"for one), {a.arena_trips} round trips each, radio {a.radio}:"
+            f"\n{len(placed)} generated arenas with a shuttle for 3 rovers ({len(no_room)} passed over: no base "
+            f"for 3), {a.arena_trips} round trips each, radio {a.radio}:"
         )
         print(
             f"trips done {done}/{asked} ({100 * done / max(asked, 1):.1f} %), contacts {contacts}, stuck {stuck}, "

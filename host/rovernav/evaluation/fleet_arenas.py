@@ -7,16 +7,20 @@ more sites round its target, so that N rovers can each shuttle between a start a
 A start is a spot the planner's grid (every obstacle known) keeps free (its margin, 0.17 m, is past
 the body's half-diagonal: the body touches nothing there at any heading), and every other start is `SPACING_M` away;
 the same for sites round the target. Each rover's start and site are joined by a path with every
-obstacle known (the arena is solvable for every rover, not for rover 1 alone). Spots are tried in
-a row through the base, across the way to the target, nearest first on alternate sides, so that
-each berth is reached from in front without passing another (rings round the base let parked
-rovers wall one in).
+obstacle known (the arena is solvable for every rover, not for rover 1 alone), and by one that
+passes the other rovers parked at their starts (a berth reached only past another's is a pocket:
+with its neighbour home, a rover could neither leave nor come home). Spots are tried in a row
+through the base, across the way to the target, nearest first on alternate sides, so that each
+berth is reached from in front without passing another (rings round the base let parked rovers
+wall one in); rows turned from straight across, and the sites' rows, in turn, until one passes.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+
+import numpy as np
 
 from ..errors import InputError
 from ..planning import NoPathError, OccupancyGrid, PlannerConfig, plan
@@ -33,19 +37,20 @@ class FleetPlacementError(InputError):
     """No room for the fleet's starts or sites in this arena."""
 
 
-def _spots(centre, towards, count: int, grid: OccupancyGrid, taken=()):
-    """`count` free spots in a row through `centre`, across the way to `towards`, SPACING_M apart,
-    nearest first and on alternate sides: each is reached from the way in front without passing
-    another's (rings round the base let parked rovers wall one in)."""
+def _rows(centre, towards, count: int, grid: OccupancyGrid, taken=()):
+    """Rows of `count` free spots through `centre`, across the way to `towards`, SPACING_M apart,
+    nearest first and on alternate sides (each is reached from the way in front without passing
+    another's: rings round the base let parked rovers wall one in): straight across first, then
+    turned by each of ROW_TURNS_DEG in turn."""
     way = math.atan2(towards[1] - centre[1], towards[0] - centre[0])
-    for turn_deg in ROW_TURNS_DEG:  # the row straight across first, then turned a little
+    for turn_deg in ROW_TURNS_DEG:
         a = way + math.pi / 2 + math.radians(turn_deg)
         across = (math.cos(a), math.sin(a))
         chosen = [tuple(centre)] + list(taken)
         out = []
         for i in range(1, 4 * count + 1):
             if len(out) == count:
-                return out
+                break
             step = (i + 1) // 2 * SPACING_M * (1 if i % 2 else -1)
             p = (centre[0] + across[0] * step, centre[1] + across[1] * step)
             if not grid.contains(*p) or not grid.is_free(*p):
@@ -55,7 +60,25 @@ def _spots(centre, towards, count: int, grid: OccupancyGrid, taken=()):
             chosen.append(p)
             out.append(p)
         if len(out) == count:
-            return out
+            yield out
+
+
+def _ways(out: Scenario, rovers: int, grid: OccupancyGrid) -> str | None:
+    """Why a rover could not go from its start to its site and back, every obstacle known, with
+    every other rover parked at its own start (None: each can): a berth reached only past
+    another's is a pocket that a parked rover shuts."""
+    from ..fleet.traffic import PLAN_CLEAR_M
+
+    legs = out.fleet_legs(rovers)
+    for k, (a, b) in enumerate(legs):
+        others = np.asarray([s for j, (s, _) in enumerate(legs) if j != k], dtype=np.float64).reshape(-1, 2)
+        g = grid.copy()
+        g.add_disks(others, PLAN_CLEAR_M - grid.config.inflation_m)
+        for where, what in ((grid, "its start to its site"), (g, "its start to its site past the others parked")):
+            try:
+                plan(where, a, b)
+            except NoPathError as exc:
+                return f"rover {k + 1} has no way from {what}: {exc}"
     return None
 
 
@@ -65,26 +88,29 @@ def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None
         return scenario
     grid = OccupancyGrid.from_scenario(scenario, config or PlannerConfig(), all_obstacles=True)
     h = scenario.start.heading_deg
-    more_starts = list(scenario.more_starts)
+    start_rows = [[]]
     need = rovers - len(scenario.starts)
     if need > 0:
-        spots = _spots(scenario.start.xy, scenario.target.xy, need, grid, [p.xy for p in more_starts])
-        if spots is None:
+        start_rows = list(
+            _rows(scenario.start.xy, scenario.target.xy, need, grid, [p.xy for p in scenario.more_starts])
+        )
+        if not start_rows:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} starts round the base")
-        more_starts += [Pose(round(x, 3), round(y, 3), h) for x, y in spots]
-    more_sites = list(scenario.more_sites)
+    site_rows = [[]]
     need = rovers - len(scenario.sites)
     if need > 0:
-        spots = _spots(scenario.target.xy, scenario.start.xy, need, grid, [p.xy for p in more_sites])
-        if spots is None:
+        site_rows = list(_rows(scenario.target.xy, scenario.start.xy, need, grid, [p.xy for p in scenario.more_sites]))
+        if not site_rows:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} sites round the target")
-        more_sites += [Target(round(x, 3), round(y, 3)) for x, y in spots]
-    out = dataclasses.replace(scenario, more_starts=tuple(more_starts), more_sites=tuple(more_sites))
-    for k, (a, b) in enumerate(out.fleet_legs(rovers)):
-        try:
-            plan(grid, a, b)
-        except NoPathError as exc:
-            raise FleetPlacementError(
-                f"{scenario.name}: rover {k + 1} has no way from its start to its site: {exc}"
-            ) from None
-    return out
+    why = None
+    for starts in start_rows:
+        for sites in site_rows:
+            out = dataclasses.replace(
+                scenario,
+                more_starts=tuple(scenario.more_starts) + tuple(Pose(round(x, 3), round(y, 3), h) for x, y in starts),
+                more_sites=tuple(scenario.more_sites) + tuple(Target(round(x, 3), round(y, 3)) for x, y in sites),
+            )
+            why = _ways(out, rovers, grid)
+            if why is None:
+                return out
+    raise FleetPlacementError(f"{scenario.name}: no base for {rovers} rovers: {why}")

@@ -1,6 +1,6 @@
 """Rovers as moving obstacles (issue 30): who drives and who waits, and what a rover plans round.
 
-The host sees every rover in each camera frame and knows the path each is driving. Three rules,
+The host sees every rover in each camera frame and knows the path each is driving. Four rules,
 in the order the rovers' ids give them (rover 1 first):
 
 - **A path is planned round the rovers that stand still** (parked at a base or a site, or held):
@@ -12,9 +12,13 @@ in the order the rovers' ids give them (rover 1 first):
 - **A held rover goes on** when its stretch has been clear for `CLEAR_FOR_S`, on its path; when
   it has waited `REPLAN_AFTER_S`, on a path planned round the rovers then in its way, if there is
   one. Only one held rover is let go a tick, the first in the order, so that two never pull out
-  into each other. A rover that has been held for `GIVE_WAY_AFTER_S` by a rover that is itself
-  held by it gives way: the later in the order moves aside, off the other's path, to the nearest
-  free spot `SIDE_STEP_M` or so away, and waits there.
+  into each other. Rovers that have held each other round for `GIVE_WAY_AFTER_S` (two, each in
+  the other's way, or three or more in a ring): the latest in the order gives way to the rover it
+  holds, back along its own track or to the nearest free spot `SIDE_STEP_M` or so away, off that
+  rover's path, and waits there.
+- **A rover parked at home** (its trips done, waiting for the fleet) that stands in the way of a
+  rover with no way round it is sent aside, off that rover's way, and back home once no rover's
+  way passes its berth.
 
 The rover's own reflex still stops it for a rover its sonar sees; what it reports of another
 rover is kept out of the shared map (`echo_is_rover`).
@@ -267,9 +271,9 @@ class Traffic:
             if path is None and self._make_way(k, who, now_s):
                 return True
         if waited >= GIVE_WAY_AFTER_S:
-            j = who[0]
-            other = self.missions[j]
-            if other.held and k in self.blockers(j) and k > j:
+            cycle = self._cycle(k)
+            if cycle and k == max(cycle):
+                j = cycle[-1]  # the rover k holds (k is held by cycle[1], ..., cycle[-1] by k)
                 spot = self._back_away(k, j) or self._side_step(k, j)
                 if spot is not None:
                     self.give_ways += 1
@@ -277,6 +281,20 @@ class Traffic:
                     m.let_go(now_s, spot, aside=True)
                     return True
         return False
+
+    def _cycle(self, k: int) -> list[int] | None:
+        """The held rovers that hold each other round to rover k (k, the rover in its way, the rover
+        in that one's way, ...), two or more; None when the chain from k does not come back to it."""
+        chain = [k]
+        while True:
+            who = self.blockers(chain[-1]) if self.missions[chain[-1]].held else []
+            if not who:
+                return None
+            if who[0] == k:
+                return chain
+            if who[0] in chain:
+                return None  # a cycle that k is not in (it waits behind one)
+            chain.append(who[0])
 
     def _make_way(self, k: int, who: list[int], now_s: float) -> bool:
         """No way round for rover k: a rover in its way that is parked at home (its trips done)

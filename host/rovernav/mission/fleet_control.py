@@ -136,10 +136,14 @@ class FleetControl:
             self._aside_done, path = False, None
         leg.deadline_s += waited  # the wait is no lateness of the leg's
         self.on_event(now_s, f"let go after {waited:.1f} s")
+        if path is None and self._aside_goal is not None:  # held on its way aside: on there, if it can
+            aside, path = True, self.plan_from(self.rover_xy(), self._aside_goal, verdict=False)
+            if path is None:
+                self._held_since = now_s
+                self.aside_blocked()
+                return
         if path is None:
-            if self._aside_goal is not None:  # held on its way aside: on there
-                aside = True
-            path = self.strategy.leg_path(self, self.rover_xy(), self.steering_goal())
+            path = self.strategy.leg_path(self, self.rover_xy(), leg.goal)
             if path is None:
                 return
         if self.parked:  # out of another's way and back home: a drive of its own, with its own deadline
@@ -151,6 +155,15 @@ class FleetControl:
         """Where the rover's path leads: its leg's goal, or the spot it is on its way to out of
         another rover's way (a path replanned on the way goes there too)."""
         return self.current_leg.goal if self._aside_goal is None else self._aside_goal
+
+    def aside_blocked(self) -> None:
+        """No way on to the spot it was sent aside to (the sonar found it blocked): it stops and
+        waits where it is, as if it had arrived there."""
+        self._aside_goal = None
+        self.hold(self._now, "no way on to its spot aside: it waits where it is")
+        self._aside_done = True
+        if self.parked:
+            self._held_rest = [self.current_leg.goal]
 
     def aside_arrived(self) -> bool:
         """The rover arrived where it was sent out of another's way: held there again."""

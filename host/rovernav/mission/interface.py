@@ -37,6 +37,9 @@ class MissionView(Protocol):
     def steering_goal(self) -> tuple[float, float]:
         """Where the rover's path must lead: its leg's goal, or a fleet rover's spot out of another's way."""
 
+    def aside_blocked(self) -> None:
+        """A fleet rover's way to its spot aside is blocked: it waits where it is."""
+
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix if recent, else its own estimate."""
 

@@ -57,8 +57,12 @@ class RovernavStrategy:
             self._replan(m, verdict=False, why="the line on from where the rover backed out scrapes")
 
     def _replan(self, m: MissionView, verdict=True, why="the sonar found the path blocked"):
-        new = m.plan_from(m.rover_xy(), m.steering_goal(), verdict)
-        if new is not None:
+        goal = m.steering_goal()
+        aside = goal != m.current_leg.goal  # a fleet's rover on its way out of another's way
+        new = m.plan_from(m.rover_xy(), goal, verdict and not aside)
+        if new is None and aside:
+            m.aside_blocked()  # no verdict on a spot aside: it waits where it is instead
+        elif new is not None:
             m.replanned(new, f"{len(new)} waypoints", why)
             m.load_path(new)
 

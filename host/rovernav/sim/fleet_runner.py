@@ -42,8 +42,13 @@ from .runner import HOST_BOOT_ID, HOST_PERIOD_S, ROVER_CLOCK_SKEW, SIM_SIGN_CLOC
 from .world import World, _corners
 
 STEP_S = STEP_PERIOD_MS / 1000.0
-#: No leg of any rover done for this long: the fleet is stuck (a deadlock) [s].
+#: No leg of any rover done for this long, and no rover driven MOVED_M in the last STILL_S: the fleet
+#: is stuck (a deadlock) [s]. Rovers still on the move (slowly: a lossy radio, waiting in turn) are
+#: given up to SLOW_S with no leg done.
 STUCK_S = 150.0
+STILL_S = 60.0
+MOVED_M = 0.2
+SLOW_S = 450.0
 
 
 @dataclasses.dataclass
@@ -128,6 +133,7 @@ class RoverSim:
     to_rover: Channel
     to_host: Channel
     sonar_pending: int | None = None
+    anchor: tuple[float, float] = (0.0, 0.0)  # where it stood when it last moved MOVED_M
     distance_m: float = 0.0
     crash: dict | None = None
 
@@ -247,6 +253,9 @@ class FleetSimulation:
         self.min_separation_m = math.inf
         self._legs_done = 0
         self._progress_s = 0.0
+        self._moved_s = 0.0
+        for r in self.rovers:
+            r.anchor = (r.plant.x, r.plant.y)
         self.wall_s = 0.0
         self.uno_timing: dict | None = None  # rover 1 as the Uno image: its step times (cores/uno.py)
         self.frame_sink: Callable | None = None  # (t_s, frame): every frame the camera takes (the video)
@@ -284,9 +293,15 @@ class FleetSimulation:
             done = sum(sum(1 for leg in m.legs if leg.reached) + m.parked for m in self.host.missions)
             if done != self._legs_done:
                 self._legs_done, self._progress_s = done, now
-            elif now - self._progress_s > STUCK_S:
+            elif (
+                now - self._progress_s > STUCK_S and now - self._moved_s > STILL_S
+            ) or now - self._progress_s > SLOW_S:
                 self.stuck = True
-                self._sim_event(now, f"stuck: no rover finished a leg for {STUCK_S:g} s")
+                self._sim_event(
+                    now,
+                    f"stuck: no rover finished a leg for {now - self._progress_s:.0f} s"
+                    + (f", none moved {MOVED_M:g} m in {STILL_S:g} s" if now - self._moved_s > STILL_S else ""),
+                )
                 self.host.fail("the fleet is stuck")
                 break
             self.host_transport.now_s = now
@@ -308,6 +323,8 @@ class FleetSimulation:
             if int(round(now * 1000)) % 100 == 0:
                 for r in self.rovers:
                     self.tracks[r.index].append((r.plant.x, r.plant.y))
+                    if math.hypot(r.plant.x - r.anchor[0], r.plant.y - r.anchor[1]) >= MOVED_M:
+                        r.anchor, self._moved_s = (r.plant.x, r.plant.y), now
             if self.runlog is not None:
                 for r, log in zip(self.rovers, self.runlog.rovers):
                     log.true_pose(now + STEP_S, r.plant.x, r.plant.y, r.plant.heading)
@@ -432,9 +449,9 @@ class FleetSimulation:
         return "failed"
 
     def trips_done(self, k: int) -> int:
-        """Round trips rover k finished (both legs of each)."""
-        legs = [leg for leg in self.host.missions[k].legs if leg.reached]
-        return len(legs) // 2
+        """Round trips rover k finished (both legs of each; home from its last, parked there, counts)."""
+        m = self.host.missions[k]
+        return (sum(1 for leg in m.legs if leg.reached) + m.parked) // 2
 
     def report(self) -> dict:
         n = len(self.rovers)
