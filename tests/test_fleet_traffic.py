@@ -117,6 +117,22 @@ def test_a_rover_parked_at_home_in_anothers_way_is_sent_aside_off_it_and_back_on
     assert not t._wanted_home(1)  # rover 1 is home: rover 2 may go back
 
 
+def test_three_rovers_that_hold_each_other_round_are_a_ring_and_the_latest_gives_way_to_the_one_it_holds():
+    # Rover 1 drives at rover 2, rover 2 at rover 3, rover 3 at rover 1: all three held.
+    t, _ = _traffic(
+        ((0.5, 0.5), [(1.1, 0.5)]),
+        ((1.1, 0.5), [(0.8, 1.02)]),
+        ((0.8, 1.02), [(0.5, 0.5)]),
+    )
+    for m in t.missions:
+        m.held, m.moving_leg = True, False
+    assert [t.blockers(k) for k in range(3)] == [[1], [2], [0]]
+    assert t._cycle(2) == [2, 0, 1]  # rover 3 <- rover 1 <- rover 2 <- rover 3: rover 3 holds rover 2
+    assert t._cycle(0) == [0, 1, 2]
+    t.missions[1].held = False  # rover 2 on the move again: no ring
+    assert t._cycle(2) is None
+
+
 def test_clear_m_keeps_two_bodies_apart_at_any_heading():
     # Two rovers' rectangles (0.21 x 0.15 m) cannot touch when their centres are CLEAR_M apart.
     assert CLEAR_M > math.hypot(0.21, 0.15)

@@ -82,12 +82,20 @@ def _ways(out: Scenario, rovers: int, grid: OccupancyGrid) -> str | None:
     return None
 
 
+def _facing(a, b) -> float:
+    """The heading from a towards b [deg, 0 = +y, clockwise, as a scenario's], to a tenth."""
+    return round(math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) % 360.0, 1)
+
+
 def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None = None) -> Scenario:
     """The scenario with starts and sites for `rovers` (its own first; see the module's doc)."""
     if rovers <= len(scenario.starts) and rovers <= len(scenario.sites):
         return scenario
     grid = OccupancyGrid.from_scenario(scenario, config or PlannerConfig(), all_obstacles=True)
-    h = scenario.start.heading_deg
+    # Each added rover stands facing the target: its first turn is small (a rover that must turn
+    # hard on its berth by a wall may be refused the turn and back out blind, into the wall: arena
+    # 45, rover 2, 28.9 s, facing the start's 45 deg with the wall 0.19 m behind it).
+    tx, ty = scenario.target.xy
     start_rows = [[]]
     need = rovers - len(scenario.starts)
     if need > 0:
@@ -107,7 +115,8 @@ def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None
         for sites in site_rows:
             out = dataclasses.replace(
                 scenario,
-                more_starts=tuple(scenario.more_starts) + tuple(Pose(round(x, 3), round(y, 3), h) for x, y in starts),
+                more_starts=tuple(scenario.more_starts)
+                + tuple(Pose(round(x, 3), round(y, 3), _facing((x, y), (tx, ty))) for x, y in starts),
                 more_sites=tuple(scenario.more_sites) + tuple(Target(round(x, 3), round(y, 3)) for x, y in sites),
             )
             why = _ways(out, rovers, grid)

@@ -273,14 +273,26 @@ class Traffic:
         if waited >= GIVE_WAY_AFTER_S:
             cycle = self._cycle(k)
             if cycle and k == max(cycle):
-                j = cycle[-1]  # the rover k holds (k is held by cycle[1], ..., cycle[-1] by k)
-                spot = self._back_away(k, j) or self._side_step(k, j)
-                if spot is not None:
-                    self.give_ways += 1
-                    self.on_event(now_s, f"rover {k + 1} gives way to rover {j + 1}: back to {_xy(spot[-1])}")
-                    m.let_go(now_s, spot, aside=True)
-                    return True
+                # cycle[i] is held by cycle[i + 1] and holds cycle[i - 1] (k holds the last): the
+                # latest in the order that has a clear way off the path of the rover it holds goes.
+                for i in sorted(range(len(cycle)), key=lambda i: -cycle[i]):
+                    g, j = cycle[i], cycle[i - 1]
+                    way = self._way_aside(g, j)
+                    if way is not None:
+                        self.give_ways += 1
+                        self.on_event(now_s, f"rover {g + 1} gives way to rover {j + 1}: back to {_xy(way[-1])}")
+                        self.missions[g].let_go(now_s, way, aside=True)
+                        return True
         return False
+
+    def _way_aside(self, k: int, j: int):
+        """Rover k's way off rover j's path: back along its own track, else a step aside; one
+        that passes no rover (backing along a track another rover now stands on, rover 3 of arena 6
+        gave way every 4 s and was held at once, for good)."""
+        for way in (self._back_away(k, j), self._side_step(k, j)):
+            if way is not None and not self.blockers(k, way):
+                return way
+        return None
 
     def _cycle(self, k: int) -> list[int] | None:
         """The held rovers that hold each other round to rover k (k, the rover in its way, the rover
