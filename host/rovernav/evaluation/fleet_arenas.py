@@ -8,8 +8,9 @@ A start is a spot the planner's grid (every obstacle known) keeps free (its marg
 the body's half-diagonal: the body touches nothing there at any heading), and every other start is `SPACING_M` away;
 the same for sites round the target. Each rover's start and site are joined by a path with every
 obstacle known (the arena is solvable for every rover, not for rover 1 alone), and by one that
-passes the other rovers parked at their starts (a berth reached only past another's is a pocket:
-with its neighbour home, a rover could neither leave nor come home). Spots are tried in a row
+passes the other rovers parked at their starts, and one past them at their sites (a berth reached
+only past another's is a pocket: with its neighbour home, a rover could neither leave nor come
+home; a site in another's way shuts it while that rover is there). Spots are tried in a row
 through the base, across the way to the target, nearest first on alternate sides, so that each
 berth is reached from in front without passing another (rings round the base let parked rovers
 wall one in); rows turned from straight across, and the sites' rows, in turn, until one passes.
@@ -65,20 +66,24 @@ def _rows(centre, towards, count: int, grid: OccupancyGrid, taken=()):
 
 def _ways(out: Scenario, rovers: int, grid: OccupancyGrid) -> str | None:
     """Why a rover could not go from its start to its site and back, every obstacle known, with
-    every other rover parked at its own start (None: each can): a berth reached only past
-    another's is a pocket that a parked rover shuts."""
+    every other rover parked at its own start, or at its own site (None: each can): a berth (or a
+    site) reached only past another's is a pocket that the rover standing there shuts."""
     from ..fleet.traffic import PLAN_CLEAR_M
 
     legs = out.fleet_legs(rovers)
     for k, (a, b) in enumerate(legs):
-        others = np.asarray([s for j, (s, _) in enumerate(legs) if j != k], dtype=np.float64).reshape(-1, 2)
-        g = grid.copy()
-        g.add_disks(others, PLAN_CLEAR_M - grid.config.inflation_m)
-        for where, what in ((grid, "its start to its site"), (g, "its start to its site past the others parked")):
+        try:
+            plan(grid, a, b)
+        except NoPathError as exc:
+            return f"rover {k + 1} has no way from its start to its site: {exc}"
+        for end, where in ((0, "parked at their starts"), (1, "at their sites")):
+            others = np.asarray([leg[end] for j, leg in enumerate(legs) if j != k], dtype=np.float64).reshape(-1, 2)
+            g = grid.copy()
+            g.add_disks(others, PLAN_CLEAR_M - grid.config.inflation_m)
             try:
-                plan(where, a, b)
+                plan(g, a, b)
             except NoPathError as exc:
-                return f"rover {k + 1} has no way from {what}: {exc}"
+                return f"rover {k + 1} has no way from its start to its site with the others {where}: {exc}"
     return None
 
 
