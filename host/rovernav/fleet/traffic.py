@@ -154,6 +154,7 @@ class Traffic:
         self.on_event = on_event or (lambda t, text: None)
         self._clear_since: dict[int, float] = {}
         self._tried_at: dict[int, float] = {}  # when a held rover last tried a way round
+        self._ring_tried_at: dict[int, float] = {}  # when a held rover last looked for a way aside
         # Where each rover has been (the camera's fixes, TRACK_STEP_M apart): free ground to back
         # along when it must give way in a passage.
         self.tracks: list[list[tuple[float, float]]] = [[] for _ in missions]
@@ -270,7 +271,8 @@ class Traffic:
                 return True
             if path is None and self._make_way(k, who, now_s):
                 return True
-        if waited >= GIVE_WAY_AFTER_S:
+        if waited >= GIVE_WAY_AFTER_S and now_s - self._ring_tried_at.get(k, -math.inf) >= RETRY_S:
+            self._ring_tried_at[k] = now_s
             cycle = self._cycle(k)
             if cycle and k == max(cycle):
                 # cycle[i] is held by cycle[i + 1] and holds cycle[i - 1] (k holds the last): the
@@ -286,13 +288,13 @@ class Traffic:
         return False
 
     def _way_aside(self, k: int, j: int):
-        """Rover k's way off rover j's path: back along its own track, else a step aside; one
-        that passes no rover (backing along a track another rover now stands on, rover 3 of arena 6
+        """Rover k's way off rover j's path: back along its own track, else a step aside, else a
+        planned way to a spot off it (`_aside_spot`); one that passes no rover (backing along a track another rover now stands on, rover 3 of arena 6
         gave way every 4 s and was held at once, for good)."""
         for way in (self._back_away(k, j), self._side_step(k, j)):
             if way is not None and not self.blockers(k, way):
                 return way
-        return None
+        return self._aside_spot(k, j)  # a planned way to a spot off j's way
 
     def _cycle(self, k: int) -> list[int] | None:
         """The held rovers that hold each other round to rover k (k, the rover in its way, the rover
@@ -346,7 +348,7 @@ class Traffic:
             m.planning_map = saved
 
     def _aside_spot(self, j: int, k: int):
-        """A path for parked rover j to a spot off rover k's way (its path as if j were not there)
+        """A path for rover j (parked, or giving way) to a spot off rover k's way (its path as if j were not there)
         and clear of every other rover, the nearest of those tried that j can reach (None: none)."""
         here = self.position(j)
         theirs = self.missions[k].rest_of_leg() or [self.position(k)]
