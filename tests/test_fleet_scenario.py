@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from rovernav.evaluation.fleet_arenas import FleetPlacementError, fleet_scenario
@@ -82,8 +83,22 @@ def test_a_generated_arena_gets_a_base_and_sites_for_three():
             assert grid.is_free(*p) and not world.collides(p[0], p[1], fleet.start.heading_deg)
             for q in points[:i]:
                 assert math.dist(p, q) >= START_SPACING_M
-    for a, b in fleet.fleet_legs(3):
+    legs = fleet.fleet_legs(3)
+    for a, b in legs:
         assert plan(grid, a, b).length_m > 0
+    # Each rover's way passes the others standing at their berths, and at their sites, as the
+    # traffic rules draw them (no berth or site in a pocket another rover shuts).
+    from rovernav.fleet.traffic import PLAN_CLEAR_M
+
+    for k, (a, b) in enumerate(legs):
+        for end in (0, 1):
+            g = grid.copy()
+            others = [leg[end] for j, leg in enumerate(legs) if j != k]
+            g.add_disks(np.asarray(others), PLAN_CLEAR_M - grid.config.inflation_m)
+            assert plan(g, a, b).length_m > 0
+    for p in fleet.starts[1:]:  # the added berths face the target
+        want = math.degrees(math.atan2(sc.target.x_m - p.x_m, sc.target.y_m - p.y_m)) % 360
+        assert abs((p.heading_deg - want + 180) % 360 - 180) < 0.1
     # It parses back as the same scenario (its starts apart, on the arena, off the boxes).
     assert parse_scenario(scenario_toml(fleet), "<fleet>").starts == fleet.starts
 

@@ -13,7 +13,8 @@ only past another's is a pocket: with its neighbour home, a rover could neither 
 home; a site in another's way shuts it while that rover is there). Spots are tried in a row
 through the base, across the way to the target, nearest first on alternate sides, so that each
 berth is reached from in front without passing another (rings round the base let parked rovers
-wall one in); rows turned from straight across, and the sites' rows, in turn, until one passes.
+wall one in); rows turned from straight across, on one side only, then wider apart, and the sites'
+rows, in turn, until one passes (at most MAX_LAYOUTS pairs).
 """
 
 from __future__ import annotations
@@ -32,6 +33,11 @@ from ..scenario import Pose, Scenario, Target
 SPACING_M = 0.40
 #: The row's turns from straight across the way, tried in turn [deg].
 ROW_TURNS_DEG = (0, 20, -20, 40, -40, 60, -60)
+KIND_NONE = (SPACING_M, (1, -1))  # the scenario names them all already
+#: Rows tried after those SPACING_M apart [m].
+WIDE_SPACING_M = 0.55
+#: At most this many pairs of a row of starts and a row of sites are checked (each plans 3 ways a rover).
+MAX_LAYOUTS = 300
 
 
 class FleetPlacementError(InputError):
@@ -39,29 +45,32 @@ class FleetPlacementError(InputError):
 
 
 def _rows(centre, towards, count: int, grid: OccupancyGrid, taken=()):
-    """Rows of `count` free spots through `centre`, across the way to `towards`, SPACING_M apart,
-    nearest first and on alternate sides (each is reached from the way in front without passing
-    another's: rings round the base let parked rovers wall one in): straight across first, then
-    turned by each of ROW_TURNS_DEG in turn."""
+    """Rows of `count` free spots through `centre`, across the way to `towards`, nearest first
+    (each is reached from the way in front without passing another's: rings round the base let
+    parked rovers wall one in): SPACING_M apart on alternate sides, straight across first, then
+    turned by each of ROW_TURNS_DEG in turn; then the same on one side only, then all of it
+    WIDE_SPACING_M apart (a neighbour at SPACING_M on each side may hem in the rover between)."""
     way = math.atan2(towards[1] - centre[1], towards[0] - centre[0])
-    for turn_deg in ROW_TURNS_DEG:
-        a = way + math.pi / 2 + math.radians(turn_deg)
-        across = (math.cos(a), math.sin(a))
-        chosen = [tuple(centre)] + list(taken)
-        out = []
-        for i in range(1, 4 * count + 1):
-            if len(out) == count:
-                break
-            step = (i + 1) // 2 * SPACING_M * (1 if i % 2 else -1)
-            p = (centre[0] + across[0] * step, centre[1] + across[1] * step)
-            if not grid.contains(*p) or not grid.is_free(*p):
-                continue
-            if any(math.dist(p, q) < SPACING_M - 1e-9 for q in chosen):
-                continue
-            chosen.append(p)
-            out.append(p)
-        if len(out) == count:
-            yield out
+    for spacing in (SPACING_M, WIDE_SPACING_M):
+        for sides in ((1, -1), (1,), (-1,)):
+            for turn_deg in ROW_TURNS_DEG:
+                a = way + math.pi / 2 + math.radians(turn_deg)
+                across = (math.cos(a), math.sin(a))
+                chosen = [tuple(centre)] + list(taken)
+                out = []
+                for i in range(4 * count):
+                    if len(out) == count:
+                        break
+                    step = (i // len(sides) + 1) * spacing * sides[i % len(sides)]
+                    p = (centre[0] + across[0] * step, centre[1] + across[1] * step)
+                    if not grid.contains(*p) or not grid.is_free(*p):
+                        continue
+                    if any(math.dist(p, q) < SPACING_M - 1e-9 for q in chosen):
+                        continue
+                    chosen.append(p)
+                    out.append(p)
+                if len(out) == count:
+                    yield (spacing, sides), out
 
 
 def _ways(out: Scenario, rovers: int, grid: OccupancyGrid) -> str | None:
@@ -101,7 +110,7 @@ def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None
     # hard on its berth by a wall may be refused the turn and back out blind, into the wall: arena
     # 45, rover 2, 28.9 s, facing the start's 45 deg with the wall 0.19 m behind it).
     tx, ty = scenario.target.xy
-    start_rows = [[]]
+    start_rows = [(KIND_NONE, [])]
     need = rovers - len(scenario.starts)
     if need > 0:
         start_rows = list(
@@ -109,22 +118,29 @@ def fleet_scenario(scenario: Scenario, rovers: int, config: PlannerConfig | None
         )
         if not start_rows:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} starts round the base")
-    site_rows = [[]]
+    site_rows = [(KIND_NONE, [])]
     need = rovers - len(scenario.sites)
     if need > 0:
         site_rows = list(_rows(scenario.target.xy, scenario.start.xy, need, grid, [p.xy for p in scenario.more_sites]))
         if not site_rows:
             raise FleetPlacementError(f"{scenario.name}: no room for {rovers} sites round the target")
     why = None
-    for starts in start_rows:
-        for sites in site_rows:
-            out = dataclasses.replace(
-                scenario,
-                more_starts=tuple(scenario.more_starts)
-                + tuple(Pose(round(x, 3), round(y, 3), _facing((x, y), (tx, ty))) for x, y in starts),
-                more_sites=tuple(scenario.more_sites) + tuple(Target(round(x, 3), round(y, 3)) for x, y in sites),
-            )
-            why = _ways(out, rovers, grid)
-            if why is None:
-                return out
+    # The rows of each kind (spacing, sides) in the order _rows gives them: a layout of two kinds
+    # comes after every layout of kinds before both (the first kind's layouts are the old ones).
+    kinds = [(SPACING_M, (1, -1)), (SPACING_M, (1,)), (SPACING_M, (-1,))]
+    kinds += [(WIDE_SPACING_M, k) for _, k in kinds]
+    layouts = sorted(
+        ((a, b) for a in start_rows for b in site_rows),
+        key=lambda ab: max(kinds.index(ab[0][0]), kinds.index(ab[1][0])),
+    )[:MAX_LAYOUTS]
+    for (_, starts), (_, sites) in layouts:
+        out = dataclasses.replace(
+            scenario,
+            more_starts=tuple(scenario.more_starts)
+            + tuple(Pose(round(x, 3), round(y, 3), _facing((x, y), (tx, ty))) for x, y in starts),
+            more_sites=tuple(scenario.more_sites) + tuple(Target(round(x, 3), round(y, 3)) for x, y in sites),
+        )
+        why = _ways(out, rovers, grid)
+        if why is None:
+            return out
     raise FleetPlacementError(f"{scenario.name}: no base for {rovers} rovers: {why}")
