@@ -128,6 +128,18 @@ def link_key(cfg, config_path: str | None) -> bytes | None:
     return load_key_file(key_path)
 
 
+def read_frame(cap, t0: float, runlog=None):
+    """The camera's next frame: (ok, frame, now), now in seconds since t0 (time.monotonic()); the run
+    log (a RunLog, or a fleet's FleetRunLog) told the time and given the frame."""
+    ok, frame = cap.read()
+    now = time.monotonic() - t0
+    if runlog is not None:
+        runlog.set_time(now)
+        if ok:
+            runlog.camera_image(now, frame)
+    return ok, frame, now
+
+
 def default_log_path() -> Path:
     """run-YYYYMMDD-HHMMSS.mcap in the current folder (-2, -3, ... after it when a run of the same
     second has that name already: no run's log is written over another's)."""
@@ -239,12 +251,7 @@ def run_hardware(
         next_status_s = STATUS_LINE_S
         try:
             while not mission.finished and time.monotonic() - t0 < max_time_s:
-                ok, frame = cap.read()
-                now = time.monotonic() - t0
-                if runlog is not None:
-                    runlog.set_time(now)
-                    if ok:
-                        runlog.camera_image(now, frame)
+                ok, frame, now = read_frame(cap, t0, runlog)
                 if ok:
                     det = locator.locate(frame, now)
                     if det.rover is not None:

@@ -123,12 +123,7 @@ def run_fleet_hardware(
         t0 = time.monotonic()
         try:
             while not host.finished and time.monotonic() - t0 < max_time_s:
-                ok, frame = cap.read()
-                now = time.monotonic() - t0
-                if runlog is not None:
-                    runlog.set_time(now)
-                    if ok:
-                        runlog.shared.camera_image(now, frame)
+                ok, frame, now = hardware.read_frame(cap, t0, runlog)
                 if ok:
                     host.on_seen(locator.locate(frame, now), now, now)
                 host.tick(now)

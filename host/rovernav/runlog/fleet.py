@@ -76,6 +76,10 @@ class FleetRunLog:
         for r in self.rovers:
             r.set_time(t_s)
 
+    def camera_image(self, t_s: float, frame_bgr) -> None:
+        """A camera frame, in the fleet's one camera channel (kept when the image rate allows)."""
+        self.shared.camera_image(t_s, frame_bgr)
+
     def close(self, summary: dict | None = None) -> None:
         """The rovers' last driven paths, then the file closed and renamed into place."""
         for r in self.rovers:

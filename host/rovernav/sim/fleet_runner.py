@@ -353,7 +353,7 @@ class FleetSimulation:
                 if self.frame_sink is not None:
                     self.frame_sink(now, frame)
                 if self.runlog is not None:
-                    self.runlog.shared.camera_image(now, frame)
+                    self.runlog.camera_image(now, frame)
         processed = False
         while self._pending and self._pending[0][0] + self.opt.camera_latency_s <= now + 1e-9:
             taken, frame = self._pending.popleft()
