@@ -528,3 +528,29 @@ def test_the_strategies_use_only_what_the_mission_view_declares_and_the_mission_
     mission, _rover, _notes = _setup_with(ScriptedRover)
     assert all(hasattr(type(mission), name) or hasattr(mission, name) for name in declared - {"current_leg"})
     assert isinstance(inspect.getattr_static(Mission, "current_leg"), property)
+
+
+def test_a_rover_let_go_where_it_was_held_resumes_without_a_sweep_and_one_carried_off_starts_anew():
+    # A fleet's hold (STOP) and let-go (a path from where it stands, START) against the firmware
+    # core: START's resume is 1 only when the camera saw the rover stand still since the hold, on a
+    # leg it had started; then the rover goes on without the sweep a START otherwise begins with.
+    mission, rover, notes = _setup()
+    t = _run(mission, rover, 1.0)
+    assert mission.phase is Phase.RUN and rover.state == mg.RoverState.SCAN  # a new START sweeps first
+    assert rover.of(mg.Start)[-1].resume == 0
+    mission.hold(t, "rover 2 is in the way")
+    t = _run(mission, rover, 1.0, t0=t)
+    assert rover.state == mg.RoverState.IDLE
+    mission.let_go(t)
+    t = _run(mission, rover, 2.0, t0=t)
+    start = rover.of(mg.Start)[-1]
+    assert start.path_id == mission.path_id and start.resume == 1
+    assert rover.state in (mg.RoverState.ROTATE, mg.RoverState.DRIVE)  # on at once, no sweep
+    # Held again, and carried 0.3 m off while it waits: it starts anew, looking first.
+    mission.hold(t, "rover 2 is in the way")
+    t = _run(mission, rover, 1.0, pose=(0.6, 0.3, 0.0), t0=t)
+    mission.let_go(t)
+    t = _run(mission, rover, 2.0, pose=(0.6, 0.3, 0.0), t0=t)
+    start = rover.of(mg.Start)[-1]
+    assert start.path_id == mission.path_id and start.resume == 0
+    assert rover.state == mg.RoverState.SCAN

@@ -195,14 +195,16 @@ void Rover::on_start(const msg::Start& m, uint8_t seq) {
   mission_.active = true;
   mission_.wp = 0;
   mission_.pick_target = true;
-  detour_.forget();   // the rover may have been carried since: what it remembers is of elsewhere
   // sonar_.sweep_distance_mm carries over: "every 0.3 m travelled" counts across missions too.
-  // Look before the first turn: something beside the rover would be hit by its corners as it turns.
-  if (params_.sweep_at_start()) {
-    start_sweep();
-  } else {
-    enter(RoverState::Rotate);
+  // Going on from where the host stopped it, standing still since (the host's camera saw it):
+  // what it remembers is of here, and it swept on this leg. Else it may have been carried since:
+  // what it remembers is of elsewhere, and it looks before the first turn (something beside the
+  // rover would be hit by its corners as it turns).
+  if (m.resume == 0) {
+    detour_.forget();
+    if (params_.sweep_at_start()) return start_sweep();
   }
+  enter(RoverState::Rotate);
 }
 
 void Rover::on_stop(const msg::Stop& m, uint8_t seq) {

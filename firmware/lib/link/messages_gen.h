@@ -9,7 +9,7 @@
 namespace rovernav {
 
 enum : uint8_t { kProtocolVersion = 1 };
-static const uint32_t kSchemaHash = 0x382FB40CUL;
+static const uint32_t kSchemaHash = 0x32AA2387UL;
 enum : uint8_t {
   kMaxPayload = 45,
   kMaxRawFrame = 50,  // header + payload + CRC
@@ -401,8 +401,9 @@ static_assert(sizeof(Path) == Path::kPayloadSize, "path: its layout is its paylo
 
 /// Follow the complete path with this id. (host to rover)
 struct Start {
-  enum : uint8_t { kId = 0x05, kPayloadSize = 2 };
+  enum : uint8_t { kId = 0x05, kPayloadSize = 3 };
   wire::u16le path_id;  ///< must match the path held
+  uint8_t resume;  ///< 1: the rover goes on from where the host stopped it (STOP replanning, a fleet's hold) and has stood still since, seen by the camera: it keeps what its sonar remembers and begins without sweep_at_start's sweep (it swept on this leg; its turns still look and check their room); 0: a new start, its memory forgotten
   /// Writes kPayloadSize bytes to p.
   void encode(uint8_t* p) const { wire::copy(p, this, kPayloadSize); }
   /// Reads kPayloadSize bytes from p.
@@ -560,7 +561,7 @@ static const uint8_t kPayloadSizes[14][2] ROVERNAV_PROGMEM = {
   {0x02, 9},  // heartbeat
   {0x03, 11},  // fix
   {0x04, 38},  // path
-  {0x05, 2},  // start
+  {0x05, 3},  // start
   {0x06, 1},  // stop
   {0x07, 5},  // config
   {0x08, 18},  // provision

@@ -201,3 +201,48 @@ TEST_CASE("a sharp turn soon after a sweep that looked the other way is looked r
   REQUIRE(same.run_until([&] { return same.rover.state() == RoverState::Arrived; }, 60000));
   CHECK(same.events(EventKind::ScanDone) == 1);
 }
+
+namespace {
+/// STOP (as a fleet's host holds a rover), a path from where it stands, and START with `resume`.
+void stop_and_start_again(Bench& b, const core::Waypoint* wps, uint8_t n, uint16_t path_id, uint8_t resume) {
+  msg::Stop st{};
+  st.reason = static_cast<uint8_t>(StopReason::Replanning);
+  b.send(st);
+  b.run_ms(500);
+  REQUIRE(b.rover.state() == RoverState::Idle);
+  b.load_path(path_id, wps, n);
+  msg::Start s{};
+  s.path_id = path_id;
+  s.resume = resume;
+  b.send(s);
+}
+}  // namespace
+
+TEST_CASE("a START that resumes after the host's STOP goes on without a sweep, its memory kept; a new START sweeps first") {
+  // Facing north with a box ahead and to the right, in the start's sweep and within reach of the
+  // corners: the first path runs north, clear of it (no turn); the host stops the rover at once.
+  for (int k = 0; k < 2; ++k) {
+    const uint8_t resume = k == 0 ? 1 : 0;
+    CAPTURE(resume);
+    Bench b;
+    b.without_periodic_sweeps();
+    b.heartbeats = true;
+    b.set_box(300.0f + 85.0f + 100.0f, 300.0f + 70.0f + 100.0f, 200.0f, 200.0f);
+    b.start_mission(kNorth, 2);
+    REQUIRE(b.run_until([&] { return b.events(EventKind::ScanDone) > 0; }, 10000));
+    const int scans = b.events(EventKind::ScanDone);
+    // Then due south from where it stands: a half turn that would swing a corner into the box.
+    const core::Waypoint south[] = {{300, 300}, {300, 50}};
+    stop_and_start_again(b, south, 2, 2, resume);
+    bool swept = false;
+    REQUIRE(b.run_until([&] {
+      swept = swept || b.rover.state() == RoverState::Scan;
+      return b.rover.state() == RoverState::BackOff || b.rover.state() == RoverState::Arrived;
+    }, 30000));
+    // Either way it backs out before the turn: resumed, on what it remembers of the first sweep
+    // (it swept nothing since); started anew, on what its new sweep saw.
+    CHECK(b.rover.state() == RoverState::BackOff);
+    CHECK(swept == (resume == 0));
+    CHECK(b.events(EventKind::ScanDone) == scans + (resume == 0 ? 1 : 0));
+  }
+}

@@ -12,7 +12,7 @@ from ..vehicle_gen import UART_BUFFER_BYTES  # noqa: F401  (a vehicle fact; the 
 from .schema import FieldSpec, Message, ParamSpec
 
 PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0x382FB40C
+SCHEMA_HASH = 0x32AA2387
 # Signed frames ([signing] in protocol/messages.toml)
 SIGN_FLAG = 0x80
 SIGN_COUNTER_BYTES = 6
@@ -384,12 +384,14 @@ class Start(Message):
     ID: ClassVar[int] = 0x05
     NAME: ClassVar[str] = 'start'
     DIRECTION: ClassVar[str] = 'host_to_rover'
-    STRUCT: ClassVar[struct.Struct] = struct.Struct('<H')
+    STRUCT: ClassVar[struct.Struct] = struct.Struct('<HB')
     FIELDS: ClassVar[tuple[FieldSpec, ...]] = (
         FieldSpec('path_id', 'u16', 0, '', 'must match the path held'),
+        FieldSpec('resume', 'u8', 0, '', "1: the rover goes on from where the host stopped it (STOP replanning, a fleet's hold) and has stood still since, seen by the camera: it keeps what its sonar remembers and begins without sweep_at_start's sweep (it swept on this leg; its turns still look and check their room); 0: a new start, its memory forgotten"),
     )
 
     path_id: int = 0
+    resume: int = 0
 
 
 @dataclasses.dataclass

@@ -343,7 +343,7 @@ class Mission(RoverFrames, LegControl, FleetControl):
                 if self._start_sent_for != self.path_id:
                     if self.hold_start is None or not self.hold_start(now_s):
                         self._start_sent_for = self.path_id
-                        self._request(mg.Start(path_id=self.path_id))
+                        self._request(mg.Start(path_id=self.path_id, resume=self.start_resumes()))
                 elif self._start_acked_for == self.path_id:
                     self._set_phase(Phase.RUN)
             elif self._waited_s(now_s) > d.load_s and not self._silent():

@@ -18,6 +18,10 @@ from ..link import messages_gen as mg
 from .legs import path_length_m
 from .phases import Phase
 
+#: A held rover seen within this of where it was when held has stood still since [m] (the STOP
+#: reaches it in its next slot, up to 0.3 s later: at 0.15 m/s it coasts ~5 cm; a rover carried
+#: elsewhere is moved further).
+STOOD_STILL_M = 0.10
 #: A detection older than this is not sent as a FIX in a slot [s] (the camera's latency is 60 ms).
 SLOT_FIX_MAX_AGE_S = 0.25
 
@@ -36,6 +40,9 @@ class FleetControl:
     _aside_goal: tuple[float, float] | None = None  # where the rover is on its way to, out of another's way
     _aside_done = False
     _last_poll = "heartbeat"  # what the last slot's poll was
+    _held_xy: tuple[float, float] | None = None  # where a rover held on a leg it had started stood then
+    #: The path id whose START goes on from where a hold stopped the rover (START's resume: no sweep first).
+    _resume_path_id: int | None = None
     _held_rest: list = []  # the waypoints the rover had still to reach when it was held  # ... it is there: when let go, its leg is planned afresh
     #: True (a fleet's rover): arrived home from its last leg, the rover waits there, its leg kept
     #: open, until `release_park` (every rover of the fleet has done its trips): while it waits it
@@ -110,6 +117,7 @@ class FleetControl:
         self._now = now_s
         self._held_rest = self.remaining_path()[1:]
         self._held_since = now_s
+        self._held_xy = self.rover_xy() if self.phase is Phase.RUN else None
         self.holds += 1
         self.upload = None
         for pending in self.requests:
@@ -148,8 +156,21 @@ class FleetControl:
                 return
         if self.parked:  # out of another's way and back home: a drive of its own, with its own deadline
             leg.deadline_s = now_s + self.deadlines.leg_s(path_length_m(path))
+        resume = self._stood_still() and not aside and not self.parked
         self.strategy.start_leg(self, path)
+        self._resume_path_id = self.path_id if resume else None
         self._aside_goal = tuple(path[-1]) if aside else None
+
+    def _stood_still(self) -> bool:
+        """Whether the rover, held on a leg it had started (and swept on), is where it stood then
+        (the camera's word): its START goes on from there without a sweep first (START's resume).
+        A sweep a hold interrupted is still due: the rover's own count of the distance since its
+        last sweep asks for it at its first step on."""
+        return self._held_xy is not None and math.dist(self._held_xy, self.rover_xy()) <= STOOD_STILL_M
+
+    def start_resumes(self) -> int:
+        """START's resume for the path being started (1: it goes on from a hold, see _stood_still)."""
+        return int(self._resume_path_id is not None and self._resume_path_id == self.path_id)
 
     def steering_goal(self) -> tuple[float, float]:
         """Where the rover's path leads: its leg's goal, or the spot it is on its way to out of
