@@ -19,6 +19,7 @@ from rovernav.planning.turns import (
     body_clear,
     clearance_map,
     half_seen,
+    room_behind,
     turn_deg,
     turnable,
 )
@@ -202,3 +203,17 @@ def test_no_room_to_turn_where_the_rover_stands_puts_a_point_straight_ahead_firs
     assert ahead_first(g, [start, (1.5, 1.95)], heading, hidden)[1] == 0
     g.add_wall(1.90, 1.5, 1.90, 2.3, 0.02)
     assert ahead_first(g, path, heading, hidden) == (path, -1)
+
+
+def test_the_host_asks_a_rover_to_back_out_only_where_its_map_has_room_straight_behind_it():
+    # Facing east at (1.0, 0.6) in an empty arena: room to back out 0.15 m west. A box whose face
+    # stands 0.20 m behind its centre (the tail 0.105 m behind it, backed 0.15 m: 0.255 m) is in
+    # the way; 0.30 m behind, it is not. Facing west, the same box is ahead: room behind.
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    assert room_behind(g, (1.0, 0.6), 90.0)
+    g.add_box(0.70, 0.6, 0.20, 0.30)  # x 0.60..0.80: its face 0.20 m behind
+    assert not room_behind(g, (1.0, 0.6), 90.0)
+    assert room_behind(g, (1.10, 0.6), 90.0)  # its face 0.30 m behind
+    assert room_behind(g, (1.0, 0.6), -90.0)
+    # Backing past the arena's wall is no room either.
+    assert not room_behind(g, (2.20, 0.6), -90.0)

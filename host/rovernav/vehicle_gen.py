@@ -16,6 +16,11 @@ BODY_WIDTH_MM = 150
 #: the distance between the two driven wheels (a turn on the spot's rate per wheel-speed difference)
 WHEEL_TRACK_MM = 130
 
+#: how far the rover backs out at most before a turn on the spot its corners have no room for (state
+#: back_off; the whole way when the host's PATH says back_out); the host asks it to only where its
+#: map leaves that much room behind
+BACK_OFF_MM = 150
+
 #: the HC-SR04 driver's last echo: a longer one is no echo (the rover measures nothing past it, so
 #: it may report nothing as clear past it)
 SONAR_MAX_RANGE_MM = 1000
@@ -48,6 +53,7 @@ FACTS: dict[str, int] = {
     'body_length_mm': BODY_LENGTH_MM,
     'body_width_mm': BODY_WIDTH_MM,
     'wheel_track_mm': WHEEL_TRACK_MM,
+    'back_off_mm': BACK_OFF_MM,
     'sonar_max_range_mm': SONAR_MAX_RANGE_MM,
     'sonar_cone_cdeg': SONAR_CONE_CDEG,
     'sonar_offset_mm': SONAR_OFFSET_MM,

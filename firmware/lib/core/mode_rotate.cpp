@@ -65,6 +65,7 @@ bool Rover::mode_rotate(float err, float l, float dt_s, Outputs& out) {
 
 // The gyro PID's turn on the spot towards an error of err degrees.
 void Rover::turn_on_spot(float err, float dt_s, Outputs& out) {
+  motion_.track_is_segment = false;
   motion_.turned_mm = 0.0f;   // where it last turned: backing out retraces the drive since
   const float out_max = params_.pid_out_max_pwm();
   float u = heading_command(err, dt_s);
@@ -97,28 +98,35 @@ ROVERNAV_NOINLINE void Rover::heading_q8(int16_t& fx_q8, int16_t& fy_q8) const {
   fy_q8 = static_cast<int16_t>(256.0f * cosf(h));
 }
 
-// Backing out: straight back, holding the heading, the way the rover came (the only ground it
-// knows is clear behind it), until its corners can swing clear of what the sweep saw, or for
-// kBackOffMaxMm at most; then the turn it put off. A rover that has turned on the spot since it
-// last drove a while would back over ground no part of it has been on: it first backs over what
-// it has driven since that turn, back to where it turned, then turns back onto its track there
-// (its corners sweep what they swept turning off it), then backs out along it. (Turning back
-// where it stands, off that spot, turned a corner into a box: seed 1's arena 119.)
+// Backing out: straight back, holding the heading, until its corners can swing clear of what the
+// sweep saw, or for kBackOffMaxMm at most; then the turn it put off. On its own check it backs
+// over the ground it drove: first what it drove since its last turn on the spot, back to where it
+// turned. If that drive was its track (the way it last drove a while), the ground beyond is
+// ground it never drove: it stops there and turns (backing on past it backed a fleet's rover into
+// a box's corner behind it, fleet seeds 2 and 3). If it had turned off its track there, it turns
+// back onto the track (its corners sweep what they swept turning off it) and backs along it
+// (turning back where it stood, off that spot, turned a corner into a box: seed 1's arena 119).
+// A rover that has driven no track since it was switched on knows no ground: it backs straight
+// out, blind. On the host's word (PATH back_out) it backs straight out the whole way: the host
+// asks only where its map has room straight behind the rover.
 void Rover::back_off(float dt_s, Outputs& out) {
   const Params& p = params_;
-  if (motion_.track_known && motion_.back_off_mm >= motion_.turned_mm) {
+  const bool told = motion_.back_out != 0;
+  if (!told && motion_.track_known && motion_.back_off_mm >= motion_.turned_mm) {
+    const bool retraced = motion_.track_is_segment;
     const float off = rad_to_deg(wrap_rad(motion_.track_rad - odometry_.est.heading_rad()));
-    if (fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
+    if (!retraced && fabsf(off) > static_cast<float>(kBackOffTrackDeg)) {
       turn_on_spot(off, dt_s, out);
       return;
     }
+    if (retraced) motion_.back_off_mm = static_cast<float>(kBackOffMaxMm);   // where it turned onto its track: no further
   }
   add_to(motion_.back_off_mm, drive_speed_mm_s() * dt_s);
   // Room is looked for in the steps without a FIX (as the turn's check above); backing out goes on.
   const bool fix_step = (step_.work & kWorkFix) != 0;
   if (fix_step) step_.defer();
   // Asked by the host, it backs out the whole way: its own check would find room at once.
-  if ((!fix_step && motion_.back_out == 0 && room_to_turn()) || at_least(motion_.back_off_mm, static_cast<float>(kBackOffMaxMm))) {
+  if ((!fix_step && !told && room_to_turn()) || at_least(motion_.back_off_mm, static_cast<float>(kBackOffMaxMm))) {
     motion_.back_out = 0;
     enter(RoverState::Rotate);
     motion_.rotate_checked = true;

@@ -27,6 +27,7 @@ struct MotionState {
   uint8_t back_out = 0;                  ///< the host's PATH: back out the whole way before the next turn on the spot
   bool rotate_checked : 1;               ///< this rotation's start was checked for room to swing
   bool track_known : 1;                  ///< track_rad holds a heading it drove at
+  bool track_is_segment : 1;             ///< ... the heading of the drive since its last turn on the spot
 
   void commanded(int16_t left_pwm, int16_t right_pwm) {
     left_cmd = left_pwm;
@@ -38,6 +39,7 @@ struct MotionState {
   void on_track(float heading_rad) {
     track_rad = heading_rad;
     track_known = true;
+    track_is_segment = true;
   }
   /// PATH's back_out: a turn on the spot still to be checked is checked again.
   void host_back_out(uint8_t back) {

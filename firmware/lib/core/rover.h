@@ -90,7 +90,7 @@ class Rover : private RoverFields {
     // the rover, into that swing. An echo within kSwingMm of the centre (less its arc) counts as
     // within reach: one abeam of the sonar up to 150 mm off its axis (sqrt(100^2 + 150^2) - arc).
     kSwingMm = 175,
-    kBackOffMaxMm = 150,        // backing out stops after this much, cleared or not
+    kBackOffMaxMm = kBackOffMm,  // backing out stops after this much, cleared or not (protocol/vehicle.toml)
     kBackOffMinTurnDeg = 20,    // smaller turns than this barely swing the corners
     kBackOffTrackDeg = 15,      // backing out turns back onto the track first when this far off it
     kTrackAfterMs = 400,        // the heading is the track once the rover has driven this long

@@ -15,6 +15,10 @@ constexpr uint16_t kBodyWidthMm = 150;
 /// the distance between the two driven wheels (a turn on the spot's rate per wheel-speed
 /// difference)
 constexpr uint16_t kWheelTrackMm = 130;
+/// how far the rover backs out at most before a turn on the spot its corners have no room for
+/// (state back_off; the whole way when the host's PATH says back_out); the host asks it to only
+/// where its map leaves that much room behind
+constexpr uint16_t kBackOffMm = 150;
 /// the HC-SR04 driver's last echo: a longer one is no echo (the rover measures nothing past it, so
 /// it may report nothing as clear past it)
 constexpr uint16_t kSonarMaxRangeMm = 1000;

@@ -493,3 +493,39 @@ TEST_CASE("a rover refused a turn after a short drive backs straight over that d
   CHECK(fabsf(b.plant.x_mm - 300.0f) < 40.0f);
   CHECK_FALSE(touched);
 }
+
+TEST_CASE("a rover refused a turn on its track backs out no further than it drove along it") {
+  // North from (300, 300) to (300, 600), then east: it turns east on the spot at (300, 600) and
+  // drives on, long enough for east to be its track. Then every ping answers 100 mm: the reflex
+  // stops it, and the sweep sees a face ahead and on both sides, abeam too (taken to run back
+  // alongside it: no room to turn while it is beside). Sent back west, it has no room to turn:
+  // it backs west over what it drove east, to where it turned, and no further: behind that
+  // spot lies ground it never drove (a fleet's rover backed on past it into a box's corner).
+  // Backing the whole 150 mm would have taken it 80 mm past the spot.
+  Bench b;
+  b.without_periodic_sweeps();
+  b.heartbeats = true;
+  const core::Waypoint wps[] = {{300, 300}, {300, 600}, {900, 600}};
+  b.start_mission(wps, 3);
+  REQUIRE(b.run_until([&] { return b.plant.x_mm >= 370.0f; }, 30000));
+  REQUIRE(b.rover.state() == RoverState::Drive);
+  b.sonar_range_mm = 100;
+  REQUIRE(b.run_until([&] { return b.rover.state() == RoverState::Blocked; }, 10000));
+  const float x0 = b.plant.x_mm, y0 = b.plant.y_mm;
+  MESSAGE("drove " << x0 - 300.0f << " mm east");
+  REQUIRE(x0 - 150.0f < 300.0f - 50.0f);
+  const core::Waypoint back[] = {{static_cast<int16_t>(x0), static_cast<int16_t>(y0)}, {100, 600}};
+  b.load_path(2, back, 2);
+  bool backed = false;
+  float least_x = 1e9f;
+  REQUIRE(b.run_until([&] {
+    if (b.rover.state() == RoverState::BackOff) {
+      backed = true;
+      least_x = fminf(least_x, b.plant.x_mm);
+    }
+    return backed && b.rover.state() != RoverState::BackOff;
+  }, 20000));
+  MESSAGE("least x " << least_x);
+  CHECK(least_x < x0 - 40.0f);   // back over its drive ...
+  CHECK(least_x > 300.0f - 25.0f);   // ... to where it turned (its model of speed runs a little ahead), not 150 mm
+}

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import ahead_first, half_seen, turnable
+from ..planning.turns import ahead_first, half_seen, room_behind, turnable
 
 #: How far from a goal that an echo's arc covers the last tries may end their plan [m].
 GOAL_SHIFT_M = 0.06
@@ -115,11 +115,13 @@ def plan_leg(
                     path, ahead = ahead_first(grid, path, heading, hidden)
                     if ahead > 0:
                         say("no room to turn where the rover stands: it drives straight on to turn first")
-                    elif ahead < 0:
+                    elif ahead < 0 and room_behind(grid, path[0], heading, hidden):
                         # Its own memory may have let go of what the map holds: the path
                         # asks it to back out the way it came before it turns (PATH back_out).
                         path = PlannedPath(path, back_out=True)
                         say("no room to turn where the rover stands, none straight ahead: it backs out first")
+                    elif ahead < 0:
+                        say("no room to turn where the rover stands, none straight ahead or behind: it turns there")
                 return path, None
     return None, reason
 

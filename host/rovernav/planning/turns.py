@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
-from ..vehicle_gen import BODY_LENGTH_MM, BODY_WIDTH_MM
+from ..vehicle_gen import BACK_OFF_MM, BODY_LENGTH_MM, BODY_WIDTH_MM
 from .grid import OccupancyGrid
 
 #: The corners' reach from the centre as the rover turns on the spot [m]: the half-diagonal.
@@ -230,6 +230,29 @@ def ahead_first(
         if _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
             return [p0, q] + pts[1:], 1
     return pts, -1
+
+
+def room_behind(grid: OccupancyGrid, p: Sequence[float], heading_deg: float, hidden: np.ndarray | None = None) -> bool:
+    """Whether the rover, standing at p facing heading_deg, can back straight out the whole
+    back-off distance (BACK_OFF_MM) without its body meeting what the grid holds (known and
+    seen, and `hidden`): its centre line keeps the body's half width clear, out to its tail at
+    the end (or, where the rover already stands nearer than that, no less than where it stands). The host asks for a back-out (PATH back_out) only then: twice
+    the rover backed the whole way on the host's word into a known box behind it (fleet seeds 2
+    and 3)."""
+    res = grid.resolution_m
+    if not grid.contains(*p):
+        return False
+    clear = clearance_map(grid, reach_m=BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M + res, hidden=hidden)
+    side = min(BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M, _room(clear, grid, p))
+    h = math.radians(heading_deg)
+    ux, uy = math.sin(h), math.cos(h)
+    # Disks of radius `side` along the centre line cover the body's swath, out to its tail (and the margin) at the end.
+    reach_m = (BACK_OFF_MM + BODY_LENGTH_MM / 2) / 1000.0 + SWING_MARGIN_M - side
+    for k in range(1, int(math.ceil(reach_m / res)) + 1):
+        q = (p[0] - k * res * ux, p[1] - k * res * uy)
+        if not grid.contains(*q) or _room(clear, grid, q) < side:
+            return False
+    return True
 
 
 def _nearest_room(
