@@ -6,10 +6,13 @@ half-duplex radio, each between its start at the base and its site, round trip a
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
-                 each, rover 1 alone on the same arena (a fleet of one, the same radio discipline)
-                 and the lone rover of `rovernav sim` (its own radio, no slots): trips an hour, the
-                 fleet's over one rover's, contacts, runs stuck (a deadlock: no leg done for 150 s
-                 and no rover moved 0.2 m in 60 s, or no leg done for 450 s).
+                 each, one rover alone on each of the three rovers' routes (a fleet of one, the same
+                 radio discipline: TRIPS round trips from that rover's berth to its site) and the
+                 lone rover of `rovernav sim` on rover 1's (its own radio, no slots): trips an hour,
+                 and the fleet's over one rover's doing the fleet's trips (the three routes' times
+                 added: the same work, one rover) and over one rover's on rover 1's route; contacts,
+                 runs stuck (a deadlock: no leg done for 150 s and no rover moved 0.2 m in 60 s, or
+                 no leg done for 450 s).
   arenas         ARENAS generated arenas (`rovernav arenas --count 200 --seed 1`, sampled evenly,
                  the solvable ones with a base for 3 rovers), each given starts and sites for 3 rovers
                  (evaluation/fleet_arenas.py), ARENA_TRIPS round trips each: trips done of asked,
@@ -17,8 +20,8 @@ Two parts, each printed as a table with the command's figures:
 
 --radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 %; --uno
 makes rover 1 the Uno image in simavr (its worst step is printed). Exit status 1 when an
-acceptance figure is missed: 0 contacts and 0 stuck anywhere, throughput >= 2.5x one rover's on
-every seed, >= 99 % of the arenas' trips.
+acceptance figure is missed: 0 contacts and 0 stuck anywhere, throughput >= 2.5x one rover's doing
+the same trips on every seed, >= 99 % of the arenas' trips.
 """
 
 from __future__ import annotations
@@ -43,14 +46,22 @@ TRIPS_GOAL = 0.99
 
 
 def run_fleet(job: tuple) -> dict:
-    scenario, rovers, seed, trips, radio, uno = job
+    """A fleet of `rovers` on `scenario`; with `route` k (a fleet of one), one rover alone on rover
+    k's route: from the scenario's start k to its site k."""
+    scenario, rovers, seed, trips, radio, uno, route = job
     sys.path.insert(0, str(ROOT / "host"))
+    import dataclasses
+
     from rovernav.evaluation.fleet_arenas import FleetPlacementError, fleet_scenario
     from rovernav.radio import ChannelConfig
     from rovernav.scenario import load_scenario
     from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
 
     sc = load_scenario(scenario)
+    if route is not None:
+        starts, sites = list(sc.starts), list(sc.sites)
+        start, site = starts.pop(route), sites.pop(route % len(sites))
+        sc = dataclasses.replace(sc, start=start, target=site, more_starts=tuple(starts), more_sites=tuple(sites))
     try:
         sc = fleet_scenario(sc, rovers)
     except FleetPlacementError as exc:
@@ -72,6 +83,7 @@ def run_fleet(job: tuple) -> dict:
     return {
         "scenario": sc.name,
         "rovers": rovers,
+        "route": route,
         "seed": seed,
         "placed": True,
         "outcome": r["outcome"],
@@ -155,12 +167,14 @@ def main() -> int:
     out: dict = {"radio": a.radio, "uno": a.uno}
     ok = True
     if not a.skip_out_and_back:
-        jobs = [(FLEET, n, s, a.trips, a.radio, a.uno and n == 3) for s in seeds for n in (3, 1)]
+        jobs = [(FLEET, 3, s, a.trips, a.radio, a.uno, None) for s in seeds]
+        jobs += [(FLEET, 1, s, a.trips, a.radio, False, k) for s in seeds for k in range(3)]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)
+            who = "3 rovers" if row["route"] is None else f"1 rover on route {row['route'] + 1}"
             print(
-                f"  {row['scenario']} {row['rovers']} rover(s) seed {row['seed']}: {row['outcome']}, "
+                f"  {row['scenario']} {who} seed {row['seed']}: {row['outcome']}, "
                 f"{row['trips_done']}/{row['trips_asked']} trips in {row['time_s']:.0f} s",
                 file=sys.stderr,
                 flush=True,
@@ -168,29 +182,45 @@ def main() -> int:
         lone = {r["seed"]: r for _, r in map_runs(run_lone, [(s, a.trips, a.radio) for s in seeds], a.jobs)}
         print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
         print(
-            "| seed | 3 rovers | trips/h | 1 rover (fleet of one) | trips/h | ratio | lone `rovernav sim` trips/h | contacts | stuck | holds | air B/s |"
+            "| seed | 3 rovers | trips/h | 1 rover on each route alone (1, 2, 3) | the same trips by 1 rover: trips/h "
+            "| **ratio** | ratio to route 1 alone | lone `rovernav sim` trips/h | contacts | stuck | holds | air B/s |"
         )
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         table = []
         for s in seeds:
-            three = next(r for r in rows if r["seed"] == s and r["rovers"] == 3)
-            one = next(r for r in rows if r["seed"] == s and r["rovers"] == 1)
-            ratio = three["trips_per_hour"] / one["trips_per_hour"] if one["trips_per_hour"] else 0.0
-            table.append({"seed": s, "three": three, "one": one, "lone": lone[s], "ratio": ratio})
+            three = next(r for r in rows if r["seed"] == s and r["route"] is None)
+            solo = [next(r for r in rows if r["seed"] == s and r["route"] == k) for k in range(3)]
+            solo_s = sum(r["time_s"] for r in solo)
+            solo_done = sum(r["trips_done"] for r in solo)
+            one_tph = solo_done * 3600 / solo_s if solo_s else 0.0  # one rover, the fleet's trips one after another
+            ratio = three["trips_per_hour"] / one_tph if one_tph else 0.0
+            route1 = three["trips_per_hour"] / solo[0]["trips_per_hour"] if solo[0]["trips_per_hour"] else 0.0
+            table.append(
+                {"seed": s, "three": three, "solo": solo, "lone": lone[s], "ratio": ratio, "ratio_route1": route1}
+            )
+            solo_text = ", ".join(
+                f"{r['trips_done']}/{r['trips_asked']} in {r['time_s']:.0f} s"
+                + ("" if r["outcome"] == "reached" else f" ({r['outcome']})")
+                for r in solo
+            )
             print(
                 f"| {s} | {three['outcome']} {three['trips_done']}/{three['trips_asked']} in {three['time_s']:.0f} s | "
-                f"{three['trips_per_hour']:.1f} | {one['outcome']} {one['trips_done']}/{one['trips_asked']} in {one['time_s']:.0f} s | "
-                f"{one['trips_per_hour']:.1f} | **{ratio:.2f}x** | {lone[s]['trips_per_hour']:.1f} ({lone[s]['outcome']}) | "
+                f"{three['trips_per_hour']:.1f} | {solo_text} | {one_tph:.1f} | **{ratio:.2f}x** | {route1:.2f}x | "
+                f"{lone[s]['trips_per_hour']:.1f} ({lone[s]['outcome']}) | "
                 f"{three['contacts']} | {int(three['stuck'])} | {three['holds']} | {three['air_bytes_per_s']:.0f} |"
             )
             ok &= three["contacts"] == 0 and not three["stuck"] and ratio >= THROUGHPUT_GOAL
-            ok &= three["trips_done"] == three["trips_asked"]
+            ok &= three["trips_done"] == three["trips_asked"] and all(r["outcome"] == "reached" for r in solo)
         worst = [r["uno_worst_step_us"] for r in rows if r.get("uno_worst_step_us")]
         if worst:
             print(f"rover 1 as the Uno image: worst step {max(worst):.0f} us (goal 5,000)")
             ok &= max(worst) <= 5000
         ratios = [t["ratio"] for t in table]
-        print(f"throughput, 3 rovers over 1: median {statistics.median(ratios):.2f}x (goal {THROUGHPUT_GOAL}x)")
+        print(
+            f"throughput, 3 rovers over 1 rover doing the same trips: median {statistics.median(ratios):.2f}x "
+            f"(goal {THROUGHPUT_GOAL}x); over 1 rover on route 1: median "
+            f"{statistics.median(t['ratio_route1'] for t in table):.2f}x"
+        )
         out["out_and_back"] = table
     if a.arenas:
         # The first ARENAS of the sample that are solvable and have a base for 3 rovers (the others
@@ -203,7 +233,7 @@ def main() -> int:
             (no_room if why else paths).append(why or p)
         for why in no_room:
             print(f"  not run: {why}", file=sys.stderr)
-        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno) for p in paths]
+        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno, None) for p in paths]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)
