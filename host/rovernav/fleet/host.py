@@ -38,8 +38,6 @@ MAP_SHARE_S = 0.5
 #: rover, waiting for its word, sweeps again; measured on fleet-out-and-back, 3 rovers: 19-33
 #: frames dropped a rover and every sweep heard whole at 400 ms a step and STATUS every second,
 #: against 56-135 dropped and sweeps heard in part at 300 ms and every 500 ms).
-#: A fleet rover whose sweeps this many in a row were heard in part sweeps slower (FleetControl.sweep_heard).
-SWEEPS_PART_TO_SLOW = 2
 FLEET_ROVER_PARAMS = (
     (mg.Param.STATUS_PERIOD_MS, 1000),
     (mg.Param.FIX_TIMEOUT_MS, 1000),
@@ -98,7 +96,6 @@ class FleetHost:
         for k, m in enumerate(self.missions):
             m.slot_fixes = True
             m.park_at_end = True
-            m.sweeps_part_to_slow = SWEEPS_PART_TO_SLOW
             m.planning_map = lambda k=k: self.traffic.planning_map(k)
             m.echo_is_rover = lambda reading, k=k: self.traffic.echo_is_rover(k, reading)
         self._map_version = shared.grid.version

@@ -18,9 +18,6 @@ from ..link import messages_gen as mg
 from .legs import path_length_m
 from .phases import Phase
 
-#: How much slower a fleet rover whose sweeps go unheard is asked to sweep, and at most [ms a step].
-SWEEP_SLOWER_MS = 200
-SWEEP_SLOWEST_MS = 1000
 #: A held rover seen within this of where it was when held has stood still since [m] (the STOP
 #: reaches it in its next slot, up to 0.3 s later: at 0.15 m/s it coasts ~5 cm; a rover carried
 #: elsewhere is moved further).
@@ -53,7 +50,6 @@ class FleetControl:
     park_at_end: bool = False
     _parked_at: float | None = None  # when the rover first arrived home from its last leg
     echoes_of_rovers: int = 0
-    sweeps_slowed: int = 0
     holds: int = 0
     held_s: float = 0.0
 
@@ -99,34 +95,6 @@ class FleetControl:
         """A HEARTBEAT now, as the rover's poll."""
         self._now = now_s
         self._send_heartbeat(now_s)
-
-    # ---------------------------------------------------------------- the sweep's pace
-
-    #: A fleet's rover whose sweeps this many in a row were heard in part is asked to sweep slower.
-    sweeps_part_to_slow: int | None = None
-    _sweeps_part_run = 0
-
-    def sweep_heard(self, whole: bool) -> None:
-        """A sweep's SCAN_DONE came: heard whole, or in part. A fleet rover speaks only in its
-        grants; on a lossy radio polls are lost with their frames, the rover's 128-byte TX queue
-        fills faster than its fewer grants empty it, and a sweep's echoes are dropped: the host
-        never hears it whole, the rover, waiting for its word, sweeps again, and can stay there
-        (out-and-back at 1 % loss: 440 s in one spot). After `sweeps_part_to_slow` such sweeps in a
-        row it is asked (CONFIG) to sweep SWEEP_SLOWER_MS a step slower, up to SWEEP_SLOWEST_MS:
-        its readings then come no faster than its grants take them."""
-        self._sweeps_part_run = 0 if whole else self._sweeps_part_run + 1
-        if self.sweeps_part_to_slow is None or self._sweeps_part_run < self.sweeps_part_to_slow:
-            return
-        step_ms = self._param(mg.Param.SWEEP_STEP_MS)
-        if step_ms >= SWEEP_SLOWEST_MS:
-            return
-        step_ms = min(SWEEP_SLOWEST_MS, step_ms + SWEEP_SLOWER_MS)
-        self._sweeps_part_run = 0
-        self.rover_params = [(p, v) for p, v in self.rover_params if p != mg.Param.SWEEP_STEP_MS]
-        self.rover_params.append((mg.Param.SWEEP_STEP_MS, step_ms))  # a rebooted rover is configured so too
-        self._request(mg.Config(param=int(mg.Param.SWEEP_STEP_MS), value=step_ms))
-        self.sweeps_slowed += 1
-        self.on_event(self._now, f"its sweeps are heard in part: asked to sweep at {step_ms} ms a step")
 
     # ---------------------------------------------------------------- held for another rover
 

@@ -259,7 +259,6 @@ class RoverFrames:
             self.scan_heard = self._scan_latest
         else:
             self.scans_heard_part += 1
-        self.sweep_heard(self._scan_echoes_heard == echoes)
 
     def _map_changed(self) -> None:
         self._map_changed_at = None

@@ -471,8 +471,6 @@ class FleetSimulation:
                     "crash": r.crash,
                     "held": {"times": m.holds, "seconds": round(m.held_s, 1)},
                     "echoes_of_rovers": m.echoes_of_rovers,
-                    "sweeps_heard": {"whole": m.scans_heard_whole, "part": m.scans_heard_part},
-                    "sweeps_slowed": m.sweeps_slowed,
                     "camera_lost_frames": self.lost_by_rover[k],
                     "link": self.radio.load[k].summary(t),
                     "link_loss": m.quality.summary(),
