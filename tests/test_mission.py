@@ -554,3 +554,36 @@ def test_a_rover_let_go_where_it_was_held_resumes_without_a_sweep_and_one_carrie
     start = rover.of(mg.Start)[-1]
     assert start.path_id == mission.path_id and start.resume == 0
     assert rover.state == mg.RoverState.SCAN
+
+
+def test_a_sweep_heard_in_part_counts_as_heard_whole_over_the_sweeps_from_the_same_spot():
+    # Three echoes a sweep, each sweep from the same spot losing one of them on the radio: no
+    # sweep alone is heard whole, but a fleet's host (heard_over_spot) gives its word from the
+    # second on; a lone rover's host does not. A sweep from elsewhere starts afresh, and a bearing
+    # the new sweep says clear no longer counts.
+    def sweep(m, scan_id, said, clear=(), at=(800, 600)):
+        for b in said:
+            m._on_obstacle(
+                mg.Obstacle(
+                    scan_id=scan_id, bearing_cdeg=b, range_mm=300, x_mm=at[0], y_mm=at[1], heading_cdeg=0, sd_mm=3
+                )
+            )
+        for b in clear:
+            m._on_obstacle(
+                mg.Obstacle(
+                    scan_id=scan_id, bearing_cdeg=b, range_mm=0, x_mm=at[0], y_mm=at[1], heading_cdeg=0, sd_mm=3
+                )
+            )
+        m._scan_done(3)
+
+    for fleet in (False, True):
+        mission, rover, notes = _setup()
+        mission.heard_over_spot = fleet
+        sweep(mission, 1, [-1500, 0])  # +1500 lost
+        assert mission.scan_heard == 0
+        sweep(mission, 2, [0, 1500])  # -1500 lost: heard over the two
+        assert mission.scan_heard == (2 if fleet else 0)
+        sweep(mission, 3, [0], clear=[1500])  # +1500 now clear: -1500 and 0 are two, not three
+        assert mission.scan_heard == (2 if fleet else 0)
+        sweep(mission, 4, [-1500, 0], at=(900, 600))  # elsewhere: afresh
+        assert mission.scan_heard == (2 if fleet else 0) and mission.scans_heard_part == (3 if fleet else 4)

@@ -96,6 +96,7 @@ class FleetHost:
         for k, m in enumerate(self.missions):
             m.slot_fixes = True
             m.park_at_end = True
+            m.heard_over_spot = True
             m.planning_map = lambda k=k: self.traffic.planning_map(k)
             m.echo_is_rover = lambda reading, k=k: self.traffic.echo_is_rover(k, reading)
         self._map_version = shared.grid.version

@@ -170,6 +170,12 @@ class Mission(RoverFrames, LegControl, FleetControl):
         self._scan_echoes_heard = 0
         self._scan_echoes_seen: set[tuple] = set()  # its echoes as said (each is said three times): a copy is dropped
         self._scan_done_for: int | None = None
+        # The sweeps from one spot (a rover that sweeps again where it stands): what each bearing
+        # echoed in them, and what this sweep has said clear (rover_frames._scan_done).
+        self._spot: tuple[int, int, int] | None = None
+        self._spot_echoes: set[int] = set()
+        self._scan_bearings: set[int] = set()
+        self._scan_clear: set[int] = set()
         self.scan_heard = 0
         self.scans_heard_whole = 0
         self.scans_heard_part = 0

@@ -49,6 +49,9 @@ class FleetControl:
     #: can still be sent aside, out of the way of a rover that must pass its berth, and back.
     park_at_end: bool = False
     _parked_at: float | None = None  # when the rover first arrived home from its last leg
+    #: True (a fleet's rover): a sweep counts as heard whole when the sweeps from the same spot
+    #: together said every echo it counted (RoverFrames._heard_from_spot).
+    heard_over_spot: bool = False
     echoes_of_rovers: int = 0
     holds: int = 0
     held_s: float = 0.0
