@@ -587,3 +587,51 @@ def test_a_sweep_heard_in_part_counts_as_heard_whole_over_the_sweeps_from_the_sa
         assert mission.scan_heard == (2 if fleet else 0)
         sweep(mission, 4, [-1500, 0], at=(900, 600))  # elsewhere: afresh
         assert mission.scan_heard == (2 if fleet else 0) and mission.scans_heard_part == (3 if fleet else 4)
+
+
+class _ViewForReplan:
+    """What RovernavStrategy.map_changed asks of a mission: the rest of its path blocked, and a replan."""
+
+    def __init__(self, remaining, planned):
+        self.remaining, self.planned, self.loaded = remaining, planned, []
+        self.current_leg = type("Leg", (), {"goal": remaining[-1]})()
+        self.grid = type("Grid", (), {"path_blocked": staticmethod(lambda path: True)})()
+
+    def remaining_path(self):
+        return list(self.remaining)
+
+    def steering_goal(self):
+        return self.remaining[-1]
+
+    def rover_xy(self):
+        return self.remaining[0]
+
+    def plan_from(self, start, goal, verdict=True):
+        return self.planned
+
+    def replanned(self, path, what, why=""):
+        pass
+
+    def load_path(self, path):
+        self.loaded.append(path)
+
+
+def test_a_replan_that_finds_the_way_the_rover_is_on_sends_nothing():
+    # A path planned on the open map is blocked on the careful one, so each change of either map
+    # replans it; the same way again would cost a PATH and a new START (a sweep, memory forgotten).
+    from rovernav.mission.leg_plan import PlannedPath
+    from rovernav.mission.strategies import RovernavStrategy
+
+    rest = [(1.0, 0.5), (1.3, 0.6), (2.0, 1.4)]
+    same = RovernavStrategy()
+    view = _ViewForReplan(rest, [(1.0, 0.5), (1.303, 0.604), (2.0, 1.4)])  # within 1 cm
+    same.map_changed(view)
+    assert view.loaded == []
+    # Before the rover says it passed the path's start, that start is still in what remains.
+    view = _ViewForReplan([(1.0, 0.5), (1.01, 0.5), (1.3, 0.6), (2.0, 1.4)], rest)
+    same.map_changed(view)
+    assert view.loaded == []
+    for other in ([(1.0, 0.5), (1.3, 0.7), (2.0, 1.4)], [(1.0, 0.5), (2.0, 1.4)], PlannedPath(rest, back_out=True)):
+        view = _ViewForReplan(rest, other)
+        same.map_changed(view)
+        assert view.loaded == [other]

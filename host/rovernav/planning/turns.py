@@ -37,6 +37,7 @@ import cv2
 import numpy as np
 
 from ..angles import wrap_rad
+from ..link.messages_gen import PARAMS, Param
 from ..vehicle_gen import BACK_OFF_MM, BODY_LENGTH_MM, BODY_WIDTH_MM
 from .grid import OccupancyGrid
 
@@ -48,6 +49,11 @@ SWING_MARGIN_M = 0.01
 MIN_TURN_DEG = 20.0
 #: How far a waypoint may move to find room for its turn [m].
 SEARCH_M = 0.3
+#: A point put in straight ahead for the first turn lies beyond the rover's arrival radius
+#: (arrival_radius_mm's default) and the margin: a nearer one counts as reached where the rover
+#: stands, and it turns there after all (a fleet rover's 30 mm point, then its side along a
+#: corner) [m].
+AHEAD_BEYOND_M = PARAMS[Param.ARRIVAL_RADIUS_MM].default / 1000.0 + SWING_MARGIN_M
 #: A turn this near where the rover refused one (TURN_REFUSED: its own memory said its corners
 #: would hit) has no room, whatever the grid says: a refusal comes within the arrival radius
 #: (36 mm) of the waypoint, and the waypoint may have moved a cell since [m].
@@ -227,7 +233,8 @@ def ahead_first(
         if _room(clear, grid, q) < side:
             break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
-        if _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
+        beyond = k * res >= AHEAD_BEYOND_M
+        if beyond and _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
             return [p0, q] + pts[1:], 1
     return pts, -1
 
