@@ -253,20 +253,3 @@ def test_the_host_map_uses_the_cone_the_configuration_sends():
     cfg = config_from_dict({"planner": {"sonar_cone_deg": 30}})
     lm = LearnedMap(OccupancyGrid(2.0, 2.0, cfg.planner))
     assert lm.sonar.model.cone_deg == lm.open_sonar.model.cone_deg == 30.0
-
-
-def test_the_tight_grid_holds_known_boxes_as_far_off_as_the_corners_reach_and_the_sonars_cells_at_the_full_margin():
-    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
-    grid.add_box(0.6, 0.9, 0.2, 0.2)  # known: x 0.5..0.7
-    lm = LearnedMap(grid)
-    assert lm.known_tight_grid() is None  # the sonar has found nothing: nothing to hold apart
-    lm.add(SonarReading(1.5, 0.9, 90.0, 0.0, 0.30, 0.4))  # an arc at x 1.90 (sensor at 1.60)
-    tight = lm.known_tight_grid()
-    full, corners = grid.config.inflation_m, math.hypot(vehicle.BODY_LENGTH_MM, vehicle.BODY_WIDTH_MM) / 2000 + 0.01
-    assert corners < full
-    beside_box = 0.7 + (corners + full) / 2  # between the corners' reach and the full margin
-    assert not grid.is_free(beside_box, 0.9) and tight.is_free(beside_box, 0.9)
-    assert not tight.is_free(0.7 + corners - RES, 0.9)
-    arc_x = float(np.nonzero(lm.sonar.occupied[int(0.9 / RES)])[0].min()) * RES  # the arc's nearest cell
-    assert not tight.is_free(arc_x - full + RES, 0.9) and tight.is_free(arc_x - full - 2 * RES, 0.9)
-    assert (tight.raw == grid.raw).all()  # the obstacles themselves: the same

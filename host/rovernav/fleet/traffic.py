@@ -139,9 +139,6 @@ class PlanningMap:
     def lenient_grid(self):
         return self._with_rovers(self._map.lenient_grid() or self._map.grid)
 
-    def known_tight_grid(self):
-        return self._with_rovers(self._map.known_tight_grid())
-
     def open_grids(self):
         return [self._with_rovers(g) for g in self._map.open_grids()]
 

@@ -44,7 +44,6 @@ from pathlib import Path
 from ..errors import MapFileError
 from ..files import write_atomic
 from ..planning import OccupancyGrid
-from ..planning.turns import SWING_M, SWING_MARGIN_M
 from .sonar_map import SensorModel, SonarMap, SonarReading, echo_point
 
 MAP_FORMAT, MAP_VERSION = "rovernav-map", 2
@@ -151,23 +150,6 @@ class LearnedMap:
         """The planner's grid with what only the sonar has seen inflated by the robot radius alone
         (None when the sonar has found nothing, so there is nothing to be lenient about)."""
         return self._sonar_grid(self.sonar, self.grid.config.robot_radius_m)
-
-    def known_tight_grid(self) -> OccupancyGrid | None:
-        """The planner's grid with the known obstacles and the wall held only as far off as the
-        body's corners reach (the half-diagonal and its margin: their geometry is exact, no sonar
-        places them), what only the sonar has seen still at the full margin (None when the sonar
-        has found nothing). Tried before the robot radius alone round the sonar's cells: those
-        cells may not reach a box's far end (a face seen at an angle, its corner out of every
-        cone), and a fleet rover planned through a 0.335 m gap between a known box and one the
-        sonar had seen in part drove its side along the unseen corner (0.2 mm clear, then contact)."""
-        if not self.sonar.occupied.any():
-            return None
-        g = self.grid.copy()
-        g.raw = self._base_raw | self.sonar.occupied
-        g.inflated = self.known_grid.blocked_within(SWING_M + SWING_MARGIN_M) | self.sonar.inflated(
-            g.config.inflation_m
-        )
-        return g
 
     def open_grids(self) -> list[OccupancyGrid]:
         """The open map's grids (its silence clears the cells the cone's edge only cuts too):

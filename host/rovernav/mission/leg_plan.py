@@ -1,6 +1,5 @@
 """A leg's path on what the host knows (`Mission.plan_from`): A* on the careful map, then on the
-open one, each with the full margin, then with the known obstacles nearer, then with the robot
-radius alone round what only the sonar has seen; the turns moved where
+open one, each with the full margin and then with the robot radius alone; the turns moved where
 the body can make them, and the first one checked from the heading the rover has where it stands.
 """
 
@@ -46,9 +45,8 @@ def plan_leg(
     log-odds map already places an echo anywhere across its cone, so the sonar's placement margin
     counts it twice). Each on the careful map first, then on the open map, whose silence also
     clears the cells the cone's edge only cuts (rovernav.mapping.learned_map): careful, open,
-    careful with the known obstacles held only as far off as the body's corners reach (their
-    geometry is exact; the sonar's cells keep the full margin), careful with the radius alone, open
-    with the radius alone. A target is unreachable only when the obstacles enclose it even then.
+    careful with the radius alone, open with the radius alone. A target is unreachable only when
+    the obstacles enclose it even then.
 
     heading: the rover's heading [deg] when the path starts where it stands, for its first turn
     (None: not checked); refused: spots where the rover refused a turn twice in this leg; say:
@@ -57,7 +55,6 @@ def plan_leg(
     reason = None
     lenient = learned_map.lenient_grid()
     opened: list = []
-    tight: list = []  # the known obstacles held only as far off as the corners reach
     careful = learned_map.grid
     cfg = careful.config
     echoes = learned_map.echoes
@@ -68,8 +65,6 @@ def plan_leg(
         yield careful
         opened.extend(learned_map.open_grids())
         yield opened[0] if opened else None
-        tight.append(learned_map.known_tight_grid())
-        yield tight[0]
         yield lenient
         yield opened[1] if len(opened) > 1 else None
 
@@ -101,8 +96,6 @@ def plan_leg(
                 waypoints, moved, left = turnable(grid, result.waypoints, refused, hidden)
                 if grid is lenient:
                     say("planned with the robot radius alone round what only the sonar has seen")
-                elif tight and grid is tight[0]:
-                    say("planned with the known obstacles held as far off as the corners reach")
                 elif grid is not careful:
                     say("planned on the open map (silence clears the cone's edges too)")
                 if end is not goal:
