@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from rovernav.link import messages_gen as mg
 from rovernav.mapping.learned_map import Echo
 from rovernav.planning import OccupancyGrid, PlannerConfig, plan
 from rovernav.planning.turns import (
@@ -197,6 +198,12 @@ def test_no_room_to_turn_where_the_rover_stands_puts_a_point_straight_ahead_firs
     assert abs(q[1] - start[1]) < 1e-9 and 0.0 < start[0] - q[0] <= 0.3  # straight ahead, west
     clear = clearance_map(g, 1.0, hidden=hidden)
     assert clear[g.world_to_cell(*q)[1], g.world_to_cell(*q)[0]] >= SWING_M + SWING_MARGIN_M
+    # Room a cell ahead (0.03 m): the point goes beyond the arrival radius, or the rover would count
+    # it reached where it stands and turn there after all.
+    near = (1.85, 1.90)
+    out, ahead = ahead_first(g, [near, path[-1]], heading, hidden)
+    arrival = mg.PARAMS[mg.Param.ARRIVAL_RADIUS_MM].default / 1000.0
+    assert ahead == 1 and arrival < near[0] - out[1][0] <= 0.3
     # The same turn with the box known to be only its face: room where it stands, nothing added.
     assert ahead_first(g, path, heading)[1] == 0
     # A small turn needs no room; facing a wall close ahead there is no point to go to.
