@@ -24,32 +24,6 @@ from ..planning import NoPathError, plan
 from ..planning.turns import body_clear
 from .interface import MissionView, Path, Strategy
 
-#: A replanned path whose waypoints are all this near the ones the rover is driving to goes its way [m].
-SAME_WAY_M = 0.01
-#: A waypoint this near the rover is reached where it stands (arrival_radius_mm's default) [m].
-ARRIVED_M = mg.PARAMS[mg.Param.ARRIVAL_RADIUS_MM].default / 1000.0
-
-
-def same_way(new: Path, remaining: Path) -> bool:
-    """Whether a replanned path is the way the rover already goes: the same waypoints after where
-    it stands, and no backing out asked. Sending it again would cost a PATH and a START (a new
-    start: the rover forgets what its sonar remembers and sweeps first) for nothing: a path planned
-    on the open map is blocked on the careful one, so each change of either replans it."""
-    if getattr(new, "back_out", False):
-        return False
-    a, b = _ahead(new), _ahead(remaining)
-    return len(a) == len(b) and all(math.dist(p, q) <= SAME_WAY_M for p, q in zip(a, b))
-
-
-def _ahead(path: Path) -> list:
-    """A path's waypoints after its first point (where the rover stands), less those within the
-    arrival radius of it, which the rover counts reached where it stands (the path's own start,
-    while the rover has not yet said it passed it)."""
-    here, rest = path[0], list(path[1:])
-    while rest and math.dist(rest[0], here) <= ARRIVED_M:
-        rest.pop(0)
-    return rest
-
 
 class RovernavStrategy:
     name = "rovernav"
@@ -88,7 +62,7 @@ class RovernavStrategy:
         new = m.plan_from(m.rover_xy(), goal, verdict and not aside)
         if new is None and aside:
             m.aside_blocked()  # no verdict on a spot aside: it waits where it is instead
-        elif new is not None and not same_way(new, m.remaining_path()):
+        elif new is not None:
             m.replanned(new, f"{len(new)} waypoints", why)
             m.load_path(new)
 
