@@ -132,13 +132,11 @@ class LearnedMap:
         of a box's corner that the open map's silence had cleared puts it back there alone, and
         without a replan the rover went on along the old path into that corner (the fleet on a
         radio losing 1 % of its bytes, seed 3)."""
-        before = self.open_sonar.occupied
         self.open_sonar.update(reading)
-        closed = bool((self.open_sonar.occupied & ~before).any())
         changed = self.sonar.update(reading) > 0
         if changed:
             self._apply()
-        return changed or closed
+        return changed or self.open_sonar.closed_cells > 0
 
     def _apply(self) -> None:
         g = self.grid

@@ -126,6 +126,7 @@ class SonarMap:
         self.logodds = np.zeros((self.ny, self.nx), dtype=np.float32)
         self.known = np.zeros((self.ny, self.nx), dtype=bool) if known is None else np.asarray(known, dtype=bool)
         self.readings: list[SonarReading] = []
+        self.closed_cells = 0  # how many cells the last update newly holds occupied
 
     @property
     def occupied(self) -> np.ndarray:
@@ -140,7 +141,8 @@ class SonarMap:
         return sonar_origin(r.x_m, r.y_m, r.heading_deg, self.sonar_offset_m)
 
     def update(self, r: SonarReading) -> int:
-        """Fold one reading in; returns how many cells crossed the occupied threshold (either way)."""
+        """Fold one reading in; returns how many cells crossed the occupied threshold (either way).
+        `closed_cells` then says how many of them it newly holds occupied."""
         m = self.model
         before = self.occupied
         self.readings.append(r)
@@ -176,7 +178,9 @@ class SonarMap:
                     window[arc] += m.occupied_logodds
         self._free_body(r.x_m, r.y_m)
         np.clip(self.logodds, -m.clamp_logodds, m.clamp_logodds, out=self.logodds)
-        return int(np.count_nonzero(before != self.occupied))
+        after = self.occupied
+        self.closed_cells = int(np.count_nonzero(after & ~before))
+        return int(np.count_nonzero(before != after))
 
     def _arc_meets_wall(self, sx: float, sy: float, axis_rad: float, range_m: float) -> bool:
         """Whether some of the cone at `range_m` lies on or beyond the arena's border (the wall)."""

@@ -102,6 +102,7 @@ class LegControl:
             heading=heading,
             refused=refused,
             say=lambda text: self.on_event(self._now, text),
+            arrival_m=self.arrival_radius_m,
         )
         if path is None and self.planning_map is not None and not round_rovers:
             # No way round the fleet's other rovers: a path as if they were not there (the traffic
@@ -114,6 +115,7 @@ class LegControl:
                 heading=heading,
                 refused=refused,
                 say=lambda text: self.on_event(self._now, text),
+                arrival_m=self.arrival_radius_m,
             )
         if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import ahead_first, half_seen, room_behind, turnable
+from ..planning.turns import ARRIVAL_M, ahead_first, half_seen, room_behind, turnable
 
 #: How far from a goal that an echo's arc covers the last tries may end their plan [m].
 GOAL_SHIFT_M = 0.06
@@ -37,6 +37,7 @@ def plan_leg(
     heading: float | None,
     refused: list[tuple[float, float]],
     say: Callable[[str], None],
+    arrival_m: float = ARRIVAL_M,
 ) -> tuple[list[tuple[float, float]] | None, NoPathError | None]:
     """(path, None), or (None, the planner's most telling reason) when there is no path.
 
@@ -50,7 +51,8 @@ def plan_leg(
 
     heading: the rover's heading [deg] when the path starts where it stands, for its first turn
     (None: not checked); refused: spots where the rover refused a turn twice in this leg; say:
-    what the planning did, in words, for the mission's events.
+    what the planning did, in words, for the mission's events; arrival_m: the rover's arrival
+    radius as configured (a point put in ahead for the first turn lies beyond it).
     """
     reason = None
     lenient = learned_map.lenient_grid()
@@ -112,7 +114,7 @@ def plan_leg(
                 path = path if origin is start else [start] + path
                 if heading is not None:
                     # The first turn, from the heading the rover has where it stands.
-                    path, ahead = ahead_first(grid, path, heading, hidden)
+                    path, ahead = ahead_first(grid, path, heading, hidden, arrival_m)
                     if ahead > 0:
                         say("no room to turn where the rover stands: it drives straight on to turn first")
                     elif ahead < 0 and room_behind(grid, path[0], heading, hidden):

@@ -49,11 +49,11 @@ SWING_MARGIN_M = 0.01
 MIN_TURN_DEG = 20.0
 #: How far a waypoint may move to find room for its turn [m].
 SEARCH_M = 0.3
-#: A point put in straight ahead for the first turn lies beyond the rover's arrival radius
-#: (arrival_radius_mm's default) and the margin: a nearer one counts as reached where the rover
-#: stands, and it turns there after all (a fleet rover's 30 mm point, then its side along a
-#: corner) [m].
-AHEAD_BEYOND_M = PARAMS[Param.ARRIVAL_RADIUS_MM].default / 1000.0 + SWING_MARGIN_M
+#: The rover's arrival radius unless the mission says what it configured (arrival_radius_mm's
+#: default): a point put in straight ahead for the first turn lies beyond it and the margin, since
+#: a nearer one counts as reached where the rover stands, and it turns there after all (a fleet
+#: rover's 30 mm point, then its side along a corner) [m].
+ARRIVAL_M = PARAMS[Param.ARRIVAL_RADIUS_MM].default / 1000.0
 #: A turn this near where the rover refused one (TURN_REFUSED: its own memory said its corners
 #: would hit) has no room, whatever the grid says: a refusal comes within the arrival radius
 #: (36 mm) of the waypoint, and the waypoint may have moved a cell since [m].
@@ -200,13 +200,18 @@ def turnable(
 
 
 def ahead_first(
-    grid: OccupancyGrid, waypoints: Sequence[Sequence[float]], heading_deg: float, hidden: np.ndarray | None = None
+    grid: OccupancyGrid,
+    waypoints: Sequence[Sequence[float]],
+    heading_deg: float,
+    hidden: np.ndarray | None = None,
+    arrival_m: float = ARRIVAL_M,
 ) -> tuple[list[tuple[float, float]], int]:
     """The turn at the path's first point, where the rover stands facing heading_deg.
 
     When that turn is more than MIN_TURN_DEG and the corners have no room there (the grid's
     obstacles, known and seen, and `hidden`), the nearest point straight ahead (within SEARCH_M,
-    a cell at a time) with room, whose drive keeps the body's sides clear and whose leg to the
+    a cell at a time, beyond the rover's arrival radius `arrival_m` and the margin: a nearer one
+    would count as reached where the rover stands) with room, whose drive keeps the body's sides clear and whose leg to the
     next waypoint is clear, goes in after it: the rover drives there without turning, and turns
     there. Returns (points, 1) with it, (points, -1) when there is none, (points, 0) when the
     turn needs no room.
@@ -233,7 +238,7 @@ def ahead_first(
         if _room(clear, grid, q) < side:
             break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
-        beyond = k * res >= AHEAD_BEYOND_M
+        beyond = k * res >= arrival_m + SWING_MARGIN_M
         if beyond and _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
             return [p0, q] + pts[1:], 1
     return pts, -1
