@@ -253,3 +253,44 @@ def test_the_host_map_uses_the_cone_the_configuration_sends():
     cfg = config_from_dict({"planner": {"sonar_cone_deg": 30}})
     lm = LearnedMap(OccupancyGrid(2.0, 2.0, cfg.planner))
     assert lm.sonar.model.cone_deg == lm.open_sonar.model.cone_deg == 30.0
+
+
+def _sweep(lm: LearnedMap, x_m: float, y_m: float, heading_deg: float, echo_at: dict | None = None) -> None:
+    """A sweep of 13 readings, -90 to +90 degrees by 15, reporting within 0.4 m: silent but for the
+    bearings in `echo_at` (bearing -> range)."""
+    for b in range(-90, 91, 15):
+        lm.add(SonarReading(x_m, y_m, heading_deg, float(b), (echo_at or {}).get(b), 0.4))
+
+
+def test_ground_is_seen_along_a_path_once_sweeps_have_heard_it_clear_or_found_a_box_beside_it():
+    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
+    lm = LearnedMap(grid)
+    path = [(0.6, 0.9), (1.4, 0.9)]
+    assert not lm.seen_along(path, 0.25)  # nothing looked at yet
+
+    def there_and_back(m, echo_at=None):
+        for i in range(9):  # sweeps every 0.2 m along the line, facing along it, and back
+            _sweep(m, 0.2 + 0.2 * i, 0.9, 90.0, echo_at if i == 4 else None)
+            _sweep(m, 1.8 - 0.2 * i, 0.9, 270.0)
+
+    there_and_back(lm)
+    assert lm.seen_along(path, 0.25)  # every cell within 0.25 m of the line heard clear
+    assert not lm.seen_along([(0.6, 0.9), (1.4, 1.5)], 0.25)  # a way off what was looked at
+    # A cell unheard just beyond the corridor (its centre 0.255 m from the line) does not count.
+    cell = (int(0.63 / 0.03), int(1.0 / 0.03))
+    lm.sonar.logodds[cell], kept = 0.0, lm.sonar.logodds[cell]
+    assert lm.seen_along(path, 0.25)
+    lm.sonar.logodds[cell] = kept
+    assert lm.seen_along([(0.6, 1.0), (1.4, 1.0)], 0.25)
+    # A box beside the line, found by the sonar: the cells behind its face, which no sonar hears,
+    # lie within the planner's margin of what it found, where no path goes: still seen.
+    for _ in range(3):
+        lm.add(SonarReading(1.0, 0.9, 0.0, 0.0, 0.11, 0.4))  # a face 0.21 m off the line
+    assert lm.sonar.occupied.any()
+    # ... and a path through the margin round it (a squeeze the open map allows) is not seen.
+    assert not lm.seen_along([(0.6, 1.0), (1.4, 1.0)], 0.25)
+    lm.sonar.logodds[int(1.14 / 0.03), int(1.0 / 0.03)] = 0.0  # behind the face: never heard
+    assert lm.seen_along(path, 0.25)
+    # An unseen patch beside the path, away from any echo, is not seen.
+    lm.sonar.logodds[int(0.7 / 0.03), int(1.0 / 0.03)] = 0.0
+    assert not lm.seen_along(path, 0.25)

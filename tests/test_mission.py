@@ -587,3 +587,73 @@ def test_a_sweep_heard_in_part_counts_as_heard_whole_over_the_sweeps_from_the_sa
         assert mission.scan_heard == (2 if fleet else 0)
         sweep(mission, 4, [-1500, 0], at=(900, 600))  # elsewhere: afresh
         assert mission.scan_heard == (2 if fleet else 0) and mission.scans_heard_part == (3 if fleet else 4)
+
+
+def test_a_fleet_rover_drives_over_ground_the_sonar_has_seen_without_its_sweeps_every_0_3_m():
+    # sweep_seen_ground: before a path goes, the host checks the ground along it on its map; where
+    # every cell near it has been heard clear, the rover is told (CONFIG sweep_interval_mm 0) to
+    # drive it without the distance sweeps: once the path is whole on the rover, before its START
+    # (a rover still on its last path must not drive the rest of that unswept). For a path over
+    # ground not yet seen, the usual interval again, before the path itself. A fleet's configure
+    # says the interval whatever the configuration (a rover keeps it from one host to the next);
+    # a lone rover's mission sends none of it.
+    interval = int(mg.Param.SWEEP_INTERVAL_MM)
+    usual = mg.PARAMS[mg.Param.SWEEP_INTERVAL_MM].default
+    for fleet in (False, True):
+        mission, rover, notes = _setup()
+        mission.sweep_seen_ground = fleet
+        t = _run(mission, rover, 1.0)
+        assert mission.phase is Phase.RUN
+        sonar = mission.map.sonar
+        sonar.logodds[:] = sonar.model.free_logodds  # every cell heard clear
+        mission.load_path([(0.3, 0.3), (1.2, 0.3)])
+        t = _run(mission, rover, 1.0, t0=t)
+        seen_id = mission.path_id
+        sonar.logodds[:] = 0.0  # nothing heard
+        mission.load_path([(0.3, 0.3), (1.2, 0.6)])
+        t = _run(mission, rover, 1.0, t0=t)
+        unseen_id = mission.path_id
+        said = [(i, m.value) for i, m in enumerate(rover.got) if isinstance(m, mg.Config) and m.param == interval]
+        if not fleet:
+            assert said == [] and mission.paths_unswept == 0
+            continue
+        assert [v for _, v in said] == [usual, 0, usual] and mission.paths_unswept == 1
+        got = list(enumerate(rover.got))
+        seen_chunks = [i for i, m in got if isinstance(m, mg.Path) and m.path_id == seen_id]
+        seen_start = next(i for i, m in got if isinstance(m, mg.Start) and m.path_id == seen_id)
+        assert max(seen_chunks) < said[1][0] < seen_start  # 0: the path whole first, START after
+        unseen_chunks = [i for i, m in got if isinstance(m, mg.Path) and m.path_id == unseen_id]
+        assert said[2][0] < min(unseen_chunks)  # the usual again before the path itself
+        assert any("no sweeps on the way" in n for n in notes)
+        assert rover.of(mg.Start)[-1].path_id == unseen_id
+
+
+def test_a_fleet_rover_blocked_on_its_path_with_no_new_one_is_sent_its_leg_again():
+    # A rover whose forward reflex stopped it for another rover, and whose own detour found no way,
+    # waits Blocked for a new path; the map did not change, so no replan sends one (seed 6: a
+    # fleet stuck for good). With resend_blocked_s its leg is planned again after that long, its
+    # deadline kept (a re-send is no progress: the late leg's bounded recoveries still decide). A
+    # STATUS Blocked on an older path, a rover held for another, or a lone rover's mission: none.
+    for watch, held in ((None, False), (9.0, False), (9.0, True)):
+        mission, rover, notes = _setup_with(ScriptedRover)
+        mission.resend_blocked_s = watch
+        t = _run(mission, rover, 1.0)
+        assert mission.phase is Phase.RUN
+        first, deadline = mission.path_id, mission.current_leg.deadline_s
+        if held:
+            mission.hold(t, "rover 2 is in the way")
+        while t < 20.0:
+            mission.on_detection(Detection(t - 0.04, 0.3, 0.3, 0.0), t)
+            rover.say(mg.Status(time_ms=int(t * 1000), state=mg.RoverState.BLOCKED, path_id=first - (t < 8.0)))
+            mission.tick(t)
+            rover.serve(t)
+            if mission.path_id != first:
+                break
+            t += 0.1
+        if watch is None or held:
+            assert mission.path_id == first and mission.blocked_resends == 0
+        else:
+            # Blocked on its own path from 8 s: sent again 9 s later, a new path from where it stands.
+            assert mission.path_id == first + 1 and mission.blocked_resends == 1 and 16.9 <= t <= 17.2
+            assert mission.current_leg.deadline_s == deadline
+            assert any("no new path: its leg planned again" in n for n in notes)

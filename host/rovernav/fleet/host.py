@@ -29,6 +29,10 @@ from .traffic import Traffic
 
 #: How often the other rovers' paths are checked against a map another rover changed [s].
 MAP_SHARE_S = 0.5
+#: The seen-ground trial (`FleetHost(seen_ground_trial=True)`, off by default: docs/results.md, "A
+#: fleet under one camera"): a rover Blocked on its path this long, with no new path, is sent its
+#: leg again [s] (`Mission.resend_blocked_s`).
+RESEND_BLOCKED_S = 9.0
 #: A fleet rover's parameters beside the configuration's, for its share of the air (about 4.5
 #: slots of 128 bytes a second with three rovers, where a lone rover says 490-509 B/s): STATUS once
 #: a second (64 bytes each; the camera says where it is), fixes allowed further apart (its slot
@@ -72,6 +76,7 @@ class FleetHost:
         clock: Callable[[], float] | None = None,
         on_event: Callable[[int, float, str], None] | None = None,
         recorders: list | None = None,
+        seen_ground_trial: bool = False,
     ):
         if len(specs) != radio.rovers or len(keys) != radio.rovers:
             raise ValueError(f"{len(specs)} missions and {len(keys)} keys for a radio of {radio.rovers} rovers")
@@ -97,6 +102,9 @@ class FleetHost:
             m.slot_fixes = True
             m.park_at_end = True
             m.heard_over_spot = True
+            if seen_ground_trial:  # paths over seen ground unswept, and the blocked watch
+                m.sweep_seen_ground = True
+                m.resend_blocked_s = RESEND_BLOCKED_S
             m.planning_map = lambda k=k: self.traffic.planning_map(k)
             m.echo_is_rover = lambda reading, k=k: self.traffic.echo_is_rover(k, reading)
         self._map_version = shared.grid.version

@@ -41,6 +41,8 @@ import os
 import stat
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import MapFileError
 from ..files import write_atomic
 from ..planning import OccupancyGrid
@@ -172,6 +174,30 @@ class LearnedMap:
     def point(self, e: Echo) -> tuple[float, float]:
         return e.point(self.grid.config.sonar_offset_m)
 
+    def seen_along(self, path, corridor_m: float) -> bool:
+        """Whether the sonar has looked at all the ground within `corridor_m` of `path` (a
+        polyline, metres): every cell there whose centre is in the arena the sonar has heard
+        clear (its log-odds at or below a silent reading's step), or lies within the planner's
+        margin of an obstacle (known, or believed occupied: the inside and the far side of a box
+        no sonar sees, and no path goes), and the path itself keeps out of those margins. Ground
+        no sweep has looked at is not seen."""
+        sonar = self.sonar
+        seen = self.grid.inflated | (sonar.logodds <= sonar.model.free_logodds)
+        res = sonar.resolution_m
+        k = int(math.ceil(corridor_m / res))
+        pts = _along(path, res / 2)
+        if not all(self.grid.is_free(x, y) for x, y in pts):
+            return False  # a squeeze through the planner's margins (the open map, the radius alone)
+        for x, y in pts:
+            c0, c1 = max(int(x / res) - k, 0), min(int(x / res) + k + 1, sonar.nx)
+            r0, r1 = max(int(y / res) - k, 0), min(int(y / res) + k + 1, sonar.ny)
+            if c0 >= c1 or r0 >= r1:
+                continue
+            near = np.hypot(sonar.xs[c0:c1][None, :] - x, sonar.ys[r0:r1][:, None] - y) <= corridor_m
+            if (near & ~seen[r0:r1, c0:c1]).any():
+                return False
+        return True
+
     # ------------------------------------------------------------ files
 
     def to_json(self) -> dict:
@@ -197,6 +223,15 @@ class LearnedMap:
             self.open_sonar.update(r)
         self._apply()
         return len(readings)
+
+
+def _along(path, step_m: float) -> list[tuple[float, float]]:
+    """Points along a polyline, at most step_m apart, its ends included."""
+    out = [(float(path[0][0]), float(path[0][1]))]
+    for a, b in zip(path, path[1:]):
+        n = max(1, int(math.ceil(math.dist(a, b) / step_m)))
+        out += [(a[0] + (b[0] - a[0]) * i / n, a[1] + (b[1] - a[1]) * i / n) for i in range(1, n + 1)]
+    return out
 
 
 def _shown(path: str | Path) -> str:

@@ -347,7 +347,9 @@ class Mission(RoverFrames, LegControl, FleetControl):
         if self.phase is Phase.LOAD:
             if self.upload is not None and self.upload.complete and not self.requests:
                 if self._start_sent_for != self.path_id:
-                    if self.hold_start is None or not self.hold_start(now_s):
+                    if self.sweep_before_start():
+                        pass  # START follows the CONFIG's ACK
+                    elif self.hold_start is None or not self.hold_start(now_s):
                         self._start_sent_for = self.path_id
                         self._request(mg.Start(path_id=self.path_id, resume=self.start_resumes()))
                 elif self._start_acked_for == self.path_id:
@@ -368,6 +370,11 @@ class Mission(RoverFrames, LegControl, FleetControl):
         self._set_phase(Phase.CONFIGURE)
         for param, value in self.rover_params:
             self._request(mg.Config(param=int(param), value=int(value)))
+        self._sweep_mm_said = None
+        if self.sweep_seen_ground and mg.Param.SWEEP_INTERVAL_MM not in dict(self.rover_params):
+            # Said whatever the configuration: a rover keeps its parameters from one host to the
+            # next, and an earlier fleet host may have left it sweeping never (sweep_for_path).
+            self._request(mg.Config(param=int(mg.Param.SWEEP_INTERVAL_MM), value=self.sweep_usual_mm()))
 
     def load_path(self, path: list[tuple[float, float]]) -> None:
         """Send `path` under a new id; START follows once the rover has it whole.
@@ -375,6 +382,7 @@ class Mission(RoverFrames, LegControl, FleetControl):
         The rover holds MAX_WAYPOINTS: a longer path goes in parts, the first MAX_WAYPOINTS now and
         the rest, from the last of them, when the rover says it has arrived there (`_arrived`)."""
         back_out = int(getattr(path, "back_out", False))
+        whole = list(path)
         path, self.path_rest = list(path[: mg.MAX_WAYPOINTS]), list(path[mg.MAX_WAYPOINTS :])
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
@@ -386,6 +394,7 @@ class Mission(RoverFrames, LegControl, FleetControl):
         for pending in self.requests:
             if isinstance(pending.message, (mg.Path, mg.Start)):
                 self.requests.drop(pending)
+        self.sweep_for_path(whole)
         self.upload = PathUpload(self.path_id, [(_mm(x), _mm(y)) for x, y in path], RESEND_S, back_out)
         self._send_chunks()
 
@@ -474,6 +483,8 @@ class Mission(RoverFrames, LegControl, FleetControl):
         self.upload = None
         self._done_at = self._now
         self._request(mg.Stop(reason=reason))
+        if self._sweep_mm_said == 0:  # told to sweep never on seen ground: the usual again
+            self._request(mg.Config(param=int(mg.Param.SWEEP_INTERVAL_MM), value=self.sweep_usual_mm()))
 
     def _close(self, now_s: float) -> None:
         """An ended mission: the STOP again while unanswered, for at most CLOSE_S. A rover that

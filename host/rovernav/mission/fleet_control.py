@@ -24,6 +24,9 @@ from .phases import Phase
 STOOD_STILL_M = 0.10
 #: A detection older than this is not sent as a FIX in a slot [s] (the camera's latency is 60 ms).
 SLOT_FIX_MAX_AGE_S = 0.25
+#: A path is over seen ground when the sonar has looked at every cell this near it [m]: the body's
+#: half-diagonal (0.129 m, the reach of its corners in a turn) and 7 cm for the rover off its line.
+SEEN_CORRIDOR_M = 0.20
 
 
 class FleetControl:
@@ -52,6 +55,20 @@ class FleetControl:
     #: True (a fleet's rover): a sweep counts as heard whole when the sweeps from the same spot
     #: together said every echo it counted (RoverFrames._heard_from_spot).
     heard_over_spot: bool = False
+    #: True (a fleet's rover): a path over ground the sonar has already looked at
+    #: (`LearnedMap.seen_along`) is driven without the sweep every sweep_interval_mm (a CONFIG
+    #: before its START); the sweeps before sharp turns, and the forward reflex, stay.
+    sweep_seen_ground: bool = False
+    _sweep_mm_said: int | None = None  # the sweep interval last sent (None: the configured one)
+    _sweep_zero_for: int | None = None  # the path id over seen ground whose START waits for CONFIG 0
+    paths_unswept: int = 0  # paths sent to be driven without the distance sweeps
+    #: A fleet's rover [s] (None: never): a rover whose STATUS has said BLOCKED on its current
+    #: path this long, neither held nor on its way aside, is sent its leg again, planned from where
+    #: it stands. A rover blocked by its forward reflex whose own detour found no way waits for a
+    #: new path; when the map did not change (another rover stood there) none came (seed 6).
+    resend_blocked_s: float | None = None
+    _blocked_since: float | None = None
+    blocked_resends: int = 0
     echoes_of_rovers: int = 0
     holds: int = 0
     held_s: float = 0.0
@@ -98,6 +115,78 @@ class FleetControl:
         """A HEARTBEAT now, as the rover's poll."""
         self._now = now_s
         self._send_heartbeat(now_s)
+
+    # ---------------------------------------------------------------- sweeps over seen ground
+
+    def sweep_usual_mm(self) -> int:
+        return self._param(mg.Param.SWEEP_INTERVAL_MM)
+
+    def sweep_for_path(self, path) -> None:
+        """`path` (whole) is being sent as path_id: the sweep interval it is driven with (see
+        sweep_seen_ground). The usual interval, when the rover has 0, is sent at once, before the
+        path's chunks (a running rover switches to a path once it has it whole); 0 waits for the
+        whole path (`sweep_before_start`): sent before it, a rover still on its last path would
+        drive the rest of that without its sweeps while the new one loads."""
+        if not self.sweep_seen_ground or len(path) < 2:
+            return
+        usual = self.sweep_usual_mm()
+        seen = self.map.seen_along(path, SEEN_CORRIDOR_M)
+        self.paths_unswept += seen
+        self._sweep_zero_for = self.path_id if seen else None
+        if not seen and self._sweep_mm_said == 0:
+            self._say_sweep(usual, "sweeps every {usual} mm again: the path crosses ground not yet seen")
+
+    def sweep_before_start(self) -> bool:
+        """The path is whole on the rover and nothing is pending: the CONFIG sweep_interval_mm = 0
+        that a path over seen ground waits for, sent before its START (which waits for the ACK).
+        True when it was sent now."""
+        if self._sweep_zero_for != self.path_id:
+            return False
+        self._sweep_zero_for = None
+        if self._sweep_mm_said == 0:
+            return False
+        self._say_sweep(0, "over ground the sonar has seen: no sweeps on the way")
+        return True
+
+    def _say_sweep(self, value: int, why: str) -> None:
+        interval = int(mg.Param.SWEEP_INTERVAL_MM)
+        for pending in self.requests:
+            if isinstance(pending.message, mg.Config) and pending.message.param == interval:
+                self.requests.drop(pending)  # (an older value, re-sent after this one, would undo it)
+        self._sweep_mm_said = value
+        self._request(mg.Config(param=interval, value=value))
+        self.on_event(self._now, why.format(usual=value))
+
+    def watch_blocked(self, now_s: float) -> bool:
+        """The leg sent again to a rover blocked for good on its path (see resend_blocked_s):
+        True when it was."""
+        s = self.last_status
+        blocked = (
+            self.resend_blocked_s is not None
+            and s is not None
+            and s.state == mg.RoverState.BLOCKED
+            and s.path_id == self.path_id
+            and self._aside_goal is None
+            and not self.held
+        )
+        if not blocked:
+            self._blocked_since = None
+            return False
+        if self._blocked_since is None:
+            self._blocked_since = now_s
+        if now_s - self._blocked_since < self.resend_blocked_s:
+            return False
+        self._blocked_since = None
+        self.blocked_resends += 1
+        self.on_event(
+            now_s, f"blocked on path {self.path_id} for {self.resend_blocked_s:g} s, no new path: its leg planned again"
+        )
+        deadline = self.current_leg.deadline_s
+        self._resume()
+        # The leg's deadline stands: a rover blocked again and again on the same way is late in the
+        # end, and the late leg's bounded recoveries decide (a re-send is no progress).
+        self.current_leg.deadline_s = deadline
+        return True
 
     # ---------------------------------------------------------------- held for another rover
 

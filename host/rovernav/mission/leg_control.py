@@ -22,6 +22,8 @@ class LegControl:
     def _watch_leg(self, now_s: float) -> None:
         """The leg's deadline, and an arrival that only the rover's STATUS shows (its ARRIVED event
         was lost): the recovery is to re-plan from where the rover is and send the leg again."""
+        if self.watch_blocked(now_s):
+            return
         leg = self.current_leg
         if now_s <= leg.deadline_s:
             return

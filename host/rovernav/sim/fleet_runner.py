@@ -67,6 +67,8 @@ class FleetOptions:
     rover1: str = "native"  # or "uno": rover 1 is the Uno image in simavr (cores/uno.py)
     log: object | None = None  # the run's MCAP log, a channel set per rover (runlog/fleet.py); None: none
     log_image_hz: float | None = None  # camera images in the log a second (None: the log's default)
+    #: The host's seen-ground trial (fleet/host.py; off: the fleet as measured in docs/results.md).
+    seen_ground_trial: bool = False
 
 
 class FleetSimTransport(Transport):
@@ -234,6 +236,7 @@ class FleetSimulation:
             clock=lambda: SIM_SIGN_CLOCK_START_S + self.t,
             on_event=self._host_event,
             recorders=None if self.runlog is None else self.runlog.rovers,
+            seen_ground_trial=options.seen_ground_trial,
         )
         look = RoverLook.for_vision(self.cfg.vision)
         camera = Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0)
@@ -471,6 +474,8 @@ class FleetSimulation:
                     "crash": r.crash,
                     "held": {"times": m.holds, "seconds": round(m.held_s, 1)},
                     "echoes_of_rovers": m.echoes_of_rovers,
+                    "paths_over_seen_ground": m.paths_unswept,
+                    "blocked_resends": m.blocked_resends,
                     "camera_lost_frames": self.lost_by_rover[k],
                     "link": self.radio.load[k].summary(t),
                     "link_loss": m.quality.summary(),
