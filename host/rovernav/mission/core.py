@@ -347,9 +347,8 @@ class Mission(RoverFrames, LegControl, FleetControl):
         if self.phase is Phase.LOAD:
             if self.upload is not None and self.upload.complete and not self.requests:
                 if self._start_sent_for != self.path_id:
-                    if self.sweep_before_start():
-                        pass  # START follows the CONFIG's ACK
-                    elif self.hold_start is None or not self.hold_start(now_s):
+                    # (A CONFIG a path over seen ground waits for goes first: START follows its ACK.)
+                    if not self.sweep_before_start() and (self.hold_start is None or not self.hold_start(now_s)):
                         self._start_sent_for = self.path_id
                         self._request(mg.Start(path_id=self.path_id, resume=self.start_resumes()))
                 elif self._start_acked_for == self.path_id:

@@ -134,7 +134,7 @@ class FleetControl:
         self.paths_unswept += seen
         self._sweep_zero_for = self.path_id if seen else None
         if not seen and self._sweep_mm_said == 0:
-            self._say_sweep(usual, "sweeps every {usual} mm again: the path crosses ground not yet seen")
+            self._say_sweep(usual, f"sweeps every {usual} mm again: the path crosses ground not yet seen")
 
     def sweep_before_start(self) -> bool:
         """The path is whole on the rover and nothing is pending: the CONFIG sweep_interval_mm = 0
@@ -155,7 +155,7 @@ class FleetControl:
                 self.requests.drop(pending)  # (an older value, re-sent after this one, would undo it)
         self._sweep_mm_said = value
         self._request(mg.Config(param=interval, value=value))
-        self.on_event(self._now, why.format(usual=value))
+        self.on_event(self._now, why)
 
     def watch_blocked(self, now_s: float) -> bool:
         """The leg sent again to a rover blocked for good on its path (see resend_blocked_s):
