@@ -2,7 +2,7 @@
 half-duplex radio, each between its start at the base and its site, round trip after round trip.
 
     python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
-                                       [--radio clean|loss1] [--uno] [--jobs 2] [--json FILE]
+                                       [--radio clean|loss1] [--uno] [--fleet-only] [--jobs 2] [--json FILE]
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
@@ -17,6 +17,10 @@ Two parts, each printed as a table with the command's figures:
                  the solvable ones with a base for 3 rovers), each given starts and sites for 3 rovers
                  (evaluation/fleet_arenas.py), ARENA_TRIPS round trips each: trips done of asked,
                  contacts, stuck runs.
+
+--fleet-only runs the 3-rover fleet alone on each seed (no rover alone on the routes, no lone
+`rovernav sim`): a rate over many seeds (`--seeds 1-10`), the fleet's runs whole, stuck and
+crashed, for judging a change to the traffic rules.
 
 --radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 %; --uno
 makes rover 1 the Uno image in simavr (its worst step is printed). Exit status 1 when an
@@ -148,15 +152,66 @@ def placement_problem(scenario: str) -> str | None:
     return None
 
 
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from "1,2,3", "1-10" or both ("1-5,8"); ValueError (one line) for anything else."""
+    seeds: list[int] = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        lo, sep, hi = part.partition("-")
+        if not (lo.isdigit() and (not sep or hi.isdigit())):
+            raise ValueError(f"--seeds: {part!r} is neither a seed nor a range like 1-10")
+        first, last = int(lo), int(hi) if sep else int(lo)
+        if last < first:
+            raise ValueError(f"--seeds: the range {part!r} runs backwards")
+        seeds += range(first, last + 1)
+    if not seeds:
+        raise ValueError("--seeds: no seed given")
+    return seeds
+
+
+def fleet_rates(rows: list[dict], a) -> bool:
+    """The fleet's runs over the seeds (--fleet-only): one line a seed, then the rates. True when
+    every run is whole (its trips done, no contact, not stuck)."""
+    rows = sorted(rows, key=lambda r: r["seed"])
+    print(f"\nout-and-back ({FLEET}), the 3-rover fleet alone, {a.trips} round trips a rover, radio {a.radio}:")
+    print("| seed | outcome | trips | time [s] | contacts | holds | what ended it |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        crash = r["crash"] or {}
+        why = f"rover {crash.get('rover')} against {crash.get('against')} at {crash.get('t_s')} s" if crash else ""
+        why = why or "; ".join(e for e in r["errors"] if e)
+        print(
+            f"| {r['seed']} | {r['outcome']} | {r['trips_done']}/{r['trips_asked']} | {r['time_s']:.0f} | "
+            f"{r['contacts']} | {r['holds']} | {why} |"
+        )
+    whole = [r for r in rows if r["trips_done"] == r["trips_asked"] and not r["contacts"] and not r["stuck"]]
+    stuck = sum(1 for r in rows if r["stuck"])
+    crashed = sum(1 for r in rows if r["contacts"])
+    times = [r["time_s"] for r in whole]
+    median = f", median time of the whole runs {statistics.median(times):.0f} s" if times else ""
+    print(
+        f"fleet runs whole {len(whole)}/{len(rows)}, stuck {stuck}, crashed {crashed}, other {len(rows) - len(whole) - stuck - crashed}"
+        f"{median}; trips done {sum(r['trips_done'] for r in rows)}/{sum(r['trips_asked'] for r in rows)}"
+    )
+    return len(whole) == len(rows)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--seeds", default="1,2,3", help="seeds: a list and ranges, 1,2,3 or 1-10 (default 1,2,3)")
     ap.add_argument("--trips", type=int, default=5, help="round trips a rover on out-and-back (default 5)")
     ap.add_argument("--arenas", type=int, default=20, help="generated arenas (default 20; 0: none)")
     ap.add_argument("--arena-trips", type=int, default=3, help="round trips a rover on an arena (default 3)")
     ap.add_argument("--radio", choices=sorted(RADIOS), default="clean")
     ap.add_argument("--uno", action="store_true", help="rover 1 is the Uno image")
     ap.add_argument("--skip-out-and-back", action="store_true")
+    ap.add_argument(
+        "--fleet-only",
+        action="store_true",
+        help="out-and-back: the 3-rover fleet alone on each seed (no rover alone, no ratio): its runs whole, "
+        "stuck and crashed over the seeds",
+    )
     ap.add_argument(
         "--seen-ground-trial",
         action="store_true",
@@ -169,14 +224,19 @@ def main() -> int:
     sys.path.insert(0, str(ROOT / "host"))
     from rovernav.evaluation.pool import map_runs
 
-    seeds = [int(s) for s in a.seeds.split(",") if s]
+    try:
+        seeds = parse_seeds(a.seeds)
+    except ValueError as exc:
+        print(f"fleet_shuttle: {exc}", file=sys.stderr)
+        return 2
     started = time.monotonic()
     out: dict = {"radio": a.radio, "uno": a.uno}
     ok = True
     if not a.skip_out_and_back:
         trial = a.seen_ground_trial
         jobs = [(FLEET, 3, s, a.trips, a.radio, a.uno, None, trial) for s in seeds]
-        jobs += [(FLEET, 1, s, a.trips, a.radio, False, k, trial) for s in seeds for k in range(3)]
+        if not a.fleet_only:
+            jobs += [(FLEET, 1, s, a.trips, a.radio, False, k, trial) for s in seeds for k in range(3)]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)
@@ -187,6 +247,10 @@ def main() -> int:
                 file=sys.stderr,
                 flush=True,
             )
+        if a.fleet_only:
+            ok &= fleet_rates(rows, a)
+            out["fleet_runs"] = rows
+            seeds = []  # the comparison with one rover below is left out
         lone = {r["seed"]: r for _, r in map_runs(run_lone, [(s, a.trips, a.radio) for s in seeds], a.jobs)}
         print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
         print(
@@ -224,12 +288,13 @@ def main() -> int:
             print(f"rover 1 as the Uno image: worst step {max(worst):.0f} us (goal 5,000)")
             ok &= max(worst) <= 5000
         ratios = [t["ratio"] for t in table]
-        print(
-            f"throughput, 3 rovers over 1 rover doing the same trips: median {statistics.median(ratios):.2f}x "
-            f"(goal {THROUGHPUT_GOAL}x); over 1 rover on route 1: median "
-            f"{statistics.median(t['ratio_route1'] for t in table):.2f}x"
-        )
-        out["out_and_back"] = table
+        if ratios:
+            print(
+                f"throughput, 3 rovers over 1 rover doing the same trips: median {statistics.median(ratios):.2f}x "
+                f"(goal {THROUGHPUT_GOAL}x); over 1 rover on route 1: median "
+                f"{statistics.median(t['ratio_route1'] for t in table):.2f}x"
+            )
+            out["out_and_back"] = table
     if a.arenas:
         # The first ARENAS of the sample that are solvable and have a base for 3 rovers (the others
         # are named, not run: no fleet shuttle fits them).

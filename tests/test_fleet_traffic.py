@@ -33,6 +33,10 @@ def test_ahead_cuts_a_path_at_its_length_and_sample_walks_it():
 class _Mission(SimpleNamespace):
     """What the traffic rules read of a mission."""
 
+    done = False
+    start_xy = None  # its berth and its site (None: not in the way of a spot aside)
+    target_xy = None
+
     def rover_xy(self):
         return self.xy
 

@@ -102,6 +102,7 @@ class FleetHost:
             m.slot_fixes = True
             m.park_at_end = True
             m.heard_over_spot = True
+            m.hold_on_refused = True
             if seen_ground_trial:  # paths over seen ground unswept, and the blocked watch
                 m.sweep_seen_ground = True
                 m.resend_blocked_s = RESEND_BLOCKED_S

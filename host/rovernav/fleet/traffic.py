@@ -46,6 +46,11 @@ REPLAN_AFTER_S = 2.0
 #: Two rovers that hold each other this long: the later in the order gives way [s].
 GIVE_WAY_AFTER_S = 4.0
 SIDE_STEP_M = 0.35
+#: A rover that gave way waits aside until the rover it gave way to has passed (its way no longer
+#: comes near the giver's own stretch ahead), or this long at most [s]: let go as soon as its own
+#: stretch was clear, it drove back into the other's way, and the two gave way to each other
+#: for good (1 % loss, seed 2, with the berth rule below).
+GAVE_WAY_WAIT_S = 45.0
 #: Where a parked rover may be sent aside: rings this far from its berth [m], in this many
 #: directions, planning a way to at most ASIDE_MAX_PLANS of the free spots (nearest first).
 ASIDE_RINGS_M = (0.35, 0.5, 0.7, 0.9)
@@ -155,6 +160,7 @@ class Traffic:
         self._clear_since: dict[int, float] = {}
         self._tried_at: dict[int, float] = {}  # when a held rover last tried a way round
         self._ring_tried_at: dict[int, float] = {}  # when a held rover last looked for a way aside
+        self._gave_way: dict[int, tuple[int, float]] = {}  # giver: (the rover it gave way to, when)
         # Where each rover has been (the camera's fixes, TRACK_STEP_M apart): free ground to back
         # along when it must give way in a passage.
         self.tracks: list[list[tuple[float, float]]] = [[] for _ in missions]
@@ -247,6 +253,10 @@ class Traffic:
         m = self.missions[k]
         if m.parked and self._wanted_home(k):
             return False  # sent aside from home: back only once no rover's way passes its berth
+        if m.settling(now_s):
+            return False  # stopped as it backed out of a refused turn: planned once it has stopped
+        if self._waits_for_passing(k, now_s):
+            return False
         who = self.blockers(k)
         if not who:
             since = self._clear_since.setdefault(k, now_s)
@@ -282,9 +292,24 @@ class Traffic:
                     way = self._way_aside(g, j)
                     if way is not None:
                         self.give_ways += 1
+                        self._gave_way[g] = (j, now_s)
                         self.on_event(now_s, f"rover {g + 1} gives way to rover {j + 1}: back to {_xy(way[-1])}")
                         self.missions[g].let_go(now_s, way, aside=True)
                         return True
+        return False
+
+    def _waits_for_passing(self, k: int, now_s: float) -> bool:
+        """Whether rover k, which gave way, still waits for the rover it gave way to to pass (see
+        GAVE_WAY_WAIT_S): that rover's way ahead still comes near k's own stretch ahead."""
+        if k not in self._gave_way:
+            return False
+        j, since = self._gave_way[k]
+        other = self.missions[j]
+        theirs = other.rest_of_leg() if not (other.done or other.parked) else []
+        mine = self._stretch(k)
+        if now_s - since < GAVE_WAY_WAIT_S and len(theirs) > 1 and polylines_m(mine, theirs) < CLEAR_M:
+            return True
+        del self._gave_way[k]
         return False
 
     def _way_aside(self, k: int, j: int):
@@ -353,6 +378,16 @@ class Traffic:
         here = self.position(j)
         theirs = self.missions[k].rest_of_leg() or [self.position(k)]
         others = [self.position(i) for i in range(len(self.missions)) if i != j]
+        # Nor on the berth or the site of a rover with trips to do: rover 3, sent aside from its
+        # berth onto rover 1's to let rover 2 by, waited there for rover 2 to be home, and held
+        # rover 1, on its way home, for good (seeds 1 and 2 of the seen-ground trial).
+        ends = [
+            q
+            for i, m in enumerate(self.missions)
+            if i != j and not m.done
+            for q in (m.start_xy, m.target_xy)
+            if q is not None
+        ]
         grid = self.planning_map(j, also_moving=True).grid
         tried, best = 0, None
         for r in ASIDE_RINGS_M:
@@ -363,7 +398,7 @@ class Traffic:
                 if not grid.contains(*p) or not grid.is_free(*p):
                     continue
                 if polyline_point_m(theirs, p) < CLEAR_M + 0.03 or any(
-                    math.dist(p, q) < PLAN_CLEAR_M + 0.03 for q in others
+                    math.dist(p, q) < PLAN_CLEAR_M + 0.03 for q in others + ends
                 ):
                     continue
                 if tried >= ASIDE_MAX_PLANS:

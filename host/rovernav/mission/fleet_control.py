@@ -27,6 +27,10 @@ SLOT_FIX_MAX_AGE_S = 0.25
 #: A path is over seen ground when the sonar has looked at every cell this near it [m]: the body's
 #: half-diagonal (0.129 m, the reach of its corners in a turn) and 7 cm for the rover off its line.
 SEEN_CORRIDOR_M = 0.20
+#: A rover held as it began to back out of a refused turn is let go no sooner than this [s]: its
+#: STOP goes in its next slot (up to ~0.7 s on three rovers' air), and its path is planned from
+#: where it stopped, not from where it was still backing.
+REFUSED_SETTLE_S = 1.5
 
 
 class FleetControl:
@@ -69,6 +73,15 @@ class FleetControl:
     resend_blocked_s: float | None = None
     _blocked_since: float | None = None
     blocked_resends: int = 0
+    #: True (a fleet's rover): a rover that refuses a turn (TURN_REFUSED: its corners have no room
+    #: where it stands) is stopped at once (held) rather than left to back out and turn on its own:
+    #: it backs out blind, into another rover (the traffic rules reserve the way ahead of a rover,
+    #: not behind), and its line on from where it stopped backing was checked only once its STATUS
+    #: said so, a second or more later on a fleet's air, after a corner had met the box it turned
+    #: from. Planned afresh from where it stops (`refused_at` in `plan_from`).
+    hold_on_refused: bool = False
+    _settle_until: float | None = None  # a rover held on a refused turn is let go no sooner
+    refusal_holds: int = 0
     echoes_of_rovers: int = 0
     holds: int = 0
     held_s: float = 0.0
@@ -187,6 +200,19 @@ class FleetControl:
         # end, and the late leg's bounded recoveries decide (a re-send is no progress).
         self.current_leg.deadline_s = deadline
         return True
+
+    def turn_refused(self, now_s: float) -> None:
+        """The rover refused a turn (TURN_REFUSED) and is backing out: held where the STOP finds
+        it (see hold_on_refused)."""
+        if not self.hold_on_refused or self.held or self.done or self.phase is not Phase.RUN:
+            return
+        self.refusal_holds += 1
+        self.hold(now_s, "refused a turn: stopped as it backs out, to be planned afresh from there")
+        self._settle_until = now_s + REFUSED_SETTLE_S
+
+    def settling(self, now_s: float) -> bool:
+        """Whether a rover held on a refused turn is still to be left standing (REFUSED_SETTLE_S)."""
+        return self._settle_until is not None and now_s < self._settle_until
 
     # ---------------------------------------------------------------- held for another rover
 

@@ -96,6 +96,10 @@ class LegControl:
         # The turn at the start counts from the rover's heading when the path starts where it stands.
         heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
         refused = self.current_leg.refused_twice() if self.legs else []
+        # A fleet's rover is stopped as it begins to back out of a refused turn (hold_on_refused):
+        # planned afresh from there, its first turn is checked against where it refused, and a
+        # back-out against the line on from where it would end (leg_plan.plan_leg).
+        refused_at = list(self.current_leg.turns_refused_at) if self.legs and self.hold_on_refused else None
         path, reason = plan_leg(
             self._planning_map(),
             start,
@@ -105,6 +109,7 @@ class LegControl:
             refused=refused,
             say=lambda text: self.on_event(self._now, text),
             arrival_m=self.arrival_radius_m,
+            refused_at=refused_at,
         )
         if path is None and self.planning_map is not None and not round_rovers:
             # No way round the fleet's other rovers: a path as if they were not there (the traffic
@@ -118,6 +123,7 @@ class LegControl:
                 refused=refused,
                 say=lambda text: self.on_event(self._now, text),
                 arrival_m=self.arrival_radius_m,
+                refused_at=refused_at,
             )
         if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)

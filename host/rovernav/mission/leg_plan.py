@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import ARRIVAL_M, ahead_first, half_seen, room_behind, turnable
+from ..planning.turns import ARRIVAL_M, ahead_first, backed_out_clear, half_seen, room_behind, turnable
 
 #: How far from a goal that an echo's arc covers the last tries may end their plan [m].
 GOAL_SHIFT_M = 0.06
@@ -38,6 +38,7 @@ def plan_leg(
     refused: list[tuple[float, float]],
     say: Callable[[str], None],
     arrival_m: float = ARRIVAL_M,
+    refused_at: list[tuple[float, float]] | None = None,
 ) -> tuple[list[tuple[float, float]] | None, NoPathError | None]:
     """(path, None), or (None, the planner's most telling reason) when there is no path.
 
@@ -52,7 +53,10 @@ def plan_leg(
     heading: the rover's heading [deg] when the path starts where it stands, for its first turn
     (None: not checked); refused: spots where the rover refused a turn twice in this leg; say:
     what the planning did, in words, for the mission's events; arrival_m: the rover's arrival
-    radius as configured (a point put in ahead for the first turn lies beyond it).
+    radius as configured (a point put in ahead for the first turn lies beyond it); refused_at:
+    every spot where it refused a turn in this leg, for the first turn's check (ahead_first), and
+    a back-out then only with room to turn where it ends and a clear line on (backed_out_clear);
+    None: neither (a lone rover's host replans when it hears the rover has backed out).
     """
     reason = None
     lenient = learned_map.lenient_grid()
@@ -114,16 +118,23 @@ def plan_leg(
                 path = path if origin is start else [start] + path
                 if heading is not None:
                     # The first turn, from the heading the rover has where it stands.
-                    path, ahead = ahead_first(grid, path, heading, hidden, arrival_m)
+                    path, ahead = ahead_first(grid, path, heading, hidden, arrival_m, refused_at or ())
                     if ahead > 0:
                         say("no room to turn where the rover stands: it drives straight on to turn first")
-                    elif ahead < 0 and room_behind(grid, path[0], heading, hidden):
+                    elif (
+                        ahead < 0
+                        and room_behind(grid, path[0], heading, hidden)
+                        and (refused_at is None or backed_out_clear(grid, path[0], heading, path[1], hidden))
+                    ):
                         # Its own memory may have let go of what the map holds: the path
                         # asks it to back out the way it came before it turns (PATH back_out).
                         path = PlannedPath(path, back_out=True)
                         say("no room to turn where the rover stands, none straight ahead: it backs out first")
                     elif ahead < 0:
-                        say("no room to turn where the rover stands, none straight ahead or behind: it turns there")
+                        say(
+                            "no room to turn where the rover stands, none straight ahead, nor behind with a clear "
+                            "line on: it turns there"
+                        )
                 return path, None
     return None, reason
 

@@ -216,6 +216,7 @@ class RoverFrames:
             if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
                 # Twice in one spot, and planned paths turn there no more this leg (Leg.refused_twice).
                 self.current_leg.turns_refused_at.append((m.x_mm / 1000, m.y_mm / 1000))
+                self.turn_refused(self._now)  # a fleet's rover: stopped as it begins to back out
 
     def _leg_open(self) -> bool:
         return self.phase in (Phase.LOAD, Phase.RUN) and bool(self.legs) and not self.current_leg.reached

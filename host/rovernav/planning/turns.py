@@ -58,6 +58,10 @@ ARRIVAL_M = PARAMS[Param.ARRIVAL_RADIUS_MM].default / 1000.0
 #: would hit) has no room, whatever the grid says: a refusal comes within the arrival radius
 #: (36 mm) of the waypoint, and the waypoint may have moved a cell since [m].
 REFUSED_NEAR_M = 0.06
+#: The rover at its path's start this near a spot where it refused a turn has no room for it
+#: there (`ahead_first`): the host's STOP may land while it backs out, up to the back-off
+#: distance (0.15 m) from where it refused [m].
+REFUSED_HERE_M = BACK_OFF_MM / 1000.0 + 0.01
 #: What an echo leaves unseen behind the face it shows, along the beam [m]: the smallest box the
 #: arena generators make (8 cm); the half body width.
 HALF_SEEN_DEPTH_M = 0.08
@@ -205,6 +209,7 @@ def ahead_first(
     heading_deg: float,
     hidden: np.ndarray | None = None,
     arrival_m: float = ARRIVAL_M,
+    refused_at: Sequence[Sequence[float]] = (),
 ) -> tuple[list[tuple[float, float]], int]:
     """The turn at the path's first point, where the rover stands facing heading_deg.
 
@@ -215,6 +220,12 @@ def ahead_first(
     next waypoint is clear, goes in after it: the rover drives there without turning, and turns
     there. Returns (points, 1) with it, (points, -1) when there is none, (points, 0) when the
     turn needs no room.
+
+    `refused_at`: where the rover refused a turn in this leg (TURN_REFUSED). Within
+    REFUSED_HERE_M of one the rover's own check has said there is no room, whatever the grid says:
+    a fleet's rover, stopped by the host as it began to back out, is planned afresh from there,
+    and the same turn sent again would be refused again. No point ahead within REFUSED_NEAR_M of
+    one is taken either.
     """
     pts = [(float(x), float(y)) for x, y in waypoints]
     if len(pts) < 2:
@@ -225,7 +236,10 @@ def ahead_first(
     h = math.radians(heading_deg)
     p0, p1 = pts[0], pts[1]
     leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
-    if abs(math.degrees(wrap_rad(leg - h))) <= MIN_TURN_DEG or not grid.contains(*p0) or _room(clear, grid, p0) >= need:
+    refused_here = any(math.dist(p0, r) <= REFUSED_HERE_M for r in refused_at)
+    if abs(math.degrees(wrap_rad(leg - h))) <= MIN_TURN_DEG or not grid.contains(*p0):
+        return pts, 0
+    if _room(clear, grid, p0) >= need and not refused_here:
         return pts, 0
     # The sides must clear the way: by half the body's width and the margin, or, where the rover
     # already stands nearer than that, by no less than where it stands.
@@ -239,9 +253,35 @@ def ahead_first(
             break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
         beyond = k * res >= arrival_m + SWING_MARGIN_M
-        if beyond and _room(clear, grid, q) >= need and grid.is_free(*q) and grid.segment_clear(q, p1):
+        if (
+            beyond
+            and _room(clear, grid, q) >= need
+            and not _refused_near(q, refused_at)
+            and grid.is_free(*q)
+            and grid.segment_clear(q, p1)
+        ):
             return [p0, q] + pts[1:], 1
     return pts, -1
+
+
+def backed_out_clear(
+    grid: OccupancyGrid,
+    p: Sequence[float],
+    heading_deg: float,
+    next_point: Sequence[float],
+    hidden: np.ndarray | None = None,
+) -> bool:
+    """Whether, having backed straight out the whole back-off distance from p (facing
+    heading_deg), the rover has room there for its turn and a clear drive on to next_point: it
+    turns there without looking (its check was made before it backed out), and the line on is a
+    line no planner chose (the crash of fleet seed 2 at the corner of the box the sonar finds)."""
+    h = math.radians(heading_deg)
+    b = (p[0] - BACK_OFF_MM / 1000.0 * math.sin(h), p[1] - BACK_OFF_MM / 1000.0 * math.cos(h))
+    if not grid.contains(*b):
+        return False
+    res = grid.resolution_m
+    clear = clearance_map(grid, reach_m=SWING_M + SWING_MARGIN_M + res, hidden=hidden)
+    return _room(clear, grid, b) >= SWING_M + SWING_MARGIN_M and body_clear(grid, b, next_point)
 
 
 def room_behind(grid: OccupancyGrid, p: Sequence[float], heading_deg: float, hidden: np.ndarray | None = None) -> bool:
