@@ -2,7 +2,7 @@
 half-duplex radio, each between its start at the base and its site, round trip after round trip.
 
     python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
-                                       [--radio clean|loss1] [--uno] [--fleet-only] [--jobs 2] [--json FILE]
+                                       [--radio clean|loss1|burst2|loss5] [--uno] [--fleet-only] [--jobs 2] [--json FILE]
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
@@ -22,7 +22,8 @@ Two parts, each printed as a table with the command's figures:
 `rovernav sim`): a rate over many seeds (`--seeds 1-10`), the fleet's runs whole, stuck and
 crashed, for judging a change to the traffic rules.
 
---radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 %; --uno
+--radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 % (burst2:
+2 % lost in bursts, mean 0.5 s, 10 % of the time; loss5: 5 % lost; benchmarks/lossy_radio.py); --uno
 makes rover 1 the Uno image in simavr (its worst step is printed). Exit status 1 when an
 acceptance figure is missed: 0 contacts and 0 stuck anywhere, throughput >= 2.5x one rover's doing
 the same trips on every seed, >= 99 % of the arenas' trips.
@@ -39,10 +40,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from lossy_radio import RADIOS, solvable  # noqa: E402  (the same radios: clean, loss1, burst2, loss5)
 from lossy_radio import arenas as sample_arenas  # noqa: E402  (the same sample of generated arenas)
-from lossy_radio import solvable  # noqa: E402
 
-RADIOS = {"clean": {}, "loss1": {"byte_loss": 0.01, "bit_error": 0.001}}
 FLEET = "fleet-out-and-back"
 MAX_TIME_S = 3600.0
 THROUGHPUT_GOAL = 2.5

@@ -34,6 +34,7 @@ class _Mission(SimpleNamespace):
     """What the traffic rules read of a mission."""
 
     done = False
+    parked = False
     start_xy = None  # its berth and its site (None: not in the way of a spot aside)
     target_xy = None
 
@@ -201,3 +202,40 @@ def test_rovernav_sim_refuses_more_rovers_than_starts_in_one_line():
     )
     assert out.returncode == 2
     assert out.stderr.count("\n") == 1 and "3 rovers but the scenario names 1 start" in out.stderr
+
+
+def test_a_spot_aside_is_never_on_the_berth_or_site_of_a_rover_with_trips_to_do():
+    # Rover 2 parked at home in rover 1's way; rover 3's berth lies where the nearest spot aside
+    # would be: rover 2 is sent elsewhere (a rover aside on another's berth held it for good).
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    shared = LearnedMap(grid)
+    home = (0.7, 0.3)
+    m1 = _ParkedMission(xy=(0.5, 1.0), rest=[(0.85, 0.45), (1.1, 0.3)], moving_leg=False, map=shared)
+    m2 = _ParkedMission(xy=home, rest=[], moving_leg=False, map=shared, parked=True)
+    m2.current_leg = SimpleNamespace(goal=home)
+    m3 = _ParkedMission(xy=(1.9, 1.5), rest=[], moving_leg=False, map=shared)
+    t = Traffic([m1, m2, m3])
+    free = t._aside_spot(1, 0)[-1]
+    m3.start_xy = free  # rover 3's berth where rover 2 would have gone
+    again = t._aside_spot(1, 0)[-1]
+    assert math.dist(again, free) >= 0.33
+    m3.done = True  # a rover with its trips done is no one's concern
+    assert t._aside_spot(1, 0)[-1] == free
+
+
+def test_a_rover_that_gave_way_waits_until_the_other_has_passed_or_long_enough():
+    from rovernav.fleet.traffic import GAVE_WAY_WAIT_S
+
+    # Rover 2 gave way to rover 1 and waits aside at (1.0, 0.8); its way back runs down to (1.0,
+    # 0.3), across rover 1's way along y = 0.4.
+    t, _ = _traffic(((0.3, 0.4), [(1.8, 0.4)]), ((1.0, 0.8), [(1.0, 0.3)]))
+    t._gave_way[1] = (0, 10.0)
+    assert t._waits_for_passing(1, 11.0)  # rover 1 has yet to pass
+    t.missions[0].xy = (1.5, 0.4)  # past: its way on no longer comes near rover 2's stretch
+    assert not t._waits_for_passing(1, 12.0) and 1 not in t._gave_way
+    t._gave_way[1] = (0, 10.0)
+    t.missions[0].xy = (0.3, 0.4)
+    assert not t._waits_for_passing(1, 10.0 + GAVE_WAY_WAIT_S)  # waited long enough: it goes
+    t._gave_way[1] = (0, 10.0)
+    t.missions[0].done = True
+    assert not t._waits_for_passing(1, 11.0)

@@ -439,6 +439,28 @@ def test_a_turn_refused_twice_in_one_spot_is_not_planned_there_again():
     assert leg.refused_twice() == [(1.0, 0.8), (1.02, 0.8)]  # once is not enough
 
 
+def test_a_fleet_rover_that_refuses_a_turn_is_held_at_once_and_planned_from_where_it_stops():
+    # A lone rover backs out on its own (its host replans on hearing it has); a fleet's rover is
+    # stopped as it begins to (hold_on_refused), left standing REFUSED_SETTLE_S, and its first turn
+    # from there is checked against where it refused.
+    from rovernav.mission.fleet_control import REFUSED_SETTLE_S
+
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(2.0, 1.4))
+    t = _run(mission, rover, 1.5)
+    assert mission.phase is Phase.RUN
+    rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=300, y_mm=300))
+    t = _run(mission, rover, 0.2, t0=t)
+    assert not mission.held and mission.refusal_holds == 0  # a lone rover's mission: no hold
+    mission.hold_on_refused = True
+    rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=300, y_mm=300))
+    t = _run(mission, rover, 0.2, t0=t)
+    assert mission.held and mission.refusal_holds == 1
+    assert rover.of(mg.Stop)  # the STOP went
+    assert any(n.startswith("held: refused a turn") for n in notes)
+    assert mission.settling(t) and not mission.settling(t + REFUSED_SETTLE_S)
+    assert mission.current_leg.turns_refused_at == [(0.3, 0.3), (0.3, 0.3)]
+
+
 def test_a_check_that_finds_no_way_is_no_verdict():
     # The target walled in: the leg's planning says 'no path' and ends the mission; a check (after
     # a back-off) that finds no way from where the rover stands keeps the path it has.

@@ -17,6 +17,7 @@ from rovernav.planning.turns import (
     SWING_M,
     SWING_MARGIN_M,
     ahead_first,
+    backed_out_clear,
     body_clear,
     clearance_map,
     half_seen,
@@ -224,3 +225,34 @@ def test_the_host_asks_a_rover_to_back_out_only_where_its_map_has_room_straight_
     assert room_behind(g, (1.0, 0.6), -90.0)
     # Backing past the arena's wall is no room either.
     assert not room_behind(g, (2.20, 0.6), -90.0)
+
+
+def test_where_the_rover_refused_a_turn_the_first_turn_has_no_room_whatever_the_grid_says():
+    # An empty arena: room to turn anywhere. The rover refused a turn 0.08 m ahead of where it
+    # stands (the host stopped it as it backed out): the turn there is put off to a point straight
+    # ahead, clear of the spot it refused at; with none ahead (a wall), no point goes in.
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    start, heading = (1.0, 0.6), 90.0  # facing east
+    path = [start, (1.0, 1.2)]  # a left turn of 90 degrees
+    assert ahead_first(g, path, heading) == (path, 0)
+    refused = [(1.08, 0.6)]
+    out, ahead = ahead_first(g, path, heading, refused_at=refused)
+    assert ahead == 1 and out[0] == start and out[-1] == path[-1]
+    assert out[1][0] > start[0] and abs(out[1][1] - start[1]) < 1e-9
+    assert math.dist(out[1], refused[0]) > REFUSED_NEAR_M
+    # Refused further than the back-off distance away: no bearing on where it stands now.
+    assert ahead_first(g, path, heading, refused_at=[(1.2, 0.6)]) == (path, 0)
+    g.add_wall(1.16, 0.3, 1.16, 0.9, 0.02)  # a wall 0.15 m ahead: nowhere ahead to turn
+    assert ahead_first(g, path, heading, refused_at=refused) == (path, -1)
+
+
+def test_a_back_out_needs_room_to_turn_where_it_ends_and_a_clear_line_on():
+    # Facing east at (1.0, 0.6): backed out 0.15 m it stands at (0.85, 0.6) and turns there
+    # without looking, then drives straight on to the next waypoint.
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    assert backed_out_clear(g, (1.0, 0.6), 90.0, (0.85, 1.3))
+    g.add_box(1.0, 0.95, 0.2, 0.2)  # y 0.85..1.05: beside the line on from (0.85, 0.6) to (1.0, 1.3)
+    assert not backed_out_clear(g, (1.0, 0.6), 90.0, (1.0, 1.3))
+    assert backed_out_clear(g, (1.0, 0.6), 90.0, (0.6, 1.3))  # a line on that passes it
+    g.add_box(0.85, 0.45, 0.1, 0.06)  # its face 0.12 m from where it would turn: no room for the corners
+    assert not backed_out_clear(g, (1.0, 0.6), 90.0, (0.6, 1.3))
