@@ -252,12 +252,14 @@ def main() -> int:
             out["fleet_runs"] = rows
             seeds = []  # the comparison with one rover below is left out
         lone = {r["seed"]: r for _, r in map_runs(run_lone, [(s, a.trips, a.radio) for s in seeds], a.jobs)}
-        print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
-        print(
-            "| seed | 3 rovers | trips/h | 1 rover on each route alone (1, 2, 3) | the same trips by 1 rover: trips/h "
-            "| **ratio** | ratio to route 1 alone | lone `rovernav sim` trips/h | contacts | stuck | holds | air B/s |"
-        )
-        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+        if seeds:
+            print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
+            print(
+                "| seed | 3 rovers | trips/h | 1 rover on each route alone (1, 2, 3) | the same trips by 1 rover: "
+                "trips/h | **ratio** | ratio to route 1 alone | lone `rovernav sim` trips/h | contacts | stuck | holds "
+                "| air B/s |"
+            )
+            print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         table = []
         for s in seeds:
             three = next(r for r in rows if r["seed"] == s and r["route"] is None)

@@ -237,5 +237,5 @@ def test_a_rover_that_gave_way_waits_until_the_other_has_passed_or_long_enough()
     t.missions[0].xy = (0.3, 0.4)
     assert not t._waits_for_passing(1, 10.0 + GAVE_WAY_WAIT_S)  # waited long enough: it goes
     t._gave_way[1] = (0, 10.0)
-    t.missions[0].done = True
+    t.missions[0].moving_leg = False  # rover 1 held (for rover 2, or any other): not waited for
     assert not t._waits_for_passing(1, 11.0)

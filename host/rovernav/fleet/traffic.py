@@ -300,12 +300,15 @@ class Traffic:
 
     def _waits_for_passing(self, k: int, now_s: float) -> bool:
         """Whether rover k, which gave way, still waits for the rover it gave way to to pass (see
-        GAVE_WAY_WAIT_S): that rover's way ahead still comes near k's own stretch ahead."""
+        GAVE_WAY_WAIT_S): that rover is on the move and its way ahead still comes near k's own
+        stretch ahead. A rover it gave way to that is held (for k, or any other) is not waited
+        for: the rules that hold it decide (rover 3, held on its way aside by a refused turn,
+        waited for rover 1, which waited for rover 3: seed 2 of the seen-ground trial)."""
         if k not in self._gave_way:
             return False
         j, since = self._gave_way[k]
         other = self.missions[j]
-        theirs = other.rest_of_leg() if not (other.done or other.parked) else []
+        theirs = other.rest_of_leg() if other.moving_leg else []
         mine = self._stretch(k)
         if now_s - since < GAVE_WAY_WAIT_S and len(theirs) > 1 and polylines_m(mine, theirs) < CLEAR_M:
             return True
