@@ -256,3 +256,36 @@ def test_a_back_out_needs_room_to_turn_where_it_ends_and_a_clear_line_on():
     assert backed_out_clear(g, (1.0, 0.6), 90.0, (0.6, 1.3))  # a line on that passes it
     g.add_box(0.85, 0.45, 0.1, 0.06)  # its face 0.12 m from where it would turn: no room for the corners
     assert not backed_out_clear(g, (1.0, 0.6), 90.0, (0.6, 1.3))
+
+
+def test_a_fleet_rover_with_no_room_to_turn_drives_straight_on_to_room_and_is_planned_from_there():
+    # Facing west at (1.0, 0.6), a box's top 0.115 m below it: no room to turn. Backed out (east)
+    # it would stand with no more room; the one point ahead with room, (0.7, 0.6), has no clear
+    # line on to the path's next waypoint past the small box above. A lone rover's host asks it
+    # to back out (its rover checks for itself, and the host replans when it has backed out); a
+    # fleet's rover (refused_at given) drives straight on to the point and is planned from there.
+    from rovernav.mapping import LearnedMap
+    from rovernav.mission.leg_plan import plan_leg
+
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    g.add_box(1.0, 0.44, 0.3, 0.1)
+    g.add_box(0.95, 0.85, 0.1, 0.1)
+    learned = LearnedMap(g)
+    start, goal = (1.0, 0.6), (1.6, 0.9)
+
+    def plan_it(refused_at):
+        notes: list[str] = []
+        path, _ = plan_leg(
+            learned, start, goal, planner="astar", heading=-90.0, refused=[], say=notes.append, refused_at=refused_at
+        )
+        return path, notes
+
+    lone, notes = plan_it(None)
+    assert lone.back_out and "it backs out first" in notes[-1]
+    fleet, notes = plan_it([])
+    assert not getattr(fleet, "back_out", False) and "planned afresh from there" in notes[-1]
+    assert fleet[0] == start and fleet[-1] == goal
+    q = fleet[1]
+    assert abs(q[1] - start[1]) < 1e-9 and q[0] < start[0]  # straight ahead, west
+    assert clearance_map(g, 1.0)[g.world_to_cell(*q)[1], g.world_to_cell(*q)[0]] >= SWING_M + SWING_MARGIN_M
+    assert not g.path_blocked(fleet[1:])

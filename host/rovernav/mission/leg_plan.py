@@ -10,7 +10,15 @@ from collections.abc import Callable
 
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
-from ..planning.turns import ARRIVAL_M, ahead_first, backed_out_clear, half_seen, room_behind, turnable
+from ..planning.turns import (
+    ARRIVAL_M,
+    ahead_first,
+    backed_out_clear,
+    half_seen,
+    points_ahead,
+    room_behind,
+    turnable,
+)
 
 #: How far from a goal that an echo's arc covers the last tries may end their plan [m].
 GOAL_SHIFT_M = 0.06
@@ -130,6 +138,20 @@ def plan_leg(
                         # asks it to back out the way it came before it turns (PATH back_out).
                         path = PlannedPath(path, back_out=True)
                         say("no room to turn where the rover stands, none straight ahead: it backs out first")
+                    elif (
+                        ahead < 0
+                        and refused_at is not None
+                        and (
+                            on := _on_from_ahead(
+                                grid, path, heading, hidden, arrival_m, refused_at, refused, end, goal, planner
+                            )
+                        )
+                    ):
+                        path = on
+                        say(
+                            "no room to turn where the rover stands, none straight ahead on to its path, nor behind: "
+                            "it drives straight on to a spot with room, planned afresh from there"
+                        )
                     elif ahead < 0:
                         say(
                             "no room to turn where the rover stands, none straight ahead, nor behind with a clear "
@@ -137,6 +159,28 @@ def plan_leg(
                         )
                 return path, None
     return None, reason
+
+
+#: How many points straight ahead with room a rover with none where it stands is planned from.
+AHEAD_PLANS = 4
+
+
+def _on_from_ahead(grid, path, heading, hidden, arrival_m, refused_at, refused, end, goal, planner):
+    """A rover with no room to turn where it stands, whose path's first leg no point straight
+    ahead joins, nor a back-out: a path straight on to a point ahead with room (points_ahead,
+    nearest first, AHEAD_PLANS of them) and planned afresh from there to `end`, where it turns
+    (and `goal` after it when the plan ends short of it, as plan_leg's do) (None: none). Sent
+    the path with its turn where it stands, the rover refuses it, backs out along its track of
+    its own and turns where that ends, unchecked (fleet seed 7: a corner met the box the sonar
+    finds)."""
+    for q in points_ahead(grid, path[0], heading, hidden, arrival_m, refused_at)[:AHEAD_PLANS]:
+        try:
+            result = plan(grid, q, end, planner=planner)
+        except NoPathError:
+            continue
+        waypoints, _moved, _left = turnable(grid, [path[0], *result.waypoints], refused, hidden)
+        return [tuple(p) for p in waypoints] + ([] if end is goal else [tuple(goal)])
+    return None
 
 
 def nearest_free(xy: tuple[float, float], grid: OccupancyGrid, max_m: float = 0.3) -> tuple[float, float] | None:

@@ -214,12 +214,10 @@ def ahead_first(
     """The turn at the path's first point, where the rover stands facing heading_deg.
 
     When that turn is more than MIN_TURN_DEG and the corners have no room there (the grid's
-    obstacles, known and seen, and `hidden`), the nearest point straight ahead (within SEARCH_M,
-    a cell at a time, beyond the rover's arrival radius `arrival_m` and the margin: a nearer one
-    would count as reached where the rover stands) with room, whose drive keeps the body's sides clear and whose leg to the
-    next waypoint is clear, goes in after it: the rover drives there without turning, and turns
-    there. Returns (points, 1) with it, (points, -1) when there is none, (points, 0) when the
-    turn needs no room.
+    obstacles, known and seen, and `hidden`), the nearest point straight ahead (`points_ahead`)
+    whose leg to the next waypoint is clear goes in after it: the rover drives there without
+    turning, and turns there. Returns (points, 1) with it, (points, -1) when there is none,
+    (points, 0) when the turn needs no room.
 
     `refused_at`: where the rover refused a turn in this leg (TURN_REFUSED). Within
     REFUSED_HERE_M of one the rover's own check has said there is no room, whatever the grid says:
@@ -228,23 +226,54 @@ def ahead_first(
     one is taken either.
     """
     pts = [(float(x), float(y)) for x, y in waypoints]
-    if len(pts) < 2:
+    if len(pts) < 2 or not first_turn_tight(grid, pts, heading_deg, hidden, refused_at):
         return pts, 0
+    for q in points_ahead(grid, pts[0], heading_deg, hidden, arrival_m, refused_at):
+        if grid.segment_clear(q, pts[1]):
+            return [pts[0], q] + pts[1:], 1
+    return pts, -1
+
+
+def first_turn_tight(
+    grid: OccupancyGrid,
+    pts: Sequence[Sequence[float]],
+    heading_deg: float,
+    hidden: np.ndarray | None = None,
+    refused_at: Sequence[Sequence[float]] = (),
+) -> bool:
+    """Whether the turn from heading_deg onto the path's first leg is more than MIN_TURN_DEG
+    where the corners have no room (or the rover refused one, see ahead_first)."""
+    p0, p1 = pts[0], pts[1]
+    leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
+    if abs(math.degrees(wrap_rad(leg - math.radians(heading_deg)))) <= MIN_TURN_DEG or not grid.contains(*p0):
+        return False
+    if any(math.dist(p0, r) <= REFUSED_HERE_M for r in refused_at):
+        return True
+    clear = clearance_map(grid, reach_m=SWING_M + SWING_MARGIN_M + grid.resolution_m, hidden=hidden)
+    return _room(clear, grid, p0) < SWING_M + SWING_MARGIN_M
+
+
+def points_ahead(
+    grid: OccupancyGrid,
+    p0: Sequence[float],
+    heading_deg: float,
+    hidden: np.ndarray | None = None,
+    arrival_m: float = ARRIVAL_M,
+    refused_at: Sequence[Sequence[float]] = (),
+) -> list[tuple[float, float]]:
+    """The points straight ahead of a rover at p0 facing heading_deg, nearest first (within
+    SEARCH_M, a cell at a time), where it has room to turn: beyond its arrival radius `arrival_m`
+    and the margin (a nearer one counts as reached where the rover stands), on a free cell, not
+    near where it refused a turn, and reached with the body's sides clear of the way (by half its
+    width and the margin, or, where the rover already stands nearer than that, by no less than
+    where it stands)."""
     need = SWING_M + SWING_MARGIN_M
     res = grid.resolution_m
     clear = clearance_map(grid, reach_m=need + res, hidden=hidden)
     h = math.radians(heading_deg)
-    p0, p1 = pts[0], pts[1]
-    leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
-    refused_here = any(math.dist(p0, r) <= REFUSED_HERE_M for r in refused_at)
-    if abs(math.degrees(wrap_rad(leg - h))) <= MIN_TURN_DEG or not grid.contains(*p0):
-        return pts, 0
-    if _room(clear, grid, p0) >= need and not refused_here:
-        return pts, 0
-    # The sides must clear the way: by half the body's width and the margin, or, where the rover
-    # already stands nearer than that, by no less than where it stands.
     side = min(BODY_WIDTH_MM / 2000.0 + SWING_MARGIN_M, _room(clear, grid, p0))
     ux, uy = math.sin(h), math.cos(h)
+    out = []
     for k in range(1, int(SEARCH_M / res) + 1):
         q = (p0[0] + k * res * ux, p0[1] + k * res * uy)
         if not grid.contains(*q):
@@ -253,15 +282,9 @@ def ahead_first(
             break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
         beyond = k * res >= arrival_m + SWING_MARGIN_M
-        if (
-            beyond
-            and _room(clear, grid, q) >= need
-            and not _refused_near(q, refused_at)
-            and grid.is_free(*q)
-            and grid.segment_clear(q, p1)
-        ):
-            return [p0, q] + pts[1:], 1
-    return pts, -1
+        if beyond and _room(clear, grid, q) >= need and not _refused_near(q, refused_at) and grid.is_free(*q):
+            out.append(q)
+    return out
 
 
 def backed_out_clear(
