@@ -173,7 +173,7 @@ def parse_seeds(text: str) -> list[int]:
 def fleet_rates(rows: list[dict], a) -> bool:
     """The fleet's runs over the seeds (--fleet-only): one line a seed, then the rates. True when
     every run is whole (its trips done, no contact, not stuck)."""
-    rows = sorted(rows, key=lambda r: r["seed"])
+    rows = sorted(rows, key=lambda r: r["seed"])  # (out-and-back's runs are all placed: its own starts)
     print(f"\nout-and-back ({FLEET}), the 3-rover fleet alone, {a.trips} round trips a rover, radio {a.radio}:")
     print("| seed | outcome | trips | time [s] | contacts | holds | what ended it |")
     print("|---|---|---|---|---|---|---|")
@@ -186,8 +186,8 @@ def fleet_rates(rows: list[dict], a) -> bool:
             f"{r['contacts']} | {r['holds']} | {why} |"
         )
     whole = [r for r in rows if r["trips_done"] == r["trips_asked"] and not r["contacts"] and not r["stuck"]]
-    stuck = sum(1 for r in rows if r["stuck"])
     crashed = sum(1 for r in rows if r["contacts"])
+    stuck = sum(1 for r in rows if r["stuck"] and not r["contacts"])
     times = [r["time_s"] for r in whole]
     median = f", median time of the whole runs {statistics.median(times):.0f} s" if times else ""
     print(

@@ -237,5 +237,33 @@ def test_a_rover_that_gave_way_waits_until_the_other_has_passed_or_long_enough()
     t.missions[0].xy = (0.3, 0.4)
     assert not t._waits_for_passing(1, 10.0 + GAVE_WAY_WAIT_S)  # waited long enough: it goes
     t._gave_way[1] = (0, 10.0)
-    t.missions[0].moving_leg = False  # rover 1 held (for rover 2, or any other): not waited for
+    t.missions[0].moving_leg = False  # rover 1 held (for rover 2, or any other): not waited for ...
     assert not t._waits_for_passing(1, 11.0)
+    t.missions[0].moving_leg = True  # ... until it moves on
+    assert t._waits_for_passing(1, 11.5)
+    t.missions[0].done = True  # done (or home): nothing to wait for
+    assert not t._waits_for_passing(1, 12.0) and 1 not in t._gave_way
+
+
+def test_a_held_rover_waits_while_it_settles_or_waits_for_the_rover_it_gave_way_to():
+    # Rover 2, held, its stretch clear: let go after CLEAR_FOR_S, unless it settles after a refused
+    # turn, or waits for rover 1 to pass.
+    from rovernav.fleet.traffic import CLEAR_FOR_S
+
+    t, _ = _traffic(((0.3, 0.4), [(1.8, 0.4)]), ((1.0, 1.2), [(1.0, 1.6)]))
+    m2 = t.missions[1]
+    let_go = []
+    m2.held, m2.done, m2.parked, m2.parked_at_rest = True, False, False, False
+    m2.let_go = lambda now_s, path=None, aside=False: let_go.append(now_s)
+    m2.settling = lambda now_s: now_s < 5.0
+    t.missions[0].settling = lambda now_s: False
+    for now in (1.0, 1.0 + CLEAR_FOR_S, 4.9):
+        assert not t._try_let_go(1, now)
+    assert not t._try_let_go(1, 5.0) and t._try_let_go(1, 5.0 + CLEAR_FOR_S) and let_go == [5.0 + CLEAR_FOR_S]
+    m2.xy, m2.rest = (1.0, 0.8), [(1.0, 0.2)]  # now its way crosses rover 1's: it waits for it
+    t._gave_way[1] = (0, 10.0)
+    t._clear_since.clear()
+    t.missions[0].xy = (0.2, 0.4)
+    assert not t._try_let_go(1, 11.0) and not t._try_let_go(1, 11.0 + CLEAR_FOR_S)
+    del t._gave_way[1]  # the same, not having given way: let go
+    assert not t._try_let_go(1, 12.0) and t._try_let_go(1, 12.0 + CLEAR_FOR_S)

@@ -16,6 +16,7 @@ from rovernav.link import messages_gen as mg
 from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
 from rovernav.mission import Detection, Failure, Mission, Outcome, Phase, phases
+from rovernav.mission.leg_plan import PlannedPath
 from rovernav.planning import OccupancyGrid, PlannerConfig
 from rovernav.planning.turns import body_clear
 
@@ -459,6 +460,22 @@ def test_a_fleet_rover_that_refuses_a_turn_is_held_at_once_and_planned_from_wher
     assert any(n.startswith("held: refused a turn") for n in notes)
     assert mission.settling(t) and not mission.settling(t + REFUSED_SETTLE_S)
     assert mission.current_leg.turns_refused_at == [(0.3, 0.3), (0.3, 0.3)]
+
+
+def test_a_fleet_rover_backing_out_on_the_hosts_word_is_not_held_for_it():
+    # A path that asks the rover to back out (PATH back_out): the rover says TURN_REFUSED as it
+    # begins the back-out the host asked for, which goes on; a second refusal on it is held.
+    mission, rover, notes = _setup_with(ScriptedRover, start=(0.3, 0.3), target=(2.0, 1.4))
+    mission.hold_on_refused = True
+    t = _run(mission, rover, 1.5)
+    mission.load_path(PlannedPath([(0.3, 0.3), (0.8, 0.9)], back_out=True))
+    t = _run(mission, rover, 1.5, t0=t)
+    assert rover.of(mg.Path)[-1].back_out == 1 and mission.phase is Phase.RUN and not mission.held
+    for held in (False, True):
+        rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=300, y_mm=300))
+        t = _run(mission, rover, 0.2, t0=t)
+        assert mission.held is held
+    assert mission.refusal_holds == 1
 
 
 def test_a_check_that_finds_no_way_is_no_verdict():

@@ -15,10 +15,13 @@ in the order the rovers' ids give them (rover 1 first):
   into each other. Rovers that have held each other round for `GIVE_WAY_AFTER_S` (two, each in
   the other's way, or three or more in a ring): the latest in the order gives way to the rover it
   holds, back along its own track or to the nearest free spot `SIDE_STEP_M` or so away, off that
-  rover's path, and waits there.
+  rover's path, and waits there until that rover, on the move, has passed (`GAVE_WAY_WAIT_S` at
+  most). A rover that refused a turn (held at once: `FleetControl.hold_on_refused`) is left
+  standing `REFUSED_SETTLE_S` before it goes on or gives way.
 - **A rover parked at home** (its trips done, waiting for the fleet) that stands in the way of a
-  rover with no way round it is sent aside, off that rover's way, and back home once no rover's
-  way passes its berth.
+  rover with no way round it is sent aside, off that rover's way (and off the berths and sites
+  of the rovers with trips to do, where it can be), and back home once no rover's way passes
+  its berth.
 
 The rover's own reflex still stops it for a rover its sonar sees; what it reports of another
 rover is kept out of the shared map (`echo_is_rover`).
@@ -46,10 +49,10 @@ REPLAN_AFTER_S = 2.0
 #: Two rovers that hold each other this long: the later in the order gives way [s].
 GIVE_WAY_AFTER_S = 4.0
 SIDE_STEP_M = 0.35
-#: A rover that gave way waits aside until the rover it gave way to has passed (its way no longer
-#: comes near the giver's own stretch ahead), or this long at most [s]: let go as soon as its own
-#: stretch was clear, it drove back into the other's way, and the two gave way to each other
-#: for good (1 % loss, seed 2, with the berth rule below).
+#: A rover that gave way waits (aside, or held on its way there) until the rover it gave way to
+#: has passed (its way no longer comes near the giver's own stretch ahead), or this long at most
+#: [s]: let go as soon as its own stretch was clear, it drove back into the other's way, and the
+#: two gave way to each other for good (1 % loss, seed 2, with the berth rule).
 GAVE_WAY_WAIT_S = 45.0
 #: Where a parked rover may be sent aside: rings this far from its berth [m], in this many
 #: directions, planning a way to at most ASIDE_MAX_PLANS of the free spots (nearest first).
@@ -289,6 +292,8 @@ class Traffic:
                 # latest in the order that has a clear way off the path of the rover it holds goes.
                 for i in sorted(range(len(cycle)), key=lambda i: -cycle[i]):
                     g, j = cycle[i], cycle[i - 1]
+                    if self.missions[g].settling(now_s):
+                        continue  # still backing out of a refused turn: not sent anywhere yet
                     way = self._way_aside(g, j)
                     if way is not None:
                         self.give_ways += 1
@@ -301,19 +306,19 @@ class Traffic:
     def _waits_for_passing(self, k: int, now_s: float) -> bool:
         """Whether rover k, which gave way, still waits for the rover it gave way to to pass (see
         GAVE_WAY_WAIT_S): that rover is on the move and its way ahead still comes near k's own
-        stretch ahead. A rover it gave way to that is held (for k, or any other) is not waited
-        for: the rules that hold it decide (rover 3, held on its way aside by a refused turn,
-        waited for rover 1, which waited for rover 3: seed 2 of the seen-ground trial)."""
+        stretch ahead. While the rover it gave way to is held (for k, or any other) k is not kept
+        waiting: the rules that hold it decide (rover 3, held on its way aside by a refused turn,
+        waited for rover 1, which waited for rover 3: seed 2 of the seen-ground trial); the wait
+        holds again once that rover moves on."""
         if k not in self._gave_way:
             return False
         j, since = self._gave_way[k]
         other = self.missions[j]
-        theirs = other.rest_of_leg() if other.moving_leg else []
-        mine = self._stretch(k)
-        if now_s - since < GAVE_WAY_WAIT_S and len(theirs) > 1 and polylines_m(mine, theirs) < CLEAR_M:
-            return True
-        del self._gave_way[k]
-        return False
+        theirs = other.rest_of_leg() if not (other.done or other.parked) else []
+        if now_s - since >= GAVE_WAY_WAIT_S or len(theirs) < 2 or polylines_m(self._stretch(k), theirs) >= CLEAR_M:
+            del self._gave_way[k]  # it has passed (or is home, or done), or long enough
+            return False
+        return other.moving_leg  # held a moment (for k, or any other): the rules that hold it decide
 
     def _way_aside(self, k: int, j: int):
         """Rover k's way off rover j's path: back along its own track, else a step aside, else a
@@ -377,7 +382,12 @@ class Traffic:
 
     def _aside_spot(self, j: int, k: int):
         """A path for rover j (parked, or giving way) to a spot off rover k's way (its path as if j were not there)
-        and clear of every other rover, the nearest of those tried that j can reach (None: none)."""
+        and clear of every other rover, the nearest of those tried that j can reach (None: none); off the
+        berths and sites of the rovers with trips to do where there is such a spot, else on one."""
+        best = self._aside_spot_from(j, k, off_ends=True)
+        return best if best is not None else self._aside_spot_from(j, k, off_ends=False)
+
+    def _aside_spot_from(self, j: int, k: int, off_ends: bool):
         here = self.position(j)
         theirs = self.missions[k].rest_of_leg() or [self.position(k)]
         others = [self.position(i) for i in range(len(self.missions)) if i != j]
@@ -387,7 +397,7 @@ class Traffic:
         ends = [
             q
             for i, m in enumerate(self.missions)
-            if i != j and not m.done
+            if off_ends and i != j and not m.done
             for q in (m.start_xy, m.target_xy)
             if q is not None
         ]

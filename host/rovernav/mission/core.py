@@ -381,10 +381,13 @@ class Mission(RoverFrames, LegControl, FleetControl):
         The rover holds MAX_WAYPOINTS: a longer path goes in parts, the first MAX_WAYPOINTS now and
         the rest, from the last of them, when the rover says it has arrived there (`_arrived`)."""
         back_out = int(getattr(path, "back_out", False))
+        self._back_out_path_id = None  # (set below when this path asks the rover to back out)
         whole = list(path)
         path, self.path_rest = list(path[: mg.MAX_WAYPOINTS]), list(path[mg.MAX_WAYPOINTS :])
         self.path = path
         self.path_id = (self.path_id + 1) & 0xFFFF
+        if back_out:
+            self._back_out_path_id = self.path_id  # its TURN_REFUSED is the back-out asked for
         self.recorder.host_path(self._now, self.path_id, path)
         self._accepted_path_id = None
         self._set_phase(Phase.LOAD)

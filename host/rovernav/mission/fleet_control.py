@@ -81,6 +81,7 @@ class FleetControl:
     #: from. Planned afresh from where it stops (`refused_at` in `plan_from`).
     hold_on_refused: bool = False
     _settle_until: float | None = None  # a rover held on a refused turn is let go no sooner
+    _back_out_path_id: int | None = None  # the path sent with PATH back_out (load_path)
     refusal_holds: int = 0
     echoes_of_rovers: int = 0
     holds: int = 0
@@ -204,7 +205,12 @@ class FleetControl:
     def turn_refused(self, now_s: float) -> None:
         """The rover refused a turn (TURN_REFUSED) and is backing out: held where the STOP finds
         it (see hold_on_refused)."""
-        if not self.hold_on_refused or self.held or self.done or self.phase is not Phase.RUN:
+        if not self.hold_on_refused or self.held or self.done or self.phase is not Phase.RUN or self.parked:
+            return  # (a parked rover on its way back home is left as a lone rover is)
+        if self._back_out_path_id == self.path_id:
+            # The host asked this path's back-out (PATH back_out): the rover says TURN_REFUSED as it
+            # begins it; stopped, it would back out part way and be asked again. Once only.
+            self._back_out_path_id = None
             return
         self.refusal_holds += 1
         self.hold(now_s, "refused a turn: stopped as it backs out, to be planned afresh from there")

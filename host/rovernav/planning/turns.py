@@ -222,8 +222,8 @@ def ahead_first(
     `refused_at`: where the rover refused a turn in this leg (TURN_REFUSED). Within
     REFUSED_HERE_M of one the rover's own check has said there is no room, whatever the grid says:
     a fleet's rover, stopped by the host as it began to back out, is planned afresh from there,
-    and the same turn sent again would be refused again. No point ahead within REFUSED_NEAR_M of
-    one is taken either.
+    and the same turn sent again would be refused again. No point ahead that near one is taken
+    either.
     """
     pts = [(float(x), float(y)) for x, y in waypoints]
     if len(pts) < 2 or not first_turn_tight(grid, pts, heading_deg, hidden, refused_at):
@@ -264,7 +264,8 @@ def points_ahead(
     """The points straight ahead of a rover at p0 facing heading_deg, nearest first (within
     SEARCH_M, a cell at a time), where it has room to turn: beyond its arrival radius `arrival_m`
     and the margin (a nearer one counts as reached where the rover stands), on a free cell, not
-    near where it refused a turn, and reached with the body's sides clear of the way (by half its
+    within REFUSED_HERE_M of where it refused a turn (its own memory said no room there, and it
+    may hold what the host's map does not: echoes of other rovers), and reached with the body's sides clear of the way (by half its
     width and the margin, or, where the rover already stands nearer than that, by no less than
     where it stands)."""
     need = SWING_M + SWING_MARGIN_M
@@ -282,7 +283,8 @@ def points_ahead(
             break  # the sides would scrape on the way: nothing further on is reached either
         # (A rover standing inside the planner's margin drives out of it before a point is free.)
         beyond = k * res >= arrival_m + SWING_MARGIN_M
-        if beyond and _room(clear, grid, q) >= need and not _refused_near(q, refused_at) and grid.is_free(*q):
+        near_refusal = any(math.dist(q, r) <= REFUSED_HERE_M for r in refused_at)
+        if beyond and _room(clear, grid, q) >= need and not near_refusal and grid.is_free(*q):
             out.append(q)
     return out
 
