@@ -294,20 +294,3 @@ def test_ground_is_seen_along_a_path_once_sweeps_have_heard_it_clear_or_found_a_
     # An unseen patch beside the path, away from any echo, is not seen.
     lm.sonar.logodds[int(0.7 / 0.03), int(1.0 / 0.03)] = 0.0
     assert not lm.seen_along(path, 0.25)
-
-
-def test_a_fleets_last_tries_keep_the_corners_reach_from_what_only_the_sonar_has_seen():
-    # The lenient grid (the planner's last tries) inflates what only the sonar has seen by the
-    # robot radius alone, or by `lenient_radius_m` (a fleet's map: the body's half-diagonal and a
-    # margin): more cells, all of the robot radius's among them, none on the careful grid's far side.
-    grid = OccupancyGrid(2.4, 1.8, PlannerConfig())
-    lm = LearnedMap(grid)
-    for bearing in (-15.0, -7.5, 0.0, 7.5, 15.0):
-        lm.add(SonarReading(0.8, 0.9, 90.0, bearing, 0.30 / math.cos(math.radians(bearing)), 0.4))
-    radius_alone = lm.lenient_grid().inflated.copy()
-    lm.lenient_radius_m = 0.139
-    corners = lm.lenient_grid().inflated
-    assert (corners & ~radius_alone).any() and not (radius_alone & ~corners).any()
-    assert not (corners & ~lm.grid.inflated).any()  # no wider than the careful map's margin
-    lm.lenient_radius_m = None
-    assert (lm.lenient_grid().inflated == radius_alone).all()

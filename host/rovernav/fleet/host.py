@@ -24,7 +24,6 @@ from ..link import messages_gen as mg
 from ..link.link import Link
 from ..mission import Detection, Mission
 from ..mission.spec import MissionSpec, start_host
-from ..planning.turns import SWING_M, SWING_MARGIN_M
 from .radio import FleetRadio
 from .traffic import Traffic
 
@@ -98,9 +97,6 @@ class FleetHost:
         for m in self.missions[1:]:
             m.map = shared  # one map: what any rover's sonar finds, every rover plans round
         self.map = shared
-        # The last tries of a fleet rover's planning keep the reach of its corners from what only
-        # the sonar has seen (LearnedMap.lenient_radius_m): it may be sent to turn anywhere.
-        shared.lenient_radius_m = SWING_M + SWING_MARGIN_M
         self.traffic = Traffic(self.missions, on_event=lambda t, text: say(-1, t, text))
         for k, m in enumerate(self.missions):
             m.slot_fixes = True

@@ -146,21 +146,10 @@ class LearnedMap:
         g.inflated = self._base_inflated | self.sonar.inflated(g.config.inflation_m)
         g.version += 1
 
-    #: The planner's last tries keep this far from what only the sonar has seen [m] (None: the
-    #: robot radius alone). A fleet's map keeps the body's half-diagonal and a margin (FleetHost):
-    #: with the radius alone a fleet's rover, planned round another through the 0.34 m between
-    #: the box the sonar finds and a known box, stood 0.11 m from the first's corner, where no
-    #: turn has room, and turned its corner into it (clean seeds 3 and 7, 1 % loss seed 2).
-    lenient_radius_m: float | None = None
-
-    def _lenient_m(self) -> float:
-        return self.grid.config.robot_radius_m if self.lenient_radius_m is None else self.lenient_radius_m
-
     def lenient_grid(self) -> OccupancyGrid | None:
         """The planner's grid with what only the sonar has seen inflated by the robot radius alone
-        (`lenient_radius_m`; None when the sonar has found nothing, so there is nothing to be
-        lenient about)."""
-        return self._sonar_grid(self.sonar, self._lenient_m())
+        (None when the sonar has found nothing, so there is nothing to be lenient about)."""
+        return self._sonar_grid(self.sonar, self.grid.config.robot_radius_m)
 
     def open_grids(self) -> list[OccupancyGrid]:
         """The open map's grids (its silence clears the cells the cone's edge only cuts too):
@@ -170,7 +159,7 @@ class LearnedMap:
             return []
         return [
             self._sonar_grid(self.open_sonar, self.grid.config.inflation_m, always=True),
-            self._sonar_grid(self.open_sonar, self._lenient_m(), always=True),
+            self._sonar_grid(self.open_sonar, self.grid.config.robot_radius_m, always=True),
         ]
 
     def _sonar_grid(self, sonar: SonarMap, radius_m: float, always: bool = False) -> OccupancyGrid | None:
