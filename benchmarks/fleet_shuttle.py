@@ -52,7 +52,7 @@ TRIPS_GOAL = 0.99
 def run_fleet(job: tuple) -> dict:
     """A fleet of `rovers` on `scenario`; with `route` k (a fleet of one), one rover alone on rover
     k's route: from the scenario's start k to its site k."""
-    scenario, rovers, seed, trips, radio, uno, route, trial = job
+    scenario, rovers, seed, trips, radio, uno, route, trial, care = job
     sys.path.insert(0, str(ROOT / "host"))
     import dataclasses
 
@@ -80,6 +80,7 @@ def run_fleet(job: tuple) -> dict:
             channel=ChannelConfig(half_duplex=True, **RADIOS[radio]),
             rover1="uno" if uno else "native",
             seen_ground_trial=trial,
+            turn_care_trial=care,
         ),
     )
     sim.run()
@@ -218,6 +219,13 @@ def main() -> int:
         help="the host's seen-ground trial: paths over ground already seen driven without the sweeps every 0.3 m, "
         "and a rover Blocked 9 s on its path sent its leg again (off by default; docs/results.md)",
     )
+    ap.add_argument(
+        "--turn-care-trial",
+        action="store_true",
+        help="the host's turn-care trial: a rover that refuses a turn held at once and planned afresh from where it "
+        "stops, a rover that gave way waiting for the other to pass, no spot aside on a berth (off by default; "
+        "docs/results.md)",
+    )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", type=Path)
     a = ap.parse_args()
@@ -233,10 +241,10 @@ def main() -> int:
     out: dict = {"radio": a.radio, "uno": a.uno}
     ok = True
     if not a.skip_out_and_back:
-        trial = a.seen_ground_trial
-        jobs = [(FLEET, 3, s, a.trips, a.radio, a.uno, None, trial) for s in seeds]
+        trial, care = a.seen_ground_trial, a.turn_care_trial
+        jobs = [(FLEET, 3, s, a.trips, a.radio, a.uno, None, trial, care) for s in seeds]
         if not a.fleet_only:
-            jobs += [(FLEET, 1, s, a.trips, a.radio, False, k, trial) for s in seeds for k in range(3)]
+            jobs += [(FLEET, 1, s, a.trips, a.radio, False, k, trial, care) for s in seeds for k in range(3)]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)
@@ -308,7 +316,7 @@ def main() -> int:
             (no_room if why else paths).append(why or p)
         for why in no_room:
             print(f"  not run: {why}", file=sys.stderr)
-        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno, None, a.seen_ground_trial) for p in paths]
+        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno, None, a.seen_ground_trial, a.turn_care_trial) for p in paths]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)

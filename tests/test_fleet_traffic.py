@@ -217,6 +217,8 @@ def test_a_spot_aside_is_never_on_the_berth_or_site_of_a_rover_with_trips_to_do(
     t = Traffic([m1, m2, m3])
     free = t._aside_spot(1, 0)[-1]
     m3.start_xy = free  # rover 3's berth where rover 2 would have gone
+    assert t._aside_spot(1, 0)[-1] == free  # the rule is the turn-care trial's (off by default)
+    t.berth_rule = True
     again = t._aside_spot(1, 0)[-1]
     assert math.dist(again, free) >= 0.33
     m3.done = True  # a rover with its trips done is no one's concern

@@ -460,6 +460,15 @@ def test_a_fleet_rover_that_refuses_a_turn_is_held_at_once_and_planned_from_wher
     assert any(n.startswith("held: refused a turn") for n in notes)
     assert mission.settling(t) and not mission.settling(t + REFUSED_SETTLE_S)
     assert mission.current_leg.turns_refused_at == [(0.3, 0.3), (0.3, 0.3)]
+    # Refused there again and again (REFUSALS_HELD and more): it backs out on its own.
+    from rovernav.mission.fleet_control import REFUSALS_HELD
+
+    mission._held_since = None  # (let go)
+    for k in range(REFUSALS_HELD):
+        rover.say(mg.Event(kind=int(mg.EventKind.TURN_REFUSED), arg=60, x_mm=300 + 10 * k, y_mm=300))
+        t = _run(mission, rover, 0.2, t0=t)
+        mission._held_since = None
+    assert mission.refusal_holds == REFUSALS_HELD - 1  # from the fourth near there on, none held
 
 
 def test_a_fleet_rover_backing_out_on_the_hosts_word_is_not_held_for_it():

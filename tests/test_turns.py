@@ -289,3 +289,15 @@ def test_a_fleet_rover_with_no_room_to_turn_drives_straight_on_to_room_and_is_pl
     assert abs(q[1] - start[1]) < 1e-9 and q[0] < start[0]  # straight ahead, west
     assert clearance_map(g, 1.0)[g.world_to_cell(*q)[1], g.world_to_cell(*q)[0]] >= SWING_M + SWING_MARGIN_M
     assert not g.path_blocked(fleet[1:])
+
+
+def test_near_a_refusal_a_turn_a_little_under_the_least_counts():
+    from rovernav.planning.turns import first_turn_tight
+
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    start = (1.0, 0.6)
+    a = math.radians(90.0 - 15.0)  # a path 15 degrees left of the rover's heading (east)
+    path = [start, (start[0] + 0.5 * math.sin(a), start[1] + 0.5 * math.cos(a))]
+    assert not first_turn_tight(g, path, 90.0)  # room, and under MIN_TURN_DEG
+    assert first_turn_tight(g, path, 90.0, refused_at=[start])  # it refused there: 15 degrees count
+    assert not first_turn_tight(g, path, 90.0 - 10.0, refused_at=[start])  # 5 degrees never do

@@ -33,6 +33,11 @@ MAP_SHARE_S = 0.5
 #: fleet under one camera"): a rover Blocked on its path this long, with no new path, is sent its
 #: leg again [s] (`Mission.resend_blocked_s`).
 RESEND_BLOCKED_S = 9.0
+#: The turn-care trial (`FleetHost(turn_care_trial=True)`, off by default: docs/results.md, "A
+#: fleet under one camera"): a rover that refuses a turn is held at once and planned afresh from
+#: where it stops (`Mission.hold_on_refused`); a rover that gave way waits until the other has
+#: passed (`Traffic.give_way_wait`); no spot aside on an active rover's berth or site while there
+#: is another (`Traffic.berth_rule`).
 #: A fleet rover's parameters beside the configuration's, for its share of the air (about 4.5
 #: slots of 128 bytes a second with three rovers, where a lone rover says 490-509 B/s): STATUS once
 #: a second (64 bytes each; the camera says where it is), fixes allowed further apart (its slot
@@ -77,6 +82,7 @@ class FleetHost:
         on_event: Callable[[int, float, str], None] | None = None,
         recorders: list | None = None,
         seen_ground_trial: bool = False,
+        turn_care_trial: bool = False,
     ):
         if len(specs) != radio.rovers or len(keys) != radio.rovers:
             raise ValueError(f"{len(specs)} missions and {len(keys)} keys for a radio of {radio.rovers} rovers")
@@ -98,11 +104,14 @@ class FleetHost:
             m.map = shared  # one map: what any rover's sonar finds, every rover plans round
         self.map = shared
         self.traffic = Traffic(self.missions, on_event=lambda t, text: say(-1, t, text))
+        if turn_care_trial:  # a rover that gave way waits for the other to pass; spots aside off berths
+            self.traffic.give_way_wait = self.traffic.berth_rule = True
         for k, m in enumerate(self.missions):
             m.slot_fixes = True
             m.park_at_end = True
             m.heard_over_spot = True
-            m.hold_on_refused = True
+            if turn_care_trial:  # a refused turn held at once, and planned afresh from there
+                m.hold_on_refused = True
             if seen_ground_trial:  # paths over seen ground unswept, and the blocked watch
                 m.sweep_seen_ground = True
                 m.resend_blocked_s = RESEND_BLOCKED_S

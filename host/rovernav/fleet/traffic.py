@@ -15,13 +15,14 @@ in the order the rovers' ids give them (rover 1 first):
   into each other. Rovers that have held each other round for `GIVE_WAY_AFTER_S` (two, each in
   the other's way, or three or more in a ring): the latest in the order gives way to the rover it
   holds, back along its own track or to the nearest free spot `SIDE_STEP_M` or so away, off that
-  rover's path, and waits there until that rover, on the move, has passed (`GAVE_WAY_WAIT_S` at
-  most). A rover that refused a turn (held at once: `FleetControl.hold_on_refused`) is left
-  standing `REFUSED_SETTLE_S` before it goes on or gives way.
+  rover's path, and waits there (with the turn-care trial, until that rover, on the move, has
+  passed: `GAVE_WAY_WAIT_S` at most). A rover that refused a turn (held at once with the trial:
+  `FleetControl.hold_on_refused`) is left standing `REFUSED_SETTLE_S` before it goes on or gives
+  way.
 - **A rover parked at home** (its trips done, waiting for the fleet) that stands in the way of a
-  rover with no way round it is sent aside, off that rover's way (and off the berths and sites
-  of the rovers with trips to do, where it can be), and back home once no rover's way passes
-  its berth.
+  rover with no way round it is sent aside, off that rover's way (with the trial, off the
+  berths and sites of the rovers with trips to do, where it can be), and back home once no
+  rover's way passes its berth.
 
 The rover's own reflex still stops it for a rover its sonar sees; what it reports of another
 rover is kept out of the shared map (`echo_is_rover`).
@@ -156,6 +157,12 @@ class PlanningMap:
 
 class Traffic:
     """The fleet's traffic rules over its missions (see the module's doc)."""
+
+    #: The turn-care trial's two rules (fleet/host.py; off by default): a rover that gave way
+    #: waits for the rover it gave way to to pass (`GAVE_WAY_WAIT_S`), and no spot aside on the
+    #: berth or the site of a rover with trips to do while there is another.
+    give_way_wait: bool = False
+    berth_rule: bool = False
 
     def __init__(self, missions: list, on_event=None):
         self.missions = missions
@@ -297,7 +304,8 @@ class Traffic:
                     way = self._way_aside(g, j)
                     if way is not None:
                         self.give_ways += 1
-                        self._gave_way[g] = (j, now_s)
+                        if self.give_way_wait:
+                            self._gave_way[g] = (j, now_s)
                         self.on_event(now_s, f"rover {g + 1} gives way to rover {j + 1}: back to {_xy(way[-1])}")
                         self.missions[g].let_go(now_s, way, aside=True)
                         return True
@@ -384,7 +392,7 @@ class Traffic:
         """A path for rover j (parked, or giving way) to a spot off rover k's way (its path as if j were not there)
         and clear of every other rover, the nearest of those tried that j can reach (None: none); off the
         berths and sites of the rovers with trips to do where there is such a spot, else on one."""
-        best = self._aside_spot_from(j, k, off_ends=True)
+        best = self._aside_spot_from(j, k, off_ends=True) if self.berth_rule else None
         return best if best is not None else self._aside_spot_from(j, k, off_ends=False)
 
     def _aside_spot_from(self, j: int, k: int, off_ends: bool):

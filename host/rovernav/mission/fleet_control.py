@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 from ..angles import heading_cdeg
 from ..link import messages_gen as mg
+from ..planning.turns import REFUSED_HERE_M
 from .legs import path_length_m
 from .phases import Phase
 
@@ -31,6 +32,11 @@ SEEN_CORRIDOR_M = 0.20
 #: STOP goes in its next slot (up to ~0.7 s on three rovers' air), and its path is planned from
 #: where it stopped, not from where it was still backing.
 REFUSED_SETTLE_S = 1.5
+#: A rover that has refused this many turns in a leg within the back-off distance of one another
+#: is no longer held for them: it backs out and turns on its own, as a lone rover does (host and
+#: rover disagreeing by a few degrees on a turn of about kBackOffMinTurnDeg, the host sent the
+#: same turn every 3 s for 60 s and the fleet was stuck: seed 1 of the trial).
+REFUSALS_HELD = 3
 
 
 class FleetControl:
@@ -207,6 +213,11 @@ class FleetControl:
         it (see hold_on_refused)."""
         if not self.hold_on_refused or self.held or self.done or self.phase is not Phase.RUN or self.parked:
             return  # (a parked rover on its way back home is left as a lone rover is)
+        here = self.current_leg.turns_refused_at[-1] if self.current_leg.turns_refused_at else None
+        if here is not None and (
+            sum(1 for r in self.current_leg.turns_refused_at if math.dist(r, here) <= REFUSED_HERE_M) > REFUSALS_HELD
+        ):
+            return  # refused there again and again: it backs out on its own
         if self._back_out_path_id == self.path_id:
             # The host asked this path's back-out (PATH back_out): the rover says TURN_REFUSED as it
             # begins it; stopped, it would back out part way and be asked again. Once only.

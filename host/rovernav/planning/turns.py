@@ -245,9 +245,13 @@ def first_turn_tight(
     where the corners have no room (or the rover refused one, see ahead_first)."""
     p0, p1 = pts[0], pts[1]
     leg = math.atan2(p1[0] - p0[0], p1[1] - p0[1])
-    if abs(math.degrees(wrap_rad(leg - math.radians(heading_deg)))) <= MIN_TURN_DEG or not grid.contains(*p0):
+    turn = abs(math.degrees(wrap_rad(leg - math.radians(heading_deg))))
+    refused_here = any(math.dist(p0, r) <= REFUSED_HERE_M for r in refused_at)
+    # Near a refusal, a turn a little under MIN_TURN_DEG counts too: the rover's heading and the
+    # camera's differ by a few degrees, and the rover refuses what it makes more than that.
+    if turn <= (MIN_TURN_DEG / 2 if refused_here else MIN_TURN_DEG) or not grid.contains(*p0):
         return False
-    if any(math.dist(p0, r) <= REFUSED_HERE_M for r in refused_at):
+    if refused_here:
         return True
     clear = clearance_map(grid, reach_m=SWING_M + SWING_MARGIN_M + grid.resolution_m, hidden=hidden)
     return _room(clear, grid, p0) < SWING_M + SWING_MARGIN_M

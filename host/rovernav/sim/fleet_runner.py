@@ -69,6 +69,8 @@ class FleetOptions:
     log_image_hz: float | None = None  # camera images in the log a second (None: the log's default)
     #: The host's seen-ground trial (fleet/host.py; off: the fleet as measured in docs/results.md).
     seen_ground_trial: bool = False
+    #: The host's turn-care trial (fleet/host.py; off: the fleet as measured in docs/results.md).
+    turn_care_trial: bool = False
 
 
 class FleetSimTransport(Transport):
@@ -237,6 +239,7 @@ class FleetSimulation:
             on_event=self._host_event,
             recorders=None if self.runlog is None else self.runlog.rovers,
             seen_ground_trial=options.seen_ground_trial,
+            turn_care_trial=options.turn_care_trial,
         )
         look = RoverLook.for_vision(self.cfg.vision)
         camera = Camera(lighting=Lighting.random(self.rng), noise_sigma=3.0)
