@@ -3,24 +3,13 @@ made-up runs."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
 
-
-def _module():
-    spec = importlib.util.spec_from_file_location("fleet_shuttle", ROOT / "benchmarks" / "fleet_shuttle.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_seeds_are_lists_and_ranges_and_anything_else_is_one_line():
-    bench = _module()
+def test_seeds_are_lists_and_ranges_and_anything_else_is_one_line(benchmark_module):
+    bench = benchmark_module("fleet_shuttle")
     assert bench.parse_seeds("1,2,3") == [1, 2, 3]
     assert bench.parse_seeds("1-5,8") == [1, 2, 3, 4, 5, 8]
     assert bench.parse_seeds(" 7 ") == [7]
@@ -45,8 +34,8 @@ def _row(seed, done, outcome="reached", contacts=0, crash=None):
     }
 
 
-def test_the_fleets_rates_count_whole_stuck_and_crashed_runs(capsys):
-    bench = _module()
+def test_the_fleets_rates_count_whole_stuck_and_crashed_runs(capsys, benchmark_module):
+    bench = benchmark_module("fleet_shuttle")
     a = SimpleNamespace(trips=5, radio="clean")
     crash = {"rover": 2, "against": "rover 3", "t_s": 99.0}
     rows = [_row(2, 15), _row(1, 15), _row(3, 6, "stuck"), _row(4, 2, "crashed", 1, crash)]
