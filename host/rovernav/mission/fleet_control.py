@@ -79,12 +79,13 @@ class FleetControl:
     resend_blocked_s: float | None = None
     _blocked_since: float | None = None
     blocked_resends: int = 0
-    #: True (a fleet's rover): a rover that refuses a turn (TURN_REFUSED: its corners have no room
-    #: where it stands) is stopped at once (held) rather than left to back out and turn on its own:
-    #: it backs out blind, into another rover (the traffic rules reserve the way ahead of a rover,
-    #: not behind), and its line on from where it stopped backing was checked only once its STATUS
-    #: said so, a second or more later on a fleet's air, after a corner had met the box it turned
-    #: from. Planned afresh from where it stops (`refused_at` in `plan_from`).
+    #: True (a fleet's rover in the turn-care trial, fleet/host.py; off by default): a rover that
+    #: refuses a turn (TURN_REFUSED: its corners have no room where it stands) is stopped at once
+    #: (held) rather than left to back out and turn on its own: it backs out blind, into another
+    #: rover (the traffic rules reserve the way ahead of a rover, not behind), and its line on from
+    #: where it stopped backing was checked only once its STATUS said so, a second or more later on
+    #: a fleet's air, after a corner had met the box it turned from. Planned afresh from where it
+    #: stops (`refused_at` in `plan_from`).
     hold_on_refused: bool = False
     _settle_until: float | None = None  # a rover held on a refused turn is let go no sooner
     _back_out_path_id: int | None = None  # the path sent with PATH back_out (load_path)

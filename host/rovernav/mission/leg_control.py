@@ -96,9 +96,9 @@ class LegControl:
         # The turn at the start counts from the rover's heading when the path starts where it stands.
         heading = self.rover_heading_deg() if math.dist(start, self.rover_xy()) <= START_NEAR_M else None
         refused = self.current_leg.refused_twice() if self.legs else []
-        # A fleet's rover is stopped as it begins to back out of a refused turn (hold_on_refused):
-        # planned afresh from there, its first turn is checked against where it refused, and a
-        # back-out against the line on from where it would end (leg_plan.plan_leg).
+        # A fleet's rover in the turn-care trial is stopped as it begins to back out of a refused turn
+        # (hold_on_refused): planned afresh from there, its first turn is checked against where it refused,
+        # and a back-out against the line on from where it would end (leg_plan.plan_leg).
         refused_at = list(self.current_leg.turns_refused_at) if self.legs and self.hold_on_refused else None
         path, reason = plan_leg(
             self._planning_map(),
