@@ -2,7 +2,8 @@
 half-duplex radio, each between its start at the base and its site, round trip after round trip.
 
     python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
-                                       [--radio clean|loss1|burst2|loss5] [--uno] [--fleet-only] [--jobs 2] [--json FILE]
+                                       [--radio clean|loss1|burst2|loss2|loss3|loss5] [--uno]
+                                       [--plants nominal|spread] [--fleet-only] [--jobs 2] [--json FILE]
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
@@ -22,11 +23,13 @@ Two parts, each printed as a table with the command's figures:
 `rovernav sim`): a rate over many seeds (`--seeds 1-10`), the fleet's runs whole, stuck and
 crashed, for judging a change to the traffic rules.
 
---radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 % (burst2:
-2 % lost in bursts, mean 0.5 s, 10 % of the time; loss5: 5 % lost; benchmarks/lossy_radio.py); --uno
-makes rover 1 the Uno image in simavr (its worst step is printed). Exit status 1 when an
-acceptance figure is missed: 0 contacts and 0 stuck anywhere, throughput >= 2.5x one rover's doing
-the same trips on every seed, >= 99 % of the arenas' trips.
+--radio loss1 runs both on a radio that loses 1 % of its bytes and flips a bit in 0.1 % (burst2: 2 %
+lost in bursts, mean 0.5 s, 10 % of the time; loss2, loss3: 2 and 3 % lost, 0.1 % flipped; loss5:
+5 % lost; benchmarks/lossy_radio.py); --uno makes rover 1 the Uno image in simavr (its worst step is
+printed); --plants spread gives each rover motors and a gyro of its own, off the firmware's figures
+and uncalibrated (off_nominal_plants). Exit status 1 when an acceptance figure is missed: 0 contacts
+and 0 stuck anywhere, throughput >= 2.5x one rover's doing the same trips on every seed, >= 99 % of
+the arenas' trips.
 """
 
 from __future__ import annotations
@@ -37,10 +40,11 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from lossy_radio import RADIOS, solvable  # noqa: E402  (the same radios: clean, loss1, burst2, loss5)
+from lossy_radio import RADIOS, solvable  # noqa: E402  (the same radios: clean, loss1, burst2, loss2, loss3, loss5)
 from lossy_radio import arenas as sample_arenas  # noqa: E402  (the same sample of generated arenas)
 
 FLEET = "fleet-out-and-back"
@@ -49,10 +53,45 @@ THROUGHPUT_GOAL = 2.5
 TRIPS_GOAL = 0.99
 
 
-def run_fleet(job: tuple) -> dict:
-    """A fleet of `rovers` on `scenario`; with `route` k (a fleet of one), one rover alone on rover
-    k's route: from the scenario's start k to its site k."""
-    scenario, rovers, seed, trips, radio, uno, route, trial, care = job
+class Job(NamedTuple):
+    """One simulated run: a fleet of `rovers` on `scenario`; with `route` k (a fleet of one), one
+    rover alone on rover k's route, from the scenario's start k to its site k."""
+
+    scenario: str | Path
+    rovers: int
+    seed: int
+    trips: int
+    radio: str
+    uno: bool = False
+    route: int | None = None
+    trial: bool = False  # the seen-ground trial
+    care: bool = False  # the turn-care trial
+    plants: str = "nominal"  # or "spread": each rover's motors and gyro its own (off_nominal_plants)
+
+
+def off_nominal_plants(seed: int, count: int) -> tuple:
+    """`count` rovers unlike each other and the firmware's figures, for the run of `seed`: rover k's
+    motors and gyro as `Setup.random` draws them for the calibration benchmark's set-ups (speed per
+    PWM 0.8-1.25x, the right motor 0.95-1.2x the left, dead band 0.8-1.3x, gyro bias up to 0.15
+    deg/s, gyro scale 0.97-1.03), none calibrated: the host and firmware keep their defaults. The
+    sonar stays where the configuration says (its offset is a calibration's, not the fleet's, to
+    find)."""
+    sys.path.insert(0, str(ROOT / "host"))
+    import dataclasses
+
+    from rovernav.sim.plant import PlantConfig
+    from rovernav.sim.setup import Setup
+
+    nominal = PlantConfig()
+    return tuple(
+        dataclasses.replace(Setup.random(100_000 + 100 * seed + k).plant, sonar_offset_m=nominal.sonar_offset_m)
+        for k in range(count)
+    )
+
+
+def run_fleet(job: Job) -> dict:
+    """The run `job` names (a Job): its figures."""
+    scenario, rovers, seed, trips, radio, uno, route, trial, care, plant_kind = job
     sys.path.insert(0, str(ROOT / "host"))
     import dataclasses
 
@@ -62,6 +101,10 @@ def run_fleet(job: tuple) -> dict:
     from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
 
     sc = load_scenario(scenario)
+    plants = None
+    if plant_kind == "spread":
+        plants = off_nominal_plants(seed, len(sc.starts))
+        plants = plants[route : route + 1] if route is not None else plants
     if route is not None:
         starts, sites = list(sc.starts), list(sc.sites)
         start, site = starts.pop(route), sites.pop(route % len(sites))
@@ -81,6 +124,7 @@ def run_fleet(job: tuple) -> dict:
             rover1="uno" if uno else "native",
             seen_ground_trial=trial,
             turn_care_trial=care,
+            plants=plants,
         ),
     )
     sim.run()
@@ -175,7 +219,8 @@ def fleet_rates(rows: list[dict], a) -> bool:
     """The fleet's runs over the seeds (--fleet-only): one line a seed, then the rates. True when
     every run is whole (its trips done, no contact, not stuck)."""
     rows = sorted(rows, key=lambda r: r["seed"])  # (out-and-back's runs are all placed: its own starts)
-    print(f"\nout-and-back ({FLEET}), the 3-rover fleet alone, {a.trips} round trips a rover, radio {a.radio}:")
+    plants = "" if a.plants == "nominal" else ", each rover's motors and gyro its own (--plants spread)"
+    print(f"\nout-and-back ({FLEET}), the 3-rover fleet alone, {a.trips} round trips a rover, radio {a.radio}{plants}:")
     print("| seed | outcome | trips | time [s] | contacts | holds | what ended it |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
@@ -226,6 +271,14 @@ def main() -> int:
         "stops, a rover that gave way waiting for the other to pass, no spot aside on a berth (off by default; "
         "docs/results.md)",
     )
+    ap.add_argument(
+        "--plants",
+        choices=("nominal", "spread"),
+        default="nominal",
+        help="spread: each rover's motors and gyro off the firmware's figures, its own, uncalibrated (speed per PWM "
+        "0.8-1.25x, right motor 0.95-1.2x, dead band 0.8-1.3x, gyro bias up to 0.15 deg/s, scale 0.97-1.03); "
+        "nominal (default): every rover the simulator's usual plant",
+    )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", type=Path)
     a = ap.parse_args()
@@ -238,13 +291,13 @@ def main() -> int:
         print(f"fleet_shuttle: {exc}", file=sys.stderr)
         return 2
     started = time.monotonic()
-    out: dict = {"radio": a.radio, "uno": a.uno}
+    out: dict = {"radio": a.radio, "uno": a.uno, "plants": a.plants}
     ok = True
     if not a.skip_out_and_back:
-        trial, care = a.seen_ground_trial, a.turn_care_trial
-        jobs = [(FLEET, 3, s, a.trips, a.radio, a.uno, None, trial, care) for s in seeds]
+        how = {"trial": a.seen_ground_trial, "care": a.turn_care_trial, "plants": a.plants}
+        jobs = [Job(FLEET, 3, s, a.trips, a.radio, uno=a.uno, **how) for s in seeds]
         if not a.fleet_only:
-            jobs += [(FLEET, 1, s, a.trips, a.radio, False, k, trial, care) for s in seeds for k in range(3)]
+            jobs += [Job(FLEET, 1, s, a.trips, a.radio, route=k, **how) for s in seeds for k in range(3)]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)
@@ -316,7 +369,8 @@ def main() -> int:
             (no_room if why else paths).append(why or p)
         for why in no_room:
             print(f"  not run: {why}", file=sys.stderr)
-        jobs = [(p, 3, 1, a.arena_trips, a.radio, a.uno, None, a.seen_ground_trial, a.turn_care_trial) for p in paths]
+        how = {"trial": a.seen_ground_trial, "care": a.turn_care_trial, "plants": a.plants}
+        jobs = [Job(p, 3, 1, a.arena_trips, a.radio, uno=a.uno, **how) for p in paths]
         rows = []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
             rows.append(row)

@@ -8,6 +8,8 @@ Radios (both directions; `rovernav sim --radio-*` sets the same):
     clean    no loss
     loss1    1 % of bytes lost and 0.1 % with a bit flipped, independently
     burst2   2 % of bytes lost on average, all in bursts (Gilbert-Elliott: mean 0.5 s, 10 % of the time)
+    loss2    2 % of bytes lost and 0.1 % with a bit flipped, independently (not in the default run)
+    loss3    3 % of bytes lost and 0.1 % with a bit flipped, independently (not in the default run)
     loss5    5 % of bytes lost, independently
 
 For each radio it prints: missions reached, crashes, runs that ended by the simulator's time limit
@@ -34,6 +36,8 @@ RADIOS = {
     "clean": {},
     "loss1": {"byte_loss": 0.01, "bit_error": 0.001},
     "burst2": {"byte_loss": 0.02, "burst_mean_s": 0.5, "burst_share": 0.10},
+    "loss2": {"byte_loss": 0.02, "bit_error": 0.001},
+    "loss3": {"byte_loss": 0.03, "bit_error": 0.001},
     "loss5": {"byte_loss": 0.05},
 }
 MAX_TIME_S = (

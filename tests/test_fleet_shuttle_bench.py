@@ -36,7 +36,7 @@ def _row(seed, done, outcome="reached", contacts=0, crash=None):
 
 def test_the_fleets_rates_count_whole_stuck_and_crashed_runs(capsys, benchmark_module):
     bench = benchmark_module("fleet_shuttle")
-    a = SimpleNamespace(trips=5, radio="clean")
+    a = SimpleNamespace(trips=5, radio="clean", plants="nominal")
     crash = {"rover": 2, "against": "rover 3", "t_s": 99.0}
     rows = [_row(2, 15), _row(1, 15), _row(3, 6, "stuck"), _row(4, 2, "crashed", 1, crash)]
     assert bench.fleet_rates(rows, a) is False
@@ -47,3 +47,33 @@ def test_the_fleets_rates_count_whole_stuck_and_crashed_runs(capsys, benchmark_m
     lines = [line for line in out.splitlines() if line.startswith("| ") and line[2].isdigit()]
     assert [line.split("|")[1].strip() for line in lines] == ["1", "2", "3", "4"]  # by seed
     assert bench.fleet_rates([_row(1, 15)], a) is True
+
+
+def test_a_spread_fleet_is_rovers_unlike_each_other_and_the_firmwares_figures(benchmark_module):
+    bench = benchmark_module("fleet_shuttle")
+    from rovernav.sim.plant import PlantConfig
+
+    nominal = PlantConfig()
+    plants = bench.off_nominal_plants(3, 4)
+    assert plants == bench.off_nominal_plants(3, 4)  # the same rovers for the same seed
+    assert plants != bench.off_nominal_plants(4, 4)
+    assert len({p.mm_s_per_pwm for p in plants}) == 4  # each rover its own motors
+    for p in plants:
+        assert 0.8 * nominal.mm_s_per_pwm <= p.mm_s_per_pwm <= 1.25 * nominal.mm_s_per_pwm
+        assert 0.95 <= p.right_gain <= 1.2 and 0.97 <= p.gyro_scale <= 1.03
+        assert 0.8 * nominal.deadband_pwm <= p.deadband_pwm <= 1.3 * nominal.deadband_pwm
+        assert p.sonar_offset_m == nominal.sonar_offset_m  # where the configuration says
+
+
+def test_each_rover_of_a_simulated_fleet_drives_its_own_plant():
+    import dataclasses
+
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
+    from rovernav.sim.plant import PlantConfig
+
+    mine = (dataclasses.replace(PlantConfig(), mm_s_per_pwm=1.9), dataclasses.replace(PlantConfig(), right_gain=1.2))
+    sim = FleetSimulation(load_scenario("fleet-out-and-back"), FleetOptions(rovers=3, max_time_s=1.0, plants=mine))
+    assert [r.plant.cfg for r in sim.rovers] == [mine[0], mine[1], PlantConfig()]  # the rest: `plant`
+    sim.run()
+    assert sim.report()["contacts"] == 0

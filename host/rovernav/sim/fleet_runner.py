@@ -62,6 +62,9 @@ class FleetOptions:
     trips: int | None = None  # None: the scenario's
     channel: ChannelConfig = ChannelConfig(half_duplex=True)
     plant: PlantConfig = PlantConfig()
+    #: Each rover's own plant (rover 1's first), for a fleet of rovers unlike each other; None: all
+    #: are `plant`. Fewer than the rovers: the rest are `plant`.
+    plants: tuple[PlantConfig, ...] | None = None
     config: Config | None = None
     signed: bool = True
     rover1: str = "native"  # or "uno": rover 1 is the Uno image in simavr (cores/uno.py)
@@ -173,7 +176,8 @@ class FleetSimulation:
         self.keys: list[bytes | None] = []
         for k in range(n):
             s = scenario.starts[k]
-            plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, options.plant, self.rng)
+            own = options.plants[k] if options.plants and k < len(options.plants) else options.plant
+            plant = RoverPlant(s.x_m, s.y_m, s.heading_deg, own, self.rng)
             key = (
                 bytes(np.random.default_rng([options.seed, 0x4B4559, k]).integers(0, 256, 16, dtype=np.uint8))
                 if options.signed
