@@ -3,7 +3,7 @@ half-duplex radio, each between its start at the base and its site, round trip a
 
     python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
                                        [--radio clean|loss1|burst2|loss2|loss3|loss5] [--uno]
-                                       [--plants nominal|spread] [--fleet-only] [--jobs 2] [--json FILE]
+                                       [--plants nominal|spread|calibrated] [--fleet-only] [--jobs 2] [--json FILE]
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
@@ -27,9 +27,9 @@ crashed, for judging a change to the traffic rules.
 lost in bursts, mean 0.5 s, 10 % of the time; loss2, loss3: 2 and 3 % lost, 0.1 % flipped; loss5:
 5 % lost; benchmarks/lossy_radio.py); --uno makes rover 1 the Uno image in simavr (its worst step is
 printed); --plants spread gives each rover motors and a gyro of its own, off the firmware's figures
-and uncalibrated (off_nominal_plants). Exit status 1 when an acceptance figure is missed: 0 contacts
-and 0 stuck anywhere, throughput >= 2.5x one rover's doing the same trips on every seed, >= 99 % of
-the arenas' trips.
+and uncalibrated (off_nominal_plants), --plants calibrated the same rovers each with its own motor
+parameters. Exit status 1 when an acceptance figure is missed: 0 contacts and 0 stuck anywhere,
+throughput >= 2.5x one rover's doing the same trips on every seed, >= 99 % of the arenas' trips.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ class Job(NamedTuple):
     route: int | None = None
     trial: bool = False  # the seen-ground trial
     care: bool = False  # the turn-care trial
-    plants: str = "nominal"  # or "spread": each rover's motors and gyro its own (off_nominal_plants)
+    plants: str = "nominal"  # "spread": each rover's motors and gyro its own (off_nominal_plants); "calibrated": and its parameters
 
 
 def off_nominal_plants(seed: int, count: int) -> tuple:
@@ -89,6 +89,16 @@ def off_nominal_plants(seed: int, count: int) -> tuple:
     )
 
 
+def calibrated_params(plant) -> dict:
+    """The motor parameters `rovernav calibrate rover` would give a rover of `plant` with a perfect
+    fit (the fit's own `params`): speed per PWM, dead band and the right motor's bias."""
+    sys.path.insert(0, str(ROOT / "host"))
+    from rovernav.calibrate.rover.fitting import Fit
+
+    fit = Fit(plant.mm_s_per_pwm, plant.deadband_pwm, plant.right_gain, 0.0, 0.0, ())
+    return fit.params()
+
+
 def run_fleet(job: Job) -> dict:
     """The run `job` names (a Job): its figures."""
     scenario, rovers, seed, trips, radio, uno, route, trial, care, plant_kind = job
@@ -101,10 +111,12 @@ def run_fleet(job: Job) -> dict:
     from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
 
     sc = load_scenario(scenario)
-    plants = None
-    if plant_kind == "spread":
+    plants = own = None
+    if plant_kind != "nominal":
         plants = off_nominal_plants(seed, len(sc.starts))
         plants = plants[route : route + 1] if route is not None else plants
+        if plant_kind == "calibrated":
+            own = tuple(calibrated_params(p) for p in plants)
     if route is not None:
         starts, sites = list(sc.starts), list(sc.sites)
         start, site = starts.pop(route), sites.pop(route % len(sites))
@@ -125,6 +137,7 @@ def run_fleet(job: Job) -> dict:
             seen_ground_trial=trial,
             turn_care_trial=care,
             plants=plants,
+            rover_params=own,
         ),
     )
     sim.run()
@@ -219,7 +232,7 @@ def fleet_rates(rows: list[dict], a) -> bool:
     """The fleet's runs over the seeds (--fleet-only): one line a seed, then the rates. True when
     every run is whole (its trips done, no contact, not stuck)."""
     rows = sorted(rows, key=lambda r: r["seed"])  # (out-and-back's runs are all placed: its own starts)
-    plants = "" if a.plants == "nominal" else ", each rover's motors and gyro its own (--plants spread)"
+    plants = "" if a.plants == "nominal" else f", each rover's motors and gyro its own (--plants {a.plants})"
     print(f"\nout-and-back ({FLEET}), the 3-rover fleet alone, {a.trips} round trips a rover, radio {a.radio}{plants}:")
     print("| seed | outcome | trips | time [s] | contacts | holds | what ended it |")
     print("|---|---|---|---|---|---|---|")
@@ -273,11 +286,12 @@ def main() -> int:
     )
     ap.add_argument(
         "--plants",
-        choices=("nominal", "spread"),
+        choices=("nominal", "spread", "calibrated"),
         default="nominal",
         help="spread: each rover's motors and gyro off the firmware's figures, its own, uncalibrated (speed per PWM "
         "0.8-1.25x, right motor 0.95-1.2x, dead band 0.8-1.3x, gyro bias up to 0.15 deg/s, scale 0.97-1.03); "
-        "nominal (default): every rover the simulator's usual plant",
+        "calibrated: the same rovers, each given its own motor parameters as a perfect `rovernav calibrate rover` "
+        "would; nominal (default): every rover the simulator's usual plant",
     )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", type=Path)

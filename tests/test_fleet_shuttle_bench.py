@@ -77,3 +77,31 @@ def test_each_rover_of_a_simulated_fleet_drives_its_own_plant():
     assert [r.plant.cfg for r in sim.rovers] == [mine[0], mine[1], PlantConfig()]  # the rest: `plant`
     sim.run()
     assert sim.report()["contacts"] == 0
+
+
+def test_a_calibrated_rover_is_given_its_own_motor_parameters_over_the_configurations(benchmark_module):
+    bench = benchmark_module("fleet_shuttle")
+    from rovernav.config import config_from_dict
+    from rovernav.fleet.host import FLEET_ROVER_PARAMS, fleet_specs
+    from rovernav.link import messages_gen as mg
+    from rovernav.scenario import load_scenario
+
+    plant = bench.off_nominal_plants(2, 1)[0]
+    own = bench.calibrated_params(plant)
+    assert own[mg.Param.MOTOR_DEADBAND_PWM] == round(plant.deadband_pwm)
+    assert (
+        abs(
+            mg.PARAMS[mg.Param.SPEED_MM_S_PER_PWM_X1000].to_raw(plant.mm_s_per_pwm)
+            - own[mg.Param.SPEED_MM_S_PER_PWM_X1000]
+        )
+        <= 1
+    )
+    sc = load_scenario("fleet-out-and-back")
+    cfg = config_from_dict({"arena": {"width_m": sc.arena.width_m, "height_m": sc.arena.height_m}})
+    plain = fleet_specs(sc, cfg, 3, 100)
+    specs = fleet_specs(sc, cfg, 3, 100, own=(own,))
+    mine = dict(specs[0].rover_params)
+    assert all(mine[p] == v for p, v in own.items())  # rover 1's own, over the configuration's
+    assert all(mine[p] == v for p, v in FLEET_ROVER_PARAMS)  # and a fleet rover's still
+    assert len(specs[0].rover_params) == len(mine)  # each said once
+    assert [s.rover_params for s in specs[1:]] == [s.rover_params for s in plain[1:]]  # the others: none of their own

@@ -6,6 +6,7 @@ the boot, no contact, each rover's figures in the report."""
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -269,3 +270,26 @@ def test_a_held_rover_waits_while_it_settles_or_waits_for_the_rover_it_gave_way_
     assert not t._try_let_go(1, 11.0) and not t._try_let_go(1, 11.0 + CLEAR_FOR_S)
     del t._gave_way[1]  # the same, not having given way: let go
     assert not t._try_let_go(1, 12.0) and t._try_let_go(1, 12.0 + CLEAR_FOR_S)
+
+
+def test_a_stuck_fleets_message_says_where_each_rover_stands_and_what_holds_it():
+    from rovernav.scenario import load_scenario
+    from rovernav.sim.fleet_runner import FleetOptions, FleetSimulation
+
+    sim = FleetSimulation(load_scenario("fleet-out-and-back"), FleetOptions(rovers=3, trips=1, max_time_s=7.0))
+    assert sim._standing(0, 0.0) == "rover 1 not heard at (0.30, 0.30) m"
+    said = {}
+    tick = sim.host.tick
+
+    def tick_and_look(now_s):
+        tick(now_s)
+        if now_s >= 4.0 and not said:  # (the traffic rules let it go at their next tick)
+            sim.host.missions[1].hold(now_s, "rover 1 is in the way (at (0.30, 0.30) m)")
+            said.update({k: sim._standing(k, now_s + 2.0) for k in range(3)})
+
+    sim.host.tick = tick_and_look
+    sim.run()
+    assert re.fullmatch(r"rover 2 \w+ at \(0\.7\d, 0\.3\d\) m, held 2 s \(.*\)", said[1]), said[1]
+    assert said[1].endswith(", held 2 s (rover 1 is in the way (at (0.30, 0.30) m))")
+    assert said[0].endswith(", on leg 1")  # greeted and on its way
+    assert sim._standing(0, 7.0).endswith(", its mission over")  # the time limit ended it

@@ -55,19 +55,25 @@ FLEET_ROVER_PARAMS = (
 )
 
 
-def fleet_specs(scenario, cfg, rovers: int, host_boot_id: int) -> list[MissionSpec]:
+def fleet_specs(scenario, cfg, rovers: int, host_boot_id: int, own=None) -> list[MissionSpec]:
     """Each rover's mission: from its start (its berth at the base) to its site and back, with the
     configuration's parameters and a fleet rover's (FLEET_ROVER_PARAMS); its host boot id
-    `host_boot_id` + 16 k. ScenarioError (one line) when the scenario has too few starts."""
+    `host_boot_id` + 16 k. `own`: each rover's own parameters over those (rover 1's first: a
+    mapping of Param to raw value, its motors' calibration, say; fewer than the rovers: the rest
+    have none). ScenarioError (one line) when the scenario has too few starts."""
     pairs = scenario.fleet_legs(rovers)
     params = [(p, v) for p, v in cfg.rover_params() if p not in dict(FLEET_ROVER_PARAMS)]
     params += list(FLEET_ROVER_PARAMS)
-    return [
-        MissionSpec.for_run(
-            scenario, cfg, rover_params=params, start_xy=start, target_xy=site, host_boot_id=host_boot_id + 16 * k
+    specs = []
+    for k, (start, site) in enumerate(pairs):
+        mine = dict(own[k]) if own and k < len(own) else {}
+        theirs = [(p, mine.pop(p, v)) for p, v in params] + sorted(mine.items())
+        specs.append(
+            MissionSpec.for_run(
+                scenario, cfg, rover_params=theirs, start_xy=start, target_xy=site, host_boot_id=host_boot_id + 16 * k
+            )
         )
-        for k, (start, site) in enumerate(pairs)
-    ]
+    return specs
 
 
 class FleetHost:

@@ -49,6 +49,7 @@ class FleetControl:
     #: Whether an echo the rover reports is another rover (then it is no obstacle for the map).
     echo_is_rover: Callable[[object], bool] | None = None
     _held_since: float | None = None
+    held_why: str = ""  # why the rover was last held (hold's `why`)
     _slot_sent_for: float | None = None  # the detection (taken at) the last slot's FIX carried
     _aside_goal: tuple[float, float] | None = None  # where the rover is on its way to, out of another's way
     _aside_done = False
@@ -253,6 +254,7 @@ class FleetControl:
         self._now = now_s
         self._held_rest = self.remaining_path()[1:]
         self._held_since = now_s
+        self.held_why = why
         self._held_xy = self.rover_xy() if self.phase is Phase.RUN else None
         self.holds += 1
         self.upload = None

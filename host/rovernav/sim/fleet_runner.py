@@ -65,6 +65,9 @@ class FleetOptions:
     #: Each rover's own plant (rover 1's first), for a fleet of rovers unlike each other; None: all
     #: are `plant`. Fewer than the rovers: the rest are `plant`.
     plants: tuple[PlantConfig, ...] | None = None
+    #: Each rover's own parameters (rover 1's first: Param to raw value, its motors' calibration,
+    #: say) over the configuration's; None: every rover the configuration's.
+    rover_params: tuple[dict, ...] | None = None
     config: Config | None = None
     signed: bool = True
     rover1: str = "native"  # or "uno": rover 1 is the Uno image in simavr (cores/uno.py)
@@ -210,7 +213,7 @@ class FleetSimulation:
         cfg = self.cfg
         if trips is not None:
             cfg = dataclasses.replace(cfg, mission=dataclasses.replace(cfg.mission, trips=trips))
-        self.specs = fleet_specs(scenario, cfg, n, HOST_BOOT_ID)
+        self.specs = fleet_specs(scenario, cfg, n, HOST_BOOT_ID, own=options.rover_params)
         self.t = 0.0
         self.radio = FleetRadio(self.host_transport, n)
         self._workdir = tempfile.TemporaryDirectory(prefix="rovernav-fleet-")
@@ -281,6 +284,21 @@ class FleetSimulation:
         if self.runlog is not None:
             self.runlog.shared.event(t, text, level="error" if text.startswith(("CRASH", "stuck")) else "info")
 
+    def _standing(self, k: int, now_s: float) -> str:
+        """Where rover k stands and what it waits for, for a stuck fleet's message: its state (the
+        last STATUS's), where the camera last saw it, held and why, parked, or done."""
+        m, r = self.host.missions[k], self.rovers[k]
+        s = m.last_status
+        state = mg.RoverState(s.state).name.lower() if s is not None else "not heard"
+        text = f"rover {k + 1} {state} at ({r.plant.x:.2f}, {r.plant.y:.2f}) m"
+        if m.done:
+            return text + ", its mission over"
+        if m.parked:
+            return text + ", its trips done"
+        if m.held:
+            return text + f", held {m.held_for_s(now_s):.0f} s ({m.held_why})"
+        return text + (f", on leg {len(m.legs)}" if m.legs else "")
+
     def close_log(self, summary: dict | None = None) -> None:
         """The run log closed and in place (also after a run cut short)."""
         if self.runlog is not None:
@@ -310,7 +328,9 @@ class FleetSimulation:
                 self._sim_event(
                     now,
                     f"stuck: no rover finished a leg for {now - self._progress_s:.0f} s"
-                    + (f", none moved {MOVED_M:g} m in {STILL_S:g} s" if now - self._moved_s > STILL_S else ""),
+                    + (f", none moved {MOVED_M:g} m in {STILL_S:g} s" if now - self._moved_s > STILL_S else "")
+                    + "; "
+                    + "; ".join(self._standing(k, now) for k in range(len(self.rovers))),
                 )
                 self.host.fail("the fleet is stuck")
                 break
