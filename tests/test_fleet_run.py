@@ -85,6 +85,9 @@ def test_a_fleet_run_greets_configures_and_starts_every_rover_and_logs_each(tmp_
         (["--rovers", "3", "--scenario", SCENARIO, "--key-files", SCENARIO], "1 files for 3 rovers"),
         (["--rovers", "3", "--scenario", SCENARIO, "--map", "m.json"], "--map is for one rover"),
         (["--trips", "2", "--scenario", SCENARIO], "--trips is for a fleet"),
+        (["--rover-configs", SCENARIO, "--scenario", SCENARIO], "--rover-configs is for a fleet"),
+        (["--rovers", "2", "--scenario", SCENARIO, "--rover-configs", SCENARIO], "1 files for 2 rovers"),
+        (["--rovers", "2", "--scenario", SCENARIO, "--rover-configs", SCENARIO, SCENARIO], "unknown section [name]"),
     ],
 )
 def test_a_bad_fleet_run_is_one_line_and_opens_no_device(args, says, monkeypatch, capsys):
@@ -99,3 +102,42 @@ def test_a_bad_fleet_run_is_one_line_and_opens_no_device(args, says, monkeypatch
         code = exc.code
     err = capsys.readouterr().err
     assert code == 2 and says in err and err.count("\n") == 1, err
+
+
+def test_each_rover_of_a_fleet_is_sent_its_own_parameters(tmp_path, capsys):
+    mine = tmp_path / "rover1.toml"
+    mine.write_text("[rover]\nmotor_deadband_pwm = 33\nspeed_mm_s_per_pwm_x1000 = 2400\n")
+    plain = tmp_path / "rover2.toml"
+    plain.write_text("")
+    out = tmp_path / "out"
+    code = main(
+        ["sim", "fleet-out-and-back", "--rovers", "2", "--trips", "1", "--max-time", "3", "--no-video", "--quiet"]
+        + ["--out", str(out), "--rover-configs", str(mine), str(plain)]
+    )
+    assert code == 1  # stopped by --max-time
+    from mcap.reader import make_reader
+
+    from rovernav.link import messages_gen as mg
+
+    said: dict[str, dict] = {"rover1": {}, "rover2": {}}
+    with open(out / "run.mcap", "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages():
+            if channel.topic.endswith("/link/host_to_rover"):
+                m = json.loads(message.data)
+                if m["type"] == "config":
+                    said[channel.topic.split("/")[1]][m["fields"]["param"]] = m["fields"]["value"]
+    deadband, speed = int(mg.Param.MOTOR_DEADBAND_PWM), int(mg.Param.SPEED_MM_S_PER_PWM_X1000)
+    assert said["rover1"].get(deadband) == 33 and said["rover1"].get(speed) == 2400
+    assert deadband not in said["rover2"] and speed not in said["rover2"]  # the defaults: not sent
+    assert said["rover1"][int(mg.Param.SWEEP_STEP_MS)] == said["rover2"][int(mg.Param.SWEEP_STEP_MS)] == 400
+
+
+def test_a_rover_config_may_not_set_the_fleets_share_of_the_air(tmp_path, capsys):
+    mine = tmp_path / "rover1.toml"
+    mine.write_text("[rover]\nsweep_step_ms = 100\n")
+    code = main(
+        ["sim", "fleet-out-and-back", "--rovers", "2", "--no-video", "--out", str(tmp_path / "out")]
+        + ["--rover-configs", str(mine), str(mine)]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "sweep_step_ms is the fleet's to set" in err

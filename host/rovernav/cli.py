@@ -175,13 +175,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
             args.scenario,
             key_files=args.key_files,
             max_time_s=args.max_time,
+            rover_configs=args.rover_configs,
             log_path=log_path,
             log_image_hz=args.log_image_hz,
             trips=args.trips,
         )
-    for flag, given in (("--key-files", args.key_files), ("--trips", args.trips)):
+    for flag, given, one in (
+        ("--key-files", args.key_files, "one rover's key is [link] key_file"),
+        ("--rover-configs", args.rover_configs, "one rover's parameters are --config's [rover]"),
+        ("--trips", args.trips, "one rover's trips are [mission] trips"),
+    ):
         if given:
-            raise InputError(f"{flag} is for a fleet (--rovers N); one rover's key is [link] key_file")
+            raise InputError(f"{flag} is for a fleet (--rovers N); {one}")
     return run_hardware(
         args.port,
         args.camera,
@@ -314,6 +319,15 @@ def add_run_parser(sub) -> None:
         nargs="+",
         metavar="FILE",
         help="with --rovers: each rover's key file, rover 1's first (none: unsigned rovers)",
+    )
+    p.add_argument(
+        "--rover-configs",
+        type=input_file,
+        nargs="+",
+        metavar="FILE",
+        help="with --rovers: each rover's own configuration file, rover 1's first, as `rovernav calibrate rover "
+        "--config FILE` wrote it for that rover: its [rover] parameters (its motors' speed, dead band and "
+        "balance) over --config's; the rest of --config is the fleet's",
     )
     p.add_argument(
         "--trips",

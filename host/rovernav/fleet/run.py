@@ -44,6 +44,37 @@ def fleet_keys(key_files: list[str] | None, rovers: int, config_key_file: str) -
     return [load_key_file(Path(f)) for f in key_files]
 
 
+def fleet_rover_params(config_files: list[str] | None, rovers: int) -> tuple[dict, ...] | None:
+    """Each rover's own parameters from --rover-configs (one configuration file a rover, rover 1's
+    first, as `rovernav calibrate rover --config FILE` writes it for that rover): its [rover] table,
+    sent to that rover over the fleet configuration's (rovers of a fleet are not alike: each has its
+    own motors). Only [rover] is read from them; the camera, the planner and the rest are the fleet
+    configuration's, and so are the parameters of a rover's share of the air (FLEET_ROVER_PARAMS).
+    None without the flag; InputError (one line) when the count is wrong or a file sets one of
+    those, and ConfigError for a file that is not a valid configuration."""
+    from ..config import load_config
+    from ..link import messages_gen as mg
+    from .host import FLEET_ROVER_PARAMS
+
+    if not config_files:
+        return None
+    if len(config_files) != rovers:
+        raise InputError(
+            f"--rover-configs: {len(config_files)} files for {rovers} rovers (one a rover, rover 1's first)"
+        )
+    out = []
+    for f in config_files:
+        own = dict(load_config(f).rover)
+        for p, _ in FLEET_ROVER_PARAMS:
+            if p in own:
+                raise InputError(
+                    f"{f}: [rover] {mg.PARAMS[p].name} is the fleet's to set (each rover's share of the air), "
+                    "not one rover's: leave it out"
+                )
+        out.append(own)
+    return tuple(out)
+
+
 def run_fleet_hardware(
     rovers: int,
     port: str,
@@ -52,6 +83,7 @@ def run_fleet_hardware(
     scenario_path: str | None,
     key_files: list[str] | None = None,
     max_time_s: float = 1800.0,
+    rover_configs: list[str] | None = None,
     log_path: str | Path | None = None,
     log_image_hz: float = 2.0,
     trips: int | None = None,
@@ -83,7 +115,8 @@ def run_fleet_hardware(
     source = camera_source(camera or cfg.camera.source)
     scenario = load_scenario(scenario_path)
     boot = int.from_bytes(os.urandom(4), "little") & 0x0FFFFFFF
-    specs = fleet_specs(scenario, cfg, rovers, boot)  # ScenarioError: too few starts
+    own = fleet_rover_params(rover_configs, rovers)
+    specs = fleet_specs(scenario, cfg, rovers, boot, own=own)  # ScenarioError: too few starts
     keys = fleet_keys(key_files, rovers, cfg.link.key_file)
     aruco = cfg.vision.aruco
     tags = fleet_tags(rovers, aruco.rover_id, aruco.target_id)

@@ -86,6 +86,14 @@ def add_sim_parser(sub) -> None:
         help="round trips each rover of a fleet makes (default: the scenario's [mission] trips)",
     )
     p.add_argument(
+        "--rover-configs",
+        type=input_file,
+        nargs="+",
+        metavar="FILE",
+        help="with --rovers: each rover's own configuration file, rover 1's first (as `rovernav run --rovers N "
+        "--rover-configs` takes them): its [rover] parameters over --config's",
+    )
+    p.add_argument(
         "--no-host-replan",
         action="store_true",
         help="the host never replans: only the rover's own detours get it round obstacles",
@@ -269,6 +277,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
     channel = radio_from_args(args, config.radio if config else None, f"{args.config}: " if args.config else "")
     if args.rovers is not None:
         return cmd_sim_fleet(args, scenario, config, channel)
+    if args.rover_configs:
+        print("rovernav sim: --rover-configs is for a fleet (--rovers N); one rover's are --config's", file=sys.stderr)
+        return 2
     strategies = ["rovernav", "seed"] if args.strategy == "both" else [args.strategy]
     modes = ["rotate_drive", "pose_law"] if args.drive_mode == "both" else [args.drive_mode]  # None: the config's
     runs = [(st, mode) for st in strategies for mode in modes]
@@ -494,6 +505,9 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
                 file=sys.stderr,
             )
             return 2
+    from ..fleet.run import fleet_rover_params
+
+    own = fleet_rover_params(args.rover_configs, args.rovers)  # InputError, ConfigError: one line
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     remove_stale(out, ("report.json", "summary.png", "video.mp4", "run.mcap", "comparison.json"))
@@ -509,6 +523,7 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
         rover1=args.rover,  # --rover uno: rover 1 is the Uno image
         log=None if args.no_log else out / "run.mcap",  # a channel set per rover (runlog/fleet.py)
         log_image_hz=args.log_image_hz,
+        rover_params=own,
     )
 
     def progress(t: float, text: str | None) -> None:
