@@ -164,6 +164,8 @@ def run_fleet(job: Job) -> dict:
         "errors": [x["error"] for x in r["per_rover"] if x["error"]],
         "uno_worst_step_us": worst.get("us"),
         "wall_s": r["wall_time_s"],
+        # A stuck fleet's own account: where each rover stood and what held it (fleet_runner's message).
+        "stuck_why": next((text for _t, k, text in reversed(sim.events) if k == -1 and text.startswith("stuck")), None),
     }
 
 
@@ -239,7 +241,7 @@ def fleet_rates(rows: list[dict], a) -> bool:
     for r in rows:
         crash = r["crash"] or {}
         why = f"rover {crash.get('rover')} against {crash.get('against')} at {crash.get('t_s')} s" if crash else ""
-        why = why or "; ".join(e for e in r["errors"] if e)
+        why = why or r.get("stuck_why") or "; ".join(e for e in r["errors"] if e)
         print(
             f"| {r['seed']} | {r['outcome']} | {r['trips_done']}/{r['trips_asked']} | {r['time_s']:.0f} | "
             f"{r['contacts']} | {r['holds']} | {why} |"

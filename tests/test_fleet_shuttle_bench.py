@@ -39,11 +39,13 @@ def test_the_fleets_rates_count_whole_stuck_and_crashed_runs(capsys, benchmark_m
     a = SimpleNamespace(trips=5, radio="clean", plants="nominal")
     crash = {"rover": 2, "against": "rover 3", "t_s": 99.0}
     rows = [_row(2, 15), _row(1, 15), _row(3, 6, "stuck"), _row(4, 2, "crashed", 1, crash)]
+    rows[2]["stuck_why"] = "stuck: no rover finished a leg for 150 s; rover 1 idle at (0.50, 0.99) m, held 90 s (x)"
     assert bench.fleet_rates(rows, a) is False
     out = capsys.readouterr().out
     assert "fleet runs whole 2/4, stuck 1, crashed 1, other 0" in out
     assert "median time of the whole runs 1002 s" in out and "trips done 38/60" in out
     assert "rover 2 against rover 3 at 99.0 s" in out
+    assert "| stuck: no rover finished a leg for 150 s; rover 1 idle at (0.50, 0.99) m, held 90 s (x) |" in out
     lines = [line for line in out.splitlines() if line.startswith("| ") and line[2].isdigit()]
     assert [line.split("|")[1].strip() for line in lines] == ["1", "2", "3", "4"]  # by seed
     assert bench.fleet_rates([_row(1, 15)], a) is True
