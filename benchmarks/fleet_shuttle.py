@@ -113,7 +113,7 @@ def run_fleet(job: Job) -> dict:
     sc = load_scenario(scenario)
     plants = own = None
     if plant_kind != "nominal":
-        plants = off_nominal_plants(seed, len(sc.starts))
+        plants = off_nominal_plants(seed, max(rovers, len(sc.starts)))  # (a generated arena has one start)
         plants = plants[route : route + 1] if route is not None else plants
         if plant_kind == "calibrated":
             own = tuple(calibrated_params(p) for p in plants)
@@ -333,7 +333,8 @@ def main() -> int:
             print(f"\nout-and-back ({FLEET}), {a.trips} round trips a rover, radio {a.radio}:")
             print(
                 "| seed | 3 rovers | trips/h | 1 rover on each route alone (1, 2, 3) | the same trips by 1 rover: "
-                "trips/h | **ratio** | ratio to route 1 alone | lone `rovernav sim` trips/h | contacts | stuck | holds "
+                "trips/h | **ratio** | ratio to route 1 alone | lone `rovernav sim` trips/h (the usual plant) | "
+                "contacts | stuck | holds "
                 "| air B/s |"
             )
             print("|---|---|---|---|---|---|---|---|---|---|---|---|")

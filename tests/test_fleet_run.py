@@ -136,8 +136,46 @@ def test_a_rover_config_may_not_set_the_fleets_share_of_the_air(tmp_path, capsys
     mine = tmp_path / "rover1.toml"
     mine.write_text("[rover]\nsweep_step_ms = 100\n")
     code = main(
-        ["sim", "fleet-out-and-back", "--rovers", "2", "--no-video", "--out", str(tmp_path / "out")]
-        + ["--rover-configs", str(mine), str(mine)]
+        ["sim", "fleet-out-and-back", "--rovers", "2", "--no-video", "--no-log", "--max-time", "1"]
+        + ["--out", str(tmp_path / "out"), "--rover-configs", str(mine), str(mine)]
     )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "sweep_step_ms is the fleet's to set" in err
+
+
+@pytest.mark.parametrize(
+    "fleet, rover, says",
+    [
+        ("", "[rover]\nsonar_offset_mm = 80\n", "sonar_offset_mm is the planner's geometry"),
+        ("", "[planner]\nsonar_offset_m = 0.085\n", "sonar_offset_m = 0.085 m, the fleet's configuration 0.1 m"),
+        ("[rover]\npose_k_rho_x1000 = 1400\n", "[rover]\npose_k_alpha_x1000 = 600\n", "over the fleet's configuration"),
+    ],
+)
+def test_a_rover_config_that_disagrees_with_the_fleets_is_one_line(tmp_path, capsys, fleet, rover, says):
+    fleet_file, rover_file = tmp_path / "fleet.toml", tmp_path / "rover1.toml"
+    fleet_file.write_text(fleet)
+    rover_file.write_text(rover)
+    code = main(
+        ["sim", "fleet-out-and-back", "--rovers", "2", "--no-video", "--no-log", "--max-time", "1"]
+        + [
+            "--config",
+            str(fleet_file),
+            "--out",
+            str(tmp_path / "out"),
+            "--rover-configs",
+            str(rover_file),
+            str(fleet_file),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and says in err, err
+
+
+def test_a_rover_config_whose_sonar_is_where_the_fleets_is_is_taken(tmp_path):
+    from rovernav.fleet.run import fleet_rover_params
+    from rovernav.link import messages_gen as mg
+
+    rover_file = tmp_path / "rover1.toml"
+    rover_file.write_text("[planner]\nsonar_offset_m = 0.103\n[rover]\nmotor_deadband_pwm = 31\n")
+    own = fleet_rover_params([str(rover_file)], 1)
+    assert own == ({mg.Param.MOTOR_DEADBAND_PWM: 31},)  # 3 mm off the fleet's sonar: within the slack

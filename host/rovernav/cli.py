@@ -326,8 +326,10 @@ def add_run_parser(sub) -> None:
         nargs="+",
         metavar="FILE",
         help="with --rovers: each rover's own configuration file, rover 1's first, as `rovernav calibrate rover "
-        "--config FILE` wrote it for that rover: its [rover] parameters (its motors' speed, dead band and "
-        "balance) over --config's; the rest of --config is the fleet's",
+        "--write FILE` wrote it for that rover: its [rover] parameters (its motors' speed, dead band and "
+        "balance) over --config's. The rest is the fleet's: the air's and the planner's parameters (refused "
+        "in a rover's [rover]), and the sonar's offset (a rover's [planner] sonar_offset_m more than 5 mm "
+        "from --config's is refused)",
     )
     p.add_argument(
         "--trips",

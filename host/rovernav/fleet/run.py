@@ -25,6 +25,11 @@ from ..link.errors import LinkError
 from ..link.messages_gen import MAX_ROVERS
 from ..mission import Phase
 
+#: A rover's own configuration may put its sonar this far from where the fleet's says [m]: the
+#: host places every rover's echoes with the fleet's one offset, and the planner's sonar margin
+#: (0.05 m by default) holds a few millimetres of it.
+SONAR_OFFSET_SLACK_M = 0.005
+
 
 def fleet_keys(key_files: list[str] | None, rovers: int, config_key_file: str) -> list[bytes | None]:
     """Each rover's link key, from --key-files (one a rover, in order), or None for each (unsigned);
@@ -44,15 +49,20 @@ def fleet_keys(key_files: list[str] | None, rovers: int, config_key_file: str) -
     return [load_key_file(Path(f)) for f in key_files]
 
 
-def fleet_rover_params(config_files: list[str] | None, rovers: int) -> tuple[dict, ...] | None:
-    """Each rover's own parameters from --rover-configs (one configuration file a rover, rover 1's
-    first, as `rovernav calibrate rover --config FILE` writes it for that rover): its [rover] table,
-    sent to that rover over the fleet configuration's (rovers of a fleet are not alike: each has its
-    own motors). Only [rover] is read from them; the camera, the planner and the rest are the fleet
-    configuration's, and so are the parameters of a rover's share of the air (FLEET_ROVER_PARAMS).
-    None without the flag; InputError (one line) when the count is wrong or a file sets one of
-    those, and ConfigError for a file that is not a valid configuration."""
-    from ..config import load_config
+def fleet_rover_params(config_files: list[str] | None, rovers: int, fleet_cfg=None) -> tuple[dict, ...] | None:
+    """Each rover's own parameters from --rover-configs (one configuration file a rover, rover 1's first,
+    as `rovernav calibrate rover --write FILE` writes it for that rover): its [rover] table, sent to
+    that rover over the fleet configuration's (`fleet_cfg`, None: the defaults): rovers of a fleet
+    are not alike, each has its own motors. Only [rover] is taken from them; the camera, the planner
+    and the rest are the fleet configuration's, and so are the parameters of a rover's share of the
+    air (FLEET_ROVER_PARAMS) and the planner's geometry. None without the flag. InputError (one
+    line) when the count is wrong, when a file's [rover] sets one of those, or when it says the
+    rover's sonar sits more than SONAR_OFFSET_SLACK_M from where the fleet's configuration says (the
+    host places every rover's echoes with that one offset); ConfigError for a file that is not a
+    valid configuration, or whose moving-to-a-pose gains are unstable over the fleet's."""
+    import tomllib
+
+    from ..config import _check_pose_gains, config_from_dict, load_config
     from ..link import messages_gen as mg
     from .host import FLEET_ROVER_PARAMS
 
@@ -62,15 +72,31 @@ def fleet_rover_params(config_files: list[str] | None, rovers: int) -> tuple[dic
         raise InputError(
             f"--rover-configs: {len(config_files)} files for {rovers} rovers (one a rover, rover 1's first)"
         )
+    fleet_cfg = fleet_cfg if fleet_cfg is not None else config_from_dict({})
     out = []
     for f in config_files:
-        own = dict(load_config(f).rover)
+        cfg = load_config(f)
+        own = dict(cfg.rover)
         for p, _ in FLEET_ROVER_PARAMS:
             if p in own:
                 raise InputError(
                     f"{f}: [rover] {mg.PARAMS[p].name} is the fleet's to set (each rover's share of the air), "
                     "not one rover's: leave it out"
                 )
+        for p, _ in fleet_cfg.planner.rover_geometry():
+            if p in own:
+                raise InputError(
+                    f"{f}: [rover] {mg.PARAMS[p].name} is the planner's geometry, the fleet's to set ([planner] of "
+                    "its configuration), not one rover's: leave it out"
+                )
+        _check_pose_gains({**fleet_cfg.rover, **own}, f"{f} over the fleet's configuration: ")
+        said = tomllib.loads(Path(f).read_text(encoding="utf-8")).get("planner", {})
+        offset, fleet_offset = cfg.planner.sonar_offset_m, fleet_cfg.planner.sonar_offset_m
+        if "sonar_offset_m" in said and abs(offset - fleet_offset) > SONAR_OFFSET_SLACK_M:
+            raise InputError(
+                f"{f}: [planner] sonar_offset_m = {offset:g} m, the fleet's configuration {fleet_offset:g} m: the host "
+                "places every rover's echoes with one offset; mount the rovers' rangers alike, or set the fleet's to theirs"
+            )
         out.append(own)
     return tuple(out)
 
@@ -115,7 +141,7 @@ def run_fleet_hardware(
     source = camera_source(camera or cfg.camera.source)
     scenario = load_scenario(scenario_path)
     boot = int.from_bytes(os.urandom(4), "little") & 0x0FFFFFFF
-    own = fleet_rover_params(rover_configs, rovers)
+    own = fleet_rover_params(rover_configs, rovers, cfg)
     specs = fleet_specs(scenario, cfg, rovers, boot, own=own)  # ScenarioError: too few starts
     keys = fleet_keys(key_files, rovers, cfg.link.key_file)
     aruco = cfg.vision.aruco

@@ -507,7 +507,7 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
             return 2
     from ..fleet.run import fleet_rover_params
 
-    own = fleet_rover_params(args.rover_configs, args.rovers)  # InputError, ConfigError: one line
+    own = fleet_rover_params(args.rover_configs, args.rovers, config)  # InputError, ConfigError: one line
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     remove_stale(out, ("report.json", "summary.png", "video.mp4", "run.mcap", "comparison.json"))

@@ -286,7 +286,7 @@ class FleetSimulation:
 
     def _standing(self, k: int, now_s: float) -> str:
         """Where rover k stands and what it waits for, for a stuck fleet's message: its state (the
-        last STATUS's), where the camera last saw it, held and why, parked, or done."""
+        last STATUS's), where it truly stands (the simulator's plant), held and why, parked, or done."""
         m, r = self.host.missions[k], self.rovers[k]
         s = m.last_status
         state = mg.RoverState(s.state).name.lower() if s is not None else "not heard"
