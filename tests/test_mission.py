@@ -705,3 +705,25 @@ def test_a_fleet_rover_blocked_on_its_path_with_no_new_one_is_sent_its_leg_again
             assert mission.path_id == first + 1 and mission.blocked_resends == 1 and 16.9 <= t <= 17.2
             assert mission.current_leg.deadline_s == deadline
             assert any("no new path: its leg planned again" in n for n in notes)
+
+
+def test_what_stopped_the_reflex_is_kept_for_the_leg_only_when_its_echo_was_heard():
+    # The rover says the reflex's echo (OBSTACLE) and then REFLEX, its range: the echo's point is kept
+    # for the leg (leg_plan.with_margin_round); a REFLEX whose echo was lost, or another range, keeps nothing.
+    mission, rover, _ = _setup_with(ScriptedRover)
+    t = _run(mission, rover, 1.0)
+    assert mission.phase is Phase.RUN and mission.current_leg.stopped_by == []
+    rover.say(mg.Event(kind=mg.EventKind.REFLEX, arg=146))  # its echo never came
+    t = _run(mission, rover, 0.2, t0=t)
+    assert mission.current_leg.stopped_by == []
+    echo = dict(scan_id=2, bearing_cdeg=0, x_mm=1000, y_mm=800, heading_cdeg=9000, sd_mm=3)
+    rover.say(mg.Obstacle(range_mm=146, **echo))
+    rover.say(mg.Event(kind=mg.EventKind.REFLEX, arg=150))  # another range: not this echo's reflex
+    t = _run(mission, rover, 0.2, t0=t)
+    assert mission.current_leg.stopped_by == []
+    rover.say(mg.Obstacle(range_mm=146, **echo))
+    rover.say(mg.Event(kind=mg.EventKind.REFLEX, arg=146))
+    _run(mission, rover, 0.2, t0=t)
+    ((x, y),) = mission.current_leg.stopped_by
+    offset = mission.map.grid.config.sonar_offset_m
+    assert x == pytest.approx(1.0 + offset + 0.146, abs=1e-6) and y == pytest.approx(0.8, abs=1e-6)  # east of it

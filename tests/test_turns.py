@@ -301,3 +301,38 @@ def test_near_a_refusal_a_turn_a_little_under_the_least_counts():
     assert not first_turn_tight(g, path, 90.0)  # room, and under MIN_TURN_DEG
     assert first_turn_tight(g, path, 90.0, refused_at=[start])  # it refused there: 15 degrees count
     assert not first_turn_tight(g, path, 90.0 - 10.0, refused_at=[start])  # 5 degrees never do
+
+
+def test_what_stopped_the_reflex_keeps_the_full_margin_in_every_grid_the_leg_is_planned_on():
+    # A point the rover's reflex met (the corner of a box only the sonar saw, say): the leg is
+    # planned round it by the full margin and a cell, whatever grid the planning falls back to.
+    from rovernav.mapping import LearnedMap
+    from rovernav.mission.leg_plan import plan_leg, with_margin_round
+
+    g = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    assert with_margin_round(g, []) is g and with_margin_round(None, [(1.0, 1.0)]) is None
+    met = (1.2, 0.9)
+    firm = with_margin_round(g, [met])
+    assert firm is not g and firm.inflated.sum() > g.inflated.sum()
+    reach = g.config.inflation_m + g.resolution_m
+    assert not firm.is_free(met[0], met[1] + reach - 0.02) and firm.is_free(met[0], met[1] + reach + 0.04)
+    assert g.is_free(*met)  # the map itself is left as it was
+
+    def closest(path) -> float:
+        return min(math.dist(met, p) for a, b in zip(path, path[1:]) for p in np.linspace(a, b, 50))
+
+    def plan_it(stopped_by):
+        path, _ = plan_leg(
+            LearnedMap(g),
+            (0.5, 0.9),
+            (1.9, 0.9),
+            planner="astar",
+            heading=None,
+            refused=[],
+            say=lambda _t: None,
+            stopped_by=stopped_by,
+        )
+        return path
+
+    assert closest(plan_it(None)) < 0.03  # straight through it
+    assert closest(plan_it([met])) >= g.config.inflation_m

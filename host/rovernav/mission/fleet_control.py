@@ -76,9 +76,10 @@ class FleetControl:
     #: A fleet's rover [s] (None: never): a rover whose STATUS has said BLOCKED on its current
     #: path this long, neither held nor on its way aside, is sent its leg again, planned from where
     #: it stands. A rover blocked by its forward reflex whose own detour found no way waits for a
-    #: new path; when the map did not change none came (seed 6: traced again, its reflex's echo was
-    #: the corner of the box the sonar finds, 146 mm ahead, on a path the host had planned with the
-    #: robot radius alone there and planned again the same after each sweep).
+    #: new path; when the map did not change none came (seed 6: its reflex's echo was the corner of
+    #: the box the sonar finds, 146 mm ahead, on a path the host had planned with the robot radius
+    #: alone there and planned again the same after each sweep; since, what stopped the reflex keeps
+    #: the full margin for the leg, leg_plan.with_margin_round, and seed 6 is whole).
     resend_blocked_s: float | None = None
     _blocked_since: float | None = None
     blocked_resends: int = 0

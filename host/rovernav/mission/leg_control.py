@@ -100,22 +100,20 @@ class LegControl:
         # (hold_on_refused): planned afresh from there, its first turn is checked against where it refused,
         # and a back-out against the line on from where it would end (leg_plan.plan_leg).
         refused_at = list(self.current_leg.turns_refused_at) if self.legs and self.hold_on_refused else None
-        path, reason = plan_leg(
-            self._planning_map(),
-            start,
-            goal,
-            planner=self.planner,
-            heading=heading,
-            refused=refused,
-            say=lambda text: self.on_event(self._now, text),
-            arrival_m=self.arrival_radius_m,
-            refused_at=refused_at,
-        )
-        if path is None and self.planning_map is not None and not round_rovers:
-            # No way round the fleet's other rovers: a path as if they were not there (the traffic
-            # rules hold the rover until they have moved: fleet/traffic.py), and no verdict on them.
+        # What the rover's reflex met in this leg keeps its full margin (leg_plan.with_margin_round),
+        # first round the other rovers, then through them (the traffic rules hold it until they
+        # have moved); only when that leaves no way at all, the way as before (a verdict of no
+        # path would end the mission). A way round the rovers in its way (round_rovers: the
+        # traffic rules asking) keeps the margin: they will move.
+        stopped_by = list(self.current_leg.stopped_by) if self.legs else []
+        tries = [(self._planning_map(), stopped_by)]
+        if self.planning_map is not None and not round_rovers:
+            tries.append((self.map, stopped_by))  # no way round the fleet's other rovers: as if they were not there
+        if stopped_by and not round_rovers:
+            tries += [(learned, None) for learned, _ in tries]
+        for learned, firm in tries:
             path, reason = plan_leg(
-                self.map,
+                learned,
                 start,
                 goal,
                 planner=self.planner,
@@ -124,7 +122,10 @@ class LegControl:
                 say=lambda text: self.on_event(self._now, text),
                 arrival_m=self.arrival_radius_m,
                 refused_at=refused_at,
+                stopped_by=firm,
             )
+            if path is not None:
+                break
         if path is None and verdict:
             self._fail(f"no path to ({goal[0]:.2f}, {goal[1]:.2f}) m: {reason}", Failure.NO_PATH)
         return path

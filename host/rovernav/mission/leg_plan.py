@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..planning.turns import (
@@ -25,6 +26,21 @@ GOAL_SHIFT_M = 0.06
 #: A path whose start lies this near the rover starts where it stands: its first turn is made
 #: from the rover's heading, and is checked for room (rovernav.planning.turns.ahead_first) [m].
 START_NEAR_M = 0.05
+
+
+def with_margin_round(grid: OccupancyGrid | None, points: list[tuple[float, float]] | None) -> OccupancyGrid | None:
+    """A copy of `grid` with a post a cell across at each of `points`, kept clear by the full margin
+    (robot radius and sonar margin) as every obstacle is (the grid itself when there are none). What
+    stopped a rover's reflex on a path planned with the robot radius alone is no echo placed
+    somewhere across a cone: the rover met it, and a gap it closes is no gap for that rover (fleet
+    seed 6: the host sent the same squeeze past a box's corner after each sweep, and the rover,
+    stopped there once, held still for good)."""
+    if grid is None or not points:
+        return grid
+    g = grid.copy()
+    for x, y in points:
+        g.add_post(x, y, g.resolution_m)
+    return g
 
 
 class PlannedPath(list):
@@ -47,6 +63,7 @@ def plan_leg(
     say: Callable[[str], None],
     arrival_m: float = ARRIVAL_M,
     refused_at: list[tuple[float, float]] | None = None,
+    stopped_by: list[tuple[float, float]] | None = None,
 ) -> tuple[list[tuple[float, float]] | None, NoPathError | None]:
     """(path, None), or (None, the planner's most telling reason) when there is no path.
 
@@ -64,12 +81,14 @@ def plan_leg(
     radius as configured (a point put in ahead for the first turn lies beyond it); refused_at:
     every spot where it refused a turn in this leg, for the first turn's check (ahead_first), and
     a back-out then only with room to turn where it ends and a clear line on (backed_out_clear);
-    None: neither (a lone rover's host replans when it hears the rover has backed out).
+    None: neither (a lone rover's host replans when it hears the rover has backed out);
+    stopped_by: what stopped the rover's forward reflex in this leg (the echoes' points): every
+    grid keeps the full margin round them, the robot radius alone too (`with_margin_round`).
     """
     reason = None
-    lenient = learned_map.lenient_grid()
+    lenient = with_margin_round(learned_map.lenient_grid(), stopped_by)
     opened: list = []
-    careful = learned_map.grid
+    careful = with_margin_round(learned_map.grid, stopped_by)
     cfg = careful.config
     echoes = learned_map.echoes
 
@@ -77,7 +96,7 @@ def plan_leg(
         # The careful map, then the open one (built only when the careful map found no way),
         # each with the full margin before either with the radius alone.
         yield careful
-        opened.extend(learned_map.open_grids())
+        opened.extend(with_margin_round(g, stopped_by) for g in learned_map.open_grids())
         yield opened[0] if opened else None
         yield lenient
         yield opened[1] if len(opened) > 1 else None

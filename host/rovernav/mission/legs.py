@@ -41,6 +41,7 @@ class Leg:
     deadline_s: float = math.inf  # when the host steps in if the leg is still not done
     recoveries: int = 0  # times the host re-sent the leg after its deadline
     turns_refused_at: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # TURN_REFUSED's spots [m]
+    stopped_by: list[tuple[float, float]] = dataclasses.field(default_factory=list)  # what the reflex met [m]
 
     def refused_twice(self) -> list[tuple[float, float]]:
         """The spots where the rover refused a turn twice in this leg (within REFUSED_NEAR_M): a

@@ -14,7 +14,7 @@ from ..link import messages_gen as mg
 from ..link.errors import Nacked, SchemaMismatch
 from ..link.link import host_hello
 from ..link.path_upload import Answer
-from ..mapping import SonarReading
+from ..mapping import Echo, SonarReading
 from .phases import HELLO_EVERY_S, Failure, Outcome, Phase
 
 #: A sweep from within this of the last one's pose is from the same spot [mm, centidegrees].
@@ -24,6 +24,8 @@ SPOT_CDEG = 100
 
 class RoverFrames:
     """The mission's handling of the frames it takes from the rover (a base class of Mission)."""
+
+    _last_echo: tuple[int, tuple[float, float]] | None = None  # the last echo heard: its range [mm], its point [m]
 
     def _handle(self, frame) -> None:
         if self._silent():
@@ -179,6 +181,9 @@ class RoverFrames:
         )
         if self._rover_echo(reading):  # a fleet's other rover, not an obstacle
             return
+        if m.range_mm:
+            r = reading
+            self._last_echo = (m.range_mm, self.map.point(Echo(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m)))
         changed = self.map.add(reading)
         self.recorder.host_sonar(self._now, reading, changed)
         self._map_unsaved = True
@@ -202,6 +207,11 @@ class RoverFrames:
             if self._map_changed_at is not None:
                 self._map_changed()
             self._scan_done(m.arg)
+        elif kind is mg.EventKind.REFLEX and self._leg_open() and self._last_echo and self._last_echo[0] == m.arg:
+            # The reflex's echo (its OBSTACLE goes just before this EVENT): the leg plans round it
+            # with the full margin (leg_plan.with_margin_round).
+            self.current_leg.stopped_by.append(self._last_echo[1])
+            self.on_event(self._now, f"rover: reflex (arg {m.arg})")
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
             if self.upload is not None and self.upload.path_id == m.arg:
