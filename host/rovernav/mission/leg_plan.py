@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-
 from ..mapping import LearnedMap
 from ..planning import NoPathError, OccupancyGrid, Unreachable, plan
 from ..planning.turns import (
