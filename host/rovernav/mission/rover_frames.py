@@ -182,8 +182,8 @@ class RoverFrames:
         if self._rover_echo(reading):  # a fleet's other rover, not an obstacle
             return
         if m.range_mm:
-            r = reading
-            self._last_echo = (m.range_mm, self.map.point(Echo(r.x_m, r.y_m, r.heading_deg, r.bearing_deg, r.range_m)))
+            echo = Echo(reading.x_m, reading.y_m, reading.heading_deg, reading.bearing_deg, reading.range_m)
+            self._last_echo = (m.range_mm, self.map.point(echo))
         changed = self.map.add(reading)
         self.recorder.host_sonar(self._now, reading, changed)
         self._map_unsaved = True
@@ -207,11 +207,6 @@ class RoverFrames:
             if self._map_changed_at is not None:
                 self._map_changed()
             self._scan_done(m.arg)
-        elif kind is mg.EventKind.REFLEX and self._leg_open() and self._last_echo and self._last_echo[0] == m.arg:
-            # The reflex's echo (its OBSTACLE goes just before this EVENT): the leg plans round it
-            # with the full margin (leg_plan.with_margin_round).
-            self.current_leg.stopped_by.append(self._last_echo[1])
-            self.on_event(self._now, f"rover: reflex (arg {m.arg})")
         elif kind is mg.EventKind.PATH_ACCEPTED:
             self._accepted_path_id = m.arg
             if self.upload is not None and self.upload.path_id == m.arg:
@@ -223,6 +218,10 @@ class RoverFrames:
             )
         elif kind is not None and kind is not mg.EventKind.WAYPOINT_REACHED:
             self.on_event(self._now, f"rover: {kind.name.lower()} (arg {m.arg})")
+            if kind is mg.EventKind.REFLEX and self._leg_open() and self._last_echo and self._last_echo[0] == m.arg:
+                # The reflex's echo (its OBSTACLE goes just before this EVENT): the leg plans round
+                # it with the full margin (leg_plan.with_margin_round).
+                self.current_leg.stopped_by.append(self._last_echo[1])
             if kind is mg.EventKind.TURN_REFUSED and self._leg_open():
                 # Twice in one spot, and planned paths turn there no more this leg (Leg.refused_twice).
                 self.current_leg.turns_refused_at.append((m.x_mm / 1000, m.y_mm / 1000))
