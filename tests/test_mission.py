@@ -17,6 +17,7 @@ from rovernav.link.link import Link
 from rovernav.link.transport import PipeTransport
 from rovernav.mission import Detection, Failure, Mission, Outcome, Phase, phases
 from rovernav.mission.leg_plan import PlannedPath
+from rovernav.mission.legs import Leg, path_length_m, round_trips_done
 from rovernav.planning import OccupancyGrid, PlannerConfig
 from rovernav.planning.turns import body_clear
 
@@ -328,6 +329,32 @@ def test_a_leg_never_reached_is_replanned_then_fails_within_its_deadlines():
     assert t <= (1 + d.leg_recoveries) * d.leg_s(leg.planned_length_m) + 5
 
 
+def test_a_fleets_rover_late_to_its_site_gives_up_its_trips_and_goes_home_to_wait_not_in_the_way():
+    # A fleet's rover (parked at home when its trips are done) whose leg to its site is late after
+    # its recoveries: its mission goes on, with a leg home (here: done at once, the camera sees it
+    # at its berth) and it waits there with the fleet; once the fleet is done its mission ends
+    # failed, saying why, with no trip counted.
+    mission, rover, notes = _setup_with(ScriptedRover, legs=4)
+    mission.park_at_end = True
+    _run_until_done(mission, rover, 1500)
+    assert not mission.done and mission.parked and mission.gave_up is not None
+    assert [leg.reached for leg in mission.legs] == [False, False] and mission.legs[1].goal == (0.3, 0.3)
+    assert any("gives up its trips" in n for n in notes) and round_trips_done(mission.legs, mission.parked) == 0
+    mission.release_park(1500.0)
+    assert mission.done and mission.outcome is Outcome.FAILED and mission.failure is Failure.LEG_LATE
+    assert mission.error.startswith("leg 1 not reached after")
+
+
+def test_round_trips_count_only_a_site_and_home_both_reached():
+    def legs(*reached):
+        return [Leg(index=i, goal=(0.0, 0.0), started_s=0.0, reached=r) for i, r in enumerate(reached)]
+
+    assert round_trips_done(legs(True, True, True, True)) == 2
+    assert round_trips_done(legs(True, True, False, True)) == 1  # the second site given up, home after it
+    assert round_trips_done(legs(True, True, True, False), home_at_last=True) == 2  # parked at home
+    assert round_trips_done(legs(True, False)) == 0 and round_trips_done([]) == 0
+
+
 def test_an_enclosed_target_ends_the_mission_with_the_no_path_verdict():
     grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
     for x, y, w, h in ((2.0, 1.15, 0.5, 0.05), (2.0, 1.65, 0.5, 0.05), (1.75, 1.4, 0.05, 0.5), (2.25, 1.4, 0.05, 0.5)):
@@ -602,6 +629,26 @@ def test_a_rover_let_go_where_it_was_held_resumes_without_a_sweep_and_one_carrie
     start = rover.of(mg.Start)[-1]
     assert start.path_id == mission.path_id and start.resume == 0
     assert rover.state == mg.RoverState.SCAN
+
+
+def test_a_rover_that_gave_way_has_at_least_a_whole_legs_time_from_its_spot_aside():
+    # Held and let go, a leg's deadline moves by the wait alone; sent aside for another rover, its
+    # drive there and back is the traffic's: let go from its spot aside, the leg has at least the
+    # time of a leg of the path it is sent from there.
+    mission, rover, _ = _setup_with(ScriptedRover)
+    t = _run_until_done(mission, rover, 1.0)
+    leg = mission.legs[0]
+    leg.deadline_s = t + 5.0
+    mission.hold(t, "rover 2 is in the way")
+    mission.let_go(t + 2.0)
+    assert math.isclose(leg.deadline_s, t + 7.0)  # the wait, no more
+    mission.hold(t + 2.0, "rover 2 is in the way")
+    mission.let_go(t + 3.0, [(0.3, 0.3), (0.3, 0.7)], aside=True)
+    assert math.isclose(leg.deadline_s, t + 8.0)
+    mission._now = t + 60.0
+    assert mission.aside_arrived() and mission.held
+    mission.let_go(t + 70.0)
+    assert leg.deadline_s >= t + 70.0 + mission.deadlines.leg_s(path_length_m(mission.path)) - 1e-6
 
 
 def test_a_sweep_heard_in_part_counts_as_heard_whole_over_the_sweeps_from_the_same_spot():

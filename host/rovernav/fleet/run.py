@@ -23,7 +23,8 @@ from pathlib import Path
 from ..errors import InputError
 from ..link.errors import LinkError
 from ..link.messages_gen import MAX_ROVERS
-from ..mission import Phase
+from ..mission import Outcome, Phase
+from ..mission.legs import round_trips_done
 
 #: A rover's own configuration may put its sonar this far from where the fleet's says [m]: the
 #: host places every rover's echoes with the fleet's one offset, and the planner's sonar margin
@@ -223,8 +224,9 @@ def run_fleet_hardware(
     if interrupted:
         raise KeyboardInterrupt
     for k, m in enumerate(host.missions):
-        done = sum(1 for leg in m.legs if leg.reached)
-        print(f"rover {k + 1}: {m.outcome.value}, {done // 2} of {m.legs_asked // 2} round trips", file=sys.stderr)
+        done = round_trips_done(m.legs)
+        print(f"rover {k + 1}: {m.outcome.value}, {done} of {m.legs_asked // 2} round trips", file=sys.stderr)
     if any(m.phase is Phase.FAILED for m in host.missions):
         return 1
-    return 0 if all(m.phase is Phase.DONE for m in host.missions) else 1
+    # (A rover that gave up its trips ends home, its mission done but failed.)
+    return 0 if all(m.phase is Phase.DONE and m.outcome is Outcome.REACHED for m in host.missions) else 1

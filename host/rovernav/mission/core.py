@@ -96,6 +96,7 @@ class Mission(RoverFrames, LegControl, FleetControl):
         self.start_xy = start_xy
         self.target_xy = target_xy
         self.legs_asked = legs
+        self.legs_to_drive = legs  # fewer, when a fleet's rover gives up its trips (FleetControl.give_up)
         self.strategy = strategy or RovernavStrategy()
         # The geometry the host plans with first, so that the rover's own detours keep the same
         # clearance; then the strategy's; then what the caller asks (which wins).

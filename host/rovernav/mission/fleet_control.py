@@ -17,7 +17,7 @@ from ..angles import heading_cdeg
 from ..link import messages_gen as mg
 from ..planning.turns import REFUSED_HERE_M
 from .legs import path_length_m
-from .phases import Phase
+from .phases import Failure, Outcome, Phase
 
 #: A held rover seen within this of where it was when held has stood still since [m] (the STOP
 #: reaches it in its next slot, up to 0.3 s later: at 0.15 m/s it coasts ~5 cm; a rover carried
@@ -63,6 +63,8 @@ class FleetControl:
     #: can still be sent aside, out of the way of a rover that must pass its berth, and back.
     park_at_end: bool = False
     _parked_at: float | None = None  # when the rover first arrived home from its last leg
+    #: Why a fleet's rover gave up its trips (`give_up`), None while it has not.
+    gave_up: str | None = None
     #: True (a fleet's rover): a sweep counts as heard whole when the sweeps from the same spot
     #: together said every echo it counted (RoverFrames._heard_from_spot).
     heard_over_spot: bool = False
@@ -281,7 +283,8 @@ class FleetControl:
         if self.done or not self.legs or self.current_leg.reached:
             return
         leg = self.current_leg
-        if self._aside_done:  # from where it stood aside: the leg afresh
+        from_aside = self._aside_done
+        if from_aside:  # from where it stood aside: the leg afresh
             self._aside_done, path = False, None
         leg.deadline_s += waited  # the wait is no lateness of the leg's
         self.on_event(now_s, f"let go after {waited:.1f} s")
@@ -297,6 +300,12 @@ class FleetControl:
                 return
         if self.parked:  # out of another's way and back home: a drive of its own, with its own deadline
             leg.deadline_s = now_s + self.deadlines.leg_s(path_length_m(path))
+        elif from_aside:
+            # It gave way (its drive aside and its wait there are the traffic's, not the leg's):
+            # the leg from there has at least the time of a leg of that length. Rover 3 of loss1
+            # seed 4 gave way six times on one leg, failed it on its deadline standing in the
+            # corridor, and held the other two for good.
+            leg.deadline_s = max(leg.deadline_s, now_s + self.deadlines.leg_s(path_length_m(path)))
         resume = self._stood_still() and not aside and not self.parked
         self.strategy.start_leg(self, path)
         self._resume_path_id = self.path_id if resume else None
@@ -366,6 +375,22 @@ class FleetControl:
         self._aside_goal, self._aside_done = None, False
         return True
 
+    def give_up(self, now_s: float, why: str) -> bool:
+        """A leg late after its recoveries (`why`): a fleet's rover on its way to its site gives up
+        its trips there and goes home, to wait with the fleet (parked, where the traffic rules can
+        still send it aside), rather than end its mission where it stands, in the others' way: rover 3
+        of loss1 seed 4 ended its mission in the corridor, and the other two were held behind it for
+        good. Its mission ends failed once the fleet is done (`release_park`). False (the mission
+        fails as a lone rover's does): a lone rover, a leg home, or a rover that gave up already."""
+        if not self.park_at_end or self.parked or self.gave_up is not None or self.current_leg.index % 2:
+            return False
+        self.gave_up = why
+        self.legs_to_drive = len(self.legs) + 1  # the leg home is its last
+        self._aside_goal, self._aside_done = None, False
+        self.on_event(now_s, f"{why}: it gives up its trips and goes home to wait for the fleet")
+        self._next_leg()
+        return True
+
     def release_park(self, now_s: float) -> None:
         """Every rover of the fleet has done its trips: the parked leg is done (when the rover first
         arrived home), and the mission with it."""
@@ -377,6 +402,8 @@ class FleetControl:
         self.park_at_end = False
         self._leg_done()
         self.current_leg.finished_s = arrived_s
+        if self.gave_up is not None:  # home, but its trips were not all done
+            self.outcome, self.failure, self.error = Outcome.FAILED, Failure.LEG_LATE, self.gave_up
 
     def rest_of_leg(self) -> list[tuple[float, float]]:
         """From where the rover is through the waypoints it has still to reach: those it had when

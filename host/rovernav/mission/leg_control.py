@@ -28,10 +28,9 @@ class LegControl:
         if now_s <= leg.deadline_s:
             return
         if leg.recoveries >= self.deadlines.leg_recoveries:
-            self._fail(
-                f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s and {leg.recoveries} re-sends",
-                Failure.LEG_LATE,
-            )
+            why = f"leg {leg.index + 1} not reached after {now_s - leg.started_s:.0f} s and {leg.recoveries} re-sends"
+            if not self.give_up(now_s, why):
+                self._fail(why, Failure.LEG_LATE)
             return
         leg.recoveries += 1
         self.on_event(

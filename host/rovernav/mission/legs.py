@@ -100,3 +100,13 @@ class LegRecord:
 
 def path_length_m(path) -> float:
     return sum(math.dist(a, b) for a, b in zip(path, path[1:]))
+
+
+def round_trips_done(legs: list[Leg], home_at_last: bool = False) -> int:
+    """Round trips done: out to the site and home, both legs reached (`home_at_last`: the last
+    leg's rover is home, parked there for its fleet). A leg given up (FleetControl.give_up) and the
+    leg home after it are no trip."""
+    home = [leg.reached for leg in legs]
+    if home_at_last and legs:
+        home[-1] = True
+    return sum(1 for i in range(1, len(legs), 2) if home[i] and legs[i - 1].reached)

@@ -251,14 +251,14 @@ class RoverFrames:
 
     def _leg_done(self) -> None:
         self._save_map()
-        if len(self.legs) >= self.legs_asked and self.park():  # a fleet's rover waits at home (fleet_control.py)
+        if len(self.legs) >= self.legs_to_drive and self.park():  # a fleet's rover waits at home (fleet_control.py)
             return
         self._held_since = None  # a leg done while held for another rover (fleet_control.py) is done
         leg = self.current_leg
         leg.finished_s, leg.reached = self._now, True
         self.on_event(self._now, f"leg {leg.index + 1} reached ({leg.goal[0]:.2f}, {leg.goal[1]:.2f}) m")
         self.record.save(len(self.legs))
-        if len(self.legs) >= self.legs_asked:
+        if len(self.legs) >= self.legs_to_drive:
             self._set_phase(Phase.DONE)
             self.outcome = Outcome.REACHED
             self._end_with_stop(mg.StopReason.MISSION_DONE)

@@ -32,6 +32,7 @@ from ..link import messages_gen as mg
 from ..link.transport import Transport
 from ..mapping.sonar_map import sonar_origin
 from ..mission import Outcome
+from ..mission.legs import round_trips_done
 from ..radio import ChannelConfig
 from ..vehicle_gen import STEP_PERIOD_MS
 from ..vision.fleet import FleetLocator, fleet_tags
@@ -481,7 +482,7 @@ class FleetSimulation:
     def trips_done(self, k: int) -> int:
         """Round trips rover k finished (both legs of each; home from its last, parked there, counts)."""
         m = self.host.missions[k]
-        return (sum(1 for leg in m.legs if leg.reached) + m.parked) // 2
+        return round_trips_done(m.legs, m.parked)
 
     def report(self) -> dict:
         n = len(self.rovers)
