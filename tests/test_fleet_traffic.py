@@ -123,6 +123,23 @@ def test_a_rover_parked_at_home_in_anothers_way_is_sent_aside_off_it_and_back_on
     assert not t._wanted_home(1)  # rover 1 is home: rover 2 may go back
 
 
+def test_a_rover_parked_in_a_corridor_that_is_anothers_only_way_is_sent_beyond_the_near_rings():
+    # A corridor along the bottom wall (a box over the rest of the arena): rover 1 drives east
+    # along it to (1.45, 0.3), past rover 2, parked at (0.75, 0.3). Every spot within 0.9 m of
+    # rover 2 is in the box's margin or on rover 1's way: its spot aside is further along, ahead.
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    grid.add_box(1.18, 1.2, 2.36, 1.1)
+    shared = LearnedMap(grid)
+    m1 = _ParkedMission(xy=(0.3, 0.3), rest=[(1.45, 0.3)], moving_leg=False, map=shared)
+    m2 = _ParkedMission(xy=(0.75, 0.3), rest=[], moving_leg=False, map=shared, parked=True)
+    t = Traffic([m1, m2])
+    way = t._aside_spot(1, 0)
+    assert way is not None and way[0] == (0.75, 0.3)
+    spot = way[-1]
+    assert math.dist(spot, m2.xy) > 0.9 and polyline_point_m(m1.rest_of_leg(), spot) >= CLEAR_M
+    assert t.blockers(1, way) == []
+
+
 def test_three_rovers_that_hold_each_other_round_are_a_ring_and_the_latest_gives_way_to_the_one_it_holds():
     # Rover 1 drives at rover 2, rover 2 at rover 3, rover 3 at rover 1: all three held.
     t, _ = _traffic(

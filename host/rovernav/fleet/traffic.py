@@ -56,8 +56,12 @@ SIDE_STEP_M = 0.35
 #: two gave way to each other for good (1 % loss, seed 2, with the berth rule).
 GAVE_WAY_WAIT_S = 45.0
 #: Where a parked rover may be sent aside: rings this far from its berth [m], in this many
-#: directions, planning a way to at most ASIDE_MAX_PLANS of the free spots (nearest first).
-ASIDE_RINGS_M = (0.35, 0.5, 0.7, 0.9)
+#: directions, planning a way to at most ASIDE_MAX_PLANS of the free spots (nearest first); the
+#: same spots for a rover that gives way with no track to back along. The outer two are tried
+#: only when the inner ones have no spot: in a corridor that is, with the full margin, the only
+#: way to other berths (by the left wall, past the berth at (0.30, 1.25)), every spot within
+#: 0.9 m is on the way of the rover held, and loss1 seeds 2 and 4 stuck for good there.
+ASIDE_RINGS_M = (0.35, 0.5, 0.7, 0.9, 1.1, 1.3)
 ASIDE_DIRECTIONS = 16
 ASIDE_MAX_PLANS = 24
 #: ... by a way at most this many times as long as the spot is far (a long way round among boxes
