@@ -345,6 +345,19 @@ def test_a_fleets_rover_late_to_its_site_gives_up_its_trips_and_goes_home_to_wai
     assert mission.error.startswith("leg 1 not reached after")
 
 
+def test_a_fleets_rover_whose_site_is_where_it_stands_does_its_trip_once_and_waits_parked():
+    # A site within the arrival radius of the rover's berth: both legs are done where it stands,
+    # before any path, and it parks with the fleet (not a new leg every tick while it locates).
+    mission, rover, notes = _setup_with(ScriptedRover, target=(0.32, 0.31), legs=2)
+    mission.park_at_end = True
+    _run_until_done(mission, rover, 30)
+    assert len(mission.legs) == 2 and mission.parked and mission.phase is Phase.RUN and not mission.done
+    assert [leg.reached for leg in mission.legs] == [True, False]
+    assert sum("already within" in n for n in notes) == 2
+    mission.release_park(30.0)
+    assert mission.done and mission.outcome is Outcome.REACHED and round_trips_done(mission.legs) == 1
+
+
 def test_round_trips_count_only_a_site_and_home_both_reached():
     def legs(*reached):
         return [Leg(index=i, goal=(0.0, 0.0), started_s=0.0, reached=r) for i, r in enumerate(reached)]

@@ -370,6 +370,11 @@ class FleetControl:
         if self._parked_at is None:
             self._parked_at = self._now
             self.on_event(self._now, "home from its last trip: parked, waiting for the fleet")
+        if self.phase is Phase.LOCATE:
+            # Its legs were done where it stood (a site within the arrival radius of its berth): the
+            # mission runs on, parked; left locating, each tick began another leg (arena 14 of the
+            # fleet's 20: 2,072 legs in 58 s, and its trip not counted).
+            self._set_phase(Phase.RUN)
         self._held_since = self._now
         self._held_rest = []
         self._aside_goal, self._aside_done = None, False
