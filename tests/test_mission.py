@@ -540,20 +540,6 @@ def test_a_check_that_finds_no_way_is_no_verdict():
     assert mission.phase is Phase.FAILED and mission.failure is Failure.NO_PATH
 
 
-@pytest.mark.parametrize("camera_deg, expect_deg", [(50.0, 45.0), (6.0, 6.0), (-170.0, -170.0)])
-def test_the_heading_a_path_is_planned_from_is_the_cameras_when_the_rovers_last_status_is_stale(camera_deg, expect_deg):
-    # The rover's own heading (its STATUS) counts, unless the camera's recent fix has it turned more
-    # than STALE_HEADING_DEG since: a fleet's rover on a lossy radio said 45 degrees 2 s before, in
-    # mid-turn, stood at 6, and a back-out asked along 45 took it into a box.
-    mission, rover, _ = _setup_with(ScriptedRover, start=(1.0, 0.8), target=(1.5, 1.5))
-    flags = int(mg.StatusFlag.SCHEMA_OK | mg.StatusFlag.MISSION_ACTIVE)
-    rover.say(mg.Status(state=int(mg.RoverState.IDLE), flags=flags, x_mm=1000, y_mm=800, heading_cdeg=4500))
-    t = _run(mission, rover, 0.3, pose=(1.0, 0.8, camera_deg))
-    assert mission.rover_heading_deg() == pytest.approx(expect_deg)
-    mission.tick(t + 1.0)  # the camera's fix no longer recent: the STATUS again
-    assert mission.rover_heading_deg() == pytest.approx(45.0)
-
-
 def test_a_path_from_where_the_rover_stands_without_room_to_turn_starts_straight_ahead():
     # The rover stands facing east with a box's corner 0.11 m off its right rear (the half-diagonal
     # is 0.129 m); its new path turns it north. The host puts in a point straight ahead, where it

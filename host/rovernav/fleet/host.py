@@ -46,18 +46,12 @@ RESEND_BLOCKED_S = 9.0
 #: what its 128-byte TX queue cannot hold is lost, the host never hears the sweep whole and the
 #: rover, waiting for its word, sweeps again; measured on fleet-out-and-back, 3 rovers: 19-33
 #: frames dropped a rover and every sweep heard whole at 400 ms a step and STATUS every second,
-#: against 56-135 dropped and sweeps heard in part at 300 ms and every 500 ms). The radio counts
-#: as lost after 3 s without a valid frame, not 1 s: a fleet's rover hears its host only in its
-#: slots, 4-5 a second, and on a radio losing 2 % of its bytes half of those polls are lost, so
-#: five in a row (1 s) went every few seconds; each time the radio came back the rover swept again
-#: before moving on (a sweep after an outage), and that sweep needed the host's word of its own:
-#: rovers swept in one spot for minutes (fleet seed 1, 2 % lost: stuck with no trip).
+#: against 56-135 dropped and sweeps heard in part at 300 ms and every 500 ms).
 FLEET_ROVER_PARAMS = (
     (mg.Param.STATUS_PERIOD_MS, 1000),
     (mg.Param.FIX_TIMEOUT_MS, 1000),
     (mg.Param.SWEEP_STEP_MS, 400),
     (mg.Param.SONAR_REPORT_MM, 400),
-    (mg.Param.RADIO_TIMEOUT_MS, 3000),
 )
 
 

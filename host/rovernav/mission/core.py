@@ -26,7 +26,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from ..angles import heading_cdeg, wrap_deg
+from ..angles import heading_cdeg
 from ..errors import MissionFailed  # noqa: F401  (re-exported: the mission's failure as an exception)
 from ..link import messages_gen as mg
 from ..link.errors import LinkError
@@ -63,9 +63,6 @@ from .strategies import RovernavStrategy
 log = logging.getLogger("rovernav.mission")
 
 FIX_SLACK_S = 0.005  # [mission] fix_hz: a frame this early for its FIX's turn is on time (see Mission)
-#: The camera's heading this far from the rover's last STATUS [deg]: the rover has turned since it
-#: said it, and its turns are planned from the camera's (rover_heading_deg).
-STALE_HEADING_DEG = 10.0
 
 
 class Mission(RoverFrames, LegControl, FleetControl):
@@ -543,19 +540,10 @@ class Mission(RoverFrames, LegControl, FleetControl):
 
     def rover_heading_deg(self) -> float | None:
         """The rover's heading by its own estimate (0 up the arena, clockwise) [deg]; None before
-        its first STATUS. Its turns are made from this heading, not from the camera's, unless the
-        camera's recent fix has it turned more than STALE_HEADING_DEG from it: its STATUS is old
-        (a fleet's rover says one a second, and on a radio losing 2 % of its bytes half of them
-        are lost), and a back-out asked along the heading it had 2 s before, in mid-turn, took it
-        into the box the sonar finds (fleet seed 1, 2 % lost)."""
+        its first STATUS. Its turns are made from this heading, not from the camera's."""
         if self.last_status is None:
             return None
-        said = self.last_status.heading_cdeg / 100.0
-        d = self._last_detection
-        if d is not None and d.x_m is not None and self._now - d.t_s < 0.5:
-            if abs(wrap_deg(d.heading_deg - said)) > STALE_HEADING_DEG:
-                return d.heading_deg
-        return said
+        return self.last_status.heading_cdeg / 100.0
 
     def rover_xy(self) -> tuple[float, float]:
         """Where the rover is: the camera's last fix (if recent), else its own estimate, else the start."""
