@@ -121,7 +121,8 @@ ROVERNAV_NOINLINE void Rover::send_reading(int16_t bearing_cdeg, uint16_t range_
   for (uint8_t i = 0; i < times; ++i) link_.tx.send(o);
 }
 
-ROVERNAV_NOINLINE void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
+// Left to LTO: kept out of line it cost 4 bytes of flash with avr-gcc 7.3 and 2 with 5.4.
+void Rover::report_echo(int16_t bearing_cdeg, uint16_t range_mm) {
   // Said kSayTimes times: the host plans with what it heard, and the rover takes its path on the
   // host's word only when it heard every echo of the sweep (HEARTBEAT's scan_heard). The host
   // drops the copies.
