@@ -12,8 +12,9 @@ namespace core {
 // A tag is a step's heavy job (0.3-0.8 ms on the Uno): after one, the rest of the bytes wait
 // for the next step (the shell gives them again); a step kept for a put-off job, or with a
 // sonar result, takes no signed frame at all. A rover with no key computes no tag and takes
-// everything at once.
-ROVERNAV_NOINLINE uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
+// everything at once. Left to LTO, which pastes it into step() (its one caller): 28 bytes of
+// flash less than the call with avr-gcc 7.3, the same with 5.4, and step()'s frame no larger.
+uint8_t Rover::take_frames(const Inputs& in, uint32_t now) {
   if (link_.fix_verified) {
     // The FIX whose tag the last step checked (still in the decoder: nothing is pushed until it
     // is taken) is this step's job, unless a sonar result was put off too: the sweep waits for
