@@ -65,7 +65,7 @@ class Estimator {
 
  private:
   struct Past {
-    int16_t x_mm, y_mm, heading_cdeg;  // raw odometry
+    int16_t xy_mm[2], heading_cdeg;  // raw odometry: x, y
     uint16_t t_ms;                     // low 16 bits of the time
   };
   /// Odometry travelled since t_ms: d = (dx, dy, dtheta). Zero if t_ms is now or later.
