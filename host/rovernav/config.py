@@ -219,7 +219,7 @@ def config_from_dict(data: dict, where: str = "") -> Config:
         if not spec.min <= value <= spec.max:
             raise ConfigError(f"{where}[rover] {key} = {value} is outside [{spec.min}, {spec.max}] ({spec.unit})")
         rover[by_name[key]] = value
-    _check_pose_gains(rover, where)
+    check_pose_gains(rover, where)
     timeout_ms = rover.get(mg.Param.FIX_TIMEOUT_MS, mg.PARAMS[mg.Param.FIX_TIMEOUT_MS].default)
     if 0.0 < mission.fix_hz < min_fix_hz(timeout_ms):
         raise ConfigError(
@@ -256,7 +256,7 @@ def _radio(table: Any, where: str) -> RadioConfig:
     return radio
 
 
-def _check_pose_gains(rover: dict, where: str) -> None:
+def check_pose_gains(rover: dict, where: str) -> None:
     """The moving-to-a-pose gains the rover would run with (the file's over the defaults) must be
     stable, by the rule `rovernav pose` applies: a rover must not be sent gains the study refuses."""
     from .control import PoseGains
@@ -278,6 +278,12 @@ def load_config(path: str | Path | None) -> Config:
     """Read a TOML configuration file (None: every default)."""
     if path is None:
         return config_from_dict({})
+    return config_from_dict(read_config_data(path), where=f"{path}: ")
+
+
+def read_config_data(path: str | Path) -> dict:
+    """A TOML configuration file's tables as read, before they are checked (`config_from_dict`
+    checks them); ConfigError (one line) for a file that cannot be read or is not TOML."""
     path = Path(path)
     try:
         text = read_text_file(path, "configuration file")
@@ -286,7 +292,6 @@ def load_config(path: str | Path | None) -> Config:
     if len(text) > 1_000_000:
         raise ConfigError(f"{path}: {len(text):,} characters is not a configuration file (the limit is 1,000,000)")
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
-    return config_from_dict(data, where=f"{path}: ")

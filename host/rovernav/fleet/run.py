@@ -61,9 +61,7 @@ def fleet_rover_params(config_files: list[str] | None, rovers: int, fleet_cfg=No
     rover's sonar sits more than SONAR_OFFSET_SLACK_M from where the fleet's configuration says (the
     host places every rover's echoes with that one offset); ConfigError for a file that is not a
     valid configuration, or whose moving-to-a-pose gains are unstable over the fleet's."""
-    import tomllib
-
-    from ..config import _check_pose_gains, config_from_dict, load_config
+    from ..config import check_pose_gains, config_from_dict, read_config_data
     from ..link import messages_gen as mg
     from .host import FLEET_ROVER_PARAMS
 
@@ -76,7 +74,8 @@ def fleet_rover_params(config_files: list[str] | None, rovers: int, fleet_cfg=No
     fleet_cfg = fleet_cfg if fleet_cfg is not None else config_from_dict({})
     out = []
     for f in config_files:
-        cfg = load_config(f)
+        data = read_config_data(f)  # read once: the checked configuration, and what the file itself says
+        cfg = config_from_dict(data, where=f"{f}: ")
         own = dict(cfg.rover)
         for p, _ in FLEET_ROVER_PARAMS:
             if p in own:
@@ -90,8 +89,8 @@ def fleet_rover_params(config_files: list[str] | None, rovers: int, fleet_cfg=No
                     f"{f}: [rover] {mg.PARAMS[p].name} is the planner's geometry, the fleet's to set ([planner] of "
                     "its configuration), not one rover's: leave it out"
                 )
-        _check_pose_gains({**fleet_cfg.rover, **own}, f"{f} over the fleet's configuration: ")
-        said = tomllib.loads(Path(f).read_text(encoding="utf-8")).get("planner", {})
+        check_pose_gains({**fleet_cfg.rover, **own}, f"{f} over the fleet's configuration: ")
+        said = data.get("planner", {})
         offset, fleet_offset = cfg.planner.sonar_offset_m, fleet_cfg.planner.sonar_offset_m
         if "sonar_offset_m" in said and abs(offset - fleet_offset) > SONAR_OFFSET_SLACK_M:
             raise InputError(
