@@ -278,6 +278,7 @@ def load_config(path: str | Path | None) -> Config:
     """Read a TOML configuration file (None: every default)."""
     if path is None:
         return config_from_dict({})
+    path = Path(path)
     return config_from_dict(read_config_data(path), where=f"{path}: ")
 
 

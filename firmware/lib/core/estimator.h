@@ -66,7 +66,7 @@ class Estimator {
  private:
   struct Past {
     int16_t xy_mm[2], heading_cdeg;  // raw odometry: x, y
-    uint16_t t_ms;                     // low 16 bits of the time
+    uint16_t t_ms;                   // low 16 bits of the time
   };
   /// Odometry travelled since t_ms: d = (dx, dy, dtheta). Zero if t_ms is now or later.
   void odometry_since(uint32_t t_ms, uint32_t now_ms, float* d) const;

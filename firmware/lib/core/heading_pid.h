@@ -4,7 +4,6 @@
 // what the output can use.
 #pragma once
 
-
 namespace rovernav {
 namespace core {
 

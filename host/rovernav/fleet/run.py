@@ -75,7 +75,7 @@ def fleet_rover_params(config_files: list[str] | None, rovers: int, fleet_cfg=No
     out = []
     for f in config_files:
         data = read_config_data(f)  # read once: the checked configuration, and what the file itself says
-        cfg = config_from_dict(data, where=f"{f}: ")
+        cfg = config_from_dict(data, where=f"{Path(f)}: ")  # (as load_config names it)
         own = dict(cfg.rover)
         for p, _ in FLEET_ROVER_PARAMS:
             if p in own:
