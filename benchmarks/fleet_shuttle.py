@@ -3,7 +3,8 @@ half-duplex radio, each between its start at the base and its site, round trip a
 
     python benchmarks/fleet_shuttle.py [--seeds 1,2,3] [--trips 5] [--arenas 20] [--arena-trips 3]
                                        [--radio clean|loss1|burst2|loss2|loss3|loss5] [--uno]
-                                       [--plants nominal|spread|calibrated] [--fleet-only] [--jobs 2] [--json FILE]
+                                       [--plants nominal|spread|calibrated] [--fleet-only] [--arena-routes]
+                                       [--jobs 2] [--json FILE]
 
 Two parts, each printed as a table with the command's figures:
   out-and-back   scenarios/fleet-out-and-back.toml, 3 rovers x TRIPS round trips, every seed; beside
@@ -17,7 +18,8 @@ Two parts, each printed as a table with the command's figures:
   arenas         ARENAS generated arenas (`rovernav arenas --count 200 --seed 1`, sampled evenly,
                  the solvable ones with a base for 3 rovers), each given starts and sites for 3 rovers
                  (evaluation/fleet_arenas.py), ARENA_TRIPS round trips each: trips done of asked,
-                 contacts, stuck runs.
+                 contacts, stuck runs; with --arena-routes, beside each fleet one rover alone on
+                 each of its routes, and the ratio as above.
 
 --fleet-only runs the 3-rover fleet alone on each seed (no rover alone on the routes, no lone
 `rovernav sim`): a rate over many seeds (`--seeds 1-10`), the fleet's runs whole, stuck and
@@ -118,6 +120,17 @@ def run_fleet(job: Job) -> dict:
         if plant_kind == "calibrated":
             own = tuple(calibrated_params(p) for p in plants)
     if route is not None:
+        try:  # a generated arena has one start and one site: the fleet's, placed, first
+            sc = fleet_scenario(sc, max(3, route + 1))
+        except FleetPlacementError as exc:
+            return {
+                "scenario": sc.name,
+                "rovers": rovers,
+                "route": route,
+                "seed": seed,
+                "placed": False,
+                "why": str(exc),
+            }
         starts, sites = list(sc.starts), list(sc.sites)
         start, site = starts.pop(route), sites.pop(route % len(sites))
         sc = dataclasses.replace(sc, start=start, target=site, more_starts=tuple(starts), more_sites=tuple(sites))
@@ -258,12 +271,53 @@ def fleet_rates(rows: list[dict], a) -> bool:
     return len(whole) == len(rows)
 
 
+def arena_ratios(fleets: list[dict], alone: list[dict]) -> list[dict]:
+    """The generated arenas' fleets against one rover alone on each of their routes (--arena-routes):
+    a table, a row an arena, and its rows. The ratio is the fleet's trips an hour over one rover's
+    doing the same trips (the routes' times added); the bound, that ratio with no interference at all
+    (the routes' times added over the longest: the fleet cannot finish before its slowest route)."""
+    print(
+        "\nthe fleet over one rover doing the same trips (each route alone, the same radio discipline):\n"
+        "| arena | 3 rovers | each route alone [s] | bound with no interference | **ratio** | holds |\n"
+        "|---|---|---|---|---|---|"
+    )
+    table = []
+    for f in sorted(fleets, key=lambda r: r["scenario"]):
+        solo = sorted((r for r in alone if r["scenario"] == f["scenario"] and r["placed"]), key=lambda r: r["route"])
+        whole = f["outcome"] == "reached" and len(solo) == 3 and all(r["outcome"] == "reached" for r in solo)
+        times = [r["time_s"] for r in solo]
+        bound = sum(times) / max(times) if whole else 0.0
+        ratio = sum(times) / f["time_s"] if whole else 0.0
+        table.append(
+            {"scenario": f["scenario"], "ratio": ratio, "bound": bound, "alone_s": times, "fleet_s": f["time_s"]}
+        )
+        print(
+            f"| {f['scenario']} | {f['outcome']} {f['trips_done']}/{f['trips_asked']} in {f['time_s']:.0f} s | "
+            f"{' / '.join(f'{t:.0f}' for t in times)} | {bound:.2f}x | **{ratio:.2f}x** | {f['holds']} |"
+        )
+    ratios = [t["ratio"] for t in table if t["ratio"]]
+    if ratios:
+        print(
+            f"ratio over {len(ratios)} arenas whole: median {statistics.median(ratios):.2f}x "
+            f"(range {min(ratios):.2f}-{max(ratios):.2f}x), {sum(r >= THROUGHPUT_GOAL for r in ratios)} at "
+            f"{THROUGHPUT_GOAL}x or more; bound median {statistics.median(t['bound'] for t in table if t['ratio']):.2f}x"
+        )
+    return table
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1,2,3", help="seeds: a list and ranges, 1,2,3 or 1-10 (default 1,2,3)")
     ap.add_argument("--trips", type=int, default=5, help="round trips a rover on out-and-back (default 5)")
     ap.add_argument("--arenas", type=int, default=20, help="generated arenas (default 20; 0: none)")
     ap.add_argument("--arena-trips", type=int, default=3, help="round trips a rover on an arena (default 3)")
+    ap.add_argument(
+        "--arena-routes",
+        action="store_true",
+        help="arenas: beside each fleet, one rover alone on each of its three routes: the fleet's trips an hour over "
+        "one rover's doing the same trips, and the bound with no interference (the routes' times added over the "
+        "longest)",
+    )
     ap.add_argument("--radio", choices=sorted(RADIOS), default="clean")
     ap.add_argument("--uno", action="store_true", help="rover 1 is the Uno image")
     ap.add_argument("--skip-out-and-back", action="store_true")
@@ -388,8 +442,13 @@ def main() -> int:
             print(f"  not run: {why}", file=sys.stderr)
         how = {"trial": a.seen_ground_trial, "care": a.turn_care_trial, "plants": a.plants}
         jobs = [Job(p, 3, 1, a.arena_trips, a.radio, uno=a.uno, **how) for p in paths]
-        rows = []
+        if a.arena_routes:
+            jobs += [Job(p, 1, 1, a.arena_trips, a.radio, route=k, **how) for p in paths for k in range(3)]
+        rows, alone = [], []
         for _job, row in map_runs(run_fleet, jobs, a.jobs, ordered=False):
+            if row.get("route") is not None:
+                alone.append(row)
+                continue
             rows.append(row)
             print(
                 f"  {row['scenario']}: {row.get('outcome', row.get('why'))}, "
@@ -418,6 +477,8 @@ def main() -> int:
                 )
         ok &= contacts == 0 and stuck == 0 and done >= TRIPS_GOAL * asked
         out["arenas"] = rows
+        if a.arena_routes:
+            out["arena_routes"] = arena_ratios(placed, alone)
     print(f"({time.monotonic() - started:.0f} s wall)")
     if a.json:
         a.json.write_text(json.dumps(out, indent=1))

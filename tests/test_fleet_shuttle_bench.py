@@ -107,3 +107,31 @@ def test_a_calibrated_rover_is_given_its_own_motor_parameters_over_the_configura
     assert all(mine[p] == v for p, v in FLEET_ROVER_PARAMS)  # and a fleet rover's still
     assert len(specs[0].rover_params) == len(mine)  # each said once
     assert [s.rover_params for s in specs[1:]] == [s.rover_params for s in plain[1:]]  # the others: none of their own
+
+
+def test_the_arenas_ratio_is_the_routes_alone_added_over_the_fleets_time(capsys, benchmark_module):
+    bench = benchmark_module("fleet_shuttle")
+
+    def run(name, route, time_s, outcome="reached"):
+        return {
+            "scenario": name,
+            "route": route,
+            "placed": True,
+            "outcome": outcome,
+            "time_s": time_s,
+            "trips_done": 6,
+            "trips_asked": 6 if route is None else 2,
+            "holds": 4,
+        }
+
+    fleets = [run("b", None, 400.0), run("a", None, 300.0, "stuck")]
+    alone = [run("b", 2, 300.0), run("b", 0, 200.0), run("b", 1, 100.0)]
+    alone += [run("a", k, 100.0) for k in range(3)]
+    table = bench.arena_ratios(fleets, alone)
+    b = next(t for t in table if t["scenario"] == "b")
+    assert b["ratio"] == pytest.approx(600.0 / 400.0) and b["bound"] == pytest.approx(600.0 / 300.0)
+    assert b["alone_s"] == [200.0, 100.0, 300.0]  # routes 1, 2, 3 in order
+    assert next(t for t in table if t["scenario"] == "a")["ratio"] == 0.0  # a stuck fleet has no ratio
+    out = capsys.readouterr().out
+    assert "| b | reached 6/6 in 400 s | 200 / 100 / 300 | 2.00x | **1.50x** | 4 |" in out
+    assert "ratio over 1 arenas whole: median 1.50x (range 1.50-1.50x), 0 at 2.5x or more" in out

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import pytest
 
 from rovernav.fleet.traffic import CLEAR_M, Traffic, ahead, polyline_point_m, polylines_m, sample
+from rovernav.link import messages_gen as mg
 from rovernav.mapping import LearnedMap
 from rovernav.mapping.sonar_map import SonarReading
 from rovernav.planning import OccupancyGrid, PlannerConfig
@@ -196,6 +197,14 @@ def test_a_short_fleet_run_keeps_every_rover_on_its_own_address_and_slot(tmp_pat
         assert rover["link"]["from_rover_frames"] > 20
         assert sim.host.missions[k].legs, "every rover was configured and started its first leg"
         assert sim.host.links[k].counters.dropped == 0  # no damaged frame reached any rover's link
+        # Its time by what it did: every step counted once, held as the host's own count says.
+        spent = rover["time_s"]
+        assert sum(spent.values()) == pytest.approx(report["mission_time_s"], abs=0.05 * len(spent))
+        m = sim.host.missions[k]
+        held_s = rover["held"]["seconds"] + (m.held_for_s(sim.t) if m.held else 0.0)  # a hold not yet over too
+        assert spent.get("held", 0.0) == pytest.approx(held_s, abs=0.15)
+        assert set(spent) <= {"held", "parked", "over"} | {s.name.lower() for s in mg.RoverState}
+        assert spent.get("scan", 0.0) > 0.5  # each began with a sweep (sweep_at_start)
     # The rovers speak only when polled: after the boot (all three at once) no byte collided.
     collided = sum(r.to_host.lost_by["collision"] for r in sim.rovers)
     boot_bytes = sum(r.to_host.frames.get("hello", [0])[0] for r in sim.rovers) * 64

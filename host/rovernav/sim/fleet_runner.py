@@ -147,6 +147,9 @@ class RoverSim:
     anchor: tuple[float, float] = (0.0, 0.0)  # where it stood when it last moved MOVED_M
     distance_m: float = 0.0
     crash: dict | None = None
+    #: Simulated seconds by what the rover was doing (`FleetSimulation.doing`): where a fleet's
+    #: time goes, against the same rover alone.
+    time_s: collections.Counter = dataclasses.field(default_factory=collections.Counter)
 
 
 class FleetSimulation:
@@ -350,6 +353,7 @@ class FleetSimulation:
             phases = [(self._phase_s(r, now), r) for r in self.rovers]
             for phase, r in sorted(phases, key=lambda p: p[0]):
                 self._rover(r, now, now + phase)
+                r.time_s[self.doing(r)] += STEP_S
             self._contacts(now)
             if int(round(now * 1000)) % 100 == 0:
                 for r in self.rovers:
@@ -441,6 +445,20 @@ class FleetSimulation:
                 against = self.world.touching(r.plant.x, r.plant.y, r.plant.heading)
                 self._crash(r, now, against)
 
+    def doing(self, r: RoverSim) -> str:
+        """What rover r does this step, for its time by state (`report`'s `time_s`): the host's
+        word first (`held`: stopped by the traffic rules for another rover; `parked`: its trips
+        done, waiting for the fleet; `over`: its mission ended), else its firmware's state (the
+        core's own, every step: `scan`, `drive`, `rotate`, `blocked`, `back_off`, ...)."""
+        m = self.host.missions[r.index]
+        if m.done:
+            return "over"
+        if m.parked:
+            return "parked"
+        if m.held:
+            return "held"
+        return mg.RoverState(r.core.probe().state).name.lower()
+
     def _contacts(self, now: float) -> None:
         rs = self.rovers
         for i in range(len(rs)):
@@ -501,6 +519,7 @@ class FleetSimulation:
                     "distance_m": round(r.distance_m, 2),
                     "crash": r.crash,
                     "held": {"times": m.holds, "seconds": round(m.held_s, 1)},
+                    "time_s": {what: round(s, 1) for what, s in r.time_s.most_common()},
                     "echoes_of_rovers": m.echoes_of_rovers,
                     "paths_over_seen_ground": m.paths_unswept,
                     "blocked_resends": m.blocked_resends,
