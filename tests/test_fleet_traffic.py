@@ -124,6 +124,29 @@ def test_a_rover_parked_at_home_in_anothers_way_is_sent_aside_off_it_and_back_on
     assert not t._wanted_home(1)  # rover 1 is home: rover 2 may go back
 
 
+def test_a_rover_waiting_aside_in_the_way_of_a_rover_with_no_way_round_is_sent_aside_again():
+    # Rover 3, its trips done, was sent aside from its berth for rover 1, to a spot 0.18 m from
+    # rover 2's berth, and waits there (for rover 2's way to clear its own berth). Rover 2, held on
+    # its way home, has no way round it: rover 3 is sent on to a spot off rover 2's way, as a rover
+    # parked at its berth would be (before, only one at its berth was, and the two waited for good).
+    grid = OccupancyGrid(2.36, 1.75, PlannerConfig())
+    shared = LearnedMap(grid)
+    sent = []
+    m1 = _ParkedMission(xy=(0.3, 0.3), rest=[], moving_leg=False, map=shared, parked=True, parked_waiting=True)
+    m2 = _ParkedMission(xy=(0.47, 1.15), rest=[(0.7, 0.3)], moving_leg=False, map=shared, parked_waiting=False)
+    m3 = _ParkedMission(xy=(0.7, 0.48), rest=[], moving_leg=False, map=shared, parked=True, parked_waiting=True)
+    m3.let_go = lambda now_s, path=None, aside=False: sent.append((path, aside))
+    t = Traffic([m1, m2, m3])
+    assert t.blockers(1) == [2]
+    assert t._make_way(1, [2], 10.0)
+    ((way, aside),) = sent
+    assert aside and way[0] == m3.xy
+    assert polyline_point_m(m2.rest_of_leg(), way[-1]) >= CLEAR_M  # off rover 2's way home
+    assert t.make_ways == 1
+    m3.parked_waiting = False  # on its way there: not sent anywhere else
+    assert not t._make_way(1, [2], 11.0) and len(sent) == 1
+
+
 def test_a_rover_parked_in_a_corridor_that_is_anothers_only_way_is_sent_beyond_the_near_rings():
     # A corridor along the bottom wall (a box over the rest of the arena): rover 1 drives east
     # along it to (1.45, 0.3), past rover 2, parked at (0.75, 0.3). Every spot within 0.9 m of

@@ -664,6 +664,23 @@ def test_a_rover_that_gave_way_has_at_least_a_whole_legs_time_from_its_spot_asid
     assert leg.deadline_s >= t + 70.0 + mission.deadlines.leg_s(path_length_m(mission.path)) - 1e-6
 
 
+def test_a_rover_waiting_at_a_spot_aside_can_be_sent_on_to_another():
+    # From its spot aside a rover is let go onto its leg afresh; sent aside again (the traffic
+    # rules' make-way for a rover with no way round it), it drives the way it is given, and is
+    # held again where that ends.
+    mission, rover, _ = _setup_with(ScriptedRover)
+    t = _run_until_done(mission, rover, 1.0)
+    mission.hold(t, "rover 2 is in the way")
+    mission.let_go(t + 1.0, [(0.3, 0.3), (0.3, 0.7)], aside=True)
+    mission._now = t + 20.0
+    assert mission.aside_arrived() and mission.held
+    mission.let_go(t + 30.0, [(0.3, 0.7), (0.7, 0.7)], aside=True)
+    assert not mission.held and mission.path[-1] == (0.7, 0.7)  # the way it was given, not its leg
+    assert mission.steering_goal() == (0.7, 0.7)
+    mission._now = t + 50.0
+    assert mission.aside_arrived() and mission.held
+
+
 def test_a_sweep_heard_in_part_counts_as_heard_whole_over_the_sweeps_from_the_same_spot():
     # Three echoes a sweep, each sweep from the same spot losing one of them on the radio: no
     # sweep alone is heard whole, but a fleet's host (heard_over_spot) gives its word from the

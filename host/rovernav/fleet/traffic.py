@@ -19,10 +19,10 @@ in the order the rovers' ids give them (rover 1 first):
   passed: `GAVE_WAY_WAIT_S` at most). A rover that refused a turn (held at once with the trial:
   `FleetControl.hold_on_refused`) is left standing `REFUSED_SETTLE_S` before it goes on or gives
   way.
-- **A rover parked at home** (its trips done, waiting for the fleet) that stands in the way of a
-  rover with no way round it is sent aside, off that rover's way (with the trial, off the
-  berths and sites of the rovers with trips to do, where it can be), and back home once no
-  rover's way passes its berth.
+- **A rover parked** (its trips done, waiting for the fleet, at home or at a spot aside) that
+  stands in the way of a rover with no way round it is sent aside, off that rover's way (with
+  the trial, off the berths and sites of the rovers with trips to do, where it can be), and
+  back home once no rover's way passes its berth.
 
 The rover's own reflex still stops it for a rover its sonar sees; what it reports of another
 rover is kept out of the shared map (`echo_is_rover`).
@@ -356,11 +356,14 @@ class Traffic:
             chain.append(who[0])
 
     def _make_way(self, k: int, who: list[int], now_s: float) -> bool:
-        """No way round for rover k: a rover in its way that is parked at home (its trips done)
-        is sent aside, off k's way, to wait there until k has gone by (True: one was)."""
+        """No way round for rover k: a rover in its way that is parked (its trips done), at home or
+        waiting at a spot aside it was sent to before, is sent aside, off k's way, to wait there
+        until k has gone by (True: one was). (Rover 3, sent aside from its berth for rover 1 to a
+        spot 0.16 m from rover 2's berth, waited there for rover 2's way home to clear its own
+        berth, and held rover 2, with no way round it to its berth, for good.)"""
         for j in who:
             other = self.missions[j]
-            if not other.parked_at_rest:
+            if not other.parked_waiting:
                 continue
             spot = self._aside_spot(j, k)
             if spot is not None:

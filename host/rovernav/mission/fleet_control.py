@@ -284,8 +284,9 @@ class FleetControl:
             return
         leg = self.current_leg
         from_aside = self._aside_done
-        if from_aside:  # from where it stood aside: the leg afresh
-            self._aside_done, path = False, None
+        if from_aside:  # from where it stood aside: the leg afresh (or on to another spot aside)
+            self._aside_done = False
+            path = path if aside else None
         leg.deadline_s += waited  # the wait is no lateness of the leg's
         self.on_event(now_s, f"let go after {waited:.1f} s")
         if path is None and self._aside_goal is not None:  # held on its way aside: on there, if it can
@@ -361,6 +362,11 @@ class FleetControl:
     def parked_at_rest(self) -> bool:
         """Parked, and standing at its berth (not aside, not on its way)."""
         return self.parked and self.held and not self._aside_done and self._aside_goal is None
+
+    @property
+    def parked_waiting(self) -> bool:
+        """Parked and standing, at its berth or at a spot aside it was sent to (not on its way)."""
+        return self.parked and self.held and self._aside_goal is None
 
     def park(self) -> bool:
         """The last leg's end: a fleet's rover waits there for the fleet, its leg open (True), or
