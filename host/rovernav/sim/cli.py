@@ -496,7 +496,7 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
     from ..evaluation.report import VideoWriter
     from ..files import remove_stale, write_json_atomic
     from ..scenario import ScenarioError
-    from .fleet_runner import FleetOptions, FleetSimulation
+    from .fleet_runner import FleetOptions, FleetSimulation, fleet_summary
 
     for attr, lone, flag in _LONE_ONLY:
         if getattr(args, attr, lone) not in (lone, None) and getattr(args, attr, lone) != lone:
@@ -577,30 +577,3 @@ def cmd_sim_fleet(args: argparse.Namespace, scenario, config, channel) -> int:
         + ("" if opts.log is None else f", {opts.log} (a channel set per rover: /rover1/..., /rover2/...)")
     )
     return 0 if report["outcome"] == "reached" and report["contacts"] == 0 else 1
-
-
-def fleet_summary(r: dict) -> str:
-    lines = [
-        f"{r['outcome'].upper()}: {r['rovers']} rovers, {r['trips_done']} round trips in {r['mission_time_s']:.1f} s "
-        f"({r['trips_per_hour']} an hour), {r['contacts']} contacts, closest two rovers came "
-        f"{r['min_rover_separation_m']} m apart (centres); air {r['radio']['air_bytes_per_s']:.0f} B/s of 5,760"
-    ]
-    for x in r["per_rover"]:
-        link = x["link"]
-        lines.append(
-            f"  rover {x['rover']}: {x['outcome']}, {x['trips_done']}/{x['trips_asked']} trips, "
-            f"{x['distance_m']:.1f} m, held {x['held']['times']}x ({x['held']['seconds']:.0f} s); "
-            f"to it {link['to_rover_bytes_per_s']:.0f} B/s, from it {link['from_rover_bytes_per_s']:.0f} B/s, "
-            f"{link['slots_per_s']:.1f} slots/s"
-            + _time_shares(x.get("time_s"), r["mission_time_s"])
-            + (f"; {x['error']}" if x["error"] else "")
-        )
-    return "\n".join(lines)
-
-
-def _time_shares(time_s: dict | None, total_s: float, most: int = 3) -> str:
-    """A rover's largest shares of the run's time by what it did (report.json's `time_s`)."""
-    if not time_s or total_s <= 0:
-        return ""
-    top = sorted(time_s.items(), key=lambda kv: -kv[1])[:most]
-    return "; time: " + ", ".join(f"{what.replace('_', ' ')} {100 * s / total_s:.0f} %" for what, s in top)

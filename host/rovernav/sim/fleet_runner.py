@@ -551,3 +551,30 @@ class FleetSimulation:
             "per_rover": rovers,
             "uno_timing": self.uno_timing,
         }
+
+
+def fleet_summary(r: dict) -> str:
+    lines = [
+        f"{r['outcome'].upper()}: {r['rovers']} rovers, {r['trips_done']} round trips in {r['mission_time_s']:.1f} s "
+        f"({r['trips_per_hour']} an hour), {r['contacts']} contacts, closest two rovers came "
+        f"{r['min_rover_separation_m']} m apart (centres); air {r['radio']['air_bytes_per_s']:.0f} B/s of 5,760"
+    ]
+    for x in r["per_rover"]:
+        link = x["link"]
+        lines.append(
+            f"  rover {x['rover']}: {x['outcome']}, {x['trips_done']}/{x['trips_asked']} trips, "
+            f"{x['distance_m']:.1f} m, held {x['held']['times']}x ({x['held']['seconds']:.0f} s); "
+            f"to it {link['to_rover_bytes_per_s']:.0f} B/s, from it {link['from_rover_bytes_per_s']:.0f} B/s, "
+            f"{link['slots_per_s']:.1f} slots/s"
+            + _time_shares(x.get("time_s"), r["mission_time_s"])
+            + (f"; {x['error']}" if x["error"] else "")
+        )
+    return "\n".join(lines)
+
+
+def _time_shares(time_s: dict | None, total_s: float, most: int = 3) -> str:
+    """A rover's largest shares of the run's time by what it did (report.json's `time_s`)."""
+    if not time_s or total_s <= 0:
+        return ""
+    top = sorted(time_s.items(), key=lambda kv: -kv[1])[:most]
+    return "; time: " + ", ".join(f"{what.replace('_', ' ')} {100 * s / total_s:.0f} %" for what, s in top)
